@@ -1,0 +1,32 @@
+"""Roads: highway-env road networks with painted-marking geometry and ground truth."""
+
+from __future__ import annotations
+
+from aldm_gym.roads.geometry import ReferenceLine, Segment
+from aldm_gym.roads.highway import (
+    EDGE,
+    MARKING_MODELS,
+    MIN_RADIUS_BY_SPEED,
+    HighwayRoad,
+    RoadConfig,
+    curvature_profile,
+    generate_highway,
+)
+from aldm_gym.roads.lane import ReferenceLane
+from aldm_gym.roads.markings import Marking, MarkingRole, MarkingType
+
+__all__ = [
+    "EDGE",
+    "MARKING_MODELS",
+    "MIN_RADIUS_BY_SPEED",
+    "HighwayRoad",
+    "Marking",
+    "MarkingRole",
+    "MarkingType",
+    "ReferenceLane",
+    "ReferenceLine",
+    "RoadConfig",
+    "Segment",
+    "curvature_profile",
+    "generate_highway",
+]

@@ -1,0 +1,252 @@
+"""Reference-line geometry: straights, arcs and clothoid transitions, tabulated.
+
+A road's reference line is described by its curvature profile: a sequence of
+:class:`Segment` with curvature varying linearly along each (0 → straight,
+constant → arc, linear → clothoid transition). The line is tabulated every
+``step`` metres of arc length; every lateral offset of it (lane centres,
+markings) is derived from the table.
+
+Frames and signs. World coordinates are highway-env's ``(x, y)`` plane with its
+heading convention (direction ``(cos h, sin h)``). highway-env numbers lanes
+towards ``+y`` and its ``LANE_LEFT`` action decreases the lane id, so the
+driver's *left* is the direction ``(sin h, -cos h)``; this module calls a
+lateral offset ``d`` positive to the driver's left, and a curvature ``kappa``
+positive for a left-hand curve, as in ISO 8855. With that, the world heading
+changes as ``dh/ds = -kappa``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+
+from aldm_gym.types import FloatArray
+
+
+@dataclass(frozen=True)
+class Segment:
+    """One piece of a curvature profile.
+
+    :ivar length: arc length of the piece [m] (> 0).
+    :ivar kappa_start: curvature at its start [1/m], positive = left curve.
+    :ivar kappa_end: curvature at its end [1/m]; equal to ``kappa_start`` for a
+        straight or an arc, different for a clothoid transition.
+    """
+
+    length: float
+    kappa_start: float = 0.0
+    kappa_end: float | None = None
+
+    @property
+    def kappa_stop(self) -> float:
+        """Curvature at the end [1/m]."""
+        return self.kappa_start if self.kappa_end is None else self.kappa_end
+
+
+def left_normal(heading: FloatArray | float) -> FloatArray:
+    """Unit vector(s) to the driver's left for world heading(s) [rad], shape ``(..., 2)``."""
+    h = np.asarray(heading, dtype=np.float64)
+    return np.stack([np.sin(h), -np.cos(h)], axis=-1)
+
+
+class ReferenceLine:
+    """A tabulated planar curve with arc-length parametrisation and fast projection.
+
+    :param segments: the curvature profile, in driving order.
+    :param start: world position of the start [m].
+    :param heading: world heading at the start [rad].
+    :param step: tabulation step in arc length [m].
+    :param max_offset: largest lateral distance at which :meth:`project` is
+        expected to be called quickly [m]; farther points fall back to a full search.
+    """
+
+    _CELL = 20.0  # spatial-hash cell size [m]
+
+    def __init__(
+        self,
+        segments: list[Segment] | tuple[Segment, ...],
+        start: tuple[float, float] = (0.0, 0.0),
+        heading: float = 0.0,
+        step: float = 0.5,
+        max_offset: float = 40.0,
+    ) -> None:
+        if not segments:
+            raise ValueError("a reference line needs at least one segment")
+        for seg in segments:
+            if not (np.isfinite(seg.length) and seg.length > 0):
+                raise ValueError(f"segment length must be > 0, got {seg.length}")
+        self.segments = tuple(segments)
+        self.step = float(step)
+        bounds = np.concatenate([[0.0], np.cumsum([seg.length for seg in segments])])
+        self.length = float(bounds[-1])
+        n = int(np.ceil(self.length / step)) + 1
+        s = np.linspace(0.0, self.length, n)
+        self.step = float(s[1] - s[0])  # actual spacing (<= the requested step)
+        # Curvature is piecewise linear in s; sample it per segment.
+        idx = np.clip(np.searchsorted(bounds, s, side="right") - 1, 0, len(segments) - 1)
+        k0 = np.array([seg.kappa_start for seg in segments])[idx]
+        k1 = np.array([seg.kappa_stop for seg in segments])[idx]
+        frac = (s - bounds[idx]) / np.array([seg.length for seg in segments])[idx]
+        kappa = k0 + (k1 - k0) * frac
+        ds = np.diff(s)
+        # Heading: exact for linear curvature (trapezoid of kappa), dh/ds = -kappa.
+        dh = -0.5 * (kappa[1:] + kappa[:-1]) * ds
+        h = heading + np.concatenate([[0.0], np.cumsum(dh)])
+        # Position: chord of each small arc, exact for constant curvature.
+        chord = ds * np.sinc(dh / (2.0 * np.pi))
+        hm = 0.5 * (h[1:] + h[:-1])
+        xy = np.zeros((n, 2))
+        xy[0] = start
+        xy[1:, 0] = start[0] + np.cumsum(chord * np.cos(hm))
+        xy[1:, 1] = start[1] + np.cumsum(chord * np.sin(hm))
+        self.s: FloatArray = s
+        self.xy: FloatArray = xy
+        self.heading: FloatArray = h
+        self.kappa: FloatArray = kappa
+        self.normal: FloatArray = left_normal(h)
+        self.max_offset = float(max_offset)
+        self._build_hash()
+
+    # ------------------------------------------------------------------ tables
+    _STRIDE = 10  # coarse samples: every 10th tabulated point
+
+    def _build_hash(self) -> None:
+        """Map each spatial cell to the coarse samples that may be nearest to a point in it.
+
+        A point within ``max_offset`` of the line has its nearest coarse sample
+        within ``max_offset + coarse spacing`` of itself, hence within
+        ``max_offset + coarse spacing + cell diagonal`` of its cell's corner.
+        """
+        c = self._CELL
+        coarse = np.arange(0, len(self.s), self._STRIDE)
+        r = self.max_offset + self._STRIDE * self.step + 1.5 * c
+        span = int(np.ceil(r / c))
+        base = np.floor(self.xy[coarse] / c).astype(np.int64)
+        d = np.arange(-span, span + 1)
+        dx, dy = np.meshgrid(d, d, indexing="ij")
+        cx = (base[:, 0, None] + dx.ravel()[None]).ravel()
+        cy = (base[:, 1, None] + dy.ravel()[None]).ravel()
+        idx = np.repeat(coarse, dx.size)
+        keys = cx * 1_000_003 + cy
+        order = np.argsort(keys, kind="stable")
+        keys, idx = keys[order], idx[order]
+        uniq, first = np.unique(keys, return_index=True)
+        groups = np.split(idx, first[1:])
+        self._hash = dict(zip(uniq.tolist(), groups, strict=True))
+        self._coarse = coarse
+
+    def _interp(self, s: FloatArray | float) -> tuple[FloatArray, FloatArray]:
+        """Position ``(..., 2)`` and heading at arc length(s) ``s``, extrapolated straight."""
+        s = np.asarray(s, dtype=np.float64)
+        i = np.clip((s / self.step).astype(np.int64), 0, len(self.s) - 2)
+        t = (s - self.s[i]) / (self.s[i + 1] - self.s[i])
+        tt = np.clip(t, 0.0, 1.0)
+        h = self.heading[i] + (self.heading[i + 1] - self.heading[i]) * tt
+        p = self.xy[i] + (self.xy[i + 1] - self.xy[i]) * tt[..., None]
+        # Beyond either end, continue straight along the end heading.
+        extra = (s - np.clip(s, 0.0, self.length))[..., None]
+        p = p + extra * np.stack([np.cos(h), np.sin(h)], axis=-1)
+        return p, h
+
+    def position(self, s: FloatArray | float, d: FloatArray | float = 0.0) -> FloatArray:
+        """World position at arc length ``s`` [m] and left offset ``d`` [m], shape ``(..., 2)``."""
+        p, h = self._interp(s)
+        return p + np.asarray(d, dtype=np.float64)[..., None] * left_normal(h)
+
+    def heading_at(self, s: FloatArray | float) -> FloatArray:
+        """World heading at arc length ``s`` [rad]."""
+        return self._interp(s)[1]
+
+    def curvature_at(self, s: FloatArray | float) -> FloatArray:
+        """Curvature at arc length ``s`` [1/m], positive = left curve."""
+        return np.interp(s, self.s, self.kappa)
+
+    # -------------------------------------------------------------- projection
+    def project(self, point: FloatArray) -> tuple[float, float]:
+        """Arc length ``s`` [m] and left offset ``d`` [m] of a world ``point`` (2,).
+
+        Inverse of :meth:`position`. Points before the start or past the end get
+        ``s < 0`` or ``s > length``.
+        """
+        px, py = float(point[0]), float(point[1])
+        c = self._CELL
+        key = math.floor(px / c) * 1_000_003 + math.floor(py / c)
+        cand = self._hash.get(key)
+        if cand is None:  # far from the road: search every coarse sample
+            cand = self._coarse
+        return _project(self.xy, self.heading, self.step, cand, 2 * self._STRIDE, px, py)  # type: ignore[no-any-return]
+
+    def project_many(self, points: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Vectorised :meth:`project` for ``(N, 2)`` points: ``(s (N,), d (N,))``."""
+        pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+        out = np.array([self.project(p) for p in pts]).reshape(-1, 2)
+        return out[:, 0], out[:, 1]
+
+
+def _project_py(
+    xy: FloatArray,
+    heading: FloatArray,
+    step: float,
+    cand: np.ndarray,
+    window: int,
+    px: float,
+    py: float,
+) -> tuple[float, float]:
+    """Project ``(px, py)`` on a tabulated line: ``(s, d)`` (plain-Python reference).
+
+    1. nearest of the candidate coarse samples, 2. nearest tabulated sample within
+    ``window`` of it, 3. Newton iterations on ``(p - P(s)) . T(s) = 0`` where ``P``
+    interpolates positions and ``T`` the heading linearly (the same interpolation as
+    :meth:`ReferenceLine.position`, so that projection inverts it).
+    """
+    n = xy.shape[0]
+    best = 0
+    best_d2 = math.inf
+    for k in range(cand.shape[0]):
+        i = cand[k]
+        dx = xy[i, 0] - px
+        dy = xy[i, 1] - py
+        d2 = dx * dx + dy * dy
+        if d2 < best_d2:
+            best_d2 = d2
+            best = i
+    lo = max(best - window, 0)
+    hi = min(best + window + 1, n)
+    for i in range(lo, hi):
+        dx = xy[i, 0] - px
+        dy = xy[i, 1] - py
+        d2 = dx * dx + dy * dy
+        if d2 < best_d2:
+            best_d2 = d2
+            best = i
+    s = best * step
+    length = (n - 1) * step
+    d = 0.0
+    for _ in range(8):
+        j = int(s / step) if s > 0.0 else 0
+        if j > n - 2:
+            j = n - 2
+        t = (s - j * step) / step
+        tc = min(max(t, 0.0), 1.0)
+        h = heading[j] + tc * (heading[j + 1] - heading[j])
+        ch, sh = math.cos(h), math.sin(h)
+        # Beyond either end the line continues straight (see ReferenceLine._interp).
+        extra = s - min(max(s, 0.0), length)
+        pxs = xy[j, 0] + tc * (xy[j + 1, 0] - xy[j, 0]) + extra * ch
+        pys = xy[j, 1] + tc * (xy[j + 1, 1] - xy[j, 1]) + extra * sh
+        rx, ry = px - pxs, py - pys
+        f = rx * ch + ry * sh
+        d = rx * sh - ry * ch
+        dh = (heading[j + 1] - heading[j]) / step if 0.0 <= s <= length else 0.0
+        # f'(s) = -P'.T + (p - P).T' with T' = dh (-sin h, cos h): -1 - d dh
+        delta = f / (1.0 + d * dh)
+        s += delta
+        if abs(delta) < 1e-10:
+            break
+    return s, d
+
+
+_project = numba.njit(cache=True)(_project_py)

@@ -1,0 +1,470 @@
+"""Seeded multi-lane highways on highway-env's ``RoadNetwork`` with painted markings.
+
+A :class:`HighwayRoad` couples three things built from one curvature profile:
+
+* a highway-env :class:`~highway_env.road.road.RoadNetwork` (one edge ``("a", "b")``
+  holding ``lanes_count`` :class:`~aldm_gym.roads.lane.ReferenceLane` objects, lane 0
+  leftmost, as in highway-env), used by vehicles, traffic and rendering;
+* the painted markings (:class:`~aldm_gym.roads.markings.Marking`), left edge line,
+  dashed lane lines, right edge line, optional guard rails, left to right;
+* ground truth: which markings bound a lane, where a marking is at a given arc
+  length, and where every marking lies in a sensor's frame.
+
+Marking indices: marking ``j`` lies left of lane ``j`` and right of lane ``j - 1``,
+so lane ``i`` is bounded by markings ``i`` (left) and ``i + 1`` (right). Guard
+rails, when enabled, come after the painted markings in the list.
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from functools import cached_property
+from typing import Any
+
+import numba
+import numpy as np
+from highway_env.road.lane import LineType
+from highway_env.road.road import RoadNetwork
+
+from aldm_gym.config import build_config, check_choice, check_range
+from aldm_gym.roads.geometry import ReferenceLine, Segment
+from aldm_gym.roads.lane import ReferenceLane
+from aldm_gym.roads.markings import Marking, MarkingRole, MarkingType
+from aldm_gym.types import FloatArray
+
+MIN_RADIUS_BY_SPEED = {130: 800.0, 120: 600.0, 110: 500.0, 100: 400.0}
+"""RVS 03.03.23 minimum curve radius [m] by design speed [km/h] (paper, Table I)."""
+
+MARKING_MODELS = ("per_dash", "editor")
+"""How painted markings are split into line objects (see :class:`RoadConfig`)."""
+
+MAX_HEADING = np.deg2rad(75.0)
+"""Largest heading of a generated road relative to its start [rad]: it never turns back."""
+
+EDGE = ("a", "b")
+"""The highway-env edge (from, to) that holds every lane."""
+
+
+@dataclass(frozen=True)
+class RoadConfig:
+    """Settings of the highway generator (all lengths in [m]).
+
+    :ivar lanes_count: number of lanes, 1–6.
+    :ivar lane_width: lane width [m].
+    :ivar length: road length along the reference line [m].
+    :ivar curved: whether to draw curves; ``False`` gives a straight road.
+    :ivar min_radius: smallest curve radius [m]; 500 m is the paper's LKA assumption
+        (RVS 03.03.23: 400–800 m by design speed), down to 100 m allowed.
+    :ivar max_radius: largest curve radius [m].
+    :ivar straight_length: (min, max) length of straights between curves [m].
+    :ivar arc_length: (min, max) length of constant-radius arcs [m].
+    :ivar transition_length: (min, max) length of clothoid transitions [m].
+    :ivar segments: explicit curvature profile ``((length, kappa_start, kappa_end), ...)``
+        [m, 1/m, 1/m] (kappa > 0 left curve); overrides the random generator.
+    :ivar dash_length: dash length of lane lines [m] (6 m in AT/DE, 3 m in the US).
+    :ivar gap_length: gap between dashes [m] (12 m in AT/DE, 9 m in the US).
+    :ivar dash_phase: arc length along each lane line where its first dash starts [m].
+    :ivar lane_line_type: CarMaker type of lane lines (2 dashed, 3 dotted, 1 continuous).
+    :ivar lane_line_width: painted width of lane lines [m].
+    :ivar edge_line_width: painted width of the edge lines [m].
+    :ivar guard_rail: add a guard rail outside each edge line.
+    :ivar guard_rail_offset: lateral distance of a guard rail outside its edge line [m].
+    :ivar guard_rail_height: guard-rail height [m] (> 0).
+    :ivar speed_limit: speed limit of every lane [m/s].
+    :ivar seed: seed of the curvature profile.
+    :ivar marking_model: how markings become line objects for the sensor:
+        ``"per_dash"`` (every dash is its own object, as on roads converted from
+        OpenDRIVE or measurements) or ``"editor"`` (a dashed line is one object, as
+        drawn in CarMaker's road editor). The painted geometry is the same.
+    """
+
+    lanes_count: int = 4
+    lane_width: float = 3.75
+    length: float = 6000.0
+    curved: bool = True
+    min_radius: float = 500.0
+    max_radius: float = 3000.0
+    straight_length: tuple[float, float] = (150.0, 600.0)
+    arc_length: tuple[float, float] = (150.0, 600.0)
+    transition_length: tuple[float, float] = (60.0, 150.0)
+    segments: tuple[tuple[float, float, float], ...] | None = None
+    dash_length: float = 6.0
+    gap_length: float = 12.0
+    dash_phase: float = 0.0
+    lane_line_type: int = 2
+    lane_line_width: float = 0.15
+    edge_line_width: float = 0.30
+    guard_rail: bool = False
+    guard_rail_offset: float = 1.0
+    guard_rail_height: float = 0.75
+    speed_limit: float = 36.0
+    seed: int = 0
+    marking_model: str = "per_dash"
+
+    def __post_init__(self) -> None:
+        w = "road"
+        check_range(w, "lanes_count", self.lanes_count, 1, 6, integer=True)
+        check_range(w, "lane_width", self.lane_width, 2.5, 5.0)
+        check_range(w, "length", self.length, 200.0, 100_000.0)
+        check_range(w, "min_radius", self.min_radius, 100.0)
+        check_range(w, "max_radius", self.max_radius, self.min_radius)
+        for name in ("straight_length", "arc_length", "transition_length"):
+            lo, hi = _pair(w, name, getattr(self, name))
+            check_range(w, name + "[0]", lo, 1.0)
+            check_range(w, name + "[1]", hi, lo)
+        check_range(w, "dash_length", self.dash_length, 0.0, lo_open=True)
+        check_range(w, "gap_length", self.gap_length, 0.0, lo_open=True)
+        check_range(w, "dash_phase", self.dash_phase)
+        if self.lane_line_type not in (1, 2, 3):
+            raise ValueError(f"road.lane_line_type must be 1, 2 or 3, got {self.lane_line_type!r}")
+        check_range(w, "lane_line_width", self.lane_line_width, 0.0, 1.0, lo_open=True)
+        check_range(w, "edge_line_width", self.edge_line_width, 0.0, 1.0, lo_open=True)
+        check_range(w, "guard_rail_offset", self.guard_rail_offset, 0.0, 10.0)
+        check_range(w, "guard_rail_height", self.guard_rail_height, 0.0, 3.0, lo_open=True)
+        check_range(w, "speed_limit", self.speed_limit, 0.0, 100.0, lo_open=True)
+        check_range(w, "seed", self.seed, 0, integer=True)
+        check_choice(w, "marking_model", self.marking_model, MARKING_MODELS)
+        if self.segments is not None:
+            if len(self.segments) == 0:
+                raise ValueError("road.segments must not be empty")
+            for k, seg in enumerate(self.segments):
+                if len(seg) != 3:
+                    raise ValueError(f"road.segments[{k}] must be (length, kappa_start, kappa_end)")
+                check_range(w, f"segments[{k}].length", seg[0], 0.0, lo_open=True)
+                for kk in seg[1:]:
+                    check_range(w, f"segments[{k}].kappa", kk, -1.0 / 100.0, 1.0 / 100.0)
+
+
+def _pair(where: str, name: str, value: Any) -> tuple[float, float]:
+    if not isinstance(value, tuple | list) or len(value) != 2:
+        raise ValueError(f"{where}.{name} must be a (min, max) pair, got {value!r}")
+    return float(value[0]), float(value[1])
+
+
+def curvature_profile(config: RoadConfig) -> list[Segment]:
+    """The road's curvature profile: explicit ``segments`` or a seeded random sequence.
+
+    The random sequence alternates straights and curves; each curve is a clothoid
+    transition into a constant-radius arc (left or right, radius log-uniform in
+    ``[min_radius, max_radius]``) and a transition back to straight.
+    """
+    if config.segments is not None:
+        return [Segment(float(a), float(b), float(c)) for a, b, c in config.segments]
+    if not config.curved:
+        return [Segment(config.length)]
+    rng = np.random.default_rng(config.seed)
+    segs: list[Segment] = []
+    total = 0.0
+    heading = 0.0  # accumulated heading change [rad]
+
+    def add(seg: Segment) -> None:
+        nonlocal total, heading
+        segs.append(seg)
+        total += seg.length
+        heading += 0.5 * (seg.kappa_start + seg.kappa_stop) * seg.length
+
+    add(Segment(float(rng.uniform(*config.straight_length))))
+    while total < config.length:
+        radius = float(np.exp(rng.uniform(np.log(config.min_radius), np.log(config.max_radius))))
+        sign = float(rng.choice([-1.0, 1.0]))
+        l_in = float(rng.uniform(*config.transition_length))
+        l_arc = float(rng.uniform(*config.arc_length))
+        l_out = float(rng.uniform(*config.transition_length))
+        # Keep the road advancing: the accumulated heading stays within
+        # +-MAX_HEADING, so the road never turns back onto itself.
+        if abs(heading + sign * (l_arc + 0.5 * (l_in + l_out)) / radius) > MAX_HEADING:
+            sign = -sign
+        turn = (l_arc + 0.5 * (l_in + l_out)) / radius
+        room = MAX_HEADING - sign * heading
+        if turn > room:
+            l_arc = max(room * radius - 0.5 * (l_in + l_out), 1.0)
+            if (l_arc + 0.5 * (l_in + l_out)) / radius > room:
+                add(Segment(float(rng.uniform(*config.straight_length))))
+                continue
+        kappa = sign / radius
+        add(Segment(l_in, 0.0, kappa))
+        add(Segment(l_arc, kappa, kappa))
+        add(Segment(l_out, kappa, 0.0))
+        add(Segment(float(rng.uniform(*config.straight_length))))
+    # Trim the last straight so the road has the requested length.
+    excess = total - config.length
+    last = segs[-1]
+    if excess > 0 and last.kappa_start == 0 and last.kappa_stop == 0 and last.length > excess + 1:
+        segs[-1] = Segment(last.length - excess)
+    return segs
+
+
+class HighwayRoad:
+    """A generated highway: highway-env network, painted markings and ground truth.
+
+    :param config: a :class:`RoadConfig`, a mapping of its fields, or ``None`` for defaults.
+    """
+
+    def __init__(self, config: RoadConfig | Mapping[str, Any] | None = None) -> None:
+        self.config: RoadConfig = build_config(RoadConfig, config, where="road")
+        cfg = self.config
+        n, w = cfg.lanes_count, cfg.lane_width
+        half = 0.5 * n * w
+        outer = half + (cfg.guard_rail_offset if cfg.guard_rail else 0.0) + 5.0
+        self.reference = ReferenceLine(curvature_profile(cfg), max_offset=outer + 30.0)
+        self.length = self.reference.length
+        self.lanes_count = n
+        self.lane_width = w
+        self.markings: tuple[Marking, ...] = self._make_markings()
+        self._offsets = np.array([m.offset for m in self.markings])
+        # Arc length along every marking at each reference sample: du = (1 - kappa d) ds.
+        ref = self.reference
+        stretch = 1.0 - ref.kappa[None, :] * self._offsets[:, None]
+        du = 0.5 * (stretch[:, 1:] + stretch[:, :-1]) * np.diff(ref.s)[None, :]
+        self._u = np.concatenate([np.zeros((len(self.markings), 1)), np.cumsum(du, axis=1)], axis=1)
+        self.network = RoadNetwork()
+        for i in range(n):
+            left = LineType.CONTINUOUS_LINE if i == 0 else LineType.STRIPED
+            right = LineType.CONTINUOUS_LINE if i == n - 1 else LineType.NONE
+            lane = ReferenceLane(ref, self.lane_offset(i), w, (left, right), cfg.speed_limit)
+            self.network.add_lane(*EDGE, lane)
+
+    # ------------------------------------------------------------ construction
+    def _make_markings(self) -> tuple[Marking, ...]:
+        cfg = self.config
+        n, w = cfg.lanes_count, cfg.lane_width
+        out: list[Marking] = []
+        for j in range(n + 1):
+            offset = (0.5 * n - j) * w
+            if j in (0, n):
+                role = MarkingRole.EDGE_LEFT if j == 0 else MarkingRole.EDGE_RIGHT
+                out.append(Marking(j, offset, MarkingType.CONTINUOUS, role, 0, cfg.edge_line_width))
+            else:
+                out.append(
+                    Marking(
+                        j,
+                        offset,
+                        MarkingType(cfg.lane_line_type),
+                        MarkingRole.LANE_LINE,
+                        0,
+                        cfg.lane_line_width,
+                        0.0,
+                        cfg.dash_length,
+                        cfg.gap_length,
+                        cfg.dash_phase,
+                    )
+                )
+        if cfg.guard_rail:
+            for side in (1.0, -1.0):
+                off = side * (0.5 * n * w + cfg.guard_rail_offset)
+                out.append(
+                    Marking(
+                        len(out),
+                        off,
+                        MarkingType.CONTINUOUS,
+                        MarkingRole.GUARD_RAIL,
+                        2,
+                        0.1,
+                        cfg.guard_rail_height,
+                    )
+                )
+        return tuple(out)
+
+    # ------------------------------------------------------------ ground truth
+    @cached_property
+    def marking_table(self) -> dict[str, np.ndarray]:
+        """Marking attributes as arrays indexed by marking (for vectorised sensors).
+
+        Keys: ``type``, ``colour`` (int64); ``height``, ``width``, ``dash``, ``period``,
+        ``phase`` (float64, [m]); ``broken`` (bool).
+        """
+        mk = self.markings
+        return {
+            "type": np.array([int(m.type) for m in mk], dtype=np.int64),
+            "colour": np.array([m.colour for m in mk], dtype=np.int64),
+            "height": np.array([m.height for m in mk], dtype=np.float64),
+            "width": np.array([m.width for m in mk], dtype=np.float64),
+            "dash": np.array([m.dash_length for m in mk], dtype=np.float64),
+            "period": np.array([m.period for m in mk], dtype=np.float64),
+            "phase": np.array([m.phase for m in mk], dtype=np.float64),
+            "broken": np.array([m.broken for m in mk], dtype=bool),
+        }
+
+    @property
+    def marking_model(self) -> str:
+        """``"per_dash"`` or ``"editor"`` (see :class:`RoadConfig`)."""
+        return self.config.marking_model
+
+    def with_marking_model(self, marking_model: str) -> HighwayRoad:
+        """The same road geometry with another marking model (shares the tables)."""
+        check_choice("road", "marking_model", marking_model, MARKING_MODELS)
+        twin = copy.copy(self)
+        twin.config = dataclasses.replace(self.config, marking_model=marking_model)
+        return twin
+
+    def lane_offset(self, lane_id: int) -> float:
+        """Left offset of lane ``lane_id``'s centre from the reference line [m]."""
+        self._check_lane(lane_id)
+        return (0.5 * self.lanes_count - lane_id - 0.5) * self.lane_width
+
+    def lane_id_at(self, position: FloatArray) -> int:
+        """Ground-truth lane id at a world position (clipped to the road's lanes)."""
+        _, d = self.reference.project(position)
+        i = math.floor(0.5 * self.lanes_count - d / self.lane_width)
+        return int(min(max(i, 0), self.lanes_count - 1))
+
+    def lane(self, lane_id: int) -> ReferenceLane:
+        """The highway-env lane object of lane ``lane_id`` (0 = leftmost)."""
+        self._check_lane(lane_id)
+        return self.network.graph[EDGE[0]][EDGE[1]][lane_id]  # type: ignore[return-value]
+
+    def lane_index(self, lane_id: int) -> tuple[str, str, int]:
+        """highway-env lane index ``(from, to, id)`` of lane ``lane_id``."""
+        self._check_lane(lane_id)
+        return (EDGE[0], EDGE[1], lane_id)
+
+    def lane_boundaries(self, lane_id: int) -> tuple[Marking, Marking]:
+        """The (left, right) markings bounding lane ``lane_id``."""
+        self._check_lane(lane_id)
+        return self.markings[lane_id], self.markings[lane_id + 1]
+
+    def _check_lane(self, lane_id: int) -> None:
+        if not 0 <= int(lane_id) < self.lanes_count:
+            raise ValueError(f"lane_id must be in [0, {self.lanes_count - 1}], got {lane_id}")
+
+    def _check_marking(self, j: int) -> None:
+        if not 0 <= int(j) < len(self.markings):
+            raise ValueError(f"marking index must be in [0, {len(self.markings) - 1}], got {j}")
+
+    def marking_position(self, j: int, s: FloatArray | float) -> FloatArray:
+        """World position of marking ``j`` at reference arc length ``s`` [m], shape ``(..., 2)``."""
+        self._check_marking(j)
+        return self.reference.position(s, self.markings[j].offset)
+
+    def marking_arc_length(self, j: int, s: FloatArray | float) -> FloatArray:
+        """Arc length along marking ``j`` [m] at reference arc length ``s`` [m]."""
+        self._check_marking(j)
+        return np.interp(s, self.reference.s, self._u[j])
+
+    def curvature_at(self, s: FloatArray | float) -> FloatArray:
+        """Reference-line curvature at ``s`` [1/m], positive = left curve."""
+        return self.reference.curvature_at(s)
+
+    def sample_markings(
+        self,
+        origin: FloatArray,
+        yaw: float,
+        xs: FloatArray,
+        s_origin: float | None = None,
+        margin: float = 20.0,
+    ) -> tuple[FloatArray, FloatArray]:
+        """Where every marking crosses the lines ``x = xs`` of a planar sensor frame.
+
+        The frame has its origin at world ``origin`` and its x axis along world
+        heading ``yaw``; y is to the left (ISO 8855). Each marking is followed in
+        the direction the frame looks, from ``margin`` metres behind the origin,
+        up to the first point where it stops advancing in x (a marking is never
+        reported twice at one x).
+
+        :param origin: world position of the frame origin (2,) [m].
+        :param yaw: world heading of the frame's x axis [rad].
+        :param xs: ``(K,)`` increasing x positions [m].
+        :param s_origin: the origin's reference arc length, if known [m].
+        :return: ``(y, u)``, each ``(n_markings, K)``: lateral position [m] of
+            marking ``j`` at ``xs[k]`` and its arc length along the marking [m];
+            NaN where the marking does not reach that x.
+        """
+        ref = self.reference
+        origin = np.asarray(origin, dtype=np.float64)[:2]
+        if s_origin is None:
+            s_origin, _ = ref.project(origin)
+        xs = np.asarray(xs, dtype=np.float64)
+        x_max = float(xs[-1]) if len(xs) else 0.0
+        forward = math.cos(yaw - float(np.interp(s_origin, ref.s, ref.heading))) >= 0.0
+        reach = 1.2 * x_max + margin  # arc length needed to cover x_max, with slack
+        if forward:
+            lo, hi = s_origin - margin, s_origin + reach
+        else:
+            lo, hi = s_origin - reach, s_origin + margin
+        i0 = max(int(np.floor(lo / ref.step)), 0)
+        i1 = min(int(np.ceil(hi / ref.step)) + 1, len(ref.s))
+        m = len(self.markings)
+        y_out = np.full((m, len(xs)), np.nan)
+        u_out = np.full((m, len(xs)), np.nan)
+        if i1 - i0 < 2:
+            return y_out, u_out
+        if not forward:
+            i0, i1 = i1 - 1, i0 - 1  # walk the table backwards
+        _sample_lines(
+            ref.xy,
+            ref.normal,
+            self._u,
+            self._offsets,
+            i0,
+            i1,
+            -1 if not forward else 1,
+            float(origin[0]),
+            float(origin[1]),
+            float(yaw),
+            xs,
+            y_out,
+            u_out,
+        )
+        return y_out, u_out
+
+
+def _sample_lines_py(
+    xy: FloatArray,
+    normal: FloatArray,
+    u_tab: FloatArray,
+    offsets: FloatArray,
+    i_start: int,
+    i_stop: int,
+    direction: int,
+    ox: float,
+    oy: float,
+    yaw: float,
+    xs: FloatArray,
+    y_out: FloatArray,
+    u_out: FloatArray,
+) -> None:
+    """Fill ``y_out[j, k]``/``u_out[j, k]`` where marking ``j`` crosses ``x = xs[k]``.
+
+    Walks the reference table from ``i_start`` towards ``i_stop`` (exclusive) in
+    ``direction``; each marking is the reference offset by ``offsets[j]`` to the
+    left. The walk of a marking stops where it no longer advances in the sensor's
+    x, so each x is crossed at most once. Plain-Python reference of ``_sample_lines``.
+    """
+    cy, sy = math.cos(yaw), math.sin(yaw)
+    nk = xs.shape[0]
+    for j in range(offsets.shape[0]):
+        off = offsets[j]
+        k = 0
+        have_prev = False
+        x0 = y0 = u0 = 0.0
+        i = i_start
+        while i != i_stop and k < nk:
+            wx = xy[i, 0] + off * normal[i, 0] - ox
+            wy = xy[i, 1] + off * normal[i, 1] - oy
+            x1 = wx * cy + wy * sy
+            y1 = wx * sy - wy * cy  # left of the sensor's x axis
+            u1 = u_tab[j, i]
+            if have_prev:
+                if x1 <= x0:
+                    break
+                while k < nk and xs[k] <= x1:
+                    if xs[k] >= x0:
+                        t = (xs[k] - x0) / (x1 - x0)
+                        y_out[j, k] = y0 + t * (y1 - y0)
+                        u_out[j, k] = u0 + t * (u1 - u0)
+                    k += 1
+            x0, y0, u0 = x1, y1, u1
+            have_prev = True
+            i += direction
+
+
+_sample_lines = numba.njit(cache=True)(_sample_lines_py)
+
+
+def generate_highway(**overrides: Any) -> HighwayRoad:
+    """Build a :class:`HighwayRoad` from keyword overrides of :class:`RoadConfig`."""
+    return HighwayRoad(overrides)

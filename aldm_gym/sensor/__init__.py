@@ -1,0 +1,37 @@
+"""Line sensor emulation and lane detection (naive CarMaker default, ALDM, ground truth).
+
+Data flow: road → :class:`LineSensor` → :class:`SensorFrame` → detector →
+:class:`LaneDetection`. All coordinates in the ISO 8855 sensor frame (x forward,
+y left, z up) [m].
+"""
+
+from __future__ import annotations
+
+from aldm_gym.sensor.detection import LINE_NAMES, LaneDetection, driving_trajectory
+from aldm_gym.sensor.frame import LineObject, SensorFrame, SideLines
+from aldm_gym.sensor.ground_truth import (
+    LineScore,
+    ground_truth_detect,
+    line_markings,
+    score_detection,
+    score_line,
+)
+from aldm_gym.sensor.line_sensor import LineSensor, LineSensorConfig
+from aldm_gym.sensor.naive import naive_detect
+
+__all__ = [
+    "LINE_NAMES",
+    "LaneDetection",
+    "LineObject",
+    "LineScore",
+    "LineSensor",
+    "LineSensorConfig",
+    "SensorFrame",
+    "SideLines",
+    "driving_trajectory",
+    "ground_truth_detect",
+    "line_markings",
+    "naive_detect",
+    "score_detection",
+    "score_line",
+]

@@ -1,0 +1,208 @@
+"""The result of lane detection, shared by every detector (naive, ALDM, ground truth).
+
+All coordinates are in the ISO 8855 sensor frame: x forward [m], y left [m].
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from aldm_gym.types import FloatArray
+
+LINE_NAMES: tuple[str, str, str, str] = ("left_adjacent", "ego_left", "ego_right", "right_adjacent")
+"""The four lines, left to right. Observation arrays use this order."""
+
+DEFAULT_LANE_WIDTH = 3.75
+"""Lane width assumed when only one ego line is found and no estimate exists [m]."""
+
+_EMPTY = np.zeros((0, 2))
+
+
+def _as_line(points: FloatArray | None, name: str) -> FloatArray:
+    """Validate a line: a finite ``(K, 2)`` float array, returned sorted by x."""
+    if points is None:
+        return _EMPTY.copy()
+    arr = np.asarray(points, dtype=np.float64)
+    if arr.size == 0:
+        return _EMPTY.copy()
+    if arr.ndim != 2 or arr.shape[1] != 2:
+        raise ValueError(f"LaneDetection.{name} must have shape (K, 2), got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"LaneDetection.{name} contains NaN or inf")
+    order = np.argsort(arr[:, 0], kind="stable")
+    return np.ascontiguousarray(arr[order])
+
+
+def resample_line(points: FloatArray, n: int) -> FloatArray:
+    """``n`` points equally spaced in x over the line's x range, linearly interpolated.
+
+    The paper (§"Advanced Lane Detection Model") transmits 13 equally distributed
+    points per line. A line with fewer than two points cannot be resampled and
+    gives an empty ``(0, 2)`` array.
+
+    :param points: ``(K, 2)`` points sorted by x [m].
+    :param n: number of output points (>= 2).
+    :return: ``(n, 2)`` points, or ``(0, 2)``.
+    """
+    if n < 2:
+        raise ValueError(f"resample needs n >= 2, got {n}")
+    if len(points) < 2 or points[-1, 0] <= points[0, 0]:
+        return _EMPTY.copy()
+    xs = np.linspace(points[0, 0], points[-1, 0], n)
+    return np.column_stack([xs, np.interp(xs, points[:, 0], points[:, 1])])
+
+
+def fit_cubic(points: FloatArray) -> np.polynomial.Polynomial | None:
+    """Least-squares polynomial y(x) of degree ``min(3, K - 1)`` through a line.
+
+    The paper fits "trend lines using a function of 3rd grade" to the left and
+    right lines. The fit is done on a scaled x domain for conditioning.
+
+    :param points: ``(K, 2)`` points [m].
+    :return: the polynomial, or ``None`` for an empty line.
+    """
+    k = len(points)
+    if k == 0:
+        return None
+    if k == 1:
+        return np.polynomial.Polynomial([points[0, 1]])
+    deg = min(3, k - 1)
+    return np.polynomial.Polynomial.fit(points[:, 0], points[:, 1], deg)
+
+
+def driving_trajectory(
+    left: FloatArray,
+    right: FloatArray,
+    lane_width: float = DEFAULT_LANE_WIDTH,
+    spacing: float = 2.0,
+) -> FloatArray:
+    """The desired driving path: midway between cubic fits of the ego lines.
+
+    Paper §"Advanced Lane Detection Model", last paragraph: a third-degree trend
+    line through each ego line; the trajectory is the middle between them. Where
+    the paper is silent we decided:
+
+    * the path starts at the sensor (x = 0) and ends where the shorter line ends,
+      i.e. it is extrapolated back over the field-of-view gap (5.52 m) only;
+    * with one line only, the path is that line's fit offset by half of
+      ``lane_width`` towards the lane (right of a left line, left of a right line);
+    * with no line, the trajectory is empty.
+
+    :param left: ``(K, 2)`` left ego line [m], sorted by x.
+    :param right: ``(K, 2)`` right ego line [m], sorted by x.
+    :param lane_width: lane width used when a single line is known [m].
+    :param spacing: x step of the returned path [m].
+    :return: ``(M, 2)`` path points (x, y) [m], or ``(0, 2)``.
+    """
+    fl, fr = fit_cubic(left), fit_cubic(right)
+    if fl is None and fr is None:
+        return _EMPTY.copy()
+    ends = [line[-1, 0] for line in (left, right) if len(line)]
+    x_end = float(min(ends))
+    if x_end <= 0.0:
+        return _EMPTY.copy()
+    m = max(2, int(np.ceil(x_end / spacing)) + 1)
+    xs = np.linspace(0.0, x_end, m)
+    if fl is not None and fr is not None:
+        ys = 0.5 * (fl(xs) + fr(xs))
+    elif fl is not None:
+        ys = fl(xs) - 0.5 * lane_width
+    else:
+        assert fr is not None
+        ys = fr(xs) + 0.5 * lane_width
+    return np.column_stack([xs, ys])
+
+
+@dataclass(frozen=True)
+class LaneDetection:
+    """Detected lane lines of one frame, in the sensor frame (x forward, y left) [m].
+
+    Each line is a ``(K, 2)`` float64 array sorted by x; ``K = 0`` when the line was
+    not found. ``trajectory`` is the ``(M, 2)`` desired driving path (empty when no
+    ego line was found).
+
+    :ivar ego_left: left marking of the ego lane.
+    :ivar ego_right: right marking of the ego lane.
+    :ivar left_adjacent: left marking of the lane left of the ego lane.
+    :ivar right_adjacent: right marking of the lane right of the ego lane.
+    :ivar trajectory: desired path midway between the ego lines.
+    :ivar source: name of the detector that produced it (``"naive"``, ``"aldm"``, ...).
+    """
+
+    ego_left: FloatArray = field(default_factory=lambda: _EMPTY.copy())
+    ego_right: FloatArray = field(default_factory=lambda: _EMPTY.copy())
+    left_adjacent: FloatArray = field(default_factory=lambda: _EMPTY.copy())
+    right_adjacent: FloatArray = field(default_factory=lambda: _EMPTY.copy())
+    trajectory: FloatArray = field(default_factory=lambda: _EMPTY.copy())
+    source: str = ""
+
+    def __post_init__(self) -> None:
+        for name in (*LINE_NAMES, "trajectory"):
+            object.__setattr__(self, name, _as_line(getattr(self, name), name))
+
+    @classmethod
+    def from_lines(
+        cls,
+        ego_left: FloatArray | None = None,
+        ego_right: FloatArray | None = None,
+        left_adjacent: FloatArray | None = None,
+        right_adjacent: FloatArray | None = None,
+        *,
+        source: str = "",
+        lane_width: float = DEFAULT_LANE_WIDTH,
+    ) -> LaneDetection:
+        """Build a detection from lines; the trajectory comes from :func:`driving_trajectory`."""
+        det = cls(
+            ego_left=ego_left,  # type: ignore[arg-type]
+            ego_right=ego_right,  # type: ignore[arg-type]
+            left_adjacent=left_adjacent,  # type: ignore[arg-type]
+            right_adjacent=right_adjacent,  # type: ignore[arg-type]
+            source=source,
+        )
+        traj = driving_trajectory(det.ego_left, det.ego_right, lane_width)
+        return replace(det, trajectory=traj)
+
+    def line(self, name: str) -> FloatArray:
+        """One line by name (one of :data:`LINE_NAMES`)."""
+        if name not in LINE_NAMES:
+            raise ValueError(f"unknown line {name!r}; allowed: {list(LINE_NAMES)}")
+        return getattr(self, name)  # type: ignore[no-any-return]
+
+    def found(self, name: str) -> bool:
+        """Whether line ``name`` has at least two points."""
+        return len(self.line(name)) >= 2
+
+    def preview(self, name: str) -> float:
+        """Farthest x reached by line ``name`` [m]; 0 when missing."""
+        line = self.line(name)
+        return float(line[-1, 0]) if len(line) else 0.0
+
+    def extent(self, name: str) -> float:
+        """Length in x covered by line ``name`` (last x - first x) [m]; 0 when missing."""
+        line = self.line(name)
+        return float(line[-1, 0] - line[0, 0]) if len(line) else 0.0
+
+    def resample(self, n: int = 13) -> LaneDetection:
+        """A copy with every line resampled to ``n`` equally spaced points.
+
+        Lines with fewer than two points become empty. The trajectory is kept.
+        """
+        kw = {name: resample_line(self.line(name), n) for name in LINE_NAMES}
+        return replace(self, **kw)
+
+    def as_array(self, n: int = 13) -> tuple[FloatArray, np.ndarray]:
+        """Lines as a fixed-size array for observations.
+
+        :return: ``(points, valid)``: ``points`` is ``(4, n, 2)`` in the order of
+            :data:`LINE_NAMES` (zeros for missing lines), ``valid`` is a ``(4,)`` bool mask.
+        """
+        pts = np.zeros((4, n, 2))
+        valid = np.zeros(4, dtype=bool)
+        for i, name in enumerate(LINE_NAMES):
+            r = resample_line(self.line(name), n)
+            if len(r):
+                pts[i] = r
+                valid[i] = True
+        return pts, valid

@@ -1,0 +1,127 @@
+"""Ground truth in the sensor frame: the true lines, a perfect detector, and detection metrics.
+
+Used as the upper bound in comparisons (``detector="ground_truth"``) and to score
+every detector. A line is *correct* when every returned point lies within
+``tol`` (0.3 m) of the true marking, it starts within ``start_max`` (25 m) and
+reaches at least ``preview_min`` (60 m, the paper's minimum preview) ahead.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from aldm_gym.roads.highway import HighwayRoad
+from aldm_gym.sensor.detection import LINE_NAMES, LaneDetection
+from aldm_gym.sensor.frame import SensorFrame
+from aldm_gym.types import FloatArray
+
+
+def line_markings(road: HighwayRoad, lane_id: int) -> dict[str, int | None]:
+    """Marking index of each of the four lines for a vehicle in lane ``lane_id``.
+
+    ``None`` where the line does not exist (e.g. no lane left of lane 0). The outer
+    edge lines are the adjacent lines' markings only when that lane exists.
+    """
+    road.lane_boundaries(lane_id)  # validates lane_id
+    n = road.lanes_count
+    return {
+        "left_adjacent": lane_id - 1 if lane_id >= 1 else None,
+        "ego_left": lane_id,
+        "ego_right": lane_id + 1,
+        "right_adjacent": lane_id + 2 if lane_id + 2 <= n else None,
+    }
+
+
+def true_line(road: HighwayRoad, frame: SensorFrame, marking: int, xs: FloatArray) -> FloatArray:
+    """True lateral position [m] of ``marking`` at sensor x positions ``xs`` (NaN where unseen).
+
+    :param xs: ``(K,)`` x positions [m], any order.
+    :return: ``(K,)`` y [m].
+    """
+    xs = np.asarray(xs, dtype=np.float64)
+    if len(xs) == 0:
+        return np.zeros(0)
+    order = np.argsort(xs, kind="stable")
+    y, _ = road.sample_markings(frame.origin, frame.yaw, xs[order])
+    out = np.empty(len(xs))
+    out[order] = y[marking]
+    return out
+
+
+def ground_truth_detect(
+    road: HighwayRoad, frame: SensorFrame, lane_id: int, dx: float | None = None
+) -> LaneDetection:
+    """A perfect detector: the true markings around lane ``lane_id``, sampled like the sensor.
+
+    Lines are sampled every ``dx`` (default: the frame's 2 m) from the field-of-view
+    start to the range of view; painted or not, as a perfect lane model would know them.
+    """
+    step = 2.0 if dx is None else dx
+    xs = np.arange(frame.fov_start, frame.range + 1e-9, step)
+    y, _ = road.sample_markings(frame.origin, frame.yaw, xs)
+    lines: dict[str, FloatArray] = {}
+    for name, j in line_markings(road, lane_id).items():
+        if j is None:
+            lines[name] = np.zeros((0, 2))
+            continue
+        ok = ~np.isnan(y[j])
+        lines[name] = np.column_stack([xs[ok], y[j, ok]])
+    return LaneDetection.from_lines(**lines, source="ground_truth", lane_width=road.lane_width)
+
+
+@dataclass(frozen=True)
+class LineScore:
+    """How one detected line compares with the truth.
+
+    :ivar found: the detector returned at least two points.
+    :ivar correct: every point within ``tol`` of the true marking, first point within
+        ``start_max`` and last point at least ``preview_min`` ahead.
+    :ivar mean_abs_error: mean |y - y_true| of points up to ``preview_min`` [m] (NaN if none).
+    :ivar max_abs_error: largest |y - y_true| over all points [m] (NaN if none).
+    :ivar preview: x of the last point [m] (0 if not found).
+    """
+
+    found: bool
+    correct: bool
+    mean_abs_error: float
+    max_abs_error: float
+    preview: float
+
+
+def score_line(
+    line: FloatArray,
+    road: HighwayRoad,
+    frame: SensorFrame,
+    marking: int | None,
+    tol: float = 0.3,
+    start_max: float = 25.0,
+    preview_min: float = 60.0,
+) -> LineScore:
+    """Score a detected line against true marking ``marking`` (``None``: no such line)."""
+    if len(line) < 2 or marking is None:
+        return LineScore(len(line) >= 2, False, float("nan"), float("nan"), 0.0)
+    truth = true_line(road, frame, marking, line[:, 0])
+    err = np.abs(line[:, 1] - truth)  # NaN where the marking does not reach: counts as wrong
+    err = np.where(np.isnan(err), np.inf, err)
+    near = line[:, 0] <= preview_min
+    mean = float(np.mean(err[near])) if near.any() else float("nan")
+    preview = float(line[-1, 0])
+    correct = bool(np.all(err <= tol) and line[0, 0] <= start_max and preview >= preview_min)
+    return LineScore(True, correct, mean, float(np.max(err)), preview)
+
+
+def score_detection(
+    detection: LaneDetection,
+    road: HighwayRoad,
+    frame: SensorFrame,
+    lane_id: int,
+    **kwargs: float,
+) -> dict[str, LineScore]:
+    """Score the four lines (:data:`LINE_NAMES`) of a detection for a vehicle in ``lane_id``."""
+    marks = line_markings(road, lane_id)
+    return {
+        name: score_line(detection.line(name), road, frame, marks[name], **kwargs)
+        for name in LINE_NAMES
+    }
