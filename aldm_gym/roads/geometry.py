@@ -86,17 +86,19 @@ class ReferenceLine:
         s = np.linspace(0.0, self.length, n)
         self.step = float(s[1] - s[0])  # actual spacing (<= the requested step)
         # Curvature is piecewise linear in s; sample it per segment.
+        lengths = np.array([seg.length for seg in segments])
         idx = np.clip(np.searchsorted(bounds, s, side="right") - 1, 0, len(segments) - 1)
-        k0 = np.array([seg.kappa_start for seg in segments])[idx]
-        k1 = np.array([seg.kappa_stop for seg in segments])[idx]
-        frac = (s - bounds[idx]) / np.array([seg.length for seg in segments])[idx]
-        kappa = k0 + (k1 - k0) * frac
-        ds = np.diff(s)
-        # Heading: exact for linear curvature (trapezoid of kappa), dh/ds = -kappa.
-        dh = -0.5 * (kappa[1:] + kappa[:-1]) * ds
-        h = heading + np.concatenate([[0.0], np.cumsum(dh)])
+        k0 = np.array([seg.kappa_start for seg in segments])
+        k1 = np.array([seg.kappa_stop for seg in segments])
+        t = s - bounds[idx]
+        kappa = k0[idx] + (k1[idx] - k0[idx]) * t / lengths[idx]
+        # Heading, exact at every sample: dh/ds = -kappa, integrated analytically per segment.
+        turn = np.concatenate([[0.0], np.cumsum(0.5 * (k0 + k1) * lengths)])
+        integral = turn[idx] + k0[idx] * t + 0.5 * (k1[idx] - k0[idx]) * t**2 / lengths[idx]
+        h = heading - integral
+        dh = np.diff(h)
         # Position: chord of each small arc, exact for constant curvature.
-        chord = ds * np.sinc(dh / (2.0 * np.pi))
+        chord = np.diff(s) * np.sinc(dh / (2.0 * np.pi))
         hm = 0.5 * (h[1:] + h[:-1])
         xy = np.zeros((n, 2))
         xy[0] = start

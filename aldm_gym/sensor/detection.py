@@ -63,11 +63,11 @@ def fit_cubic(points: FloatArray) -> np.polynomial.Polynomial | None:
     :param points: ``(K, 2)`` points [m].
     :return: the polynomial, or ``None`` for an empty line.
     """
-    k = len(points)
-    if k == 0:
+    if len(points) == 0:
         return None
+    k = len(np.unique(points[:, 0]))
     if k == 1:
-        return np.polynomial.Polynomial([points[0, 1]])
+        return np.polynomial.Polynomial([float(np.mean(points[:, 1]))])
     deg = min(3, k - 1)
     return np.polynomial.Polynomial.fit(points[:, 0], points[:, 1], deg)
 

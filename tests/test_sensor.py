@@ -1,0 +1,214 @@
+"""Line sensor: sampling, field of view, caps, side assignment, mount, noise, bad input."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from aldm_gym.roads import HighwayRoad, MarkingType
+from aldm_gym.sensor import LineSensor, SensorFrame
+from tests.conftest import pose_on_lane
+
+
+def _frame(road: HighwayRoad, s: float = 300.0, lane: int = 1, **cfg: object) -> SensorFrame:
+    return LineSensor(cfg).measure(road, pose_on_lane(road, s, lane), t=1.5)
+
+
+def test_points_every_2m_from_fov_start_to_range(straight_road: HighwayRoad) -> None:
+    f = _frame(straight_road.with_marking_model("editor"))
+    pts = f.points()
+    assert pts[:, 0].min() == pytest.approx(5.52)
+    assert pts[:, 0].max() <= 200.0
+    assert pts[:, 0].max() > 198.0
+    for n in range(f.n_lines):
+        x = f.line_points(n)[:, 0]
+        steps = np.diff(x)
+        assert np.all(np.isclose(steps % 2.0, 0.0) | np.isclose(steps % 2.0, 2.0))
+        assert np.all(np.diff(x) > 0)  # sorted by x
+
+
+def test_fov_start_and_range_are_configurable(straight_road: HighwayRoad) -> None:
+    f = _frame(straight_road, range=80.0, fov_start=10.0, dx=1.0)
+    x = f.points()[:, 0]
+    assert x.min() >= 10.0 - 1e-9
+    assert x.max() <= 80.0 + 1e-9
+    assert np.isclose(x.max(), 80.0)
+
+
+def test_point_cap_per_line(straight_road: HighwayRoad) -> None:
+    f = _frame(straight_road.with_marking_model("editor"), dx=0.5, max_points_per_line=50)
+    counts = np.diff(f.line_start)
+    assert counts.max() == 50
+    assert f.points()[:, 0].max() <= 5.52 + 49 * 0.5 + 1e-9
+
+
+def test_line_cap_per_side(straight_road: HighwayRoad) -> None:
+    full = _frame(straight_road)
+    capped = _frame(straight_road, max_lines_per_side=3)
+    assert full.left.n_lines > 3 and full.right.n_lines > 3
+    assert capped.left.n_lines == 3 and capped.right.n_lines == 3
+    # The nearest (first) objects are kept.
+    np.testing.assert_array_equal(capped.left.lines[0].ds, full.left.lines[0].ds)
+
+
+def test_per_dash_objects_are_dashes_and_editor_objects_are_markings(
+    straight_road: HighwayRoad,
+) -> None:
+    dash = _frame(straight_road)
+    ed = _frame(straight_road.with_marking_model("editor"))
+    # The pooled points are the same; only the grouping differs.
+    a = dash.points()[np.lexsort(dash.points().T[::-1])]
+    b = ed.points()[np.lexsort(ed.points().T[::-1])]
+    np.testing.assert_array_equal(a, b)
+    assert ed.n_lines == straight_road.lanes_count + 1
+    dashed = [ln for ln in dash.lines if ln.type == MarkingType.DASHED]
+    assert len(dashed) > 20
+    for ln in dashed:
+        extent = ln.ds[-1, 0] - ln.ds[0, 0]
+        assert extent <= 6.0 + 1e-9  # one 6 m dash, sampled every 2 m
+    # Starts of consecutive fully visible dashes of one marking are 18 m apart.
+    starts = sorted(ln.ds[0, 0] for ln in dashed if ln.marking == 1 and ln.ds[0, 0] > 6.0)
+    np.testing.assert_allclose(np.diff(starts), 18.0, atol=2.0)
+
+
+def test_side_assignment_by_first_point(straight_road: HighwayRoad) -> None:
+    f = _frame(straight_road, lane=1)
+    assert all(ln.ds[0, 1] > 0 for ln in f.left.lines)
+    assert all(ln.ds[0, 1] <= 0 for ln in f.right.lines)
+    # Lane 1 has markings 0, 1 on its left and 2, 3, 4 on its right.
+    assert {ln.marking for ln in f.left.lines} == {0, 1}
+    assert {ln.marking for ln in f.right.lines} == {2, 3, 4}
+    assert f.left.relevant_line is not None and f.left.relevant_line.marking == 1
+    assert f.right.relevant_line is not None and f.right.relevant_line.marking == 2
+
+
+def test_relevant_point_list_has_30_points(straight_road: HighwayRoad) -> None:
+    f = _frame(straight_road.with_marking_model("editor"))
+    assert f.left.relevant_points.shape == (30, 3)
+    np.testing.assert_array_equal(f.left.relevant_points, f.left.relevant_line.ds[:30])
+
+
+def test_lateral_positions_match_the_lane_geometry(straight_road: HighwayRoad) -> None:
+    shift = 0.4
+    f = LineSensor().measure(straight_road, pose_on_lane(straight_road, 300.0, 1, shift))
+    left = f.left.relevant_line.ds
+    right = f.right.relevant_line.ds
+    np.testing.assert_allclose(left[:, 1], 1.875 - shift, atol=1e-9)
+    np.testing.assert_allclose(right[:, 1], -1.875 - shift, atol=1e-9)
+    assert np.all(left[:, 2] == 0.0)
+
+
+def test_frame_fields(straight_road: HighwayRoad) -> None:
+    f = LineSensor({"sensor_index": 0}).measure(
+        straight_road,
+        pose_on_lane(straight_road, 300.0, 1),
+        t=2.25,
+        ext_rotation=(0.0, 0.01, 0.0),
+        ext_travel=(0.1, 0.0, 0.0),
+    )
+    assert f.timestamp == 2.25
+    assert f.sensor_index == 0
+    np.testing.assert_array_equal(f.mount_position, [1.0, 0.0, 1.3])
+    np.testing.assert_array_equal(f.ext_rotation, [0.0, 0.01, 0.0])
+    np.testing.assert_array_equal(f.ext_travel, [0.1, 0.0, 0.0])
+    assert f.left.n_lines + f.right.n_lines == f.n_lines == len(f.line_type)
+    assert set(np.unique(f.line_type)) <= {1, 2, 3}
+
+
+def test_backward_sensor_sees_the_road_behind(straight_road: HighwayRoad) -> None:
+    back = LineSensor({"sensor_index": 1, "mount_x": -2.0, "mount_yaw": np.pi})
+    f = back.measure(straight_road, pose_on_lane(straight_road, 500.0, 1))
+    assert f.sensor_index == 1
+    assert f.n_lines > 0
+    # Looking backwards, the driver's left markings appear on the sensor's right.
+    assert f.right.relevant_line.marking == 1
+    assert f.left.relevant_line.marking == 2
+    # Travel along x of the mount moves the backward sensor towards the rear.
+    moved = back.measure(straight_road, pose_on_lane(straight_road, 500.0, 1), ext_travel=(3, 0, 0))
+    np.testing.assert_allclose(moved.origin - f.origin, -3.0 * _fwd(straight_road, 500.0), atol=1e-9)
+
+
+def _fwd(road: HighwayRoad, s: float) -> np.ndarray:
+    h = float(road.reference.heading_at(s))
+    return np.array([np.cos(h), np.sin(h)])
+
+
+def test_external_yaw_turns_the_view(straight_road: HighwayRoad) -> None:
+    f = LineSensor().measure(
+        straight_road, pose_on_lane(straight_road, 300.0, 1), ext_rotation=(0, 0, 0.05)
+    )
+    # Turned left by 0.05 rad, a straight marking drifts right as x grows.
+    ln = f.left.relevant_line.ds
+    slope = np.polyfit(ln[:, 0], ln[:, 1], 1)[0]
+    assert slope == pytest.approx(-np.tan(0.05), abs=1e-3)
+
+
+def test_guard_rail_objects_carry_height() -> None:
+    road = HighwayRoad({"guard_rail": True, "curved": False, "length": 600.0})
+    f = _frame(road)
+    heights = f.line_height
+    assert (heights > 0).sum() == 2
+    rail = f.all_points[f.line_start[np.argmax(heights)], 2]
+    assert rail == pytest.approx(0.75)
+
+
+def test_noise_and_dropout_are_seeded(straight_road: HighwayRoad) -> None:
+    pose = pose_on_lane(straight_road, 300.0, 1)
+    cfg = {"lateral_noise": 0.05, "dropout": 0.2}
+    a = LineSensor(cfg).measure(straight_road, pose, rng=np.random.default_rng(5))
+    b = LineSensor(cfg).measure(straight_road, pose, rng=np.random.default_rng(5))
+    c = LineSensor(cfg).measure(straight_road, pose, rng=np.random.default_rng(6))
+    clean = LineSensor().measure(straight_road, pose)
+    np.testing.assert_array_equal(a.points(), b.points())
+    assert a.points().shape != c.points().shape or not np.array_equal(a.points(), c.points())
+    kept = len(a.points()) / len(clean.points())
+    assert 0.7 < kept < 0.9
+    resid = a.points()[:, 1] - np.round(a.points()[:, 1] / 1.875) * 1.875
+    assert 0.03 < np.std(resid) < 0.07
+
+
+def test_curved_road_points_follow_the_marking(curvy_road: HighwayRoad) -> None:
+    from aldm_gym.sensor import line_markings, score_line
+
+    for s in (400.0, 1500.0, 2600.0, 3700.0):
+        f = LineSensor().measure(curvy_road.with_marking_model("editor"), pose_on_lane(curvy_road, s, 2))
+        for ln in f.lines:
+            sc = score_line(ln.ds[:, :2], curvy_road, f, ln.marking, tol=1e-6, preview_min=0.0)
+            assert sc.max_abs_error < 1e-6
+        assert line_markings(curvy_road, 2)["ego_left"] == 2
+
+
+@pytest.mark.parametrize(
+    ("cfg", "match"),
+    [
+        ({"range": -1.0}, "range"),
+        ({"fov_start": 300.0}, "fov_start"),
+        ({"max_lines_per_side": 101}, "max_lines_per_side"),
+        ({"max_points_per_line": 201}, "max_points_per_line"),
+        ({"dropout": 1.0}, "dropout"),
+        ({"lateral_noise": float("inf")}, "lateral_noise"),
+        ({"rangee": 100.0}, r"rangee.*allowed keys"),
+    ],
+)
+def test_bad_sensor_config(cfg: dict, match: str) -> None:
+    with pytest.raises(ValueError, match=match):
+        LineSensor(cfg)
+
+
+def test_bad_measure_inputs(straight_road: HighwayRoad) -> None:
+    s = LineSensor()
+    with pytest.raises(ValueError, match="pose"):
+        s.measure(straight_road, (1.0, 2.0))
+    with pytest.raises(ValueError, match="finite"):
+        s.measure(straight_road, (np.nan, 0.0, 0.0))
+    with pytest.raises(ValueError, match="ext_travel"):
+        s.measure(straight_road, (0.0, 0.0, 0.0), ext_travel=(1.0, 2.0))
+    with pytest.raises(TypeError, match="HighwayRoad"):
+        s.measure("road", (0.0, 0.0, 0.0))  # type: ignore[arg-type]
+
+
+def test_off_the_road_gives_an_empty_frame(straight_road: HighwayRoad) -> None:
+    f = LineSensor().measure(straight_road, (5000.0, 3000.0, 0.0))
+    assert f.n_lines == 0
+    assert f.points().shape == (0, 3)
+    assert f.left.relevant_line is None
