@@ -5,6 +5,7 @@ All coordinates are in the ISO 8855 sensor frame: x forward [m], y left [m].
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -69,7 +70,10 @@ def fit_cubic(points: FloatArray) -> np.polynomial.Polynomial | None:
     if k == 1:
         return np.polynomial.Polynomial([float(np.mean(points[:, 1]))])
     deg = min(3, k - 1)
-    return np.polynomial.Polynomial.fit(points[:, 0], points[:, 1], deg)
+    with warnings.catch_warnings():
+        # Nearly coincident x values (degenerate input) only lower the fit's rank.
+        warnings.simplefilter("ignore", np.exceptions.RankWarning)
+        return np.polynomial.Polynomial.fit(points[:, 0], points[:, 1], deg)
 
 
 def driving_trajectory(
