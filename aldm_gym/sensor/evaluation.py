@@ -1,0 +1,192 @@
+"""Frame-level comparison of lane detectors against ground truth.
+
+Seeded vehicle poses are drawn along a road; at each pose the line sensor measures
+a frame and every detector is scored with
+:func:`~aldm_gym.sensor.ground_truth.score_detection`. This is the open-loop half of
+the naive-vs-ALDM comparison (``aldm-gym compare``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from aldm_gym.roads.highway import HighwayRoad
+from aldm_gym.sensor.detection import LaneDetection
+from aldm_gym.sensor.frame import SensorFrame
+from aldm_gym.sensor.ground_truth import ground_truth_detect, score_detection
+from aldm_gym.sensor.line_sensor import LineSensor
+from aldm_gym.sensor.naive import naive_detect
+
+DETECTORS: tuple[str, ...] = ("naive", "aldm", "ground_truth")
+"""Detector names accepted by :func:`make_detector`."""
+
+Detector = Callable[[SensorFrame, HighwayRoad, int], LaneDetection]
+"""A detector: ``(frame, road, true lane id) -> LaneDetection``; only ``ground_truth`` may
+use the road and lane id."""
+
+
+def make_detector(name: str, **params: Any) -> Detector:
+    """A detector by name (:data:`DETECTORS`); ``params`` go to the ALDM.
+
+    :raises ValueError: unknown name, or parameters for a detector that takes none.
+    """
+    if name not in DETECTORS:
+        raise ValueError(f"unknown detector {name!r}; allowed: {list(DETECTORS)}")
+    if params and name != "aldm":
+        raise ValueError(f"detector {name!r} takes no parameters, got {sorted(params)}")
+    if name == "naive":
+        return lambda frame, road, lane_id: naive_detect(frame, lane_width=road.lane_width)
+    if name == "ground_truth":
+        return lambda frame, road, lane_id: ground_truth_detect(road, frame, lane_id)
+    from aldm_gym.sensor.aldm import detect_lanes, make_params
+
+    p = make_params(None, **params)
+    return lambda frame, road, lane_id: detect_lanes(frame, p)
+
+
+@dataclass(frozen=True)
+class Pose:
+    """A sampled vehicle pose on a road.
+
+    :ivar s: reference arc length [m].
+    :ivar lane_id: true lane.
+    :ivar shift: left offset from the lane centre [m].
+    :ivar pose: world ``(x [m], y [m], heading [rad])``.
+    """
+
+    s: float
+    lane_id: int
+    shift: float
+    pose: tuple[float, float, float]
+
+
+def sample_poses(
+    road: HighwayRoad,
+    n: int,
+    rng: np.random.Generator,
+    max_shift: float = 0.875,
+    heading_jitter: float = 0.01,
+    margin: float = 250.0,
+) -> list[Pose]:
+    """``n`` seeded poses: uniform arc length, lane, lateral shift within the lane, yaw jitter.
+
+    :param max_shift: largest lateral shift from the lane centre [m] (0.875 m: a 2 m
+        wide car with its tyres on the lines of a 3.75 m lane).
+    :param heading_jitter: standard deviation of the heading error [rad].
+    :param margin: distance kept from both road ends [m].
+    """
+    if road.length <= 2 * margin:
+        raise ValueError(f"road too short ({road.length:.0f} m) for a {margin} m margin")
+    out = []
+    for _ in range(n):
+        s = float(rng.uniform(margin, road.length - margin))
+        lane = int(rng.integers(road.lanes_count))
+        shift = float(rng.uniform(-max_shift, max_shift))
+        p = road.reference.position(s, road.lane_offset(lane) + shift)
+        h = float(road.reference.heading_at(s)) + float(rng.normal(0.0, heading_jitter))
+        out.append(Pose(s, lane, shift, (float(p[0]), float(p[1]), h)))
+    return out
+
+
+COLUMNS: tuple[str, ...] = (
+    "marking_model",
+    "detector",
+    "frames",
+    "both_correct",
+    "left_correct",
+    "right_correct",
+    "mean_abs_error_m",
+    "p95_abs_error_m",
+    "mean_preview_m",
+    "adjacent_found",
+)
+"""Columns of :func:`compare_detectors` rows."""
+
+
+def compare_detectors(
+    roads: Iterable[HighwayRoad],
+    detectors: Iterable[str] = DETECTORS,
+    frames_per_road: int = 100,
+    sensor: LineSensor | None = None,
+    seed: int = 0,
+    progress: Callable[[int], None] | None = None,
+) -> list[dict[str, Any]]:
+    """Score detectors on the same seeded frames of each road and marking model.
+
+    Every road is used as given (its ``marking_model``); pass both models of a road to
+    compare them. Frames of one road are identical across detectors (same poses, same
+    sensor noise).
+
+    :param progress: called with the number of frames done after each frame.
+    :return: one row per (marking model, detector) with the keys of :data:`COLUMNS`:
+        shares of frames with both/left/right ego lines correct, mean and 95th
+        percentile of |lateral error| up to 60 m over ego lines [m], mean preview of the
+        ego lines [m], share of adjacent lines found where they exist.
+    """
+    sensor = sensor or LineSensor()
+    names = list(detectors)
+    dets = {name: make_detector(name) for name in names}
+    acc: dict[tuple[str, str], dict[str, list[float]]] = {}
+    for r_i, road in enumerate(roads):
+        rng = np.random.default_rng([seed, r_i])
+        for pose in sample_poses(road, frames_per_road, rng):
+            noise_rng = np.random.default_rng([seed, r_i, int(pose.s * 1000)])
+            frame = sensor.measure(road, pose.pose, rng=noise_rng)
+            for name in names:
+                det = dets[name](frame, road, pose.lane_id)
+                sc = score_detection(det, road, frame, pose.lane_id)
+                a = acc.setdefault((road.marking_model, name), {})
+                el, er = sc["ego_left"], sc["ego_right"]
+                a.setdefault("both", []).append(float(el.correct and er.correct))
+                a.setdefault("left", []).append(float(el.correct))
+                a.setdefault("right", []).append(float(er.correct))
+                a.setdefault("err", []).extend(
+                    v for v in (el.mean_abs_error, er.mean_abs_error) if np.isfinite(v)
+                )
+                a.setdefault("preview", []).extend([el.preview, er.preview])
+                for side in ("left_adjacent", "right_adjacent"):
+                    truth_exists = not (
+                        (side == "left_adjacent" and pose.lane_id == 0)
+                        or (side == "right_adjacent" and pose.lane_id == road.lanes_count - 1)
+                    )
+                    if truth_exists:
+                        a.setdefault("adj", []).append(float(sc[side].correct))
+            if progress is not None:
+                progress(1)
+    rows = []
+    for (model, name), a in acc.items():
+        err = np.asarray(a.get("err", []))
+        rows.append(
+            {
+                "marking_model": model,
+                "detector": name,
+                "frames": len(a["both"]),
+                "both_correct": float(np.mean(a["both"])),
+                "left_correct": float(np.mean(a["left"])),
+                "right_correct": float(np.mean(a["right"])),
+                "mean_abs_error_m": float(err.mean()) if len(err) else float("nan"),
+                "p95_abs_error_m": float(np.percentile(err, 95)) if len(err) else float("nan"),
+                "mean_preview_m": float(np.mean(a["preview"])),
+                "adjacent_found": float(np.mean(a["adj"])) if a.get("adj") else float("nan"),
+            }
+        )
+    return rows
+
+
+def find_frame(
+    road: HighwayRoad,
+    sensor: LineSensor,
+    want: Callable[[SensorFrame, int], bool],
+    rng: np.random.Generator,
+    tries: int = 400,
+) -> tuple[SensorFrame, int] | None:
+    """A seeded frame (and its true lane) satisfying ``want(frame, lane_id)``, or ``None``."""
+    for pose in sample_poses(road, tries, rng):
+        frame = sensor.measure(road, pose.pose)
+        if want(frame, pose.lane_id):
+            return frame, pose.lane_id
+    return None

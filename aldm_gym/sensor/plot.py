@@ -1,0 +1,143 @@
+"""Pictures of line-sensor frames and detections, in the style of the paper's Fig. 7–8.
+
+Axes follow the paper: horizontal "lateral distance [m]", vertical "longitudinal
+distance [m]". The horizontal axis is the ISO 8855 y axis drawn inverted, so that the
+driver's left is on the left of the picture. matplotlib is imported only here, and
+only when a function is called.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from aldm_gym.sensor.detection import LINE_NAMES, LaneDetection
+from aldm_gym.sensor.frame import SensorFrame
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
+
+_LINE_STYLE = {
+    "ego_left": ("tab:blue", "-", 2.2),
+    "ego_right": ("tab:orange", "-", 2.2),
+    "left_adjacent": ("tab:purple", "--", 1.6),
+    "right_adjacent": ("tab:olive", "--", 1.6),
+}
+
+
+def draw_frame(
+    ax: Axes,
+    frame: SensorFrame,
+    detection: LaneDetection | None = None,
+    *,
+    title: str | None = None,
+    label_objects: bool = True,
+    x_max: float | None = None,
+) -> None:
+    """Draw every point of a frame, labelled by side and line index, and a detection on top.
+
+    :param ax: matplotlib axes to draw into.
+    :param frame: the sensor frame.
+    :param detection: lines and trajectory to overlay (optional).
+    :param title: axes title.
+    :param label_objects: write ``left,n`` / ``right,n`` (CarMaker's side and index) at each
+        object's first point, as in the paper's Fig. 7.
+    :param x_max: longitudinal extent to show [m] (default: the sensor range).
+    """
+    for side, lo, hi, colour in (
+        ("left", 0, frame.n_left, "tab:green"),
+        ("right", frame.n_left, frame.n_lines, "tab:red"),
+    ):
+        for n in range(lo, hi):
+            pts = frame.line_points(n)
+            ax.plot(pts[:, 1], pts[:, 0], "+", color=colour, ms=4, mew=0.8)
+            if label_objects:
+                ax.annotate(
+                    f"{side},{n - lo}",
+                    (pts[0, 1], pts[0, 0]),
+                    fontsize=5,
+                    color=colour,
+                    xytext=(2, 0),
+                    textcoords="offset points",
+                )
+    if detection is not None:
+        for name in LINE_NAMES:
+            line = detection.line(name)
+            if len(line) == 0:
+                continue
+            colour, style, width = _LINE_STYLE[name]
+            ax.plot(line[:, 1], line[:, 0], style, color=colour, lw=width, label=name)
+            pts13 = detection.resample(13).line(name)
+            if len(pts13):
+                ax.plot(pts13[:, 1], pts13[:, 0], "o", color=colour, ms=3.5, mfc="none")
+        if len(detection.trajectory):
+            traj = detection.trajectory
+            ax.plot(traj[:, 1], traj[:, 0], ":", color="tab:green", lw=2.5, label="trajectory")
+        ax.legend(loc="upper left", fontsize=7, framealpha=0.8)
+    ax.plot([0.0], [0.0], "kx", ms=8)
+    ax.set_xlabel("lateral distance y [m] (left positive, drawn on the left)")
+    ax.set_ylabel("longitudinal distance x [m]")
+    ax.set_ylim(0.0, x_max if x_max is not None else frame.range)
+    ax.set_xlim(15.0, -15.0)
+    ax.grid(alpha=0.3)
+    if title:
+        ax.set_title(title, fontsize=9)
+
+
+def plot_frames(
+    panels: Mapping[str, tuple[SensorFrame, LaneDetection | None]],
+    path: str | Path | None = None,
+    *,
+    suptitle: str | None = None,
+    x_max: float | None = None,
+) -> Figure:
+    """Side-by-side panels, one per ``title -> (frame, detection)``; saved as PNG if ``path``.
+
+    :return: the matplotlib figure (closed after saving when ``path`` is given).
+    """
+    import matplotlib
+
+    if path is not None:
+        matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    n = len(panels)
+    if n == 0:
+        raise ValueError("plot_frames needs at least one panel")
+    fig, axes = plt.subplots(1, n, figsize=(4.2 * n, 7.0), squeeze=False)
+    for ax, (title, (frame, det)) in zip(axes[0], panels.items(), strict=True):
+        draw_frame(ax, frame, det, title=title, x_max=x_max)
+    if suptitle:
+        fig.suptitle(suptitle, fontsize=10)
+    fig.tight_layout()
+    if path is not None:
+        Path(path).parent.mkdir(parents=True, exist_ok=True)
+        fig.savefig(path, dpi=130)
+        plt.close(fig)
+    return fig
+
+
+def save_table_figure(rows: list[dict[str, Any]], columns: list[str], path: str | Path) -> None:
+    """Render a small results table as a PNG (for reports)."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    cells = [[_fmt(r[c]) for c in columns] for r in rows]
+    fig, ax = plt.subplots(figsize=(1.2 * len(columns), 0.4 * (len(rows) + 1)))
+    ax.axis("off")
+    ax.table(cellText=cells, colLabels=columns, loc="center").auto_set_font_size(True)
+    fig.tight_layout()
+    fig.savefig(path, dpi=130)
+    plt.close(fig)
+
+
+def _fmt(v: Any) -> str:
+    if isinstance(v, float | np.floating):
+        return f"{v:.3g}"
+    return str(v)
