@@ -1,0 +1,86 @@
+"""Command line: compare writes the CSV and figures; bad arguments give clear errors."""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import pytest
+
+from aldm_gym.cli import main
+from aldm_gym.roads import HighwayRoad
+from aldm_gym.sensor.evaluation import COLUMNS, compare_detectors, make_detector
+
+
+def test_compare_quick_writes_csv_and_figures(
+    tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    rc = main(
+        [
+            "compare",
+            "--quick",
+            "--roads",
+            "1",
+            "--frames",
+            "12",
+            "--out",
+            str(tmp_path),
+            "--no-progress",
+        ]
+    )
+    assert rc == 0
+    with open(tmp_path / "compare.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    assert list(rows[0]) == list(COLUMNS)
+    assert {(r["marking_model"], r["detector"]) for r in rows} == {
+        (m, d) for m in ("per_dash", "editor") for d in ("naive", "aldm", "ground_truth")
+    }
+    for name in ("compare.png", "frame_per_dash.png", "frame_editor.png"):
+        assert (tmp_path / name).stat().st_size > 10_000
+    out = capsys.readouterr().out
+    assert "both_correct" in out
+
+
+def test_headline_naive_fails_on_per_dash_aldm_holds() -> None:
+    base = HighwayRoad({"seed": 5})
+    roads = [base, base.with_marking_model("editor")]
+    rows = compare_detectors(roads, frames_per_road=40, seed=1)
+    got = {(r["marking_model"], r["detector"]): r["both_correct"] for r in rows}
+    assert got[("per_dash", "naive")] < 0.1
+    assert got[("editor", "naive")] > 0.95
+    assert got[("per_dash", "aldm")] > 0.95
+    assert got[("editor", "aldm")] > 0.95
+    assert got[("per_dash", "ground_truth")] == 1.0
+
+
+def test_plot_writes_png(tmp_path: Path) -> None:
+    out = tmp_path / "f.png"
+    assert main(["plot", "--s", "1500", "--lane", "2", "--out", str(out)]) == 0
+    assert out.stat().st_size > 10_000
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["compare", "--frames", "0"],
+        ["compare", "--dropout", "1.5"],
+        ["compare", "--noise", "-1"],
+        ["plot", "--marking-model", "opendrive"],
+        ["nonsense"],
+    ],
+)
+def test_bad_arguments_exit_with_usage(argv: list[str], capsys: pytest.CaptureFixture) -> None:
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    assert exc.value.code == 2
+    assert "usage" in capsys.readouterr().err
+
+
+def test_plot_rejects_a_lane_outside_the_road(tmp_path: Path) -> None:
+    with pytest.raises(SystemExit, match="--lane"):
+        main(["plot", "--lane", "9", "--out", str(tmp_path / "x.png")])
+
+
+def test_unknown_detector() -> None:
+    with pytest.raises(ValueError, match=r"allowed: \['naive', 'aldm', 'ground_truth'\]"):
+        make_detector("perfect")
