@@ -168,7 +168,7 @@ def highway(
     for j in range(n + 1):
         off = (ego_lane + 0.5 - j) * lane_width - lateral
         marks.append(SynthMarking(off, dashed=0 < j < n, phase=phase))
-    road = SynthRoad(marks, 0.0 if np.isinf(radius) else 1.0 / radius, yaw)
+    road = SynthRoad(marks, 0.0 if np.isinf(radius) or abs(radius) > 1e8 else 1.0 / radius, yaw)
     road.ego_left, road.ego_right = ego_lane, ego_lane + 1
     road.left_adjacent = ego_lane - 1 if ego_lane >= 1 else None
     road.right_adjacent = ego_lane + 2 if ego_lane + 2 <= n else None

@@ -164,7 +164,7 @@ class ReferenceLine:
 
     def curvature_at(self, s: FloatArray | float) -> FloatArray:
         """Curvature at arc length ``s`` [1/m], positive = left curve."""
-        return np.interp(s, self.s, self.kappa)
+        return np.asarray(np.interp(s, self.s, self.kappa), dtype=np.float64)
 
     # -------------------------------------------------------------- projection
     def project(self, point: FloatArray) -> tuple[float, float]:
@@ -179,7 +179,7 @@ class ReferenceLine:
         cand = self._hash.get(key)
         if cand is None:  # far from the road: search every coarse sample
             cand = self._coarse
-        return _project(self.xy, self.heading, self.step, cand, 2 * self._STRIDE, px, py)  # type: ignore[no-any-return]
+        return _project(self.xy, self.heading, self.step, cand, 2 * self._STRIDE, px, py)
 
     def project_many(self, points: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Vectorised :meth:`project` for ``(N, 2)`` points: ``(s (N,), d (N,))``."""

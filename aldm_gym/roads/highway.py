@@ -315,7 +315,7 @@ class HighwayRoad:
     def lane(self, lane_id: int) -> ReferenceLane:
         """The highway-env lane object of lane ``lane_id`` (0 = leftmost)."""
         self._check_lane(lane_id)
-        return self.network.graph[EDGE[0]][EDGE[1]][lane_id]  # type: ignore[return-value]
+        return self.network.graph[EDGE[0]][EDGE[1]][lane_id]
 
     def lane_index(self, lane_id: int) -> tuple[str, str, int]:
         """highway-env lane index ``(from, to, id)`` of lane ``lane_id``."""

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 
@@ -172,7 +173,7 @@ class LaneDetection:
         """One line by name (one of :data:`LINE_NAMES`)."""
         if name not in LINE_NAMES:
             raise ValueError(f"unknown line {name!r}; allowed: {list(LINE_NAMES)}")
-        return getattr(self, name)  # type: ignore[no-any-return]
+        return getattr(self, name)
 
     def found(self, name: str) -> bool:
         """Whether line ``name`` has at least two points."""
@@ -193,7 +194,7 @@ class LaneDetection:
 
         Lines with fewer than two points become empty. The trajectory is kept.
         """
-        kw = {name: resample_line(self.line(name), n) for name in LINE_NAMES}
+        kw: dict[str, Any] = {name: resample_line(self.line(name), n) for name in LINE_NAMES}
         return replace(self, **kw)
 
     def as_array(self, n: int = 13) -> tuple[FloatArray, np.ndarray]:

@@ -94,7 +94,7 @@ class LineSensorConfig:
         """The x positions sampled along each line [m], at most ``max_points_per_line``."""
         k = int(np.floor((self.range - self.fov_start) / self.dx + 1e-9)) + 1
         k = min(k, self.max_points_per_line)
-        return self.fov_start + self.dx * np.arange(k)
+        return np.asarray(self.fov_start + self.dx * np.arange(k), dtype=np.float64)
 
     @property
     def noisy(self) -> bool:
