@@ -7,11 +7,11 @@ import os
 os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
 os.environ.setdefault("MPLBACKEND", "Agg")
 
-import numpy as np  # noqa: E402
-import pytest  # noqa: E402
+import numpy as np
+import pytest
 
-from aldm_gym.roads import HighwayRoad  # noqa: E402
-from aldm_gym.sensor import LineSensor  # noqa: E402
+from aldm_gym.roads import HighwayRoad
+from aldm_gym.sensor import LineSensor
 
 
 def pose_on_lane(road: HighwayRoad, s: float, lane_id: int, shift: float = 0.0) -> tuple:

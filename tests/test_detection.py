@@ -44,9 +44,13 @@ def test_trajectory_is_midway_and_single_line_offsets_half_a_lane() -> None:
     expected = 0.5 * (1.9 - 1.85) + 0.5 * 1e-3 * traj[:, 0] ** 2
     np.testing.assert_allclose(traj[:, 1], expected, atol=1e-6)
     only_left = driving_trajectory(left, np.zeros((0, 2)), lane_width=3.5)
-    np.testing.assert_allclose(only_left[:, 1], 1.9 - 1.75 + 0.5e-3 * only_left[:, 0] ** 2, atol=1e-6)
+    np.testing.assert_allclose(
+        only_left[:, 1], 1.9 - 1.75 + 0.5e-3 * only_left[:, 0] ** 2, atol=1e-6
+    )
     only_right = driving_trajectory(np.zeros((0, 2)), right, lane_width=3.5)
-    np.testing.assert_allclose(only_right[:, 1], -1.85 + 1.75 + 0.5e-3 * only_right[:, 0] ** 2, atol=1e-6)
+    np.testing.assert_allclose(
+        only_right[:, 1], -1.85 + 1.75 + 0.5e-3 * only_right[:, 0] ** 2, atol=1e-6
+    )
     assert driving_trajectory(np.zeros((0, 2)), np.zeros((0, 2))).shape == (0, 2)
 
 
@@ -61,7 +65,7 @@ def test_as_array_for_observations() -> None:
 @settings(max_examples=60, deadline=None)
 @given(arrays(np.float64, st.tuples(st.integers(0, 40), st.just(2)), elements=st.floats(-300, 300)))
 def test_any_finite_line_resamples_to_finite_points(pts: np.ndarray) -> None:
-    det = LaneDetection.from_lines(ego_left=pts, ego_right=pts + [0.0, -3.5])
+    det = LaneDetection.from_lines(ego_left=pts, ego_right=pts + np.array([0.0, -3.5]))
     r = det.resample(13)
     assert r.ego_left.shape in ((13, 2), (0, 2))
     assert np.all(np.isfinite(r.ego_left))

@@ -125,7 +125,9 @@ def test_backward_sensor_sees_the_road_behind(straight_road: HighwayRoad) -> Non
     assert f.left.relevant_line.marking == 2
     # Travel along x of the mount moves the backward sensor towards the rear.
     moved = back.measure(straight_road, pose_on_lane(straight_road, 500.0, 1), ext_travel=(3, 0, 0))
-    np.testing.assert_allclose(moved.origin - f.origin, -3.0 * _fwd(straight_road, 500.0), atol=1e-9)
+    np.testing.assert_allclose(
+        moved.origin - f.origin, -3.0 * _fwd(straight_road, 500.0), atol=1e-9
+    )
 
 
 def _fwd(road: HighwayRoad, s: float) -> np.ndarray:
@@ -171,7 +173,9 @@ def test_curved_road_points_follow_the_marking(curvy_road: HighwayRoad) -> None:
     from aldm_gym.sensor import line_markings, score_line
 
     for s in (400.0, 1500.0, 2600.0, 3700.0):
-        f = LineSensor().measure(curvy_road.with_marking_model("editor"), pose_on_lane(curvy_road, s, 2))
+        f = LineSensor().measure(
+            curvy_road.with_marking_model("editor"), pose_on_lane(curvy_road, s, 2)
+        )
         for ln in f.lines:
             sc = score_line(ln.ds[:, :2], curvy_road, f, ln.marking, tol=1e-6, preview_min=0.0)
             assert sc.max_abs_error < 1e-6

@@ -110,6 +110,7 @@ class ReferenceLine:
         self.kappa: FloatArray = kappa
         self.normal: FloatArray = left_normal(h)
         self.max_offset = float(max_offset)
+        self._memo: tuple[bytes, FloatArray, FloatArray] | None = None
         self._build_hash()
 
     # ------------------------------------------------------------------ tables
@@ -153,13 +154,40 @@ class ReferenceLine:
         p = p + extra * np.stack([np.cos(h), np.sin(h)], axis=-1)
         return p, h
 
+    def pose_at(self, s: float) -> tuple[float, float, float]:
+        """Scalar :meth:`_interp`: world ``(x [m], y [m], heading [rad])`` at arc length ``s``.
+
+        highway-env's vehicles ask for one lane position or heading at a time, thousands
+        of times per step; this avoids numpy's per-call overhead (~2 µs instead of ~40 µs)
+        with the same table and arithmetic.
+        """
+        n = self.s.shape[0]
+        i = min(max(int(s / self.step), 0), n - 2)
+        s0 = float(self.s[i])
+        tt = min(max((s - s0) / (float(self.s[i + 1]) - s0), 0.0), 1.0)
+        h0 = float(self.heading[i])
+        h = h0 + (float(self.heading[i + 1]) - h0) * tt
+        x0, y0 = float(self.xy[i, 0]), float(self.xy[i, 1])
+        x = x0 + (float(self.xy[i + 1, 0]) - x0) * tt
+        y = y0 + (float(self.xy[i + 1, 1]) - y0) * tt
+        extra = s - min(max(s, 0.0), self.length)
+        if extra != 0.0:  # beyond either end: continue straight along the end heading
+            x += extra * math.cos(h)
+            y += extra * math.sin(h)
+        return x, y, h
+
     def position(self, s: FloatArray | float, d: FloatArray | float = 0.0) -> FloatArray:
         """World position at arc length ``s`` [m] and left offset ``d`` [m], shape ``(..., 2)``."""
+        if isinstance(s, float | int) and isinstance(d, float | int) and math.isfinite(s):
+            x, y, h = self.pose_at(float(s))
+            return np.array([x + d * math.sin(h), y - d * math.cos(h)])
         p, h = self._interp(s)
         return p + np.asarray(d, dtype=np.float64)[..., None] * left_normal(h)
 
     def heading_at(self, s: FloatArray | float) -> FloatArray:
         """World heading at arc length ``s`` [rad]."""
+        if isinstance(s, float | int) and math.isfinite(s):
+            return np.float64(self.pose_at(float(s))[2])  # type: ignore[return-value]
         return self._interp(s)[1]
 
     def curvature_at(self, s: FloatArray | float) -> FloatArray:
@@ -182,10 +210,19 @@ class ReferenceLine:
         return _project(self.xy, self.heading, self.step, cand, 2 * self._STRIDE, px, py)
 
     def project_many(self, points: FloatArray) -> tuple[FloatArray, FloatArray]:
-        """Vectorised :meth:`project` for ``(N, 2)`` points: ``(s (N,), d (N,))``."""
-        pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+        """Vectorised :meth:`project` for ``(N, 2)`` points: ``(s (N,), d (N,))``.
+
+        The last result is memoised: traffic code projects the same vehicle positions
+        once per lane, and all lanes of a road share this reference line.
+        """
+        pts = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 2)
+        key = pts.tobytes()
+        if self._memo is not None and self._memo[0] == key:
+            return self._memo[1].copy(), self._memo[2].copy()
         out = np.array([self.project(p) for p in pts]).reshape(-1, 2)
-        return out[:, 0], out[:, 1]
+        s, d = out[:, 0].copy(), out[:, 1].copy()
+        self._memo = (key, s, d)
+        return s.copy(), d.copy()
 
 
 def _project_py(

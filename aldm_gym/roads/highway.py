@@ -221,7 +221,7 @@ class HighwayRoad:
         stretch = 1.0 - ref.kappa[None, :] * self._offsets[:, None]
         du = 0.5 * (stretch[:, 1:] + stretch[:, :-1]) * np.diff(ref.s)[None, :]
         self._u = np.concatenate([np.zeros((len(self.markings), 1)), np.cumsum(du, axis=1)], axis=1)
-        self.network = RoadNetwork()
+        self.network = HighwayNetwork(self)
         for i in range(n):
             left = LineType.CONTINUOUS_LINE if i == 0 else LineType.STRIPED
             right = LineType.CONTINUOUS_LINE if i == n - 1 else LineType.NONE
@@ -306,11 +306,19 @@ class HighwayRoad:
         self._check_lane(lane_id)
         return (0.5 * self.lanes_count - lane_id - 0.5) * self.lane_width
 
+    def lane_of_offset(self, d: float) -> int:
+        """Lane whose centre is nearest to left offset ``d`` [m] (lower id at a boundary)."""
+        i = math.ceil(0.5 * self.lanes_count - d / self.lane_width) - 1
+        return min(max(i, 0), self.lanes_count - 1)
+
+    def locate(self, position: FloatArray) -> tuple[float, float, int]:
+        """Ground truth of a world position: ``(s [m], left offset d [m], lane id)``."""
+        s, d = self.reference.project(position)
+        return s, d, self.lane_of_offset(d)
+
     def lane_id_at(self, position: FloatArray) -> int:
         """Ground-truth lane id at a world position (clipped to the road's lanes)."""
-        _, d = self.reference.project(position)
-        i = math.floor(0.5 * self.lanes_count - d / self.lane_width)
-        return int(min(max(i, 0), self.lanes_count - 1))
+        return self.locate(position)[2]
 
     def lane(self, lane_id: int) -> ReferenceLane:
         """The highway-env lane object of lane ``lane_id`` (0 = leftmost)."""
@@ -410,6 +418,33 @@ class HighwayRoad:
             u_out,
         )
         return y_out, u_out
+
+
+class HighwayNetwork(RoadNetwork):
+    """highway-env's ``RoadNetwork`` for a :class:`HighwayRoad`, with a one-projection lane look-up.
+
+    ``Vehicle.on_state_update`` asks for the closest lane at every simulation step. The
+    base implementation projects the position on every lane; all lanes of a highway
+    road share one reference line, arc length and heading, so the lane whose centre is
+    nearest to the lateral offset is the answer (the base argmin's tie rule, first
+    index, is kept). If lanes are added to the graph, the base look-up is used.
+    """
+
+    def __init__(self, road: HighwayRoad) -> None:
+        """Create the (still empty) network of ``road``."""
+        super().__init__()
+        self._road = road
+
+    def get_closest_lane_index(
+        self, position: np.ndarray, heading: float | None = None
+    ) -> tuple[str, str, int]:
+        """Index ``("a", "b", lane_id)`` of the lane closest to a world position [m]."""
+        road = self._road
+        lanes = self.graph.get(EDGE[0], {}).get(EDGE[1], [])
+        if len(self.graph) != 1 or len(lanes) != road.lanes_count:
+            return super().get_closest_lane_index(position, heading)  # type: ignore[return-value]
+        # Nearest lane centre; at an exact boundary the lower id wins, as np.argmin does.
+        return (EDGE[0], EDGE[1], road.locate(position)[2])
 
 
 def _sample_lines_py(

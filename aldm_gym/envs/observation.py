@@ -1,0 +1,184 @@
+"""The observation of ``ALDMHighway-v0``: detected lines, ego state, traffic by detected lane.
+
+Everything is in the ego's line-sensor frame (ISO 8855: x forward, y left) [m], so an
+agent sees the road only as the detector delivers it. Nearby vehicles are assigned to
+the ego / left / right lane by evaluating the *detected* lines at the vehicle's x
+(the paper's motivation: is the vehicle ahead in my lane?).
+
+=====================  ===========  ==========================================================
+key                    shape        content
+=====================  ===========  ==========================================================
+``lines``              (4, 13, 2)   x, y [m] of the 4 lines (left_adjacent, ego_left, ego_right,
+                                    right_adjacent), 13 points equally spaced in x; 0 if missing
+``line_valid``         (4,)         1.0 where the line was detected, else 0.0
+``trajectory``         (13, 2)      desired path (midway between the ego lines) x, y [m]
+``trajectory_valid``   (1,)         1.0 if a trajectory exists
+``ego``                (4,)         speed [m/s], yaw rate [rad/s] (> 0 left), steering [rad]
+                                    (> 0 left), lane change under way (+1 left, -1 right, 0)
+``vehicles``           (N, 6)       per nearby vehicle (nearest first): present (0/1), x, y [m],
+                                    relative vx, vy [m/s] (sensor frame), lane code
+                                    (1 ego, 2 left, 3 right, 0 other/unknown)
+=====================  ===========  ==========================================================
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+from gymnasium import spaces
+
+from aldm_gym.sensor.detection import LINE_NAMES, LaneDetection, resample_line
+from aldm_gym.types import FloatArray
+
+N_POINTS = 13
+"""Points per line in the observation (paper: 13 equally distributed points)."""
+
+LINE_BOUND = 250.0
+"""Bound of line / trajectory coordinates [m] (the sensor sees 200 m)."""
+
+SPEED_BOUND = 80.0
+"""Bound of speeds and relative speeds [m/s]."""
+
+LANE_OTHER, LANE_EGO, LANE_LEFT, LANE_RIGHT = 0, 1, 2, 3
+"""Lane codes of the ``vehicles`` observation."""
+
+
+def observation_space(vehicles_count: int, perception_distance: float) -> spaces.Dict:
+    """The observation space (a Dict of bounded float32 Boxes, see the module table)."""
+    f32 = np.float32
+    veh_low = np.tile(
+        np.array(
+            [0.0, -perception_distance, -perception_distance, -SPEED_BOUND, -SPEED_BOUND, 0.0],
+            dtype=f32,
+        ),
+        (vehicles_count, 1),
+    )
+    veh_high = np.tile(
+        np.array(
+            [1.0, perception_distance, perception_distance, SPEED_BOUND, SPEED_BOUND, 3.0],
+            dtype=f32,
+        ),
+        (vehicles_count, 1),
+    )
+    return spaces.Dict(
+        {
+            "lines": spaces.Box(-LINE_BOUND, LINE_BOUND, (4, N_POINTS, 2), f32),
+            "line_valid": spaces.Box(0.0, 1.0, (4,), f32),
+            "trajectory": spaces.Box(-LINE_BOUND, LINE_BOUND, (N_POINTS, 2), f32),
+            "trajectory_valid": spaces.Box(0.0, 1.0, (1,), f32),
+            "ego": spaces.Box(
+                np.array([-SPEED_BOUND, -math.pi, -math.pi / 2, -1.0], dtype=f32),
+                np.array([SPEED_BOUND, math.pi, math.pi / 2, 1.0], dtype=f32),
+                (4,),
+                f32,
+            ),
+            "vehicles": spaces.Box(veh_low, veh_high, (vehicles_count, 6), f32),
+        }
+    )
+
+
+def eval_line(line: FloatArray, x: FloatArray) -> FloatArray:
+    """y [m] of a line at ``x`` [m]: linear interpolation, linear extrapolation beyond its ends.
+
+    :param line: ``(K >= 2, 2)`` points sorted by x.
+    :param x: ``(N,)`` positions.
+    """
+    xs, ys = line[:, 0], line[:, 1]
+    y = np.interp(x, xs, ys)
+    if xs[1] > xs[0]:
+        s0 = (ys[1] - ys[0]) / (xs[1] - xs[0])
+        y = np.where(x < xs[0], ys[0] + s0 * (x - xs[0]), y)
+    if xs[-1] > xs[-2]:
+        s1 = (ys[-1] - ys[-2]) / (xs[-1] - xs[-2])
+        y = np.where(x > xs[-1], ys[-1] + s1 * (x - xs[-1]), y)
+    return y  # type: ignore[no-any-return]
+
+
+def assign_lanes(
+    detection_lines: dict[str, FloatArray], x: FloatArray, y: FloatArray
+) -> FloatArray:
+    """Lane code of points ``(x, y)`` [m] from the detected lines (see the lane codes).
+
+    A point between the ego lines is in the ego lane; between ``ego_left`` and
+    ``left_adjacent`` in the left lane; likewise on the right. Without both ego lines
+    every point is ``LANE_OTHER`` (unknown).
+
+    :param detection_lines: line name -> ``(K, 2)`` points (empty when missing).
+    :return: ``(N,)`` float codes.
+    """
+    codes = np.full(len(x), float(LANE_OTHER))
+    el, er = detection_lines["ego_left"], detection_lines["ego_right"]
+    if len(el) < 2 or len(er) < 2 or len(x) == 0:
+        return codes
+    yl, yr = eval_line(el, x), eval_line(er, x)
+    codes[(y < yl) & (y > yr)] = LANE_EGO
+    la, ra = detection_lines["left_adjacent"], detection_lines["right_adjacent"]
+    if len(la) >= 2:
+        codes[(y >= yl) & (y < eval_line(la, x))] = LANE_LEFT
+    if len(ra) >= 2:
+        codes[(y <= yr) & (y > eval_line(ra, x))] = LANE_RIGHT
+    return codes
+
+
+def build_observation(
+    detection: LaneDetection | None,
+    trajectory: FloatArray,
+    ego_state: FloatArray,
+    others: FloatArray,
+    vehicles_count: int,
+    perception_distance: float,
+) -> dict[str, np.ndarray]:
+    """Assemble the observation dict.
+
+    :param detection: the latest detection (``None`` gives empty lines).
+    :param trajectory: ``(M, 2)`` desired path the controller follows [m] (may be empty).
+    :param ego_state: ``(4,)`` speed, yaw rate, steering, lane-change direction.
+    :param others: ``(M, 4)`` x, y, vx, vy of other vehicles in the sensor frame
+        (velocities relative to the ego) [m, m/s].
+    """
+    lines = np.zeros((4, N_POINTS, 2))
+    valid = np.zeros(4)
+    traj = np.zeros((N_POINTS, 2))
+    traj_valid = np.zeros(1)
+    full: dict[str, FloatArray] = {name: np.zeros((0, 2)) for name in LINE_NAMES}
+    if detection is not None:
+        for i, name in enumerate(LINE_NAMES):
+            line = detection.line(name)
+            full[name] = line
+            r = resample_line(line, N_POINTS) if len(line) != N_POINTS else line
+            if len(r):
+                lines[i] = r
+                valid[i] = 1.0
+    t = resample_line(trajectory, N_POINTS) if len(trajectory) >= 2 else trajectory
+    if len(t):
+        traj = t
+        traj_valid[0] = 1.0
+    veh = np.zeros((vehicles_count, 6))
+    if len(others):
+        dist = np.hypot(others[:, 0], others[:, 1])
+        near = np.flatnonzero(dist <= perception_distance)
+        near = near[np.argsort(dist[near], kind="stable")][:vehicles_count]
+        sel = others[near]
+        k = len(sel)
+        veh[:k, 0] = 1.0
+        veh[:k, 1:5] = sel
+        veh[:k, 5] = assign_lanes(full, sel[:, 0], sel[:, 1])
+    pd = perception_distance
+    veh[:, 1:3] = np.clip(veh[:, 1:3], -pd, pd)
+    veh[:, 3:5] = np.clip(veh[:, 3:5], -SPEED_BOUND, SPEED_BOUND)
+    ego = np.clip(
+        ego_state,
+        [-SPEED_BOUND, -math.pi, -math.pi / 2, -1.0],
+        [SPEED_BOUND, math.pi, math.pi / 2, 1.0],
+    )
+    out: dict[str, Any] = {
+        "lines": np.clip(lines, -LINE_BOUND, LINE_BOUND).astype(np.float32),
+        "line_valid": valid.astype(np.float32),
+        "trajectory": np.clip(traj, -LINE_BOUND, LINE_BOUND).astype(np.float32),
+        "trajectory_valid": traj_valid.astype(np.float32),
+        "ego": ego.astype(np.float32),
+        "vehicles": veh.astype(np.float32),
+    }
+    return out

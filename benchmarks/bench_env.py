@@ -1,0 +1,91 @@
+"""Steps per second of ``ALDMHighway-v0`` vs highway-env's ``highway-fast-v0``.
+
+Both envs run in one process, alternating round by round (so machine load hits both
+alike), with ``vehicles_count=20, lanes_count=4, simulation_frequency=10,
+policy_frequency=1`` and IDLE actions. ``ALDMHighway-v0`` runs the line sensor and
+the ALDM at every simulation step. A third env measures the cost ratio of 40 vs 20
+vehicles. Usage::
+
+    .venv/bin/python benchmarks/bench_env.py [--rounds 5] [--steps 20] [--profile]
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import time
+
+import gymnasium as gym
+
+import aldm_gym  # noqa: F401  (registers ALDMHighway-v0)
+
+COMMON = {"lanes_count": 4, "simulation_frequency": 10, "policy_frequency": 1, "duration": 1e4}
+
+
+def make_envs() -> dict[str, gym.Env]:
+    """The three envs of the comparison, built once."""
+    import highway_env  # noqa: F401  (registers highway-fast-v0)
+
+    return {
+        "highway-fast-v0 (20 veh)": gym.make(
+            "highway-fast-v0", config={**COMMON, "vehicles_count": 20}
+        ),
+        "ALDMHighway-v0 (20 veh)": gym.make(
+            "ALDMHighway-v0", config={**COMMON, "vehicles_count": 20}
+        ),
+        "ALDMHighway-v0 (40 veh)": gym.make(
+            "ALDMHighway-v0", config={**COMMON, "vehicles_count": 40}
+        ),
+    }
+
+
+def steps_per_second(env: gym.Env, steps: int, seed: int) -> float:
+    """IDLE steps per second over ``steps`` policy steps (resets excluded)."""
+    env.reset(seed=seed)
+    elapsed = 0.0
+    for _ in range(steps):
+        t0 = time.perf_counter()
+        _, _, terminated, truncated, _ = env.step(1)
+        elapsed += time.perf_counter() - t0
+        if terminated or truncated:
+            env.reset()
+    return steps / elapsed
+
+
+def main() -> None:
+    """Run the alternating benchmark and print a Markdown table."""
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--rounds", type=int, default=5)
+    parser.add_argument("--steps", type=int, default=20)
+    parser.add_argument("--profile", action="store_true", help="cProfile one ALDM round")
+    args = parser.parse_args()
+    envs = make_envs()
+    for env in envs.values():  # warm-up: numba caches, imports
+        steps_per_second(env, 2, 0)
+    rates: dict[str, list[float]] = {name: [] for name in envs}
+    for r in range(args.rounds):
+        for name, env in envs.items():
+            rates[name].append(steps_per_second(env, args.steps, seed=r))
+    med = {name: statistics.median(v) for name, v in rates.items()}
+    print("| env | median steps/s | rounds |")
+    print("|---|---|---|")
+    for name, v in rates.items():
+        print(f"| {name} | {med[name]:.1f} | {', '.join(f'{x:.1f}' for x in v)} |")
+    hf = med["highway-fast-v0 (20 veh)"]
+    a20 = med["ALDMHighway-v0 (20 veh)"]
+    a40 = med["ALDMHighway-v0 (40 veh)"]
+    print(f"\nspeed-up ALDMHighway-v0 / highway-fast-v0 (20 veh): {a20 / hf:.2f}x (target >= 5x)")
+    print(f"cost ratio ALDMHighway-v0 40 / 20 vehicles: {a20 / a40:.2f}x (target <= 2.1x)")
+    if args.profile:
+        import cProfile
+        import pstats
+
+        prof = cProfile.Profile()
+        prof.enable()
+        steps_per_second(envs["ALDMHighway-v0 (20 veh)"], args.steps, seed=0)
+        prof.disable()
+        pstats.Stats(prof).sort_stats("tottime").print_stats(20)
+
+
+if __name__ == "__main__":
+    main()
