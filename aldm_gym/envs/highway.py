@@ -122,6 +122,7 @@ class SensorVehicle(Vehicle):
         self.lane_change_target_y = 0.0
         self.lane_change_refused = False
         self.lane_changes_completed = 0
+        self.lane_changes_aborted = 0  # lost the target lane or timed out
         self.planned_path: FloatArray = np.zeros((0, 2))
 
     # ------------------------------------------------------------------ actions
@@ -171,12 +172,14 @@ class SensorVehicle(Vehicle):
         cands = [(k, p) for k, p in cands if len(p) >= 2]
         if not cands:
             self.lane_change = 0
+            self.lane_changes_aborted += 1
             return np.zeros((0, 2))
         k, path = min(cands, key=lambda kp: abs(float(kp[1][0, 1]) - self.lane_change_target_y))
         jump = abs(float(path[0, 1]) - self.lane_change_target_y)
         timed_out = self.lane_change_elapsed > self.lane_change_timeout
         if jump > 0.5 * self.lane_width or timed_out:
             self.lane_change = 0  # lost the target lane or took too long: keep the lane
+            self.lane_changes_aborted += 1
             return self.trajectory
         self.lane_change_target_y = float(path[0, 1])
         if k == 0 and abs(self.lane_change_target_y) < self.LC_DONE_OFFSET:
@@ -349,9 +352,12 @@ class ALDMHighwayEnv(AbstractEnv):
     ``speed``, ``crashed``, ``action``, ``rewards`` (highway-env's), plus
     ``lateral_offset`` (true offset from the current lane centre [m], > 0 left),
     ``lane_departure`` (during this step), ``lane_index`` (true lane id, 0 leftmost),
-    ``lane_change`` (+1/-1 under way, 0), ``lane_change_refused``, ``detection``
-    (``{"ego_left"|"ego_right": {"mean_abs_error" [m] up to 60 m, "preview" [m]}}``,
-    NaN when the line is missing), ``departures`` (count this episode).
+    ``lane_change`` (+1/-1 under way, 0), ``lane_change_refused``,
+    ``lane_changes_completed`` / ``lane_changes_aborted`` (counts this episode),
+    ``arc_length`` (true position along the road [m]), ``detection``
+    (``{"ego_left"|"ego_right": {"mean_abs_error" [m] up to 60 m, "preview" [m],
+    "correct" (1/0)}}``, NaN error and preview when the line is missing),
+    ``departures`` (count this episode). See ``docs/env.md``.
 
     ## Version History
 
@@ -624,6 +630,8 @@ class ALDMHighwayEnv(AbstractEnv):
                 "lane_change": int(ego.lane_change),
                 "lane_change_refused": bool(ego.lane_change_refused),
                 "lane_changes_completed": int(ego.lane_changes_completed),
+                "lane_changes_aborted": int(ego.lane_changes_aborted),
+                "arc_length": float(self._truth[0]),
                 "departures": self._departures,
                 "detection": self._score(),
             }
@@ -631,19 +639,34 @@ class ALDMHighwayEnv(AbstractEnv):
         return info
 
     def _score(self) -> dict[str, dict[str, float]]:
-        """Per ego line: mean |error| vs ground truth up to 60 m [m] and preview [m]."""
+        """Per ego line: mean |error| vs truth up to 60 m [m], preview [m], correct (1/0).
+
+        ``correct`` is :class:`~aldm_gym.sensor.ground_truth.LineScore`'s: every point
+        within 0.3 m of the true marking, starting <= 25 m, reaching >= 60 m.
+        """
         assert self.highway is not None and self.frame is not None
         out: dict[str, dict[str, float]] = {}
         if self.detection is None:
             nan = float("nan")
-            return {n: {"mean_abs_error": nan, "preview": nan} for n in ("ego_left", "ego_right")}
+            return {
+                n: {"mean_abs_error": nan, "preview": nan, "correct": 0.0}
+                for n in ("ego_left", "ego_right")
+            }
         scores = score_detection(self.detection, self.highway, self.frame, self._truth[2])
         for name in ("ego_left", "ego_right"):
             sc = scores[name]
             if sc.found:
-                out[name] = {"mean_abs_error": float(sc.mean_abs_error), "preview": sc.preview}
+                out[name] = {
+                    "mean_abs_error": float(sc.mean_abs_error),
+                    "preview": sc.preview,
+                    "correct": float(sc.correct),
+                }
             else:
-                out[name] = {"mean_abs_error": float("nan"), "preview": float("nan")}
+                out[name] = {
+                    "mean_abs_error": float("nan"),
+                    "preview": float("nan"),
+                    "correct": 0.0,
+                }
         return out
 
     # ------------------------------------------------------------------ rendering
