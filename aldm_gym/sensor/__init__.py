@@ -7,6 +7,7 @@ y left, z up) [m].
 
 from __future__ import annotations
 
+from aldm_gym.sensor.aldm import ALDMParams, detect_lanes
 from aldm_gym.sensor.detection import LINE_NAMES, LaneDetection, driving_trajectory
 from aldm_gym.sensor.frame import LineObject, SensorFrame, SideLines
 from aldm_gym.sensor.ground_truth import (
@@ -21,6 +22,7 @@ from aldm_gym.sensor.naive import naive_detect
 
 __all__ = [
     "LINE_NAMES",
+    "ALDMParams",
     "LaneDetection",
     "LineObject",
     "LineScore",
@@ -28,6 +30,7 @@ __all__ = [
     "LineSensorConfig",
     "SensorFrame",
     "SideLines",
+    "detect_lanes",
     "driving_trajectory",
     "ground_truth_detect",
     "line_markings",

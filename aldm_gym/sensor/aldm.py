@@ -1,0 +1,329 @@
+"""The Advanced Lane Detection Model (ALDM): lanes from an unordered point cloud.
+
+Paper: Pannagger et al., "Advanced Lane Detection Model for the Virtual Development
+of Highly Automated Functions", section "Advanced Lane Detection Model" (§ALDM).
+CarMaker's line sensor reports line objects grouped into a left and a right side;
+on roads converted from OpenDRIVE or measurements every dash is its own object and
+the grouping is wrong in curves. The ALDM pools all points, ignores the grouping
+and object ids, and re-traces every marking:
+
+1. start condition: three points per side near the car (x <= 23.52 m);
+2. a quadratic through the last points predicts the line;
+3. the next point is the best-fitting one at most 18 m ahead (6 m dash + 12 m gap);
+4. the same for the adjacent lines, starting >= 2 m outside the ego lines;
+5. 13 equally distributed points per line; the driving trajectory is midway
+   between cubic fits of the ego lines.
+
+Two modes:
+
+* ``mode="paper"`` is the paper's algorithm literally (exact 3-point parabola, no
+  gate, lowest-|y| start points).
+* ``mode="robust"`` (default) keeps the structure but replaces the fragile parts:
+  the start condition places chains of nearby points by their offset at the
+  sensor under a common lane shape (so a marking crossing the car's axis in a
+  100 m curve stays on its side), the prediction is a ridge-regularised least
+  squares quadratic over the last ``fit_length`` metres with a curvature bound,
+  the next point must pass a residual gate derived from the fit's covariance (a
+  line that ends stops instead of jumping), points belong to one line only, and
+  the output is smoothed by a local quadratic.
+
+Every decision where the paper is silent is listed in ``docs/aldm.md``.
+The hot path is in numba (:mod:`aldm_gym.sensor._aldm_kernels`), compiled once
+into numba's on-disk cache.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+from collections.abc import Hashable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from aldm_gym.config import build_config, check_choice, check_range
+from aldm_gym.sensor import _aldm_kernels as K
+from aldm_gym.sensor.detection import DEFAULT_LANE_WIDTH, LINE_NAMES, LaneDetection
+from aldm_gym.types import FloatArray, IntArray
+
+MODES = ("robust", "paper")
+"""Detector variants: the default robust ALDM, or the paper's literal algorithm."""
+
+OUTPUTS = ("auto", "measured", "smoothed")
+"""What a returned line holds (see :class:`ALDMParams`)."""
+
+
+@dataclass(frozen=True)
+class ALDMParams:
+    """Parameters of :func:`detect_lanes` (all lengths in [m]).
+
+    Paper parameters (§ALDM), used by both modes:
+
+    :ivar mode: ``"robust"`` (default) or ``"paper"`` (the paper's algorithm verbatim).
+    :ivar start_x_max: start points lie at x <= this: 18 m + the 5.52 m field-of-view
+        offset = 23.52 m.
+    :ivar start_points: paper mode: start points per line (3; the trace needs 3).
+    :ivar start_spacing: paper mode: start points are at least this far apart *in x*
+        (1.8 m) — x, not Euclidean, so that the 3×3 system is regular.
+    :ivar search_length: the next point lies at most this far ahead in x (18 m).
+    :ivar adjacent_offset: adjacent lines start at least this far laterally outside
+        the ego line (2 m).
+    :ivar n_points: points per returned line, equally spaced in x over the traced
+        range (13); 0 returns every traced point.
+    :ivar output: ``"measured"``: the traced points themselves (resampled points are
+        linearly interpolated between them); ``"smoothed"``: a local quadratic fit
+        of the traced points, evaluated at the same x; ``"auto"``: measured in paper
+        mode, smoothed in robust mode.
+    :ivar z_band: points with ``|z| > z_band`` (an overpass's lines, which the
+        paper notes the simulated sensor sees; barriers) are ignored when z is given.
+    :ivar max_range: points farther than this ahead or sideways are ignored
+        (the sensor sees 200 m; this guards the arithmetic against absurd input).
+    :ivar view_range: paper mode: the sensor's range of view; the trace ends when its
+        next 18 m window would reach past it (§ALDM: "until the sensor's range of
+        view is reached").
+    :ivar lane_width: lane width used for a one-line trajectory when no estimate from
+        an adjacent line exists.
+
+    Robust-mode parameters:
+
+    :ivar noise_std: design lateral noise of the points (scales priors and gate).
+    :ivar gap_search_length: the next point may lie this far ahead (36 m = dash + two
+        gaps) when none passes the gate within ``search_length``; the nearest gated
+        point wins, so this only bridges a dash the sensor did not deliver.
+    :ivar gate_sigmas: residual gate in predicted standard deviations.
+    :ivar gate_min: smallest residual gate.
+    :ivar gate_max: largest residual gate (well below half a lane width).
+    :ivar fit_length: the prediction fits accepted points within this distance behind
+        the last one.
+    :ivar min_radius: smallest curve radius the prediction may assume (bound on the
+        quadratic term).
+    :ivar curvature_prior_std: prior standard deviation of the curvature about the
+        common lane shape of the start region [1/m].
+    :ivar heading_prior_std: prior standard deviation of the slope dy/dx [-].
+    :ivar guide_curvature_std: prior standard deviation of the curvature about that of
+        the guide line (the first, best-supported line traced) at the same x [1/m].
+    :ivar guide_heading_std: prior standard deviation of the slope about the guide's [-].
+    :ivar max_slope: a trace stops where the line is steeper than this in the sensor
+        frame (|dy/dx| = 1 is 45°; a polynomial y(x) cannot follow further).
+    :ivar min_seed_points: fewest start-region points a line needs.
+    :ivar link_dx: start region: points chain when at most this far apart in x ...
+    :ivar link_dy: ... and this far apart in y.
+    :ivar merge_dy: chains whose offsets at the sensor differ less are one marking.
+    :ivar max_ego_offset: an ego line passes within this lateral distance of the sensor.
+    :ivar min_lane_width: smallest plausible lane width (lane-width estimate).
+    :ivar max_lane_width: an adjacent line lies at most this far outside the ego line.
+    :ivar smooth_half_width: half width of the local quadratic of smoothed output.
+    :ivar tie_dx: gated candidates within this x of the nearest one compete by residual.
+    """
+
+    mode: str = "robust"
+    start_x_max: float = 23.52
+    start_points: int = 3
+    start_spacing: float = 1.8
+    search_length: float = 18.0
+    adjacent_offset: float = 2.0
+    n_points: int = 13
+    output: str = "auto"
+    z_band: float = 0.5
+    max_range: float = 500.0
+    view_range: float = 200.0
+    lane_width: float = DEFAULT_LANE_WIDTH
+    noise_std: float = 0.1
+    gap_search_length: float = 36.0
+    gate_sigmas: float = 4.0
+    gate_min: float = 0.3
+    gate_max: float = 1.2
+    fit_length: float = 40.0
+    min_radius: float = 100.0
+    curvature_prior_std: float = 1.0 / 250.0
+    heading_prior_std: float = 0.1
+    guide_curvature_std: float = 0.001
+    guide_heading_std: float = 0.03
+    max_slope: float = 1.0
+    min_seed_points: int = 1
+    link_dx: float = 4.5
+    link_dy: float = 1.5
+    merge_dy: float = 1.0
+    max_ego_offset: float = 4.0
+    min_lane_width: float = 2.5
+    max_lane_width: float = 5.0
+    smooth_half_width: float = 20.0
+    tie_dx: float = 1.0
+
+    def __post_init__(self) -> None:
+        w = "aldm"
+        check_choice(w, "mode", self.mode, MODES)
+        check_choice(w, "output", self.output, OUTPUTS)
+        check_range(w, "start_x_max", self.start_x_max, 0.0, lo_open=True)
+        check_range(w, "start_points", self.start_points, 3, 1000, integer=True)
+        check_range(w, "start_spacing", self.start_spacing, 0.0, lo_open=True)
+        check_range(w, "search_length", self.search_length, 0.0, lo_open=True)
+        check_range(w, "adjacent_offset", self.adjacent_offset, 0.0, lo_open=True)
+        if self.n_points != 0:
+            check_range(w, "n_points", self.n_points, 2, 100_000, integer=True)
+        else:
+            check_range(w, "n_points", self.n_points, integer=True)
+        check_range(w, "z_band", self.z_band, 0.0, lo_open=True)
+        check_range(w, "max_range", self.max_range, 1.0, 1.0e4)
+        check_range(w, "view_range", self.view_range, 0.0, lo_open=True)
+        check_range(w, "lane_width", self.lane_width, 0.5, 20.0)
+        check_range(w, "noise_std", self.noise_std, 0.0, 5.0, lo_open=True)
+        check_range(w, "gap_search_length", self.gap_search_length, 0.0)
+        check_range(w, "gate_sigmas", self.gate_sigmas, 0.0, lo_open=True)
+        check_range(w, "gate_min", self.gate_min, 0.0, lo_open=True)
+        check_range(w, "gate_max", self.gate_max, self.gate_min)
+        check_range(w, "fit_length", self.fit_length, 0.0, lo_open=True)
+        check_range(w, "min_radius", self.min_radius, 1.0)
+        check_range(w, "curvature_prior_std", self.curvature_prior_std, 0.0, lo_open=True)
+        check_range(w, "heading_prior_std", self.heading_prior_std, 0.0, lo_open=True)
+        check_range(w, "guide_curvature_std", self.guide_curvature_std, 0.0, lo_open=True)
+        check_range(w, "guide_heading_std", self.guide_heading_std, 0.0, lo_open=True)
+        check_range(w, "max_slope", self.max_slope, 0.0, lo_open=True)
+        check_range(w, "min_seed_points", self.min_seed_points, 1, 1000, integer=True)
+        check_range(w, "link_dx", self.link_dx, 0.0, lo_open=True)
+        check_range(w, "link_dy", self.link_dy, 0.0, lo_open=True)
+        check_range(w, "merge_dy", self.merge_dy, 0.0)
+        check_range(w, "max_ego_offset", self.max_ego_offset, 0.0, lo_open=True)
+        check_range(w, "min_lane_width", self.min_lane_width, 0.0)
+        check_range(w, "max_lane_width", self.max_lane_width, self.min_lane_width)
+        check_range(w, "smooth_half_width", self.smooth_half_width, 0.0, lo_open=True)
+        check_range(w, "tie_dx", self.tie_dx, 0.0)
+
+    @property
+    def smooth(self) -> bool:
+        """Whether returned lines are smoothed (``output`` resolved for ``mode``)."""
+        if self.output == "auto":
+            return self.mode == "robust"
+        return self.output == "smoothed"
+
+
+@functools.lru_cache(maxsize=64)
+def _packed(params: ALDMParams) -> tuple[FloatArray, IntArray]:
+    """The kernels' float and int parameter vectors for ``params`` (cached)."""
+    fp = np.zeros(K.N_FLOAT_PARAMS)
+    fp[K.P_START_X_MAX] = params.start_x_max
+    fp[K.P_START_SPACING] = params.start_spacing
+    fp[K.P_SEARCH] = params.search_length
+    fp[K.P_ADJ_OFFSET] = params.adjacent_offset
+    fp[K.P_NOISE] = params.noise_std
+    fp[K.P_GATE_SIGMAS] = params.gate_sigmas
+    fp[K.P_GATE_MIN] = params.gate_min
+    fp[K.P_GATE_MAX] = params.gate_max
+    fp[K.P_FIT_LENGTH] = params.fit_length
+    fp[K.P_A_MAX] = 0.5 / params.min_radius  # y ~ x^2 / (2 R)
+    fp[K.P_A_STD] = 0.5 * params.curvature_prior_std
+    fp[K.P_B_STD] = params.heading_prior_std
+    fp[K.P_LINK_DX] = params.link_dx
+    fp[K.P_LINK_DY] = params.link_dy
+    fp[K.P_MERGE_DY] = params.merge_dy
+    fp[K.P_MAX_EGO] = params.max_ego_offset
+    fp[K.P_MAX_LANE] = params.max_lane_width
+    fp[K.P_SMOOTH_H] = params.smooth_half_width
+    fp[K.P_TIE_DX] = params.tie_dx
+    fp[K.P_LANE_WIDTH] = params.lane_width
+    fp[K.P_MIN_LANE] = params.min_lane_width
+    fp[K.P_Z_BAND] = params.z_band
+    fp[K.P_MAX_RANGE] = params.max_range
+    fp[K.P_VIEW_RANGE] = params.view_range
+    fp[K.P_GAP_SEARCH] = params.gap_search_length
+    fp[K.P_MAX_SLOPE] = params.max_slope
+    fp[K.P_GUIDE_A_STD] = 0.5 * params.guide_curvature_std
+    fp[K.P_GUIDE_B_STD] = params.guide_heading_std
+    ip = np.zeros(K.N_INT_PARAMS, dtype=np.int64)
+    ip[K.I_PAPER] = 1 if params.mode == "paper" else 0
+    ip[K.I_START_POINTS] = params.start_points
+    ip[K.I_MIN_SEED] = params.min_seed_points
+    ip[K.I_N_OUT] = params.n_points
+    ip[K.I_SMOOTH] = 1 if params.smooth else 0
+    fp.flags.writeable = False
+    ip.flags.writeable = False
+    return fp, ip
+
+
+@functools.lru_cache(maxsize=256)
+def _params_from_items(items: tuple[tuple[str, Hashable], ...]) -> ALDMParams:
+    return build_config(ALDMParams, dict(items), where="aldm")
+
+
+def make_params(params: ALDMParams | None = None, **overrides: Any) -> ALDMParams:
+    """Validated :class:`ALDMParams` from an optional base and keyword overrides.
+
+    :raises ValueError: an unknown key (naming it and the allowed ones) or an
+        impossible value.
+    """
+    if params is not None and not isinstance(params, ALDMParams):
+        raise TypeError(f"params must be ALDMParams or None, got {type(params).__name__}")
+    if not overrides:
+        return params if params is not None else _params_from_items(())
+    if params is not None:
+        build_config(ALDMParams, overrides, where="aldm")  # names unknown keys
+        return dataclasses.replace(params, **overrides)
+    try:
+        return _params_from_items(tuple(sorted(overrides.items())))
+    except TypeError:  # unhashable value: validate without the cache
+        return build_config(ALDMParams, overrides, where="aldm")
+
+
+def as_points(points: Any) -> FloatArray:
+    """The ``(N, 2|3)`` float64 C-contiguous point array of ``points``.
+
+    Accepts a NumPy array (float or integer dtype) or a line-sensor frame (any
+    object with a callable ``points()`` returning such an array, pooled over all
+    line objects).
+
+    :raises TypeError: not an array / frame, or a non-numeric or boolean dtype.
+    :raises ValueError: not of shape ``(N, 2)`` or ``(N, 3)``.
+    """
+    if hasattr(points, "points") and callable(points.points):
+        points = points.points()
+    if not isinstance(points, np.ndarray):
+        raise TypeError(
+            "detect_lanes expects a numpy array of shape (N, 2) or (N, 3) or a sensor "
+            f"frame with points(), got {type(points).__name__}"
+        )
+    if points.dtype.kind not in "fiu":
+        raise TypeError(
+            f"detect_lanes expects a float (or integer) array, got dtype {points.dtype}"
+        )
+    if points.ndim != 2 or points.shape[1] not in (2, 3):
+        raise ValueError(
+            f"detect_lanes expects points of shape (N, 2) or (N, 3), got {points.shape}"
+        )
+    return np.ascontiguousarray(points, dtype=np.float64)
+
+
+def detect_lanes(points: Any, params: ALDMParams | None = None, **overrides: Any) -> LaneDetection:
+    """Detect the ego lane's lines and the adjacent lines with the ALDM (§ALDM).
+
+    The points are an unordered cloud in the sensor frame (x forward, y left,
+    optional z = height above the road) [m]; CarMaker's left/right grouping and
+    object ids are not used. Rows with NaN/inf are dropped, as are points behind
+    the sensor (x < 0) and, when z is given, points off the road plane
+    (``|z| > z_band``). The result does not depend on the order of the points.
+
+    Lines are sorted by x and span only the x range where points were traced (no
+    extrapolation); with the default ``n_points=13`` each found line has 13 points
+    equally spaced in x, a line not found is ``(0, 2)``. In robust mode the points
+    lie on a local quadratic smoothing of the traced points, in paper mode they are
+    interpolated between the measured points (see ``output``). The trajectory is
+    midway between cubic fits of the ego lines; with one ego line, that line offset
+    by half the lane width estimated from its adjacent line (or ``lane_width``).
+
+    :param points: ``(N, 2)`` or ``(N, 3)`` float array [m], or a sensor frame.
+    :param params: an :class:`ALDMParams` (defaults if omitted).
+    :param overrides: individual :class:`ALDMParams` fields, e.g. ``mode="paper"``.
+    :return: a :class:`~aldm_gym.sensor.detection.LaneDetection` with ``source="aldm"``.
+    :raises TypeError: ``points`` is not an array or frame, or has a bad dtype.
+    :raises ValueError: bad shape, unknown parameter or impossible value.
+    """
+    p = make_params(params, **overrides)
+    pts = as_points(points)
+    fp, ip = _packed(p)
+    order = np.argsort(pts[:, 0])
+    lines, starts, _offsets, traj = K._detect(pts, order, fp, ip)
+    fields = {name: lines[starts[s] : starts[s + 1]] for s, name in enumerate(LINE_NAMES)}
+    return LaneDetection.trusted(**fields, trajectory=traj, source="aldm")
+
+
+__all__ = ["MODES", "OUTPUTS", "ALDMParams", "as_points", "detect_lanes", "make_params"]

@@ -1,0 +1,97 @@
+"""Speed of :func:`aldm_gym.sensor.detect_lanes` as a ratio to ``np.argsort``.
+
+Two frames: the paper's worst case (§ALDM, eq. 1: 100 lines × 100 points = 10,000
+points; here 100 parallel continuous markings 3.5 m apart, sampled every 2 m with a
+per-line phase, 2 cm noise) and a typical 4-lane per-dash highway frame. For each,
+the best of several repeats of ``detect_lanes`` is divided by the best time of
+``np.argsort`` of the same x coordinates in the same run (sorting is the floor of any
+method that orders points). The plain-Python reference (all kernels run as Python
+with ``NUMBA_DISABLE_JIT=1`` semantics) is timed on the typical frame.
+
+Run: ``.venv/bin/python benchmarks/bench_aldm.py``
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import time
+import timeit
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "tests"))
+
+
+def worst_case_frame(seed: int = 0) -> np.ndarray:
+    """100 lines × 100 points (x from 5.52 m every 2 m), 3.5 m apart, shuffled."""
+    rng = np.random.default_rng(seed)
+    lines = []
+    for j in range(100):
+        x = 5.52 + rng.uniform(0.0, 2.0) + 2.0 * np.arange(100)
+        y = (j - 49.5) * 3.5 + x * x / 2000.0 + rng.normal(0.0, 0.02, 100)
+        lines.append(np.column_stack([x, y, np.zeros(100)]))
+    pts = np.concatenate(lines)
+    return pts[rng.permutation(len(pts))]
+
+
+def typical_frame(seed: int = 0) -> np.ndarray:
+    """A 4-lane highway, per-dash objects, R = 800 m, 2 cm noise (~400 points)."""
+    import _synthetic as S
+
+    road = S.highway(lanes=4, ego_lane=1, radius=800.0)
+    pts, _ = S.sample(road, noise=0.02, seed=seed)
+    return pts
+
+
+def best(fn, number: int, repeat: int = 7) -> float:
+    return min(timeit.repeat(fn, number=number, repeat=repeat)) / number
+
+
+def main() -> None:
+    t0 = time.perf_counter()
+    from aldm_gym.sensor.aldm import detect_lanes
+
+    t_import = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    detect_lanes(typical_frame())
+    detect_lanes(typical_frame(), mode="paper")
+    t_first = time.perf_counter() - t0
+    print(f"import {t_import * 1e3:.0f} ms; first calls (robust + paper, numba cache "
+          f"load or compile) {t_first * 1e3:.0f} ms")
+    rows = []
+    for name, pts in (("worst case 10,000 pts", worst_case_frame()),
+                      ("typical 4-lane per-dash", typical_frame())):
+        x = pts[:, 0].copy()
+        number = 200 if len(pts) > 2000 else 2000
+        t_sort = best(lambda x=x: np.argsort(x), number)
+        for mode in ("robust", "paper"):
+            t_det = best(lambda pts=pts, mode=mode: detect_lanes(pts, mode=mode), number)
+            rows.append((name, len(pts), mode, t_det, t_sort))
+    print(f"{'frame':26s} {'N':>6s} {'mode':7s} {'detect [us]':>12s} "
+          f"{'argsort [us]':>13s} {'ratio':>6s}")
+    for name, n, mode, t_det, t_sort in rows:
+        print(f"{name:26s} {n:6d} {mode:7s} {t_det * 1e6:12.1f} {t_sort * 1e6:13.1f} "
+              f"{t_det / t_sort:6.2f}")
+    # Plain-Python reference on the typical frame, in a fresh interpreter.
+    code = (
+        f"import sys, timeit; sys.path[:0] = [{str(ROOT)!r}, {str(ROOT / 'benchmarks')!r}]\n"
+        "from bench_aldm import typical_frame\n"
+        "from aldm_gym.sensor.aldm import detect_lanes\n"
+        "p = typical_frame(); detect_lanes(p)\n"
+        "print(min(timeit.repeat(lambda: detect_lanes(p), number=3, repeat=3)) / 3)\n"
+    )
+    env = {"NUMBA_DISABLE_JIT": "1", "PATH": "/usr/bin:/bin"}
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
+                         text=True, check=True)
+    t_py = float(out.stdout.strip().splitlines()[-1])
+    t_nb = next(r[3] for r in rows if r[0].startswith("typical") and r[2] == "robust")
+    print(f"plain-Python reference, typical frame, robust: {t_py * 1e3:.1f} ms "
+          f"-> numba speed-up {t_py / t_nb:.0f}x")
+
+
+if __name__ == "__main__":
+    main()
