@@ -3,10 +3,11 @@
 Two frames: the paper's worst case (§ALDM, eq. 1: 100 lines × 100 points = 10,000
 points; here 100 parallel continuous markings 3.5 m apart, sampled every 2 m with a
 per-line phase, 2 cm noise) and a typical 4-lane per-dash highway frame. For each,
-the best of several repeats of ``detect_lanes`` is divided by the best time of
-``np.argsort`` of the same x coordinates in the same run (sorting is the floor of any
-method that orders points). The plain-Python reference (all kernels run as Python
-with ``NUMBA_DISABLE_JIT=1`` semantics) is timed on the typical frame.
+the best of 15 repeats of ``detect_lanes`` is divided by the best time of
+``np.argsort`` of the same x coordinates in the same run, repeats interleaved
+(sorting is the floor of any method that orders points). The plain-Python
+reference (all kernels run as Python with ``NUMBA_DISABLE_JIT=1``) is timed on the
+typical frame.
 
 Run: ``.venv/bin/python benchmarks/bench_aldm.py``
 """
@@ -47,8 +48,13 @@ def typical_frame(seed: int = 0) -> np.ndarray:
     return pts
 
 
-def best(fn, number: int, repeat: int = 7) -> float:
-    return min(timeit.repeat(fn, number=number, repeat=repeat)) / number
+def best_alternating(fns: list, number: int, repeat: int = 15) -> list[float]:
+    """Best time per call of each of ``fns``, repeats interleaved (the machine is noisy)."""
+    times = [[] for _ in fns]
+    for _ in range(repeat):
+        for f, t in zip(fns, times, strict=True):
+            t.append(timeit.timeit(f, number=number) / number)
+    return [min(t) for t in times]
 
 
 def main() -> None:
@@ -60,22 +66,31 @@ def main() -> None:
     detect_lanes(typical_frame())
     detect_lanes(typical_frame(), mode="paper")
     t_first = time.perf_counter() - t0
-    print(f"import {t_import * 1e3:.0f} ms; first calls (robust + paper, numba cache "
-          f"load or compile) {t_first * 1e3:.0f} ms")
+    print(
+        f"import {t_import * 1e3:.0f} ms; first calls (robust + paper, numba cache "
+        f"load or compile) {t_first * 1e3:.0f} ms"
+    )
     rows = []
-    for name, pts in (("worst case 10,000 pts", worst_case_frame()),
-                      ("typical 4-lane per-dash", typical_frame())):
+    for name, pts in (
+        ("worst case 10,000 pts", worst_case_frame()),
+        ("typical 4-lane per-dash", typical_frame()),
+    ):
         x = pts[:, 0].copy()
-        number = 200 if len(pts) > 2000 else 2000
-        t_sort = best(lambda x=x: np.argsort(x), number)
-        for mode in ("robust", "paper"):
-            t_det = best(lambda pts=pts, mode=mode: detect_lanes(pts, mode=mode), number)
+        number = 100 if len(pts) > 2000 else 1000
+        fns = [lambda x=x: np.argsort(x)]
+        fns += [lambda pts=pts, m=m: detect_lanes(pts, mode=m) for m in ("robust", "paper")]
+        t_sort, *t_dets = best_alternating(fns, number)
+        for mode, t_det in zip(("robust", "paper"), t_dets, strict=True):
             rows.append((name, len(pts), mode, t_det, t_sort))
-    print(f"{'frame':26s} {'N':>6s} {'mode':7s} {'detect [us]':>12s} "
-          f"{'argsort [us]':>13s} {'ratio':>6s}")
+    print(
+        f"{'frame':26s} {'N':>6s} {'mode':7s} {'detect [us]':>12s} "
+        f"{'argsort [us]':>13s} {'ratio':>6s}"
+    )
     for name, n, mode, t_det, t_sort in rows:
-        print(f"{name:26s} {n:6d} {mode:7s} {t_det * 1e6:12.1f} {t_sort * 1e6:13.1f} "
-              f"{t_det / t_sort:6.2f}")
+        print(
+            f"{name:26s} {n:6d} {mode:7s} {t_det * 1e6:12.1f} {t_sort * 1e6:13.1f} "
+            f"{t_det / t_sort:6.2f}"
+        )
     # Plain-Python reference on the typical frame, in a fresh interpreter.
     code = (
         f"import sys, timeit; sys.path[:0] = [{str(ROOT)!r}, {str(ROOT / 'benchmarks')!r}]\n"
@@ -85,12 +100,15 @@ def main() -> None:
         "print(min(timeit.repeat(lambda: detect_lanes(p), number=3, repeat=3)) / 3)\n"
     )
     env = {"NUMBA_DISABLE_JIT": "1", "PATH": "/usr/bin:/bin"}
-    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
-                         text=True, check=True)
+    out = subprocess.run(
+        [sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True
+    )
     t_py = float(out.stdout.strip().splitlines()[-1])
     t_nb = next(r[3] for r in rows if r[0].startswith("typical") and r[2] == "robust")
-    print(f"plain-Python reference, typical frame, robust: {t_py * 1e3:.1f} ms "
-          f"-> numba speed-up {t_py / t_nb:.0f}x")
+    print(
+        f"plain-Python reference, typical frame, robust: {t_py * 1e3:.1f} ms "
+        f"-> numba speed-up {t_py / t_nb:.0f}x"
+    )
 
 
 if __name__ == "__main__":

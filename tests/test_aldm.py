@@ -48,9 +48,9 @@ def frame(seed: int, radius: float = np.inf, noise: float = 0.0, dropout: float 
 
 
 def same(a: LaneDetection, b: LaneDetection) -> bool:
-    return all(
-        np.array_equal(a.line(n), b.line(n)) for n in LINE_NAMES
-    ) and np.array_equal(a.trajectory, b.trajectory)
+    return all(np.array_equal(a.line(n), b.line(n)) for n in LINE_NAMES) and np.array_equal(
+        a.trajectory, b.trajectory
+    )
 
 
 # ----------------------------------------------------------------- parameters
@@ -180,8 +180,9 @@ def test_all_points_output_holds_measured_points_in_paper_mode() -> None:
 def test_trusted_detection_matches_validating_constructor() -> None:
     _road, pts = frame(8, radius=-400, noise=0.03)
     det = detect_lanes(pts)
-    checked = LaneDetection(**{n: det.line(n) for n in LINE_NAMES}, trajectory=det.trajectory,
-                            source="aldm")
+    checked = LaneDetection(
+        **{n: det.line(n) for n in LINE_NAMES}, trajectory=det.trajectory, source="aldm"
+    )
     assert same(det, checked)
     for name in (*LINE_NAMES, "trajectory"):
         arr = getattr(det, name)
@@ -372,23 +373,23 @@ def test_same_input_bit_identical_output() -> None:
 def _kernel_inputs(seed: int, mode: str):  # type: ignore[no-untyped-def]
     _road, pts = frame(seed, radius=-200, noise=0.05, dropout=0.1)
     fp, ip = _packed(make_params(mode=mode))
-    return pts, np.argsort(pts[:, 0]), fp, ip
+    return pts, fp, ip
 
 
 @pytest.mark.parametrize("mode", ["robust", "paper"])
 def test_python_and_numba_pipeline_agree_exactly(mode: str) -> None:
     """The top-level kernel as Python (its helpers compiled) vs fully compiled."""
-    pts, order, fp, ip = _kernel_inputs(13, mode)
-    got_py = K._detect_py(pts, order, fp, ip)
-    got_nb = K._detect(pts, order, fp, ip)
+    pts, fp, ip = _kernel_inputs(13, mode)
+    got_py = K._detect_py(pts, fp, ip)
+    got_nb = K._detect(pts, fp, ip)
     for a, b in zip(got_py, got_nb, strict=True):
         np.testing.assert_array_equal(a, b)
 
 
 def test_leaf_kernels_python_and_numba_agree_exactly() -> None:
-    pts, order, _fp, _ip = _kernel_inputs(14, "robust")
-    xs, ys = K._gather_py(pts, order, True, 0.5, 500.0)
-    xs2, ys2 = K._gather(pts, order, True, 0.5, 500.0)
+    pts, _fp, _ip = _kernel_inputs(14, "robust")
+    xs, ys = K._gather_py(pts, True, 0.5, 500.0)
+    xs2, ys2 = K._gather(pts, True, 0.5, 500.0)
     np.testing.assert_array_equal(xs, xs2)
     np.testing.assert_array_equal(ys, ys2)
     m = int(np.searchsorted(xs, 23.52, side="right"))
@@ -423,8 +424,14 @@ def test_fully_plain_python_run_agrees_with_numba(tmp_path: Path) -> None:
         "print(json.dumps(out))\n"
     )
     env = dict(os.environ, NUMBA_DISABLE_JIT="1")
-    res = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
-                         text=True, check=True, cwd=Path(__file__).resolve().parents[1])
+    res = subprocess.run(
+        [sys.executable, "-c", code],
+        env=env,
+        capture_output=True,
+        text=True,
+        check=True,
+        cwd=Path(__file__).resolve().parents[1],
+    )
     plain = json.loads(res.stdout.strip().splitlines()[-1])
     for mode in ("robust", "paper"):
         det = detect_lanes(pts, mode=mode)
@@ -465,3 +472,48 @@ def test_generated_roads_robust_with_noise_and_dropout() -> None:
         sc = score_detection(detect_lanes(frame_), road, frame_, p.lane_id)
         good += sc["ego_left"].correct and sc["ego_right"].correct
     assert good >= len(poses) - 1
+
+
+# ----------------------------------------------------------------- canonical order
+@pytest.mark.parametrize("kind", ["uniform", "ties", "crowded", "signed_zero"])
+def test_gather_is_the_lexicographic_sort_of_the_valid_points(kind: str) -> None:
+    """The bucket sort equals np.lexsort by (x, y) of the kept rows, also for crowded buckets."""
+    rng = np.random.default_rng(5)
+    pts = rng.uniform(-10.0, 300.0, (3000, 3))
+    pts[:, 2] *= 0.003
+    if kind == "ties":
+        pts[:, :2] = np.round(pts[:, :2])
+    elif kind == "crowded":  # most points in a few buckets (argsort path), one far outlier
+        pts[:, 0] = np.round(rng.uniform(0.0, 1.0, 3000), 2)
+        pts[0, 0] = 450.0
+    elif kind == "signed_zero":
+        pts[:300, 0] = -0.0
+        pts[300:600, 1] = -0.0
+    pts[rng.integers(0, 3000, 20)] = np.nan
+    keep = (pts[:, 0] >= 0) & (pts[:, 0] <= 500) & (np.abs(pts[:, 1]) <= 500)
+    keep &= np.abs(pts[:, 2]) <= 0.5
+    q = pts[keep] + 0.0
+    o = np.lexsort((q[:, 1], q[:, 0]))
+    for gather in (K._gather, K._gather_py):
+        xs, ys = gather(pts[rng.permutation(len(pts))], True, 0.5, 500.0)
+        np.testing.assert_array_equal(xs, q[o, 0])
+        np.testing.assert_array_equal(ys, q[o, 1])
+        assert not np.signbit(xs).any() and not np.signbit(ys[ys == 0.0]).any()
+
+
+def test_both_ego_lines_found_only_beyond_the_start_region() -> None:
+    """Regression: both ego lines in the extended start region (used to raise ValueError)."""
+    x = np.arange(26.0, 60.0, 2.0)
+    pts = np.concatenate([np.column_stack([x, y + 0.0 * x]) for y in (1.8, -1.9)])
+    det = detect_lanes(pts)
+    assert det.found("ego_left") and det.found("ego_right")
+    np.testing.assert_allclose(det.ego_left[:, 1], 1.8, atol=1e-9)
+    np.testing.assert_allclose(det.ego_right[:, 1], -1.9, atol=1e-9)
+
+
+def test_packed_parameters_are_cached_per_instance() -> None:
+    p = make_params(noise_std=0.05)
+    assert _packed(p) is _packed(p)
+    assert _packed(make_params(noise_std=0.06))[0][K.P_NOISE] == 0.06
+    with pytest.raises(TypeError):
+        detect_lanes(frame(0)[1], params={"mode": "paper"})  # type: ignore[arg-type]

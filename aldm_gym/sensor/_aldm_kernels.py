@@ -89,23 +89,53 @@ HIST = 64  # ring buffer of the most recent accepted points of a traced line
 
 
 # ===================================================================== gather
-def _gather_py(pts, order, has_z, z_band, max_range):
-    """Valid points in canonical order: sorted by x, ties by y.
+SMALL_RUN = 16  # buckets up to this size are sorted by insertion, larger ones by argsort
 
-    ``order`` sorts ``pts[:, 0]`` (any sort; NaN last). Rows with a non-finite
-    coordinate, with x < 0 (behind the sensor), with x or |y| beyond ``max_range``
-    or, when ``has_z``, with
-    ``|z| > z_band`` (an overpass's lines, barriers) are dropped. Runs of equal x
-    are then sorted by y, which makes the result a function of the point set only.
+
+def _sort_run_py(xs, ys, a, b):
+    """Sort ``xs[a:b], ys[a:b]`` in place lexicographically by ``(x, y)`` (a crowded bucket)."""
+    o = np.argsort(xs[a:b])
+    sx = xs[a:b][o]
+    sy = ys[a:b][o]
+    xs[a:b] = sx
+    ys[a:b] = sy
+    # Runs of equal x by y (the argsort need not be stable or lexicographic).
+    i = a
+    while i < b:
+        j = i + 1
+        while j < b and xs[j] == xs[i]:
+            j += 1
+        if j - i > 1:
+            ys[i:j] = np.sort(ys[i:j])
+        i = j
+
+
+_sort_run = numba.njit(cache=True)(_sort_run_py)
+
+
+def _gather_py(pts, has_z, z_band, max_range):
+    """Valid points in canonical order: sorted lexicographically by ``(x, y)``.
+
+    Rows with a non-finite coordinate, with x < 0 (behind the sensor), with x or |y|
+    beyond ``max_range`` or, when ``has_z``, with ``|z| > z_band`` (an overpass's
+    lines, barriers) are dropped; ``-0.0`` becomes ``0.0``. The result is a function
+    of the point set only, never of the input order.
+
+    Sorting is a bucket sort by x (as many buckets as points over the x range, then
+    each bucket by ``(x, y)``): O(N) for the sensor's roughly uniform x, and
+    O(N log N) at worst (a crowded bucket is sorted by ``np.argsort``). The bucket
+    index is monotone in x, so the buckets concatenate in order.
 
     :return: ``(xs, ys)``, each ``(M,)`` [m].
     """
-    n = order.shape[0]
-    xs = np.empty(n)
-    ys = np.empty(n)
+    n = pts.shape[0]
+    # key[i]: 0 for a usable row, -1 for a dropped one; then the row's bucket
+    key = np.empty(n, dtype=np.int64)
     m = 0
-    for k in range(n):
-        i = order[k]
+    lo = np.inf
+    hi = -np.inf
+    for i in range(n):
+        key[i] = -1
         x = pts[i, 0]
         y = pts[i, 1]
         if not (0.0 <= x <= max_range and abs(y) <= max_range):
@@ -114,19 +144,55 @@ def _gather_py(pts, order, has_z, z_band, max_range):
             z = pts[i, 2]
             if not math.isfinite(z) or abs(z) > z_band:
                 continue
-        xs[m] = x
-        ys[m] = y
+        key[i] = 0
+        lo = min(lo, x)
+        hi = max(hi, x)
         m += 1
-    # Canonicalise ties in x (the input sort need not be stable or lexicographic).
-    a = 0
-    while a < m:
-        b = a + 1
-        while b < m and xs[b] == xs[a]:
-            b += 1
-        if b - a > 1:
-            ys[a:b] = np.sort(ys[a:b])
-        a = b
-    return xs[:m].copy(), ys[:m].copy()
+    xs = np.empty(m)
+    ys = np.empty(m)
+    if m == 0:
+        return xs, ys
+    scale = m / (hi - lo) if hi > lo else 0.0
+    if not math.isfinite(scale):
+        scale = 0.0  # a sub-normal x range: one bucket
+    # cnt[b + 1]: size of bucket b, then (prefix sum) its start, then (scatter) its end
+    cnt = np.zeros(m + 1, dtype=np.int64)
+    for i in range(n):
+        if key[i] == 0:
+            b = min(int((pts[i, 0] - lo) * scale), m - 1)
+            key[i] = b
+            cnt[b + 1] += 1
+    run = 0
+    for b in range(m):
+        c = cnt[b + 1]
+        cnt[b + 1] = run
+        run += c
+    for i in range(n):
+        b = key[i]
+        if b >= 0:
+            q = cnt[b + 1]
+            cnt[b + 1] = q + 1
+            xs[q] = pts[i, 0] + 0.0  # -0.0 -> 0.0
+            ys[q] = pts[i, 1] + 0.0
+    # now bucket b is [cnt[b], cnt[b + 1])
+    for b in range(m):
+        s = cnt[b]
+        e = cnt[b + 1]
+        if e - s > SMALL_RUN:
+            _sort_run(xs, ys, s, e)
+            continue
+        # insertion sort by (x, y), inline: most buckets hold 0-3 points
+        for i in range(s + 1, e):
+            x = xs[i]
+            y = ys[i]
+            j = i - 1
+            while j >= s and (xs[j] > x or (xs[j] == x and ys[j] > y)):
+                xs[j + 1] = xs[j]
+                ys[j + 1] = ys[j]
+                j -= 1
+            xs[j + 1] = x
+            ys[j + 1] = y
+    return xs, ys
 
 
 _gather = numba.njit(cache=True)(_gather_py)
@@ -430,10 +496,13 @@ def _build_grid_py(xs, ys, cell_y):
 
     Cells are 2 m in x (one sensor sample) by ``2 cell_y`` in y, coarsened until
     there are at most ``N + 1024`` cells. Within a cell points keep their
-    canonical (x, y) order.
+    canonical (x, y) order. A point's cell is ``floor((x - x0) * (1 / gx))`` by
+    ``floor((y - y0) * (1 / gy))`` (clipped), the same monotone maps the search uses
+    (:func:`_cell_rows`), so a search range in x and y covers every cell that can
+    hold a point in it.
 
-    :return: ``(geo, start, pts)``: ``geo = (x0, gx, y0, gy, nx, ny)``; the points of
-        cell ``c = bx * ny + by`` are ``pts[start[c]:start[c + 1]]``.
+    :return: ``(geo, start, pts)``: ``geo = (x0, 1/gx, y0, 1/gy, nx, ny)``; the
+        points of cell ``c = bx * ny + by`` are ``pts[start[c]:start[c + 1]]``.
     """
     n = xs.shape[0]
     geo = np.zeros(6)
@@ -460,25 +529,29 @@ def _build_grid_py(xs, ys, cell_y):
             gy *= 2.0
         nx = int((xs[n - 1] - x0) / gx) + 1
         ny = int((y1 - y0) / gy) + 1
-    start = np.zeros(nx * ny + 1, dtype=np.int64)
-    cell = np.empty(n, dtype=np.int64)
+    igx = 1.0 / gx
+    igy = 1.0 / gy
+    nc = nx * ny
+    # start[c]: count of cell c, then (prefix sum) its end, then (scatter) its start
+    start = np.zeros(nc + 1, dtype=np.int64)
     for i in range(n):
-        bx = min(int((xs[i] - x0) / gx), nx - 1)
-        by = min(int((ys[i] - y0) / gy), ny - 1)
-        c = bx * ny + by
-        cell[i] = c
-        start[c + 1] += 1
-    for c in range(nx * ny):
-        start[c + 1] += start[c]
-    fill = start[:-1].copy()
+        bx = min(int((xs[i] - x0) * igx), nx - 1)
+        by = min(int((ys[i] - y0) * igy), ny - 1)
+        start[bx * ny + by] += 1
+    for c in range(1, nc):
+        start[c] += start[c - 1]
     pts = np.empty(n, dtype=np.int64)
-    for i in range(n):
-        pts[fill[cell[i]]] = i
-        fill[cell[i]] += 1
+    for i in range(n - 1, -1, -1):
+        bx = min(int((xs[i] - x0) * igx), nx - 1)
+        by = min(int((ys[i] - y0) * igy), ny - 1)
+        c = bx * ny + by
+        start[c] -= 1
+        pts[start[c]] = i
+    start[nc] = n
     geo[0] = x0
-    geo[1] = gx
+    geo[1] = igx
     geo[2] = y0
-    geo[3] = gy
+    geo[3] = igy
     geo[4] = nx
     geo[5] = ny
     return geo, start, pts
@@ -536,8 +609,8 @@ def _cell_rows_py(geo, x_last, xa, xb, A, B, C, margin):
             hi = max(hi, fv)
     eps = 1e-9 * (1.0 + abs(lo) + abs(hi))
     ny = int(geo[5])
-    fy0 = (lo - margin - eps - geo[2]) / geo[3]
-    fy1 = (hi + margin + eps - geo[2]) / geo[3]
+    fy0 = (lo - margin - eps - geo[2]) * geo[3]
+    fy1 = (hi + margin + eps - geo[2]) * geo[3]
     if fy1 < 0.0 or fy0 >= ny:
         return 0, -1
     by0 = max(math.floor(fy0), 0)
@@ -562,14 +635,15 @@ def _grid_search_py(xs, ys, mask, geo, start, pts, x_last, A, B, C, inv, fp, sig
     if n == 0:
         return -1
     x0 = geo[0]
-    gx = geo[1]
+    igx = geo[1]
+    gx = 1.0 / igx
     nx = int(geo[4])
     ny = int(geo[5])
     x_hi = x_last + search
     tie_dx = fp[P_TIE_DX]
     gm = fp[P_GATE_MAX]
-    bx0 = min(int((x_last - x0) / gx), nx - 1) if x_last >= x0 else 0
-    bx1 = min(int((x_hi - x0) / gx), nx - 1)
+    bx0 = min(int((x_last - x0) * igx), nx - 1) if x_last >= x0 else 0
+    bx1 = min(int((x_hi - x0) * igx), nx - 1)
     # pass 1: the nearest gated x (bins are visited in x order)
     x_first = np.inf
     bx_first = -1
@@ -593,7 +667,7 @@ def _grid_search_py(xs, ys, mask, geo, start, pts, x_last, A, B, C, inv, fp, sig
         return -1
     # pass 2: smallest residual among gated points within tie_dx of x_first
     x_tie = min(x_first + tie_dx, x_hi)
-    bx2 = min(int((x_tie - x0) / gx), nx - 1)
+    bx2 = min(int((x_tie - x0) * igx), nx - 1)
     best = -1
     best_r = np.inf
     for bx in range(bx_first, bx2 + 1):
@@ -995,7 +1069,7 @@ def _robust_detect_py(xs, ys, fp, ip, mask, offsets):
                 continue
             offsets[s] = off2[s]
             grown = np.full(m2, -1, dtype=np.int64)
-            grown[:m] = label
+            grown[: label.shape[0]] = label  # label may already be grown (both ego lines)
             for i in range(m2):
                 if label2[i] == s and grown[i] < 0:
                     grown[i] = s
@@ -1275,11 +1349,10 @@ def _assemble_py(xs, ys, mask, fp, ip, a0, b0):
 _assemble = numba.njit(cache=True)(_assemble_py)
 
 
-def _detect_py(pts, order, fp, ip):
+def _detect_py(pts, fp, ip):
     """The whole ALDM on one frame; the single entry point called from Python.
 
     :param pts: ``(N, 2|3)`` float64 raw points (x, y[, z]) [m].
-    :param order: ``(N,)`` int64, any order sorting ``pts[:, 0]`` ascending.
     :param fp: float parameters (layout ``P_*``).
     :param ip: integer parameters (layout ``I_*``).
     :return: ``(lines, starts, offsets, trajectory)``: packed output lines (see
@@ -1287,7 +1360,7 @@ def _detect_py(pts, order, fp, ip):
         found) and the ``(M, 2)`` driving trajectory [m].
     """
     has_z = pts.shape[1] >= 3
-    xs, ys = _gather(pts, order, has_z, fp[P_Z_BAND], fp[P_MAX_RANGE])
+    xs, ys = _gather(pts, has_z, fp[P_Z_BAND], fp[P_MAX_RANGE])
     mask = np.zeros(xs.shape[0], dtype=np.uint8)
     offsets = np.full(N_LINES, np.nan)
     a0 = 0.0

@@ -198,9 +198,20 @@ class ALDMParams:
         return self.output == "smoothed"
 
 
-@functools.lru_cache(maxsize=64)
 def _packed(params: ALDMParams) -> tuple[FloatArray, IntArray]:
-    """The kernels' float and int parameter vectors for ``params`` (cached)."""
+    """The kernels' float and int parameter vectors for ``params`` (cached on it).
+
+    Kept on the (frozen) instance rather than in an ``lru_cache``: hashing a
+    33-field dataclass on every call costs more than the rest of the wrapper.
+    """
+    got: tuple[FloatArray, IntArray] | None = params.__dict__.get("_kernel_params")
+    if got is None:
+        got = _pack(params)
+        object.__setattr__(params, "_kernel_params", got)
+    return got
+
+
+def _pack(params: ALDMParams) -> tuple[FloatArray, IntArray]:
     fp = np.zeros(K.N_FLOAT_PARAMS)
     fp[K.P_START_X_MAX] = params.start_x_max
     fp[K.P_START_SPACING] = params.start_spacing
@@ -317,11 +328,10 @@ def detect_lanes(points: Any, params: ALDMParams | None = None, **overrides: Any
     :raises TypeError: ``points`` is not an array or frame, or has a bad dtype.
     :raises ValueError: bad shape, unknown parameter or impossible value.
     """
-    p = make_params(params, **overrides)
+    p = params if type(params) is ALDMParams and not overrides else make_params(params, **overrides)
     pts = as_points(points)
     fp, ip = _packed(p)
-    order = np.argsort(pts[:, 0])
-    lines, starts, _offsets, traj = K._detect(pts, order, fp, ip)
+    lines, starts, _offsets, traj = K._detect(pts, fp, ip)
     fields = {name: lines[starts[s] : starts[s + 1]] for s, name in enumerate(LINE_NAMES)}
     return LaneDetection.trusted(**fields, trajectory=traj, source="aldm")
 
