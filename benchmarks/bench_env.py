@@ -12,6 +12,8 @@ vehicles. Usage::
 from __future__ import annotations
 
 import argparse
+import os
+import platform
 import statistics
 import time
 
@@ -67,6 +69,11 @@ def main() -> None:
         for name, env in envs.items():
             rates[name].append(steps_per_second(env, args.steps, seed=r))
     med = {name: statistics.median(v) for name, v in rates.items()}
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
+    print(
+        f"machine: {platform.machine()}, nproc={os.cpu_count()}, "
+        f"Python {platform.python_version()}, load average {load:.1f}\n"
+    )
     print("| env | median steps/s | rounds |")
     print("|---|---|---|")
     for name, v in rates.items():

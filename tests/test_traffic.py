@@ -286,3 +286,162 @@ def test_use_fast_road_is_idempotent_and_repoints_vehicles() -> None:
         assert all(v.road is base.road for v in base.road.vehicles)
         env.reset(seed=0)
     assert not isinstance(base.road.vehicles[1], FastIDMVehicle)  # vehicles untouched
+
+
+def test_box_separation_implies_no_collision() -> None:
+    """Wherever the narrow-phase filter skips a pair, highway-env's polygon test is a no-op."""
+    from aldm_gym.envs.traffic import _boxes_separated
+
+    rng = np.random.default_rng(7)
+    road = Road(network=RoadNetwork.straight_road_network(4, length=1e4))
+    dt = 0.1
+    skipped = kept = 0
+    for _ in range(3000):
+        base = rng.uniform(-5e3, 5e3, size=2)
+        a = Vehicle(road, base, heading=rng.normal(0, 0.4), speed=rng.uniform(-5, 40))
+        offset = rng.uniform([-12.0, -6.0], [12.0, 6.0])
+        b = Vehicle(road, base + offset, heading=rng.normal(0, 0.4), speed=rng.uniform(-5, 40))
+        boxes = []
+        for v in (a, b):
+            c, s = math.cos(v.heading), math.sin(v.heading)
+            step = v.speed * dt
+            boxes.append(
+                (*v.position.tolist(), c, s, v.LENGTH / 2, v.WIDTH / 2, step * c, step * s)
+            )
+        if _boxes_separated(boxes[0], boxes[1]):
+            skipped += 1
+            intersecting, will_intersect, _ = a._is_colliding(b, dt)
+            assert not intersecting and not will_intersect
+        else:
+            kept += 1
+    assert skipped > 500 and kept > 500
+
+
+# -- aldm-gym roads (ReferenceLane) ----------------------------------------------------
+
+
+def _aldm_env(vehicles: int = 25) -> Any:
+    import aldm_gym  # noqa: F401  (registers ALDMHighway-v0)
+
+    config = {"vehicles_count": vehicles, "simulation_frequency": 10, "policy_frequency": 1}
+    return gym.make("ALDMHighway-v0", config={**config, "duration": 1e4})
+
+
+def test_reference_edge_neighbours_match_base_every_step() -> None:
+    """On an aldm-gym highway (one shared reference line), neighbours equal Road's."""
+    env = _aldm_env()
+    env.reset(seed=5)
+    road = env.unwrapped.road
+    assert isinstance(road, FastRoad)
+    checked = 0
+    act = road.act
+
+    def checked_act() -> None:
+        nonlocal checked
+        checked += _check_neighbours(road)
+        act()
+
+    road.act = checked_act  # type: ignore[method-assign]
+    for _ in range(4):
+        _, _, terminated, _, _ = env.step(1)
+        if terminated:
+            break
+    assert checked > 300
+
+
+def test_project_many_kernel_matches_plain_python_and_project() -> None:
+    """The batch projection equals its plain-Python reference and the scalar projection."""
+    from aldm_gym.roads.geometry import _project_many, _project_many_py
+    from aldm_gym.roads.highway import HighwayRoad
+
+    ref = HighwayRoad({"min_radius": 100.0, "max_radius": 400.0, "seed": 11}).reference
+    rng = np.random.default_rng(3)
+    s = rng.uniform(-60.0, ref.length + 60.0, 300)
+    d = rng.uniform(-50.0, 50.0, 300)
+    points = np.vstack([ref.position(s, d), [[1e5, -3e4], [0.0, -0.0]]])
+    args = (
+        ref.xy,
+        ref.heading,
+        ref.step,
+        ref._CELL,
+        ref._hash_keys,
+        ref._hash_ptr,
+        ref._hash_idx,
+        ref._coarse,
+        2 * ref._STRIDE,
+        points,
+    )
+    fast, plain = _project_many(*args), _project_many_py(*args)
+    many = ref.project_many(points)
+    scalar = np.array([ref.project(p) for p in points])
+    for got in (plain, many):
+        assert got[0].tobytes() == fast[0].tobytes() and got[1].tobytes() == fast[1].tobytes()
+    assert scalar[:, 0].tobytes() == fast[0].tobytes()
+    assert scalar[:, 1].tobytes() == fast[1].tobytes()
+    # Memo hits return the same floats as a fresh projection.
+    again = np.array([ref.project(p) for p in points])
+    assert again.tobytes() == scalar.tobytes()
+
+
+def test_pose_at_matches_vectorised_interpolation() -> None:
+    """The scalar pose (fast path of lane.heading_at / position) equals ``_interp``."""
+    from aldm_gym.roads.highway import HighwayRoad
+
+    road = HighwayRoad({"seed": 4})
+    ref = road.reference
+    rng = np.random.default_rng(0)
+    s = np.concatenate([rng.uniform(-100, ref.length + 100, 500), [0.0, -0.0, ref.length]])
+    position, heading = ref._interp(s)
+    for si, p, h in zip(s.tolist(), position, heading, strict=True):
+        assert ref.pose_at(si) == (float(p[0]), float(p[1]), float(h))
+        assert road.lane(1).heading_at(si) == float(h)
+
+
+def test_aldm_env_fast_paths_change_nothing(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A seeded ALDMHighway-v0 rollout is bit-identical with every fast path switched off.
+
+    Off: the projection memo and batch kernel, the shared-reference neighbour tables,
+    the scalar lane heading, the collision narrow phase and the inlined path fit.
+    """
+    from aldm_gym.envs import highway as env_module
+    from aldm_gym.envs import traffic
+    from aldm_gym.roads import geometry
+    from aldm_gym.roads.lane import ReferenceLane
+    from aldm_gym.sensor.detection import driving_trajectory
+
+    actions = [1, 0, 1, 3, 2, 1, 4, 1, 1, 2, 1, 0]
+
+    def rollout() -> list[Any]:
+        env = _aldm_env(30)
+        obs, _ = env.reset(seed=9)
+        trace: list[Any] = [sorted((k, v.tobytes()) for k, v in obs.items())]
+        for a in actions:
+            obs, reward, terminated, truncated, info = env.step(a)
+            info.pop("action")
+            trace.append((sorted((k, v.tobytes()) for k, v in obs.items()), reward, repr(info)))
+            trace.append(_state(env))
+            if terminated or truncated:
+                break
+        return trace
+
+    fast = rollout()
+
+    def plain_project(self: Any, point: Any) -> tuple[float, float]:
+        px, py = float(point[0]), float(point[1])
+        cell = math.floor(px / self._CELL) * 1_000_003 + math.floor(py / self._CELL)
+        cand = self._hash.get(cell, self._coarse)
+        return geometry._project(self.xy, self.heading, self.step, cand, 20, px, py)
+
+    def plain_project_many(self: Any, points: Any) -> tuple[Any, Any]:
+        out = np.array([plain_project(self, p) for p in np.reshape(points, (-1, 2))])
+        return out[:, 0].copy(), out[:, 1].copy()
+
+    monkeypatch.setattr(geometry.ReferenceLine, "project", plain_project)
+    monkeypatch.setattr(geometry.ReferenceLine, "project_many", plain_project_many)
+    monkeypatch.setattr(FastRoad, "_build_reference_edge", lambda self, index: False)
+    monkeypatch.setattr(
+        ReferenceLane, "heading_at", lambda self, s: float(self.reference.heading_at(s))
+    )
+    monkeypatch.setattr(traffic, "_boxes_separated", lambda a, b: False)
+    monkeypatch.setattr(env_module, "_driving_trajectory", driving_trajectory)
+    assert rollout() == fast

@@ -17,7 +17,8 @@ projections (highway-env issues #36, #121, #223).
   and each query is a bisection. Ties are broken as in the base loop (front: the
   *last* object in ``vehicles + objects`` order among equal ``s``; rear: the *first*).
 - **Collisions** -- a sort-and-sweep broad phase on ``x`` (radius = the base
-  spherical pre-check's radius) selects the only pairs whose
+  spherical pre-check's radius) and a separating-axis test on the boxes' edge
+  normals (with a margin far above rounding) select the only pairs whose
   :meth:`~highway_env.vehicle.objects.RoadObject.handle_collisions` can have an
   effect; they are handled in the base loop's order, so impacts are identical.
 - **Perception** -- ``close_objects_to`` filters by distance with one vectorised norm.
@@ -54,6 +55,7 @@ from highway_env.vehicle.controller import ControlledVehicle
 from highway_env.vehicle.kinematics import Vehicle
 from highway_env.vehicle.objects import Landmark, RoadObject
 
+from aldm_gym.roads.lane import ReferenceLane
 from aldm_gym.types import BoolArray, FloatArray
 
 if TYPE_CHECKING:
@@ -74,6 +76,14 @@ _NEIGHBOUR_MARGIN = 1.0
 _BROAD_PHASE_SLACK = 1e-6
 """Absolute slack [m] added to collision radii so that float rounding in the base
 ``np.linalg.norm`` pre-check can never make the broad phase drop a pair it keeps."""
+
+_SEPARATION_MARGIN = 1e-4
+"""Gap [m] a box pair must clear on a separating axis before its exact check is skipped.
+
+highway-env's polygon test computes the same projections with rounding errors of
+order ``1e-16 × |position|`` (well below 1e-8 m on any road); the margin dwarfs them,
+so a pair skipped here is one where that test returns "not intersecting, will not
+intersect"."""
 
 
 def _is_plain_straight(lane: AbstractLane) -> bool:
@@ -99,6 +109,54 @@ def _has_custom_collisions(cls: type) -> bool:
         )
         _CUSTOM_COLLISIONS[cls] = custom
     return custom
+
+
+_BoxShape = tuple[float, float, float, float, float, float, float, float]
+"""``(x, y, cos h, sin h, length / 2, width / 2, vx dt, vy dt)`` of a box road object."""
+
+_BASE_BOX: dict[type, bool] = {}
+
+
+def _uses_base_box(cls: type) -> bool:
+    """Whether ``cls`` collides as highway-env's box: base polygon, velocity and checks."""
+    base = _BASE_BOX.get(cls)
+    if base is None:
+        base = (
+            not _has_custom_collisions(cls)
+            and getattr(cls, "polygon", None) is RoadObject.polygon
+            and getattr(cls, "direction", None) is RoadObject.direction
+            and getattr(cls, "velocity", None) in (Vehicle.velocity, RoadObject.velocity)
+        )
+        _BASE_BOX[cls] = base
+    return base
+
+
+def _boxes_separated(a: _BoxShape, b: _BoxShape) -> bool:
+    """Whether the boxes ``a`` (swept by its displacement relative to ``b``) and ``b`` are
+    apart by more than :data:`_SEPARATION_MARGIN` on one of their four edge normals.
+
+    Those normals are among the axes of ``utils.are_polygons_intersecting``, so
+    then it reports neither a current nor a future intersection, and
+    ``handle_collisions`` has no effect. NaN never passes (the pair is then checked).
+    """
+    ax, ay, ac, as_, al, aw, adx, ady = a
+    bx, by, bc, bs, bl, bw, bdx, bdy = b
+    dx = bx - ax
+    dy = by - ay
+    wx = adx - bdx
+    wy = ady - bdy
+    for nx, ny in ((ac, as_), (-as_, ac), (bc, bs), (-bs, bc)):
+        gap = (
+            abs(dx * nx + dy * ny)
+            - al * abs(ac * nx + as_ * ny)
+            - aw * abs(ac * ny - as_ * nx)
+            - bl * abs(bc * nx + bs * ny)
+            - bw * abs(bc * ny - bs * nx)
+            - abs(wx * nx + wy * ny)
+        )
+        if gap > _SEPARATION_MARGIN:
+            return True
+    return False
 
 
 class FastRoadNetwork(RoadNetwork):
@@ -450,7 +508,9 @@ class FastRoad(Road):
         entry = self._sorted.get(key)
         if entry is not None:
             return entry
-        if not connected and self._build_straight_edge(lane_index):
+        if not connected and (
+            self._build_straight_edge(lane_index) or self._build_reference_edge(lane_index)
+        ):
             return self._sorted[key]
         lanes_offsets = self._search_lanes(lane_index)
         primary = self._lane_table(lanes_offsets[0][0])
@@ -540,6 +600,63 @@ class FastRoad(Road):
                 keys=sorted_s[i, :count].tolist(),
                 objects=[items[k] for k in order[i, :count].tolist()],
                 query_s=s[i],
+            )
+        return True
+
+    def _build_reference_edge(self, lane_index: LaneIndex) -> bool:
+        """Sorted neighbours of every lane of an edge of :class:`ReferenceLane` lanes at once.
+
+        The lanes of an aldm-gym highway share one reference line and its arc length
+        ``s``: the objects are projected once (``project_many``), sorted once by ``s``
+        (stable, so ties stay in object order), and each lane only applies its
+        on-lane mask (``AbstractLane.on_lane(margin=1)``'s comparisons) to that order.
+        The lane coordinates are those of ``local_coordinates_many`` (``s``,
+        ``offset - d``), so the answers are those of the generic path.
+
+        :return: False (nothing built) if the edge does not qualify.
+        """
+        _from, _to, _ = lane_index
+        try:
+            lanes = self.network.graph[_from][_to]
+        except (KeyError, TypeError):
+            return False
+        if not lanes or not all(type(lane) is ReferenceLane for lane in lanes):
+            return False
+        reference = lanes[0].reference
+        if any(lane.reference is not reference for lane in lanes):
+            return False
+        items = self._items
+        n = len(items)
+        if n == 0:
+            for i in range(len(lanes)):
+                self._sorted[((_from, _to, i), False)] = _SortedNeighbours([], [], np.zeros(0))
+            return True
+        s, d = reference.project_many(self._positions)
+        geometry = np.array(
+            [
+                (
+                    lane.offset,
+                    lane.width / 2 + _NEIGHBOUR_MARGIN,
+                    -lane.VEHICLE_LENGTH,
+                    lane.length + lane.VEHICLE_LENGTH,
+                )
+                for lane in lanes
+            ],
+            dtype=np.float64,
+        )
+        # local_coordinates_many's r and on_lane(margin=1), broadcast to (lanes, N).
+        r = geometry[:, 0:1] - d
+        on = (np.abs(r) <= geometry[:, 1:2]) & (geometry[:, 2:3] <= s) & (s < geometry[:, 3:4])
+        order = np.argsort(s, kind="stable")
+        sorted_s = s[order]
+        on_sorted = on[:, order]
+        for i, lane in enumerate(lanes):
+            self._lane_tables[id(lane)] = _LaneTable(s, r[i], on[i])
+            keep = on_sorted[i]
+            self._sorted[((_from, _to, i), False)] = _SortedNeighbours(
+                keys=sorted_s[keep].tolist(),
+                objects=[items[k] for k in order[keep].tolist()],
+                query_s=s,
             )
         return True
 
@@ -665,7 +782,10 @@ class FastRoad(Road):
         collisions, both are collidable and the centres are within
         ``(diag_i + diag_j) / 2 + speed_i * dt`` (its spherical pre-check). A
         sort-and-sweep on ``x`` with radius ``diag / 2 + max(speed * dt, 0)`` keeps a
-        superset of those pairs; they are then handled in the base loop's order, so the
+        superset of those pairs. Pairs of plain boxes that are apart on one of their
+        edge normals (:func:`_boxes_separated`; vehicles side by side in adjacent
+        lanes are the common case) are dropped too: the base polygon test would report
+        no intersection for them. The rest are handled in the base loop's order, so the
         last write to each ``impact`` is the same. (Plain Python: for a few dozen
         objects it is several times cheaper than the same sweep in numpy calls.)
         """
@@ -675,11 +795,13 @@ class FastRoad(Road):
             return
         population = [*vehicles, *self.objects]
         entries: list[tuple[float, float, float, float, int, bool]] = []
+        boxes: dict[int, _BoxShape] = {}
         for index, obj in enumerate(population):
             if not obj.collidable:
                 continue  # both sides must be collidable
             px, py = obj.position.tolist()
-            if _has_custom_collisions(type(obj)):
+            cls = type(obj)
+            if _has_custom_collisions(cls):
                 radius = math.inf  # its own collision logic: pair it with everything
             else:
                 radius = obj.diagonal / 2 + max(obj.speed * dt, 0.0)
@@ -687,6 +809,11 @@ class FastRoad(Road):
             if not (math.isfinite(px) and math.isfinite(py)) or radius != radius:
                 self._handle_all_collisions(dt)
                 return
+            if _uses_base_box(cls):
+                c = math.cos(obj.heading)
+                s = math.sin(obj.heading)
+                step = obj.speed * dt
+                boxes[index] = (px, py, c, s, obj.LENGTH / 2, obj.WIDTH / 2, step * c, step * s)
             entries.append(
                 (px - radius, px + radius, py, radius, index, bool(obj.check_collisions))
             )
@@ -701,8 +828,16 @@ class FastRoad(Road):
                 for other in active:
                     if (checks or other[5]) and abs(y - other[2]) <= radius + other[3]:
                         i, j = (index, other[4]) if index < other[4] else (other[4], index)
-                        if i < n_vehicles:  # objects never call handle_collisions themselves
-                            pairs.append((i, j))
+                        if i >= n_vehicles:  # objects never call handle_collisions themselves
+                            continue
+                        # Narrow phase: boxes clearly apart (side by side in adjacent
+                        # lanes, or following at a distance) cannot collide this step.
+                        box_i = boxes.get(i)
+                        box_j = boxes.get(j)
+                        if box_i is not None and box_j is not None:
+                            if _boxes_separated(box_i, box_j):
+                                continue
+                        pairs.append((i, j))
             active.append(entry)
         pairs.sort()
         for i, j in pairs:
@@ -820,8 +955,16 @@ def _power(x: float, exponent: float) -> float:
 
 
 def _clip(x: float, low: float, high: float) -> float:
-    """``np.clip`` for scalars with non-NaN bounds (same NaN and signed-zero results)."""
-    return min(max(x, low), high)
+    """``np.clip`` for scalars with non-NaN bounds (same NaN and signed-zero results).
+
+    ``min(max(x, low), high)`` spelled as comparisons (the builtins are several times
+    slower): ``max`` keeps ``x`` unless ``low > x``, ``min`` keeps it unless ``high < x``.
+    """
+    if low > x:
+        x = low
+    if high < x:
+        return high
+    return x
 
 
 _BASE_KINEMATICS: dict[type, bool] = {}

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from highway_env.road.lane import AbstractLane, LineType
 
@@ -52,6 +54,10 @@ class ReferenceLane(AbstractLane):
 
     def heading_at(self, longitudinal: float) -> float:
         """World heading at ``s`` [rad]."""
+        # The scalar path of ReferenceLine.heading_at without its numpy wrapping
+        # (IDM steering asks for one heading per vehicle and step).
+        if type(longitudinal) is float and math.isfinite(longitudinal):
+            return self.reference.pose_at(longitudinal)[2]
         return float(self.reference.heading_at(longitudinal))
 
     def width_at(self, longitudinal: float) -> float:
