@@ -30,7 +30,7 @@ MARKING_MODELS = ("per_dash", "editor")
 """Marking models of the road (see :class:`aldm_gym.roads.RoadConfig`)."""
 
 LKA_KEYS = ("lookahead_time", "min_lookahead", "max_steering", "path_range")
-"""Keys of the ``lka`` section (see :class:`aldm_gym.agents.lka.LKAController`)."""
+"""Keys of the ``lka`` section (see :class:`aldm_gym.envs.control.LKAController`)."""
 
 ACTION_KEYS = ("type", "target_speeds", "lane_change_timeout", "max_acceleration")
 """Keys of the ``action`` section."""
@@ -298,7 +298,7 @@ def road_config(cfg: Mapping[str, Any], seed: int) -> Any:
 
 def _validate_components(cfg: Mapping[str, Any]) -> None:
     """Build the road, sensor, detector and LKA configs once to check their values."""
-    from aldm_gym.agents.lka import LKAController
+    from aldm_gym.envs.control import LKAController
     from aldm_gym.sensor.line_sensor import LineSensorConfig
 
     road_config(cfg, 0)

@@ -16,8 +16,8 @@ from highway_env import utils
 from highway_env.envs.common.abstract import AbstractEnv
 from highway_env.vehicle.kinematics import Vehicle
 
-from aldm_gym.agents.lka import LKAController
 from aldm_gym.envs.config import default_config, merge_config, road_config
+from aldm_gym.envs.control import LKAController
 from aldm_gym.envs.observation import build_observation, observation_space
 from aldm_gym.envs.traffic import FastRoad
 from aldm_gym.roads.highway import HighwayRoad, RoadConfig
@@ -148,7 +148,7 @@ class SensorVehicle(Vehicle):
 
     highway-env's kinematic bicycle (``Vehicle``) with its ``lane_index``
     bookkeeping (traffic needs it), but :meth:`act` steers with the
-    :class:`~aldm_gym.agents.lka.LKAController` on ``self.detection`` (set by the
+    :class:`~aldm_gym.envs.control.LKAController` on ``self.detection`` (set by the
     environment after every simulation step), never on the true lane.
 
     Meta actions: IDLE follows the detected trajectory; LANE_LEFT/RIGHT steer onto
@@ -380,7 +380,7 @@ class ALDMHighwayEnv(AbstractEnv):
 
     * ``"ContinuousAction"``: ``Box((2,), float32)``: steering [rad] (ISO: > 0 turns
       left, within ±``lka.max_steering``) and acceleration [m/s²] (±``max_acceleration``).
-      :class:`~aldm_gym.agents.lka.LKAController` ``.predict(obs)`` produces such actions.
+      :class:`~aldm_gym.envs.control.LKAController` ``.predict(obs)`` produces such actions.
 
     ## Observation Space
 
