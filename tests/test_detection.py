@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -70,3 +72,115 @@ def test_any_finite_line_resamples_to_finite_points(pts: np.ndarray) -> None:
     assert r.ego_left.shape in ((13, 2), (0, 2))
     assert np.all(np.isfinite(r.ego_left))
     assert np.all(np.isfinite(det.trajectory))
+
+
+# --------------------------------------------------------------------------- path fit
+def _polynomial_trajectory(
+    left: np.ndarray, right: np.ndarray, lane_width: float = 3.75, spacing: float = 2.0
+) -> np.ndarray:
+    """The previous ``driving_trajectory``: ``Polynomial.fit`` per line (frozen copy)."""
+    from aldm_gym.sensor.detection import fit_cubic
+
+    fl, fr = fit_cubic(left), fit_cubic(right)
+    if fl is None and fr is None:
+        return np.zeros((0, 2))
+    x_end = float(min(line[-1, 0] for line in (left, right) if len(line)))
+    if x_end <= 0.0:
+        return np.zeros((0, 2))
+    xs = np.linspace(0.0, x_end, max(2, int(np.ceil(x_end / spacing)) + 1))
+    if fl is not None and fr is not None:
+        ys = 0.5 * (fl(xs) + fr(xs))
+    elif fl is not None:
+        ys = fl(xs) - 0.5 * lane_width
+    else:
+        ys = fr(xs) + 0.5 * lane_width
+    return np.column_stack([xs, ys])
+
+
+def _sensor_lines() -> list[tuple[np.ndarray, np.ndarray]]:
+    """ALDM ego lines (13 points, and all measured points) along roads with R >= 100 m."""
+    from aldm_gym.roads import HighwayRoad
+    from aldm_gym.sensor import LineSensor
+    from aldm_gym.sensor.aldm import detect_lanes, make_params
+    from tests.conftest import pose_on_lane
+
+    out = []
+    for seed, r_min in ((0, 500.0), (7, 100.0)):
+        road = HighwayRoad({"seed": seed, "min_radius": r_min})
+        sensor = LineSensor({"lateral_noise": 0.05, "dropout": 0.1}, seed=seed)
+        for s in np.linspace(100.0, road.length - 300.0, 30):
+            frame = sensor.measure(road, pose_on_lane(road, float(s), 1, 0.3))
+            det = detect_lanes(frame, make_params(None))
+            out.append((det.ego_left, det.ego_right))
+            out.append((det.left_adjacent, det.ego_left))
+            rel = (frame.relevant_line_points("left"), frame.relevant_line_points("right"))
+            out.append(tuple(np.ascontiguousarray(p[:, :2]) for p in rel))
+    return out
+
+
+def test_compiled_path_fit_is_within_1e_9_m_of_polynomial_fit() -> None:
+    """On sensor lines (whole, and cut at 80 m as the env does) the compiled QR fit
+    gives ``Polynomial.fit``'s path to rounding: same x samples, y within 1e-9 m."""
+    worst = 0.0
+    n_fitted = 0
+    for left, right in _sensor_lines():
+        for cut in (np.inf, 80.0):
+            lines = [
+                ln if len(ln) <= 4 else ln[: max(int((ln[:, 0] <= cut).sum()), 4)]
+                for ln in (left, right)
+            ]
+            want = _polynomial_trajectory(*lines)
+            got = driving_trajectory(*lines)
+            assert got.shape == want.shape
+            np.testing.assert_array_equal(got[:, 0], want[:, 0])
+            if len(got):
+                worst = max(worst, float(np.max(np.abs(got[:, 1] - want[:, 1]))))
+                n_fitted += 1
+    assert n_fitted > 200
+    assert worst < 1e-9
+
+
+def test_path_fit_falls_back_to_fit_cubic_bit_for_bit() -> None:
+    """Short, unsorted, repeated-x lines take ``fit_cubic``, as before, bit for bit."""
+    rng = np.random.default_rng(3)
+    good = _line(-1.9, 1e-3)
+    for trial in range(100):
+        k = int(rng.integers(1, 12))
+        kind = trial % 3
+        if kind == 0:
+            x = np.sort(rng.uniform(0.0, 60.0, min(k, 3)))  # fewer than 4 points
+        elif kind == 1:
+            x = np.sort(rng.integers(0, 4, k + 4).astype(float))  # repeated x
+        else:
+            x = rng.uniform(0.0, 60.0, k + 4)  # unsorted
+        line = np.column_stack([x, 1.8 + 0.01 * x + rng.normal(0.0, 0.05, len(x))])
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # rank warnings of degenerate fits
+            for left, right in ((line, np.zeros((0, 2))), (np.zeros((0, 2)), line)):
+                want = _polynomial_trajectory(left, right)
+                assert driving_trajectory(left, right).tobytes() == want.tobytes()
+            # A mixed pair: the fallback line as before, the sorted one compiled.
+            want = _polynomial_trajectory(line, good)
+            got = driving_trajectory(line, good)
+            np.testing.assert_array_equal(got[:, 0], want[:, 0])
+            np.testing.assert_allclose(got[:, 1], want[:, 1], rtol=0.0, atol=1e-9)
+
+
+def test_path_kernels_match_their_python_references() -> None:
+    from aldm_gym.sensor import detection as d
+
+    rng = np.random.default_rng(8)
+    for _ in range(50):
+        lines = []
+        for side in (1.0, -1.0):
+            k = int(rng.choice([0, 4, 5, 13, 60]))
+            x = np.sort(rng.uniform(5.0, 200.0, k))
+            lines.append(np.column_stack([x, side * 1.8 + 2e-3 * x**2 + rng.normal(0, 0.1, k)]))
+        ok_c, got = d._path(lines[0], lines[1], 3.75, 2.0)
+        ok_p, want = d._path_py(lines[0], lines[1], 3.75, 2.0)
+        assert ok_c == ok_p
+        assert got.tobytes() == want.tobytes()
+        if len(lines[0]):
+            xq = np.linspace(0.0, 100.0, 51)
+            a = d._cubic_values(lines[0], xq)
+            assert a.tobytes() == d._cubic_values_py(lines[0], xq).tobytes()

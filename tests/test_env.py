@@ -283,3 +283,23 @@ def test_inlined_path_fit_matches_driving_trajectory() -> None:
             expected = driving_trajectory(lines[0], lines[1], 3.75)
             got = _driving_trajectory(lines[0], lines[1], 3.75)
         assert got.shape == expected.shape and got.tobytes() == expected.tobytes()
+
+
+def test_near_path_fits_the_first_max_x_metres() -> None:
+    """``near_path`` is ``driving_trajectory`` of the lines cut at ``max_x`` (>= 4 points)."""
+    from aldm_gym.envs.highway import near_path
+    from aldm_gym.sensor.detection import driving_trajectory
+
+    rng = np.random.default_rng(4)
+    for _ in range(200):
+        lines, cuts = [], []
+        for side in (1.0, -1.0):
+            k = int(rng.integers(0, 40))
+            x = np.sort(rng.uniform(5.0, 200.0, k))
+            y = side * 1.8 + 0.02 * x + 3e-3 * x**2 + rng.normal(0.0, 0.05, k)
+            line = np.column_stack([x, y])
+            lines.append(line)
+            cuts.append(line if k <= 4 else line[: max(int((x <= 80.0).sum()), 4)])
+        got = near_path(lines[0], lines[1], 3.5, 80.0)
+        want = driving_trajectory(cuts[0], cuts[1], 3.5)
+        assert got.shape == want.shape and got.tobytes() == want.tobytes()

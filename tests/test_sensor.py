@@ -216,3 +216,196 @@ def test_off_the_road_gives_an_empty_frame(straight_road: HighwayRoad) -> None:
     assert f.n_lines == 0
     assert f.points().shape == (0, 3)
     assert f.left.relevant_line is None
+
+
+# --------------------------------------------------------------------------- kernel
+# A frozen copy of the numpy implementation that `_assemble` replaced (world pose,
+# paint pattern, noise, grouping, sides, order, caps, relevant line). The compiled
+# kernel must give the same frames bit for bit, with the same random draws.
+
+
+def _numpy_world_pose(sensor: LineSensor, pose: tuple, travel: np.ndarray, ext_yaw: float):
+    c = sensor.config
+    x, y, h = (float(v) for v in np.asarray(pose, dtype=np.float64))
+    cy, sy = np.cos(c.mount_yaw), np.sin(c.mount_yaw)
+    tx = cy * travel[0] - sy * travel[1]
+    ty = sy * travel[0] + cy * travel[1]
+    fwd = np.array([np.cos(h), np.sin(h)])
+    left = np.array([np.sin(h), -np.cos(h)])
+    origin = np.array([x, y]) + (c.mount_x + tx) * fwd + (c.mount_y + ty) * left
+    return origin, h - (c.mount_yaw + ext_yaw)
+
+
+def _numpy_measure(
+    sensor: LineSensor,
+    road: HighwayRoad,
+    pose: tuple,
+    t: float = 0.0,
+    rng: np.random.Generator | None = None,
+    ext_rotation: tuple = (0.0, 0.0, 0.0),
+    ext_travel: tuple = (0.0, 0.0, 0.0),
+    s_hint: float | None = None,
+) -> SensorFrame:
+    c = sensor.config
+    rot = np.asarray(ext_rotation, dtype=np.float64)
+    travel = np.asarray(ext_travel, dtype=np.float64)
+    origin, yaw = _numpy_world_pose(sensor, pose, travel, float(rot[2]))
+    xs = c.x_grid
+    ys, us = road.sample_markings(origin, yaw, xs, s_hint)
+    tab = road.marking_table
+    m, k = ys.shape
+    with np.errstate(invalid="ignore"):
+        rel_u = (us - tab["phase"][:, None]) / tab["period"][:, None]
+        piece = np.floor(rel_u)
+        on = ~tab["broken"][:, None] | (
+            (rel_u - piece) * tab["period"][:, None] < tab["dash"][:, None]
+        )
+        visible = on & (np.abs(ys) <= c.max_lateral)
+    px = np.broadcast_to(xs, (m, k)).copy()
+    pz = np.broadcast_to(tab["height"][:, None], (m, k)).copy()
+    if c.noisy:
+        noise = rng.standard_normal((3, m, k))
+        keep = rng.random((m, k)) >= c.dropout
+        ys = ys + c.lateral_noise * noise[0]
+        px = px + c.longitudinal_noise * noise[1]
+        pz = pz + c.height_noise * noise[2]
+        visible &= keep
+    py = ys
+    per_dash = road.marking_model == "per_dash"
+    broken = tab["broken"]
+    flat = np.flatnonzero(visible.ravel())
+    j_of = flat // k
+    pc = piece.ravel()[flat]
+    pid = np.where(per_dash & broken[j_of], pc, -1.0)
+    if len(flat):
+        new = np.concatenate([[True], (np.diff(j_of) != 0) | (np.diff(pid) != 0)])
+    else:
+        new = np.zeros(0, dtype=bool)
+    starts = np.flatnonzero(new)
+    counts = np.diff(np.append(starts, len(flat)))
+    obj_j = j_of[starts]
+    pts = np.column_stack([px.ravel()[flat], py.ravel()[flat], pz.ravel()[flat]])
+    first = pts[starts] if len(starts) else np.zeros((0, 3))
+    is_left = first[:, 1] > 0.0
+    order = np.lexsort((np.abs(first[:, 1]), first[:, 0], ~is_left))
+    n_left_all = int(is_left.sum())
+    cap = c.max_lines_per_side
+    keep_o = np.concatenate([order[: min(n_left_all, cap)], order[n_left_all:][:cap]])
+    n_left = min(n_left_all, cap)
+    counts_k = counts[keep_o]
+    line_start = np.concatenate([[0], np.cumsum(counts_k)]).astype(np.int64)
+    idx = np.repeat(starts[keep_o] - line_start[:-1], counts_k) + np.arange(line_start[-1])
+    first_k = first[keep_o]
+    rel = [-1, -1]
+    for side, (lo, hi) in enumerate(((0, n_left), (n_left, len(keep_o)))):
+        if hi > lo:
+            rel[side] = int(np.argmin(np.abs(first_k[lo:hi, 1])))
+    mk_j = obj_j[keep_o]
+    return SensorFrame(
+        timestamp=t,
+        sensor_index=c.sensor_index,
+        all_points=pts[idx],
+        line_start=line_start,
+        line_type=tab["type"][mk_j],
+        line_colour=tab["colour"][mk_j],
+        line_height=tab["height"][mk_j],
+        line_width=tab["width"][mk_j],
+        line_marking=mk_j.astype(np.int64),
+        line_piece=pid[starts][keep_o].astype(np.int64),
+        n_left=n_left,
+        relevant_left=rel[0],
+        relevant_right=rel[1],
+        relevant_points=c.relevant_points,
+        mount_position=np.array([c.mount_x, c.mount_y, c.mount_z]),
+        mount_rotation=np.array([c.mount_roll, c.mount_pitch, c.mount_yaw]),
+        ext_rotation=rot,
+        ext_travel=travel,
+        origin=origin,
+        yaw=yaw,
+        range=c.range,
+        fov_start=c.fov_start,
+    )
+
+
+def _assert_same_frame(got: SensorFrame, want: SensorFrame) -> None:
+    import dataclasses
+
+    for f in dataclasses.fields(SensorFrame):
+        a, b = getattr(got, f.name), getattr(want, f.name)
+        if isinstance(b, np.ndarray):
+            assert isinstance(a, np.ndarray), f.name
+            assert a.dtype == b.dtype and a.shape == b.shape, f.name
+            assert a.tobytes() == b.tobytes(), f.name
+        else:
+            assert type(a) is type(b) and a == b, (f.name, a, b)
+
+
+_KERNEL_CASES = [
+    ({}, {}),
+    ({"lateral_noise": 0.05, "dropout": 0.1}, {}),
+    ({"lateral_noise": 0.3, "longitudinal_noise": 0.5, "height_noise": 0.02}, {}),
+    ({"dropout": 0.6, "max_lines_per_side": 2}, {}),
+    ({"max_lines_per_side": 3, "dx": 0.5, "max_points_per_line": 50}, {}),
+    ({"max_lateral": 4.0, "range": 120.0, "fov_start": 0.0}, {}),
+    ({"sensor_index": 1, "mount_x": -2.0, "mount_yaw": np.pi, "lateral_noise": 0.1}, {}),
+    ({"mount_y": 0.7, "mount_yaw": 0.2}, {"guard_rail": True}),
+    ({"lateral_noise": 1.0, "dropout": 0.3}, {"guard_rail": True, "lanes_count": 2}),
+    ({}, {"dash_length": 3.0, "gap_length": 9.0, "dash_phase": 1.3, "lane_line_type": 3}),
+]
+
+
+@pytest.mark.parametrize("marking_model", ["per_dash", "editor"])
+@pytest.mark.parametrize(("sensor_cfg", "road_cfg"), _KERNEL_CASES)
+def test_measure_matches_the_numpy_implementation(
+    sensor_cfg: dict, road_cfg: dict, marking_model: str
+) -> None:
+    road = HighwayRoad({"seed": 5, "min_radius": 150.0, "marking_model": marking_model, **road_cfg})
+    sensor = LineSensor(sensor_cfg)
+    rng = np.random.default_rng(11)
+    for i, s in enumerate(np.linspace(60.0, road.length - 60.0, 25)):
+        lane = i % road.lanes_count
+        x, y, h = pose_on_lane(road, float(s), lane, float(rng.uniform(-2.5, 2.5)))
+        pose = (x, y, h + float(rng.normal(0.0, 0.1)) + (np.pi if i % 7 == 3 else 0.0))
+        rot = (0.0, 0.01, float(rng.normal(0.0, 0.05))) if i % 3 else (0.0, 0.0, 0.0)
+        travel = (float(rng.normal()), float(rng.normal()), 0.0) if i % 4 else (0.0, 0.0, 0.0)
+        seed = int(rng.integers(1 << 30))
+        kw = {"ext_rotation": rot, "ext_travel": travel}
+        got = sensor.measure(road, pose, 0.1 * i, rng=np.random.default_rng(seed), **kw)
+        want = _numpy_measure(sensor, road, pose, 0.1 * i, np.random.default_rng(seed), **kw)
+        _assert_same_frame(got, want)
+    # The default (validation-free) ext_rotation / ext_travel and an array pose.
+    got = sensor.measure(road, np.array(pose), 2.0, rng=np.random.default_rng(3))
+    want = _numpy_measure(sensor, road, pose, 2.0, np.random.default_rng(3))
+    _assert_same_frame(got, want)
+
+
+def test_measure_matches_the_numpy_implementation_off_road(straight_road: HighwayRoad) -> None:
+    sensor = LineSensor({"lateral_noise": 0.1})
+    pose = (5000.0, 3000.0, 0.0)
+    got = sensor.measure(straight_road, pose, rng=np.random.default_rng(1))
+    _assert_same_frame(
+        got, _numpy_measure(sensor, straight_road, pose, 0.0, np.random.default_rng(1))
+    )
+    assert got.n_lines == 0 and got.line_start.tolist() == [0]
+
+
+def test_assemble_kernel_matches_its_python_reference(curvy_road: HighwayRoad) -> None:
+    from aldm_gym.sensor.line_sensor import _assemble, _assemble_py
+
+    rng = np.random.default_rng(2)
+    tab = curvy_road.marking_table
+    xs = LineSensor().config.x_grid
+    for i, s in enumerate((300.0, 1200.0, 2500.0)):
+        x, y, h = pose_on_lane(curvy_road, s, i)
+        ys, us = curvy_road.sample_markings(np.array([x, y]), h, xs)
+        noise = rng.standard_normal((3, *ys.shape))
+        draw = rng.random(ys.shape)
+        for per_dash in (True, False):
+            for nz, dr in ((noise, draw), (np.zeros((3, 0, 0)), np.zeros((0, 0)))):
+                args = (xs, ys, us, tab["height"], tab["phase"], tab["period"], tab["dash"])
+                rest = (tab["broken"], per_dash, 30.0, nz, dr, np.array([0.1, 0.2, 0.0]), 0.2, 4)
+                got = _assemble(*args, *rest)
+                want = _assemble_py(*args, *rest)
+                for a, b in zip(got, want, strict=True):
+                    np.testing.assert_array_equal(a, b)
+                    assert np.asarray(a).dtype == np.asarray(b).dtype

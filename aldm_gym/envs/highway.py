@@ -21,7 +21,7 @@ from aldm_gym.envs.control import LKAController
 from aldm_gym.envs.observation import build_observation, observation_space
 from aldm_gym.envs.traffic import FastRoad
 from aldm_gym.roads.highway import HighwayRoad, RoadConfig
-from aldm_gym.sensor.detection import LaneDetection, fit_cubic
+from aldm_gym.sensor.detection import LaneDetection, driving_trajectory
 from aldm_gym.sensor.frame import SensorFrame
 from aldm_gym.sensor.ground_truth import ground_truth_detect, score_detection
 from aldm_gym.sensor.line_sensor import LineSensor
@@ -71,76 +71,9 @@ def near_path(left: FloatArray, right: FloatArray, lane_width: float, max_x: flo
     return _driving_trajectory(cut(left), cut(right), lane_width)
 
 
-_EPS = float(np.finfo(np.float64).eps)
-_TRAJECTORY_SPACING = 2.0
-"""x step of the driving path [m] (``driving_trajectory``'s default)."""
-
-
-def _driving_trajectory(left: FloatArray, right: FloatArray, lane_width: float) -> FloatArray:
-    """:func:`~aldm_gym.sensor.detection.driving_trajectory`, bit for bit, with less overhead.
-
-    The environment fits the path at every simulation step; most of the cost of
-    ``fit_cubic`` (``np.polynomial.Polynomial.fit``) is Python and numpy dispatch
-    around one small least-squares solve. :func:`_cubic_values` performs the same
-    array operations in the same order (so the same ``lstsq`` input and result);
-    lines it does not cover go through ``fit_cubic`` itself.
-    """
-    if not len(left) and not len(right):
-        return np.zeros((0, 2))
-    ends = [line[-1, 0] for line in (left, right) if len(line)]
-    x_end = float(min(ends))
-    if x_end <= 0.0:
-        return np.zeros((0, 2))
-    m = max(2, int(np.ceil(x_end / _TRAJECTORY_SPACING)) + 1)
-    xs = np.linspace(0.0, x_end, m)
-    if len(left) and len(right):
-        ys = 0.5 * (_cubic_values(left, xs) + _cubic_values(right, xs))
-    elif len(left):
-        ys = _cubic_values(left, xs) - 0.5 * lane_width
-    else:
-        ys = _cubic_values(right, xs) + 0.5 * lane_width
-    return np.column_stack([xs, ys])
-
-
-def _cubic_values(points: FloatArray, xs: FloatArray) -> FloatArray:
-    """``fit_cubic(points)(xs)`` for a non-empty line (same floating-point operations).
-
-    Fast path for >= 4 points with strictly increasing x (degree 3, the sensor's
-    lines): ``Polynomial.fit``'s domain mapping, ``polyvander``, column scaling,
-    ``lstsq`` and ``polyval``'s Horner scheme, inlined. Anything else (fewer points,
-    repeated or unsorted x, NaN) uses ``fit_cubic``.
-    """
-    x = points[:, 0]
-    k = len(x)
-    if k < 4 or not bool((x[1:] > x[:-1]).all()):
-        poly = fit_cubic(points)
-        assert poly is not None
-        return np.asarray(poly(xs), dtype=np.float64)
-    # Polynomial.fit: domain [min, max] (first and last x here) mapped onto the
-    # window [-1, 1] (pu.mapparms).
-    lo, hi = x[0], x[-1]
-    old_len = hi - lo
-    off = (hi * -1.0 - lo * 1.0) / old_len
-    scl = 2.0 / old_len
-    t = (off + scl * x) + 0.0
-    y = points[:, 1] + 0.0
-    # polyutils._fit with polyvander(t, 3), in its transposed layout.
-    v = np.empty((4, k))
-    v[0] = t * 0 + 1
-    v[1] = t
-    v[2] = v[1] * t
-    v[3] = v[2] * t
-    # _fit's `lhs = van.T` with `van = np.moveaxis(v, 0, -1)` is `v` itself (same view).
-    col = np.sqrt(np.square(v).sum(1))
-    col[col == 0] = 1
-    coef = np.linalg.lstsq(v.T / col, y, k * _EPS)[0]
-    coef = (coef.T / col).T
-    # Polynomial.__call__: map xs into the window, then polyval (Horner).
-    u = off + scl * xs
-    c0 = coef[3] + u * 0
-    c0 = coef[2] + c0 * u
-    c0 = coef[1] + c0 * u
-    return coef[0] + c0 * u
+_driving_trajectory = driving_trajectory
+"""The path fit of :func:`near_path` (``driving_trajectory``: its fits and path are
+one compiled call for detector lines)."""
 
 
 class SensorVehicle(Vehicle):

@@ -7,20 +7,33 @@ Model": "every increment of p means an increment of approximately 2 m in
 x-direction"). Points are grouped into line objects according to the road's
 marking model: one object per marking (``"editor"``) or one per dash
 (``"per_dash"``), then assigned to a side by their first point, as CarMaker does.
+
+Sampling the markings is a numba kernel of the road (``HighwayRoad.sample_markings``);
+everything after it (paint pattern, noise, objects, sides, order, caps) is one numba
+kernel here, ``_assemble`` (plain-Python reference ``_assemble_py``, umap habit). The
+noise and dropout draws come from the generator as whole-grid arrays and enter the
+kernel as data, so a seeded run repeats exactly.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
+import numba
 import numpy as np
 
 from aldm_gym.config import build_config, check_range
 from aldm_gym.roads.highway import HighwayRoad
 from aldm_gym.sensor.frame import SensorFrame
 from aldm_gym.types import FloatArray
+
+_NO_TURN = (0.0, 0.0, 0.0)
+"""Default external rotation and travel (recognised by identity: no validation needed)."""
+_NO_NOISE = np.zeros((3, 0, 0))
+_NO_DRAW = np.zeros((0, 0))
 
 
 @dataclass(frozen=True)
@@ -113,7 +126,9 @@ def _vec3(value: Any, name: str) -> FloatArray:
 
 def _pose(pose: Any) -> tuple[float, float, float]:
     """``(x, y, heading)`` from a tuple/array or a highway-env vehicle."""
-    if hasattr(pose, "position") and hasattr(pose, "heading"):
+    if type(pose) is tuple and len(pose) == 3:
+        x, y, h = float(pose[0]), float(pose[1]), float(pose[2])
+    elif hasattr(pose, "position") and hasattr(pose, "heading"):
         x, y = np.asarray(pose.position, dtype=np.float64)[:2]
         h = float(pose.heading)
     else:
@@ -121,7 +136,7 @@ def _pose(pose: Any) -> tuple[float, float, float]:
         if arr.shape != (3,):
             raise ValueError(f"pose must be (x [m], y [m], heading [rad]), got shape {arr.shape}")
         x, y, h = arr
-    if not np.all(np.isfinite([x, y, h])):
+    if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(h)):
         raise ValueError(f"pose must be finite, got {(x, y, h)}")
     return float(x), float(y), float(h)
 
@@ -145,8 +160,12 @@ class LineSensor:
         self, config: LineSensorConfig | Mapping[str, Any] | None = None, seed: int | None = None
     ) -> None:
         self.config: LineSensorConfig = build_config(LineSensorConfig, config, where="sensor")
-        self._xs = self.config.x_grid
+        c = self.config
+        self._xs = c.x_grid
         self._rng = np.random.default_rng(seed)
+        self._noise_std = np.array([c.lateral_noise, c.longitudinal_noise, c.height_noise])
+        self._mount_cos = float(np.cos(c.mount_yaw))
+        self._mount_sin = float(np.sin(c.mount_yaw))
 
     def seed(self, seed: int | None) -> None:
         """Reseed the sensor's own random generator."""
@@ -161,13 +180,14 @@ class LineSensor:
         tx = ty = 0.0
         if ext_travel is not None:
             # External travel is expressed in the mount frame: rotate by the mount yaw.
-            cy, sy = np.cos(c.mount_yaw), np.sin(c.mount_yaw)
-            tx = cy * ext_travel[0] - sy * ext_travel[1]
-            ty = sy * ext_travel[0] + cy * ext_travel[1]
-        fwd = np.array([np.cos(h), np.sin(h)])
-        left = np.array([np.sin(h), -np.cos(h)])  # driver's left in highway-env's world
-        origin = np.array([x, y]) + (c.mount_x + tx) * fwd + (c.mount_y + ty) * left
-        # Yaw to the left is a negative world heading change (see roads.geometry).
+            cy, sy = self._mount_cos, self._mount_sin
+            tx = cy * float(ext_travel[0]) - sy * float(ext_travel[1])
+            ty = sy * float(ext_travel[0]) + cy * float(ext_travel[1])
+        ch, sh = float(np.cos(h)), float(np.sin(h))
+        a, b = c.mount_x + tx, c.mount_y + ty
+        # Forward is (cos h, sin h); the driver's left in highway-env's world is
+        # (sin h, -cos h). Scalar form of `(x, y) + a * fwd + b * left`, same operations.
+        origin = np.array([(x + a * ch) + b * sh, (y + a * sh) + b * -ch])
         return origin, h - (c.mount_yaw + ext_yaw)
 
     def measure(
@@ -177,8 +197,8 @@ class LineSensor:
         t: float = 0.0,
         *,
         rng: np.random.Generator | None = None,
-        ext_rotation: Any = (0.0, 0.0, 0.0),
-        ext_travel: Any = (0.0, 0.0, 0.0),
+        ext_rotation: Any = _NO_TURN,
+        ext_travel: Any = _NO_TURN,
         s_hint: float | None = None,
     ) -> SensorFrame:
         """Measure the road's markings from a vehicle at ``pose``.
@@ -196,113 +216,213 @@ class LineSensor:
         """
         if not isinstance(road, HighwayRoad):
             raise TypeError(f"road must be a HighwayRoad, got {type(road).__name__}")
-        if not np.isfinite(t):
+        if not math.isfinite(t):
             raise ValueError(f"t must be finite, got {t}")
         c = self.config
-        rot = _vec3(ext_rotation, "ext_rotation")
-        travel = _vec3(ext_travel, "ext_travel")
+        rot = np.zeros(3) if ext_rotation is _NO_TURN else _vec3(ext_rotation, "ext_rotation")
+        travel = np.zeros(3) if ext_travel is _NO_TURN else _vec3(ext_travel, "ext_travel")
         origin, yaw = self.world_pose(pose, travel, float(rot[2]))
         xs = self._xs
         ys, us = road.sample_markings(origin, yaw, xs, s_hint)
-        tab = road.marking_table
-        m, k = ys.shape
-        # Paint pattern along each marking (arc length u): dash index and on/off.
-        with np.errstate(invalid="ignore"):
-            rel_u = (us - tab["phase"][:, None]) / tab["period"][:, None]
-            piece = np.floor(rel_u)
-            on = ~tab["broken"][:, None] | (
-                (rel_u - piece) * tab["period"][:, None] < tab["dash"][:, None]
-            )
-            visible = on & (np.abs(ys) <= c.max_lateral)  # NaN compares False
-        px = np.broadcast_to(xs, (m, k)).copy()
-        pz = np.broadcast_to(tab["height"][:, None], (m, k)).copy()
         if c.noisy:
             gen = rng if rng is not None else self._rng
             # Draw for the whole grid so the stream does not depend on what is visible.
-            noise = gen.standard_normal((3, m, k))
-            keep = gen.random((m, k)) >= c.dropout
-            ys = ys + c.lateral_noise * noise[0]
-            px = px + c.longitudinal_noise * noise[1]
-            pz = pz + c.height_noise * noise[2]
-            visible &= keep
-        return self._assemble(
-            road, visible, px, ys, pz, piece, float(t), rot, travel, origin, float(yaw)
-        )
-
-    def _assemble(
-        self,
-        road: HighwayRoad,
-        visible: np.ndarray,
-        px: FloatArray,
-        py: FloatArray,
-        pz: FloatArray,
-        piece: FloatArray,
-        t: float,
-        rot: FloatArray,
-        travel: FloatArray,
-        origin: FloatArray,
-        yaw: float,
-    ) -> SensorFrame:
-        """Group visible points into objects, assign sides, order and cap them."""
-        c = self.config
-        k = visible.shape[1]
-        per_dash = road.marking_model == "per_dash"
-        tab = road.marking_table
-        broken = tab["broken"]
-        flat = np.flatnonzero(visible.ravel())  # marking-major, x increasing
-        j_of = flat // k
-        # Object key: the marking, and for per-dash roads also the dash.
-        pc = piece.ravel()[flat]
-        split_piece = per_dash & broken[j_of]
-        pid = np.where(split_piece, pc, -1.0)
-        if len(flat):
-            new = np.concatenate([[True], (np.diff(j_of) != 0) | (np.diff(pid) != 0)])
+            noise = gen.standard_normal((3, *ys.shape))
+            draw = gen.random(ys.shape)
         else:
-            new = np.zeros(0, dtype=bool)
-        starts = np.flatnonzero(new)
-        counts = np.diff(np.append(starts, len(flat)))
-        obj_j = j_of[starts]
-        pts = np.column_stack([px.ravel()[flat], py.ravel()[flat], pz.ravel()[flat]])
-        first = pts[starts] if len(starts) else np.zeros((0, 3))
-        is_left = first[:, 1] > 0.0
-        # Order: left side first; within a side by first x, then by |first y|.
-        order = np.lexsort((np.abs(first[:, 1]), first[:, 0], ~is_left))
-        n_left_all = int(is_left.sum())
-        cap = c.max_lines_per_side
-        keep = np.concatenate([order[: min(n_left_all, cap)], order[n_left_all:][:cap]])
-        n_left = min(n_left_all, cap)
-        counts_k = counts[keep]
-        line_start = np.concatenate([[0], np.cumsum(counts_k)]).astype(np.int64)
-        # Gather the points of the kept objects in their new order.
-        idx = np.repeat(starts[keep] - line_start[:-1], counts_k) + np.arange(line_start[-1])
-        all_points = pts[idx]
-        first_k = first[keep]
-        rel = [-1, -1]
-        for side, (lo, hi) in enumerate(((0, n_left), (n_left, len(keep)))):
-            if hi > lo:
-                rel[side] = int(np.argmin(np.abs(first_k[lo:hi, 1])))
-        mk_j = obj_j[keep]
+            noise, draw = _NO_NOISE, _NO_DRAW
+        tab = road.marking_table
+        points, line_start, mk, piece, n_left, rel_left, rel_right = _assemble(
+            xs,
+            ys,
+            us,
+            tab["height"],
+            tab["phase"],
+            tab["period"],
+            tab["dash"],
+            tab["broken"],
+            road.marking_model == "per_dash",
+            c.max_lateral,
+            noise,
+            draw,
+            self._noise_std,
+            c.dropout,
+            c.max_lines_per_side,
+        )
         return SensorFrame(
-            timestamp=t,
+            timestamp=float(t),
             sensor_index=c.sensor_index,
-            all_points=all_points,
+            all_points=points,
             line_start=line_start,
-            line_type=tab["type"][mk_j],
-            line_colour=tab["colour"][mk_j],
-            line_height=tab["height"][mk_j],
-            line_width=tab["width"][mk_j],
-            line_marking=mk_j.astype(np.int64),
-            line_piece=pid[starts][keep].astype(np.int64),
+            line_type=tab["type"][mk],
+            line_colour=tab["colour"][mk],
+            line_height=tab["height"][mk],
+            line_width=tab["width"][mk],
+            line_marking=mk,
+            line_piece=piece,
             n_left=n_left,
-            relevant_left=rel[0],
-            relevant_right=rel[1],
+            relevant_left=rel_left,
+            relevant_right=rel_right,
             relevant_points=c.relevant_points,
             mount_position=np.array([c.mount_x, c.mount_y, c.mount_z]),
             mount_rotation=np.array([c.mount_roll, c.mount_pitch, c.mount_yaw]),
             ext_rotation=rot,
             ext_travel=travel,
             origin=origin,
-            yaw=yaw,
+            yaw=float(yaw),
             range=c.range,
             fov_start=c.fov_start,
         )
+
+
+def _assemble_py(
+    xs: FloatArray,
+    ys: FloatArray,
+    us: FloatArray,
+    height: FloatArray,
+    phase: FloatArray,
+    period: FloatArray,
+    dash: FloatArray,
+    broken: np.ndarray,
+    per_dash: bool,
+    max_lateral: float,
+    noise: FloatArray,
+    draw: FloatArray,
+    noise_std: FloatArray,
+    dropout: float,
+    max_lines: int,
+) -> tuple[FloatArray, np.ndarray, np.ndarray, np.ndarray, int, int, int]:
+    """One frame from the sampled markings: paint, noise, objects, sides, order, caps.
+
+    Plain-Python reference of ``_assemble`` (umap habit: same code, compiled once).
+
+    :param xs: ``(K,)`` x grid of the sensor [m].
+    :param ys: ``(M, K)`` noiseless y of marking ``j`` at ``xs[p]`` [m], NaN where absent.
+    :param us: ``(M, K)`` arc length along marking ``j`` there [m].
+    :param height: ``(M,)`` marking heights [m]; ``phase``, ``period``, ``dash``
+        ``(M,)`` its dash pattern [m]; ``broken`` ``(M,)`` whether it is dashed.
+    :param per_dash: one object per dash of a broken marking (else one per marking).
+    :param max_lateral: largest noiseless |y| seen [m].
+    :param noise: ``(3, M, K)`` standard normal draws for (y, x, z), or ``(3, 0, 0)``
+        for a noiseless sensor.
+    :param draw: ``(M, K)`` uniform draws, a point is kept when ``draw >= dropout``; or
+        ``(0, 0)`` for a noiseless sensor.
+    :param noise_std: ``(3,)`` standard deviations of the noise on (y, x, z) [m].
+    :param dropout: dropout probability.
+    :param max_lines: cap on objects per side.
+    :return: ``(all_points (N, 3), line_start (L + 1,), marking (L,), piece (L,),
+        n_left, relevant_left, relevant_right)`` as in :class:`SensorFrame`.
+    """
+    m, k = ys.shape
+    noisy = draw.shape[0] > 0
+    # Pass 1, marking-major with x increasing: visible points, and a new object
+    # wherever the marking, or for per-dash roads the dash, changes.
+    px = np.empty(m * k)
+    py = np.empty(m * k)
+    pz = np.empty(m * k)
+    obj_first = np.empty(m * k + 1, dtype=np.int64)
+    obj_mark = np.empty(m * k, dtype=np.int64)
+    obj_piece = np.empty(m * k)
+    n = 0
+    n_obj = 0
+    last_j = -1
+    last_pid = 0.0
+    for j in range(m):
+        split = per_dash and broken[j]
+        for p in range(k):
+            # Paint pattern along the marking (arc length u): dash index and on/off.
+            piece = -1.0
+            if broken[j]:
+                rel_u = (us[j, p] - phase[j]) / period[j]
+                piece = np.floor(rel_u)
+                if not ((rel_u - piece) * period[j] < dash[j]):  # NaN: not painted
+                    continue
+            y = ys[j, p]
+            if not (abs(y) <= max_lateral):  # NaN: the marking does not reach xs[p]
+                continue
+            x = xs[p]
+            z = height[j]
+            if noisy:
+                if not (draw[j, p] >= dropout):
+                    continue
+                y = y + noise_std[0] * noise[0, j, p]
+                x = x + noise_std[1] * noise[1, j, p]
+                z = z + noise_std[2] * noise[2, j, p]
+            pid = piece if split else -1.0
+            if j != last_j or pid - last_pid != 0.0:
+                obj_first[n_obj] = n
+                obj_mark[n_obj] = j
+                obj_piece[n_obj] = pid
+                n_obj += 1
+                last_j = j
+                last_pid = pid
+            px[n] = x
+            py[n] = y
+            pz[n] = z
+            n += 1
+    obj_first[n_obj] = n
+    # Order: left side (first point y > 0) first; within a side by first x, then by
+    # |first y|; ties keep the pass-1 order (a stable insertion sort; tens of objects).
+    order = np.arange(n_obj)
+    for i in range(1, n_obj):
+        b = order[i]
+        fb = obj_first[b]
+        left_b = py[fb] > 0.0
+        q = i - 1
+        while q >= 0:
+            fa = obj_first[order[q]]
+            left_a = py[fa] > 0.0
+            if left_a != left_b:
+                after = left_b
+            elif px[fa] != px[fb]:
+                after = px[fa] > px[fb]
+            else:
+                after = abs(py[fa]) > abs(py[fb])
+            if not after:
+                break
+            order[q + 1] = order[q]
+            q -= 1
+        order[q + 1] = b
+    n_left_all = 0
+    for i in range(n_obj):
+        if py[obj_first[i]] > 0.0:
+            n_left_all += 1
+    # Caps: the first max_lines objects of each side.
+    n_left = min(n_left_all, max_lines)
+    n_right = min(n_obj - n_left_all, max_lines)
+    n_keep = n_left + n_right
+    keep = np.empty(n_keep, dtype=np.int64)
+    keep[:n_left] = order[:n_left]
+    keep[n_left:] = order[n_left_all : n_left_all + n_right]
+    line_start = np.empty(n_keep + 1, dtype=np.int64)
+    line_start[0] = 0
+    for i in range(n_keep):
+        o = keep[i]
+        line_start[i + 1] = line_start[i] + obj_first[o + 1] - obj_first[o]
+    points = np.empty((line_start[n_keep], 3))
+    marking = np.empty(n_keep, dtype=np.int64)
+    pieces = np.empty(n_keep, dtype=np.int64)
+    for i in range(n_keep):
+        o = keep[i]
+        marking[i] = obj_mark[o]
+        pieces[i] = np.int64(obj_piece[o])
+        dst = line_start[i]
+        for src in range(obj_first[o], obj_first[o + 1]):
+            points[dst, 0] = px[src]
+            points[dst, 1] = py[src]
+            points[dst, 2] = pz[src]
+            dst += 1
+    # Relevant line of a side: smallest |first y| (the first one on ties).
+    rel_left = -1
+    rel_right = -1
+    for i in range(n_keep):
+        ay = abs(points[line_start[i], 1])
+        if i < n_left:
+            if rel_left < 0 or ay < abs(points[line_start[rel_left], 1]):
+                rel_left = i
+        elif rel_right < 0 or ay < abs(points[line_start[n_left + rel_right], 1]):
+            rel_right = i - n_left
+    return points, line_start, marking, pieces, n_left, rel_left, rel_right
+
+
+_assemble = numba.njit(cache=True)(_assemble_py)
