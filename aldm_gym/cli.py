@@ -17,26 +17,8 @@ from typing import Any
 
 import numpy as np
 
-
-def _positive_int(text: str) -> int:
-    value = int(text)
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be >= 1, got {value}")
-    return value
-
-
-def _fraction(text: str) -> float:
-    value = float(text)
-    if not 0.0 <= value < 1.0:
-        raise argparse.ArgumentTypeError(f"must be in [0, 1), got {value}")
-    return value
-
-
-def _non_negative(text: str) -> float:
-    value = float(text)
-    if not (value >= 0.0 and np.isfinite(value)):
-        raise argparse.ArgumentTypeError(f"must be a finite number >= 0, got {text}")
-    return value
+from aldm_gym.argtypes import fraction, non_negative_float, positive_int
+from aldm_gym.report import format_table
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -51,12 +33,18 @@ def build_parser() -> argparse.ArgumentParser:
     cmp_.add_argument("--quick", action="store_true", help="small run (about a minute)")
     cmp_.add_argument("--seed", type=int, default=0, help="seed of roads and poses")
     cmp_.add_argument("--out", type=Path, default=Path("out/compare"), help="output folder")
-    cmp_.add_argument("--roads", type=_positive_int, help="number of seeded roads")
-    cmp_.add_argument("--frames", type=_positive_int, help="frames per road and model")
-    cmp_.add_argument("--noise", type=_non_negative, default=0.0, help="lateral noise σ [m]")
-    cmp_.add_argument("--dropout", type=_fraction, default=0.0, help="point dropout share")
+    cmp_.add_argument("--roads", type=positive_int, help="number of seeded roads")
+    cmp_.add_argument("--frames", type=positive_int, help="frames per road and model")
+    cmp_.add_argument("--noise", type=non_negative_float, default=0.0, help="lateral noise σ [m]")
+    cmp_.add_argument("--dropout", type=fraction, default=0.0, help="point dropout share")
     cmp_.add_argument(
         "--min-radius", type=float, default=500.0, help="smallest curve radius [m] (>= 100)"
+    )
+    cmp_.add_argument(
+        "--episodes", type=positive_int, help="closed-loop episodes per detector and policy"
+    )
+    cmp_.add_argument(
+        "--no-closed-loop", action="store_true", help="only the frame-level comparison"
     )
     cmp_.add_argument("--no-progress", action="store_true", help="no progress bar")
 
@@ -69,35 +57,67 @@ def build_parser() -> argparse.ArgumentParser:
         "--marking-model", choices=("per_dash", "editor"), default="per_dash", help="road model"
     )
     plot.add_argument("--out", type=Path, default=Path("out/frame.png"), help="PNG path")
+
+    # Training and evaluation live in aldm_gym.agents.training (SB3 imported lazily).
+    from aldm_gym.agents import training
+
+    training.add_train_arguments(sub.add_parser("train", help="train a PPO lane-change policy"))
+    training.add_evaluate_arguments(
+        sub.add_parser("evaluate", help="evaluate a trained policy against rule-based ones")
+    )
     return parser
 
 
-def _table(rows: list[dict[str, Any]], columns: Sequence[str]) -> str:
-    def fmt(v: Any) -> str:
-        return f"{v:.3f}" if isinstance(v, float) else str(v)
-
-    cells = [[fmt(r[c]) for c in columns] for r in rows]
-    widths = [max(len(c), *(len(row[i]) for row in cells)) for i, c in enumerate(columns)]
-    lines = ["  ".join(c.rjust(w) for c, w in zip(columns, widths, strict=True))]
-    lines += ["  ".join(v.rjust(w) for v, w in zip(row, widths, strict=True)) for row in cells]
-    return "\n".join(lines)
+CLOSED_LOOP_COLUMNS: tuple[str, ...] = (
+    "marking_model",
+    "detector",
+    "episodes",
+    "km",
+    "departures_per_km",
+    "rms_offset_m",
+    "max_offset_m",
+    "both_correct",
+    "mean_preview_m",
+    "collisions",
+    "lane_changes_ok",
+    "lane_changes_failed",
+    "mean_speed",
+    "success_rate",
+)
+"""Columns of ``compare.csv`` (closed loop, one row per marking model × detector)."""
 
 
 def run_compare(args: argparse.Namespace) -> int:
-    """``aldm-gym compare``."""
+    """``aldm-gym compare``: frame-level comparison, then closed-loop episodes."""
+    if args.min_radius < 100.0:
+        raise SystemExit("aldm-gym compare: --min-radius must be >= 100 m")
+    out: Path = args.out
+    out.mkdir(parents=True, exist_ok=True)
+    written = _compare_frames(args, out)
+    if not args.no_closed_loop:
+        written += _compare_closed_loop(args, out)
+    print("wrote " + ", ".join(str(p) for p in written))
+    return 0
+
+
+def _write_csv(path: Path, rows: list[dict[str, Any]], columns: Sequence[str]) -> None:
+    with open(path, "w", newline="") as fh:
+        writer = csv.DictWriter(fh, fieldnames=list(columns))
+        writer.writeheader()
+        writer.writerows(rows)
+
+
+def _compare_frames(args: argparse.Namespace, out: Path) -> list[Path]:
+    """Open loop: the same seeded frames through naive, ALDM and ground truth."""
     from tqdm import tqdm
 
     from aldm_gym.roads import HighwayRoad
-    from aldm_gym.sensor import LineSensor, naive_detect
+    from aldm_gym.sensor import LineSensor, naive_detect, score_detection
     from aldm_gym.sensor.evaluation import COLUMNS, compare_detectors, find_frame, make_detector
     from aldm_gym.sensor.plot import plot_frames
 
     n_roads = args.roads or (2 if args.quick else 5)
     n_frames = args.frames or (100 if args.quick else 400)
-    if args.min_radius < 100.0:
-        raise SystemExit("aldm-gym compare: --min-radius must be >= 100 m")
-    out: Path = args.out
-    out.mkdir(parents=True, exist_ok=True)
     sensor = LineSensor({"lateral_noise": args.noise, "dropout": args.dropout})
     base = [
         HighwayRoad({"seed": args.seed + i, "min_radius": args.min_radius}) for i in range(n_roads)
@@ -110,30 +130,26 @@ def run_compare(args: argparse.Namespace) -> int:
         rows = compare_detectors(
             roads, frames_per_road=n_frames, sensor=sensor, seed=args.seed, progress=bar.update
         )
-    with open(out / "compare.csv", "w", newline="") as fh:
-        writer = csv.DictWriter(fh, fieldnames=list(COLUMNS))
-        writer.writeheader()
-        writer.writerows(rows)
-    print(_table(rows, COLUMNS))
+    _write_csv(out / "compare_frames.csv", rows, COLUMNS)
+    print("Frame by frame (open loop):")
+    print(format_table(rows, COLUMNS))
     print(
-        f"\n{len(roads)} roads x {n_frames} frames, noise {args.noise} m, dropout "
+        f"{len(roads)} roads x {n_frames} frames, noise {args.noise} m, dropout "
         f"{args.dropout:.0%}, {time.perf_counter() - t0:.1f} s. both_correct: both ego lines "
-        "within 0.3 m of the true markings, starting <= 25 m and reaching >= 60 m."
+        "within 0.3 m of the true markings, starting <= 25 m and reaching >= 60 m.\n"
     )
     # Figures: a per-dash frame where CarMaker's default picks wrong objects, and the same
-    # pose on the editor road, each with naive | ALDM | ground truth.
+    # sensor pose on the editor road, each with naive | ALDM | ground truth.
     aldm = make_detector("aldm")
     gt = make_detector("ground_truth")
     road = base[0]
-    rng = np.random.default_rng(args.seed)
 
     def naive_fails(frame: Any, lane_id: int) -> bool:
-        from aldm_gym.sensor import score_detection
-
         sc = score_detection(naive_detect(frame), road, frame, lane_id)
         return not sc["ego_right"].correct and frame.right.n_lines > 3
 
-    found = find_frame(road, LineSensor(), naive_fails, rng)
+    written = [out / "compare_frames.csv"]
+    found = find_frame(road, LineSensor(), naive_fails, np.random.default_rng(args.seed))
     if found is not None:
         frame, lane = found
         for model in ("per_dash", "editor"):
@@ -148,12 +164,89 @@ def run_compare(args: argparse.Namespace) -> int:
                 out / f"frame_{model}.png",
                 suptitle=f"{model} road, seed {args.seed}: points labelled side,index",
             )
-    _plot_bars(rows, out / "compare.png")
+            written.append(out / f"frame_{model}.png")
+    _plot_bars(rows, out / "compare_frames.png")
+    written.append(out / "compare_frames.png")
+    return written
+
+
+def _compare_closed_loop(args: argparse.Namespace, out: Path) -> list[Path]:
+    """Closed loop: LKA (IDLE) and the rule-based LCA on the same seeded episodes."""
+    import gymnasium as gym
+    from tqdm import tqdm
+
+    from aldm_gym.agents.evaluation import run_episodes, summarize
+    from aldm_gym.agents.policies import IdlePolicy, RuleBasedLCA
+
+    n_ep = args.episodes or (2 if args.quick else 10)
+    seeds = [args.seed + i for i in range(n_ep)]
+    models, detectors = ("per_dash", "editor"), ("naive", "aldm", "ground_truth")
+    sensor = {"lateral_noise": args.noise, "dropout": args.dropout}
+    rows, traces = [], {}
+    t0 = time.perf_counter()
+    total = len(models) * len(detectors) * 2 * n_ep
+    with tqdm(total=total, desc="episodes", unit="ep", disable=args.no_progress) as bar:
+        for model in models:
+            for det in detectors:
+                env = gym.make(
+                    "ALDMHighway-v0",
+                    config={
+                        "marking_model": model,
+                        "detector": det,
+                        "sensor": sensor,
+                        "road": {"min_radius": args.min_radius},
+                    },
+                )
+                idle = run_episodes(env, IdlePolicy(), seeds, progress=bar.update)
+                lca = run_episodes(env, RuleBasedLCA(), seeds, progress=bar.update)
+                env.close()
+                row = {"marking_model": model, "detector": det, **summarize(idle + lca)}
+                rows.append({c: row[c] for c in CLOSED_LOOP_COLUMNS})
+                traces[(model, det)] = idle[0].trace
+    _write_csv(out / "compare.csv", rows, CLOSED_LOOP_COLUMNS)
+    print("Closed loop (LKA with IDLE and the rule-based LCA, same seeds):")
+    print(format_table(rows, CLOSED_LOOP_COLUMNS))
     print(
-        f"wrote {out / 'compare.csv'}, {out / 'frame_per_dash.png'}, "
-        f"{out / 'frame_editor.png'}, {out / 'compare.png'}"
+        f"{n_ep} episodes per policy and row, {time.perf_counter() - t0:.1f} s. Offsets exclude "
+        "lane changes; a departure is a wheel over a marking without a lane change.\n"
     )
-    return 0
+    _plot_offsets(traces, out / "offset.png")
+    return [out / "compare.csv", out / "offset.png"]
+
+
+_TRACE_STYLE = {
+    "naive": ("tab:red", "-", 1.4),
+    "aldm": ("tab:blue", "-", 2.6),
+    "ground_truth": ("black", "--", 1.0),
+}
+
+
+def _plot_offsets(traces: dict[tuple[str, str], list[tuple[float, float]]], path: Path) -> None:
+    """Lateral offset over distance, one panel per marking model, one line per detector."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    models = sorted({m for m, _ in traces}, reverse=True)
+    fig, axes = plt.subplots(len(models), 1, figsize=(8, 2.6 * len(models)), squeeze=False)
+    for ax, model in zip(axes[:, 0], models, strict=True):
+        for (m, det), trace in traces.items():
+            if m != model or not trace:
+                continue
+            arr = np.asarray(trace)
+            colour, style, width = _TRACE_STYLE.get(det, ("tab:gray", "-", 1.2))
+            ax.plot(arr[:, 0], arr[:, 1], style, color=colour, lw=width, label=det)
+        for y in (-1.875, 1.875):  # lane edges of the default 3.75 m lane
+            ax.axhline(y, color="0.6", lw=0.8, ls=":")
+        ax.set_title(f"{model} road: LKA (IDLE), first episode", fontsize=9)
+        ax.set_ylabel("lateral offset [m]")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8, loc="upper right")
+    axes[-1, 0].set_xlabel("distance along the road [m]")
+    fig.tight_layout()
+    fig.savefig(path, dpi=130)
+    plt.close(fig)
 
 
 def _remeasure(road: Any, frame: Any) -> Any:
@@ -225,6 +318,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         return run_compare(args)
     if args.command == "plot":
         return run_plot(args)
+    if args.command in ("train", "evaluate"):
+        from aldm_gym.agents import training
+
+        return training.run_train(args) if args.command == "train" else training.run_evaluate(args)
     raise AssertionError(args.command)  # argparse rejects unknown commands
 
 

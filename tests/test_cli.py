@@ -7,38 +7,37 @@ from pathlib import Path
 
 import pytest
 
-from aldm_gym.cli import main
+from aldm_gym.cli import CLOSED_LOOP_COLUMNS, main
 from aldm_gym.roads import HighwayRoad
 from aldm_gym.sensor.evaluation import COLUMNS, compare_detectors, make_detector
 
 
-def test_compare_quick_writes_csv_and_figures(
+def test_compare_quick_writes_csvs_and_figures(
     tmp_path: Path, capsys: pytest.CaptureFixture
 ) -> None:
-    rc = main(
-        [
-            "compare",
-            "--quick",
-            "--roads",
-            "1",
-            "--frames",
-            "12",
-            "--out",
-            str(tmp_path),
-            "--no-progress",
-        ]
-    )
+    argv = ["compare", "--quick", "--roads", "1", "--frames", "12", "--episodes", "1"]
+    rc = main([*argv, "--out", str(tmp_path), "--no-progress"])
     assert rc == 0
+    pairs = {(m, d) for m in ("per_dash", "editor") for d in ("naive", "aldm", "ground_truth")}
+    with open(tmp_path / "compare_frames.csv") as fh:
+        frames = list(csv.DictReader(fh))
+    assert list(frames[0]) == list(COLUMNS)
+    assert {(r["marking_model"], r["detector"]) for r in frames} == pairs
     with open(tmp_path / "compare.csv") as fh:
-        rows = list(csv.DictReader(fh))
-    assert list(rows[0]) == list(COLUMNS)
-    assert {(r["marking_model"], r["detector"]) for r in rows} == {
-        (m, d) for m in ("per_dash", "editor") for d in ("naive", "aldm", "ground_truth")
-    }
-    for name in ("compare.png", "frame_per_dash.png", "frame_editor.png"):
+        loop = list(csv.DictReader(fh))
+    assert list(loop[0]) == list(CLOSED_LOOP_COLUMNS)
+    assert {(r["marking_model"], r["detector"]) for r in loop} == pairs
+    required = {"km", "departures_per_km", "rms_offset_m", "max_offset_m", "both_correct"}
+    required |= {"mean_preview_m", "collisions", "lane_changes_ok", "lane_changes_failed"}
+    assert required <= set(CLOSED_LOOP_COLUMNS)
+    by = {(r["marking_model"], r["detector"]): r for r in loop}
+    assert float(by[("per_dash", "aldm")]["departures_per_km"]) == 0.0
+    assert float(by[("per_dash", "naive")]["both_correct"]) < 0.2
+    names = ("compare_frames.png", "frame_per_dash.png", "frame_editor.png", "offset.png")
+    for name in names:
         assert (tmp_path / name).stat().st_size > 10_000
     out = capsys.readouterr().out
-    assert "both_correct" in out
+    assert "Closed loop" in out and "both_correct" in out
 
 
 def test_headline_naive_fails_on_per_dash_aldm_holds() -> None:

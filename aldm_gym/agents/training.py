@@ -1,0 +1,734 @@
+"""PPO lane-change policies on ``ALDMHighway-v0``: ``aldm-gym train`` and ``aldm-gym evaluate``.
+
+:func:`train` fits a stable-baselines3 PPO ``MultiInputPolicy`` on the meta actions
+(``Discrete(5)``) of ``ALDMHighway-v0`` with the observation built from one detector's
+lanes (``naive``, ``aldm`` or ``ground_truth``). Environments run vectorised
+(``SubprocVecEnv`` for more than one), observations are normalised with running
+statistics (``VecNormalize``), tensorboard logs go to ``<out>/tb/`` and checkpoints
+(model ``.zip`` + normalisation ``.pkl``) to ``<out>/checkpoints/`` every
+``checkpoint_freq`` steps and on an interruption (Ctrl-C, SIGTERM). ``resume=True``
+continues from the latest checkpoint with the step count, tensorboard run, optimiser
+state and normalisation statistics of the interrupted run.
+
+:func:`evaluate` plays a trained model, :class:`~aldm_gym.agents.policies.RuleBasedLCA`
+and :class:`~aldm_gym.agents.policies.IdlePolicy` on the same seeds with
+:func:`~aldm_gym.agents.evaluation.run_episodes`.
+
+Output folder of a training::
+
+    <out>/training.json        env config, detector, hyperparameters, target steps
+    <out>/model.zip            final model (SB3 PPO)
+    <out>/vecnormalize.pkl     final observation normalisation
+    <out>/checkpoints/model_<steps>_steps.zip, vecnormalize_<steps>_steps.pkl
+    <out>/tb/PPO_1/            tensorboard events
+
+stable-baselines3 and torch are imported inside the functions: the CLI imports this
+module to build its parser, and ``import aldm_gym`` stays light.
+
+Why PPO rather than DQN: PPO is on-policy and collects its rollouts from all vectorised
+environments at once, which is how the two cores of this machine are used (the env, not
+the network, is the bottleneck); it is robust to hyperparameters on highway-env's meta
+actions (highway-env's own PPO example trains in ~2e4 steps), and its state is the
+weights, the optimiser and the step count, so a resume loses nothing. DQN would also
+need its replay buffer checkpointed (hundreds of MB of Dict observations) for an exact
+resume.
+"""
+
+from __future__ import annotations
+
+import argparse
+import functools
+import json
+import re
+import signal
+import sys
+import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+from aldm_gym.argtypes import non_negative_int, positive_float, positive_int
+from aldm_gym.envs.config import DETECTORS, MARKING_MODELS
+from aldm_gym.report import format_table
+
+ENV_ID = "ALDMHighway-v0"
+"""The environment trained and evaluated."""
+
+TRAINING_FILE = "training.json"
+"""Metadata written next to the model: env config, detector, hyperparameters."""
+
+MODEL_FILE = "model.zip"
+VECNORM_FILE = "vecnormalize.pkl"
+CHECKPOINT_DIR = "checkpoints"
+
+EVAL_COLUMNS = (
+    "policy",
+    "success_rate",
+    "mean_speed",
+    "lane_changes_ok",
+    "lane_changes_failed",
+    "departures_per_km",
+    "collisions",
+)
+"""Columns of the evaluation table (metrics from :func:`summarize`)."""
+
+_CHECKPOINT_RE = re.compile(r"model_(\d+)_steps\.zip$")
+
+
+class MissingRLDependencies(ImportError):
+    """stable-baselines3 or torch is not installed."""
+
+
+def _import_sb3() -> Any:
+    """Import stable_baselines3 (and torch) or raise a clear error."""
+    try:
+        import stable_baselines3
+        import torch  # noqa: F401
+    except ImportError as exc:  # pragma: no cover - depends on the install
+        raise MissingRLDependencies(
+            f"training needs stable-baselines3, torch and tensorboard ({exc}); "
+            "install them with: pip install 'aldm-gym[rl]'"
+        ) from exc
+    return stable_baselines3
+
+
+@dataclass
+class PPOParams:
+    """PPO hyperparameters (SB3 names).
+
+    Defaults follow highway-env's PPO example for the meta actions (``gamma`` 0.8:
+    at 1 Hz the reward of the next ~5 s matters; lr 5e-4, 10 epochs, batch 64).
+
+    :ivar n_steps: rollout length per environment [policy steps].
+    """
+
+    n_steps: int = 256
+    batch_size: int = 64
+    n_epochs: int = 10
+    learning_rate: float = 5e-4
+    gamma: float = 0.8
+    gae_lambda: float = 0.95
+    ent_coef: float = 0.01
+    clip_range: float = 0.2
+    net_arch: list[int] = field(default_factory=lambda: [128, 128])
+
+
+def env_config(
+    detector: str = "aldm",
+    marking_model: str = "per_dash",
+    duration: float | None = None,
+    vehicles_count: int | None = None,
+    collision_reward: float | None = None,
+) -> dict[str, Any]:
+    """The ``ALDMHighway-v0`` config of a training (only keys that differ from defaults).
+
+    :param collision_reward: weight of the collision term of the reward (env: -1).
+    :raises ValueError: unknown detector or marking model.
+    """
+    if detector not in DETECTORS:
+        raise ValueError(f"detector must be one of {DETECTORS}, got {detector!r}")
+    if marking_model not in MARKING_MODELS:
+        raise ValueError(f"marking_model must be one of {MARKING_MODELS}, got {marking_model!r}")
+    config: dict[str, Any] = {"detector": detector, "marking_model": marking_model}
+    if duration is not None:
+        config["duration"] = float(duration)
+    if vehicles_count is not None:
+        config["vehicles_count"] = int(vehicles_count)
+    if collision_reward is not None:
+        config["collision_reward"] = float(collision_reward)
+    return config
+
+
+def _make_env(config: dict[str, Any]) -> Any:
+    """One monitored env (module level so ``SubprocVecEnv`` can pickle the factory)."""
+    import gymnasium as gym
+    from stable_baselines3.common.monitor import Monitor
+
+    import aldm_gym  # noqa: F401  (registers the env in a fresh subprocess)
+
+    return Monitor(gym.make(ENV_ID, config=config))
+
+
+def make_vec_env(config: dict[str, Any], n_envs: int, seed: int) -> Any:
+    """``n_envs`` copies of the env: ``SubprocVecEnv`` for several, else ``DummyVecEnv``.
+
+    The i-th env's first reset uses ``seed + i``.
+    """
+    _import_sb3()
+    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
+
+    fns: list[Callable[[], Any]] = [functools.partial(_make_env, config) for _ in range(n_envs)]
+    venv = SubprocVecEnv(fns) if n_envs > 1 else DummyVecEnv(fns)
+    venv.seed(seed)
+    return venv
+
+
+def latest_checkpoint(out: Path) -> tuple[Path, Path, int] | None:
+    """``(model.zip, vecnormalize.pkl, steps)`` of the newest complete checkpoint in
+    ``<out>/checkpoints``, or None."""
+    found = []
+    for path in (Path(out) / CHECKPOINT_DIR).glob("model_*_steps.zip"):
+        match = _CHECKPOINT_RE.search(path.name)
+        vecnorm = path.with_name(f"vecnormalize_{match.group(1)}_steps.pkl") if match else None
+        if match and vecnorm is not None and vecnorm.exists():
+            found.append((int(match.group(1)), path, vecnorm))
+    if not found:
+        return None
+    steps, model, vecnorm = max(found)
+    return model, vecnorm, steps
+
+
+def _callbacks(out: Path, checkpoint_freq: int, target: int, progress: bool) -> Any:
+    """SB3 callbacks: periodic checkpoints and a tqdm bar (SB3's own needs ``rich``)."""
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    class Checkpoints(BaseCallback):
+        """Save model + VecNormalize at the end of a rollout every ``checkpoint_freq`` steps.
+
+        Saving after the PPO update that ends a rollout (not mid-rollout) keeps a
+        checkpoint's weights, optimiser and step count consistent.
+        """
+
+        def __init__(self) -> None:
+            super().__init__()
+            self.last_saved = 0
+            self.rollout_start = 0
+
+        def _on_training_start(self) -> None:
+            self.last_saved = self.model.num_timesteps
+            self.rollout_start = self.model.num_timesteps
+
+        def _on_rollout_start(self) -> None:
+            # Called after the previous rollout's update: the state to save on interrupt.
+            self.rollout_start = self.model.num_timesteps
+            if self.model.num_timesteps - self.last_saved >= checkpoint_freq:
+                self.save()
+
+        def _on_step(self) -> bool:
+            return True
+
+        def save(self, steps: int | None = None) -> Path:
+            steps = self.model.num_timesteps if steps is None else steps
+            return save_checkpoint(self.model, out, steps)
+
+    class Progress(BaseCallback):
+        """tqdm bar over the policy steps of the whole (possibly resumed) training."""
+
+        def __init__(self) -> None:
+            super().__init__()
+            self.bar: Any = None
+
+        def _on_training_start(self) -> None:
+            from tqdm import tqdm
+
+            self.bar = tqdm(
+                total=target, initial=self.model.num_timesteps, desc="train", unit="step"
+            )
+
+        def _on_step(self) -> bool:
+            self.bar.update(self.training_env.num_envs)
+            return True
+
+        def _on_training_end(self) -> None:
+            self.bar.close()
+
+    checkpoints = Checkpoints()
+    return checkpoints, ([checkpoints, Progress()] if progress else [checkpoints])
+
+
+def save_checkpoint(model: Any, out: Path, steps: int) -> Path:
+    """Write ``<out>/checkpoints/model_<steps>_steps.zip`` and its VecNormalize stats.
+
+    The model is saved with ``num_timesteps = steps`` (so an interrupted rollout, whose
+    samples never reached an update, is collected again on resume).
+    """
+    folder = Path(out) / CHECKPOINT_DIR
+    folder.mkdir(parents=True, exist_ok=True)
+    current = model.num_timesteps
+    model.num_timesteps = steps
+    try:
+        path = folder / f"model_{steps}_steps.zip"
+        _save_atomic(model.save, path)
+        vecnorm = model.get_vec_normalize_env()
+        if vecnorm is not None:
+            _save_atomic(vecnorm.save, folder / f"vecnormalize_{steps}_steps.pkl")
+    finally:
+        model.num_timesteps = current
+    return path
+
+
+def _save_atomic(save: Any, path: Path) -> None:
+    """``save(tmp)`` then rename: an interruption never leaves a truncated file."""
+    tmp = path.with_name(path.stem + ".tmp" + path.suffix)
+    save(tmp)
+    tmp.replace(path)
+
+
+@contextmanager
+def _sigterm_as_interrupt() -> Iterator[None]:
+    """Turn SIGTERM into KeyboardInterrupt (``kill PID`` checkpoints like Ctrl-C)."""
+
+    def handler(signum: int, frame: Any) -> None:
+        raise KeyboardInterrupt
+
+    try:
+        previous = signal.signal(signal.SIGTERM, handler)
+    except ValueError:  # not the main thread
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def train(
+    out: Path,
+    *,
+    detector: str = "aldm",
+    marking_model: str = "per_dash",
+    timesteps: int = 20_000,
+    n_envs: int = 2,
+    seed: int = 0,
+    checkpoint_freq: int = 2_048,
+    duration: float | None = None,
+    vehicles_count: int | None = None,
+    collision_reward: float | None = None,
+    params: PPOParams | None = None,
+    resume: bool = False,
+    progress: bool = True,
+    verbose: int = 0,
+    callback: Any = None,
+) -> Any:
+    """Train (or resume training) a PPO policy; return the SB3 model.
+
+    :param out: output folder (see the module docstring for its layout).
+    :param timesteps: total policy steps of the training (counting steps done before a
+        resume), rounded up to whole rollouts (``n_steps × n_envs``).
+    :param checkpoint_freq: save a checkpoint every this many steps [policy steps].
+    :param duration, vehicles_count, collision_reward: env overrides (None: the env's
+        defaults).
+    :param callback: extra SB3 callback(s) (a list or one).
+    :param resume: continue from the latest checkpoint of ``out``; the env config and
+        hyperparameters are those saved in ``<out>/training.json``, ``n_envs`` and
+        ``timesteps`` may change.
+    :raises FileExistsError: ``out`` holds a training and ``resume`` is False.
+    :raises FileNotFoundError: ``resume`` without a checkpoint in ``out``.
+    :raises MissingRLDependencies: stable-baselines3 / torch missing.
+    """
+    _import_sb3()
+    import torch
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    out = Path(out)
+    if timesteps < 1 or n_envs < 1 or checkpoint_freq < 1:
+        raise ValueError("timesteps, n_envs and checkpoint_freq must be >= 1")
+    torch.set_num_threads(1)  # the envs need the cores; the MLP is tiny
+    meta_path = out / TRAINING_FILE
+    if resume:
+        found = latest_checkpoint(out)
+        if found is None or not meta_path.exists():
+            raise FileNotFoundError(f"nothing to resume in {out}: no checkpoint or {TRAINING_FILE}")
+        meta = json.loads(meta_path.read_text())
+        config = meta["env_config"]
+        params = PPOParams(**meta["ppo"])
+        model_path, vecnorm_path, done = found
+        venv = make_vec_env(config, n_envs, seed + done)
+        venv = VecNormalize.load(str(vecnorm_path), venv)
+        venv.training = True
+        model = PPO.load(model_path, env=venv, device="cpu")
+        # PPO.load takes n_envs from venv and rebuilds the rollout buffer for it.
+        model.set_random_seed(seed + done)
+    else:
+        if meta_path.exists() or (out / MODEL_FILE).exists() or latest_checkpoint(out):
+            raise FileExistsError(
+                f"{out} already holds a training; pass --resume to continue it "
+                "or choose another --out"
+            )
+        config = env_config(detector, marking_model, duration, vehicles_count, collision_reward)
+        params = params or PPOParams()
+        venv = VecNormalize(make_vec_env(config, n_envs, seed), norm_reward=False, clip_obs=10.0)
+        model = PPO(
+            "MultiInputPolicy",
+            venv,
+            n_steps=params.n_steps,
+            batch_size=min(params.batch_size, params.n_steps * n_envs),
+            n_epochs=params.n_epochs,
+            learning_rate=params.learning_rate,
+            gamma=params.gamma,
+            gae_lambda=params.gae_lambda,
+            ent_coef=params.ent_coef,
+            clip_range=params.clip_range,
+            policy_kwargs={"net_arch": list(params.net_arch)},
+            tensorboard_log=str(out / "tb"),
+            seed=seed,
+            device="cpu",
+            verbose=verbose,
+        )
+        done = 0
+    out.mkdir(parents=True, exist_ok=True)
+    meta = {
+        "algorithm": "PPO",
+        "env_id": ENV_ID,
+        "env_config": config,
+        "ppo": asdict(params),
+        "n_envs": n_envs,
+        "seed": seed,
+        "timesteps": int(timesteps),
+        "checkpoint_freq": int(checkpoint_freq),
+    }
+    meta_path.write_text(json.dumps(meta, indent=2) + "\n")
+    model.tensorboard_log = str(out / "tb")
+    checkpoints, callbacks = _callbacks(out, checkpoint_freq, int(timesteps), progress)
+    if callback is not None:
+        callbacks += callback if isinstance(callback, list) else [callback]
+    interrupted = False
+    t0 = time.perf_counter()
+    try:
+        with _sigterm_as_interrupt():
+            if timesteps > done:
+                model.learn(
+                    total_timesteps=int(timesteps) - done,
+                    callback=callbacks,
+                    reset_num_timesteps=not resume,
+                    tb_log_name="PPO",
+                )
+    except KeyboardInterrupt:
+        interrupted = True
+    finally:
+        try:
+            venv.close()
+        except (EOFError, BrokenPipeError, ConnectionResetError):  # workers died with Ctrl-C
+            pass
+    if interrupted:
+        path = checkpoints.save(checkpoints.rollout_start)
+        print(
+            f"\ninterrupted after {time.perf_counter() - t0:.0f} s; saved {path} "
+            f"({checkpoints.rollout_start} steps); continue with --resume",
+            file=sys.stderr,
+        )
+        raise KeyboardInterrupt
+    save_checkpoint(model, out, model.num_timesteps)
+    _save_atomic(model.save, out / MODEL_FILE)
+    vecnorm = model.get_vec_normalize_env()
+    if vecnorm is not None:
+        _save_atomic(vecnorm.save, out / VECNORM_FILE)
+    return model
+
+
+# --------------------------------------------------------------------------- evaluation
+
+
+class NormalizedModel:
+    """A trained model with its frozen observation normalisation, SB3 ``predict``."""
+
+    def __init__(self, model: Any, vecnormalize: Any = None) -> None:
+        self.model = model
+        self.vecnormalize = vecnormalize
+
+    def predict(
+        self,
+        observation: dict[str, Any],
+        state: Any = None,
+        episode_start: Any = None,
+        deterministic: bool = True,
+    ) -> tuple[Any, Any]:
+        """``(action, state)``; observations normalised as in training."""
+        if self.vecnormalize is not None:
+            observation = self.vecnormalize.normalize_obs(observation)
+        return self.model.predict(
+            observation, state=state, episode_start=episode_start, deterministic=deterministic
+        )
+
+
+def _find_training_file(model_path: Path) -> Path | None:
+    for folder in (model_path.parent, model_path.parent.parent):
+        if (folder / TRAINING_FILE).exists():
+            return folder / TRAINING_FILE
+    return None
+
+
+def _vecnormalize_for(model_path: Path) -> Path | None:
+    match = _CHECKPOINT_RE.search(model_path.name)
+    if match:
+        path = model_path.with_name(f"vecnormalize_{match.group(1)}_steps.pkl")
+    else:
+        path = model_path.with_name(VECNORM_FILE)
+    return path if path.exists() else None
+
+
+def load_policy(model_path: Path) -> tuple[NormalizedModel, dict[str, Any]]:
+    """Load a model ``.zip`` (final or checkpoint) and its ``training.json``.
+
+    :return: the policy (with its observation normalisation) and the training metadata.
+    :raises FileNotFoundError: no model, or no ``training.json`` next to it or in its
+        parent folder.
+    """
+    _import_sb3()
+    import pickle
+
+    from stable_baselines3 import PPO
+
+    model_path = Path(model_path)
+    if not model_path.is_file():
+        raise FileNotFoundError(f"no model file {model_path}")
+    meta_path = _find_training_file(model_path)
+    if meta_path is None:
+        raise FileNotFoundError(
+            f"no {TRAINING_FILE} next to {model_path} (written by aldm-gym train)"
+        )
+    meta = json.loads(meta_path.read_text())
+    model = PPO.load(model_path, device="cpu")
+    vecnorm = None
+    vecnorm_path = _vecnormalize_for(model_path)
+    if vecnorm_path is not None:
+        with open(vecnorm_path, "rb") as fh:
+            vecnorm = pickle.load(fh)  # VecNormalize without its venv: stats only
+        vecnorm.training = False
+    return NormalizedModel(model, vecnorm), meta
+
+
+def evaluate(
+    model_path: Path,
+    episodes: int = 30,
+    seed: int = 10_000,
+    detector: str | None = None,
+    marking_model: str | None = None,
+    progress: bool = True,
+) -> tuple[list[dict[str, Any]], dict[str, Any]]:
+    """Evaluate a model against IDLE and the rule-based LCA on the same seeds.
+
+    :param episodes: episodes per policy (seeds ``seed .. seed + episodes - 1``).
+    :param detector, marking_model: override the training env's (None: as trained).
+    :return: rows (``idle``, ``rule_based``, ``model``) with the :func:`summarize`
+        metrics and ``policy``; and the evaluation's env config and model metadata.
+    """
+    import gymnasium as gym
+    from tqdm import tqdm
+
+    import aldm_gym  # noqa: F401
+    from aldm_gym.agents.evaluation import run_episodes, summarize
+    from aldm_gym.agents.policies import IdlePolicy, RuleBasedLCA
+
+    policy, meta = load_policy(model_path)
+    config = dict(meta["env_config"])
+    if detector is not None:
+        config["detector"] = env_config(detector=detector)["detector"]
+    if marking_model is not None:
+        config["marking_model"] = env_config(marking_model=marking_model)["marking_model"]
+    env = gym.make(ENV_ID, config=config)
+    seeds = range(seed, seed + episodes)
+    rows = []
+    try:
+        with tqdm(total=3 * episodes, desc="evaluate", unit="ep", disable=not progress) as bar:
+            for name, pol in (("idle", IdlePolicy()), ("rule_based", RuleBasedLCA())):
+                rows.append(
+                    {"policy": name, **summarize(run_episodes(env, pol, seeds, bar.update))}
+                )
+            rows.append(
+                {"policy": "model", **summarize(run_episodes(env, policy, seeds, bar.update))}
+            )
+    finally:
+        env.close()
+    info = {
+        "env_config": config,
+        "trained_on": meta["env_config"],
+        "timesteps": int(policy.model.num_timesteps),
+        "seeds": [seed, seed + episodes - 1],
+    }
+    return rows, info
+
+
+def summary_line(rows: list[dict[str, Any]], info: dict[str, Any]) -> str:
+    """One sentence on the model against IDLE and the rule-based LCA."""
+    by = {r["policy"]: r for r in rows}
+    m, idle, rule = by["model"], by["idle"], by["rule_based"]
+    dv = m["mean_speed"] - idle["mean_speed"]
+    if dv > 0 and m["collisions"] <= idle["collisions"]:
+        verdict = "beats IDLE on speed without more collisions"
+    elif dv > 0:
+        verdict = "is faster than IDLE but collides more"
+    else:
+        verdict = "is not faster than IDLE"
+    trained = info["trained_on"]
+    cfg = info["env_config"]
+    return (
+        f"model ({info['timesteps']} steps, trained on {trained['detector']}/"
+        f"{trained['marking_model']}, evaluated on {cfg['detector']}/{cfg['marking_model']}, "
+        f"{m['episodes']} episodes) {verdict}: success {m['success_rate']:.0%} "
+        f"(IDLE {idle['success_rate']:.0%}, rule-based {rule['success_rate']:.0%}), "
+        f"mean speed {m['mean_speed']:.1f} m/s ({dv:+.1f} vs IDLE, "
+        f"{m['mean_speed'] - rule['mean_speed']:+.1f} vs rule-based), "
+        f"collisions {m['collisions']} (IDLE {idle['collisions']}, rule-based "
+        f"{rule['collisions']}), lane changes {m['lane_changes_ok']} ok / "
+        f"{m['lane_changes_failed']} failed"
+    )
+
+
+# --------------------------------------------------------------------------- CLI
+
+
+QUICK_TIMESTEPS = 1_024
+"""``train --quick``: a smoke-test budget (about a minute)."""
+
+
+def add_train_arguments(parser: argparse.ArgumentParser) -> None:
+    """Arguments of ``aldm-gym train``."""
+    parser.add_argument(
+        "--detector", choices=DETECTORS, default=None, help="lanes in the observation (aldm)"
+    )
+    parser.add_argument(
+        "--marking-model", choices=MARKING_MODELS, default=None, help="road model (per_dash)"
+    )
+    parser.add_argument(
+        "--timesteps",
+        type=positive_int,
+        default=None,
+        help="total policy steps, counting steps before a resume (20000; --quick 1024)",
+    )
+    parser.add_argument("--n-envs", type=positive_int, default=2, help="parallel envs (2)")
+    parser.add_argument(
+        "--n-steps", type=positive_int, default=None, help="PPO rollout length per env (256)"
+    )
+    parser.add_argument(
+        "--checkpoint-freq",
+        type=positive_int,
+        default=2_048,
+        help="checkpoint every this many steps (2048)",
+    )
+    parser.add_argument(
+        "--duration", type=positive_float, default=None, help="episode length [s] (env: 40)"
+    )
+    parser.add_argument(
+        "--vehicles", type=non_negative_int, default=None, help="other vehicles (env: 20)"
+    )
+    parser.add_argument(
+        "--collision-reward",
+        type=float,
+        default=None,
+        help="weight of the collision penalty in the reward (env: -1)",
+    )
+    parser.add_argument("--seed", type=int, default=0, help="seed of envs and network (0)")
+    parser.add_argument("--out", type=Path, default=Path("out/train"), help="output folder")
+    parser.add_argument(
+        "--resume", action="store_true", help="continue from the latest checkpoint in --out"
+    )
+    parser.add_argument("--quick", action="store_true", help="tiny budget (smoke test)")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+def add_evaluate_arguments(parser: argparse.ArgumentParser) -> None:
+    """Arguments of ``aldm-gym evaluate``."""
+    parser.add_argument("--model", type=Path, required=True, help="model .zip (or checkpoint)")
+    parser.add_argument(
+        "--episodes", type=positive_int, default=None, help="episodes per policy (30; quick 5)"
+    )
+    parser.add_argument(
+        "--detector", choices=DETECTORS, default=None, help="override the training detector"
+    )
+    parser.add_argument(
+        "--marking-model", choices=MARKING_MODELS, default=None, help="override the road model"
+    )
+    parser.add_argument(
+        "--seed", type=int, default=10_000, help="first episode seed (10000; training uses 0..)"
+    )
+    parser.add_argument(
+        "--out", type=Path, default=None, help="folder for evaluation JSON (the model's)"
+    )
+    parser.add_argument("--quick", action="store_true", help="5 episodes per policy")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+def run_train(args: argparse.Namespace) -> int:
+    """``aldm-gym train``."""
+    timesteps = args.timesteps or (QUICK_TIMESTEPS if args.quick else 20_000)
+    n_steps = args.n_steps or (64 if args.quick else 256)
+    out: Path = args.out
+    if args.resume:
+        meta_path = out / TRAINING_FILE
+        if not meta_path.exists() or latest_checkpoint(out) is None:
+            raise SystemExit(f"aldm-gym train: nothing to resume in {out} (no checkpoint)")
+        meta = json.loads(meta_path.read_text())
+        cfg = meta["env_config"]
+        for name, value, saved in (
+            ("--detector", args.detector, cfg["detector"]),
+            ("--marking-model", args.marking_model, cfg["marking_model"]),
+            ("--duration", args.duration, cfg.get("duration")),
+            ("--vehicles", args.vehicles, cfg.get("vehicles_count")),
+            ("--collision-reward", args.collision_reward, cfg.get("collision_reward")),
+            ("--n-steps", args.n_steps, meta["ppo"]["n_steps"]),
+        ):
+            if value is not None and value != saved:
+                raise SystemExit(
+                    f"aldm-gym train: {name} {value} contradicts the training being resumed "
+                    f"({saved}); omit it with --resume"
+                )
+        timesteps = args.timesteps or meta["timesteps"]
+    elif (out / TRAINING_FILE).exists() or latest_checkpoint(out) is not None:
+        raise SystemExit(
+            f"aldm-gym train: {out} already holds a training; pass --resume to continue it "
+            "or choose another --out"
+        )
+    try:
+        t0 = time.perf_counter()
+        model = train(
+            out,
+            detector=args.detector or "aldm",
+            marking_model=args.marking_model or "per_dash",
+            timesteps=timesteps,
+            n_envs=args.n_envs,
+            seed=args.seed,
+            checkpoint_freq=args.checkpoint_freq,
+            duration=args.duration or (10.0 if args.quick else None),
+            vehicles_count=args.vehicles,
+            collision_reward=args.collision_reward,
+            params=PPOParams(n_steps=n_steps),
+            resume=args.resume,
+            progress=not args.no_progress,
+        )
+    except MissingRLDependencies as exc:
+        raise SystemExit(f"aldm-gym train: {exc}") from None
+    except KeyboardInterrupt:
+        return 130
+    print(
+        f"trained {model.num_timesteps} steps in {time.perf_counter() - t0:.0f} s; wrote "
+        f"{out / MODEL_FILE}, checkpoints in {out / CHECKPOINT_DIR}, tensorboard logs in "
+        f"{out / 'tb'} (tensorboard --logdir {out / 'tb'})"
+    )
+    return 0
+
+
+def run_evaluate(args: argparse.Namespace) -> int:
+    """``aldm-gym evaluate``."""
+    episodes = args.episodes or (5 if args.quick else 30)
+    if not args.model.is_file():
+        raise SystemExit(f"aldm-gym evaluate: --model {args.model} is not a file")
+    if _find_training_file(args.model) is None:
+        raise SystemExit(
+            f"aldm-gym evaluate: no {TRAINING_FILE} next to {args.model} "
+            "(models are read from an aldm-gym train output folder)"
+        )
+    t0 = time.perf_counter()
+    try:
+        rows, info = evaluate(
+            args.model,
+            episodes=episodes,
+            seed=args.seed,
+            detector=args.detector,
+            marking_model=args.marking_model,
+            progress=not args.no_progress,
+        )
+    except MissingRLDependencies as exc:
+        raise SystemExit(f"aldm-gym evaluate: {exc}") from None
+    out: Path = args.out or args.model.parent
+    out.mkdir(parents=True, exist_ok=True)
+    cfg = info["env_config"]
+    path = out / f"evaluate_{args.model.stem}_{cfg['detector']}_{cfg['marking_model']}.json"
+    path.write_text(json.dumps({"rows": rows, **info}, indent=2) + "\n")
+    print(f"wrote {path} ({time.perf_counter() - t0:.0f} s)")
+    print(format_table(rows, EVAL_COLUMNS))
+    print(summary_line(rows, info))
+    return 0

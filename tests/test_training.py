@@ -1,0 +1,182 @@
+"""``aldm-gym train`` / ``evaluate``: tiny budgets; checkpoints load; resume keeps counting."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+pytest.importorskip("stable_baselines3")
+
+from stable_baselines3 import PPO
+from stable_baselines3.common.callbacks import BaseCallback
+
+from aldm_gym.agents.training import (
+    EVAL_COLUMNS,
+    PPOParams,
+    latest_checkpoint,
+    load_policy,
+    train,
+)
+from aldm_gym.cli import main
+
+TINY = ["--n-envs", "1", "--n-steps", "32", "--duration", "5", "--vehicles", "5", "--no-progress"]
+"""A few seconds of training: 1 env, 32-step rollouts, 5 s episodes, 5 vehicles."""
+
+
+def _tiny_train(out: Path, timesteps: int, *extra: str) -> int:
+    return main(["train", "--timesteps", str(timesteps), "--out", str(out), *TINY, *extra])
+
+
+def test_import_stays_light() -> None:
+    """Building the CLI parser must not import stable-baselines3 or torch."""
+    code = (
+        "import sys, aldm_gym, aldm_gym.cli as c; c.build_parser(); "
+        "print(any(m in sys.modules for m in ('stable_baselines3', 'torch')))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["train", "--timesteps", "0"],
+        ["train", "--timesteps", "ten"],
+        ["train", "--detector", "canny"],
+        ["train", "--n-envs", "-2"],
+        ["train", "--duration", "-1"],
+        ["evaluate"],  # --model is required
+        ["evaluate", "--model", "m.zip", "--episodes", "0"],
+        ["evaluate", "--model", "m.zip", "--marking-model", "dashed"],
+    ],
+)
+def test_bad_arguments_are_rejected(argv: list[str], capsys: pytest.CaptureFixture) -> None:
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    assert exc.value.code == 2
+    assert "error" in capsys.readouterr().err
+
+
+def test_clear_errors_for_missing_model_and_resume(tmp_path: Path) -> None:
+    with pytest.raises(SystemExit, match="is not a file"):
+        main(["evaluate", "--model", str(tmp_path / "nope.zip")])
+    (tmp_path / "stray.zip").write_bytes(b"PK")
+    with pytest.raises(SystemExit, match=r"no training\.json"):
+        main(["evaluate", "--model", str(tmp_path / "stray.zip")])
+    with pytest.raises(SystemExit, match="nothing to resume"):
+        main(["train", "--resume", "--out", str(tmp_path / "empty")])
+
+
+def test_train_writes_loadable_model_and_evaluate_prints_table(
+    tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    out = tmp_path / "run"
+    assert _tiny_train(out, 64, "--detector", "aldm", "--checkpoint-freq", "32") == 0
+    for name in ("model.zip", "vecnormalize.pkl", "training.json"):
+        assert (out / name).is_file()
+    assert latest_checkpoint(out)[2] == 64
+    assert (out / "checkpoints" / "model_32_steps.zip").is_file()
+    assert any((out / "tb").rglob("events.out.tfevents.*"))
+    assert PPO.load(out / "model.zip", device="cpu").num_timesteps == 64
+    meta = json.loads((out / "training.json").read_text())
+    assert meta["env_config"] == {
+        "detector": "aldm",
+        "marking_model": "per_dash",
+        "duration": 5.0,
+        "vehicles_count": 5,
+    }
+    policy, _ = load_policy(out / "checkpoints" / "model_32_steps.zip")
+    assert policy.vecnormalize is not None
+
+    # Writing into an existing training without --resume is refused.
+    with pytest.raises(SystemExit, match="already holds a training"):
+        _tiny_train(out, 64)
+    capsys.readouterr()
+
+    # Evaluate on another detector than trained on: one episode per policy.
+    args = ["--model", str(out / "model.zip"), "--episodes", "1", "--detector", "naive"]
+    assert main(["evaluate", *args, "--no-progress"]) == 0
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert lines[1].split() == list(EVAL_COLUMNS)
+    assert [line.split()[0] for line in lines[2:5]] == ["idle", "rule_based", "model"]
+    assert lines[-1].startswith("model (64 steps, trained on aldm/per_dash, evaluated on naive")
+    report = json.loads((out / "evaluate_model_naive_per_dash.json").read_text())
+    assert [r["policy"] for r in report["rows"]] == ["idle", "rule_based", "model"]
+
+
+class _InterruptAt(BaseCallback):
+    """Raise KeyboardInterrupt (as Ctrl-C would) once ``steps`` steps are done."""
+
+    def __init__(self, steps: int) -> None:
+        super().__init__()
+        self.steps = steps
+
+    def _on_step(self) -> bool:
+        if self.num_timesteps >= self.steps:
+            raise KeyboardInterrupt
+        return True
+
+
+def test_resume_after_interruption_continues_step_count(tmp_path: Path) -> None:
+    kwargs = dict(
+        detector="naive",
+        n_envs=1,
+        duration=5.0,
+        vehicles_count=5,
+        checkpoint_freq=1000,
+        progress=False,
+    )
+    with pytest.raises(KeyboardInterrupt):
+        train(
+            tmp_path,
+            timesteps=96,
+            params=PPOParams(n_steps=32),
+            callback=_InterruptAt(40),
+            **kwargs,
+        )
+    # Interrupted in the 2nd rollout: the checkpoint holds the state after the 1st update.
+    model_path, vecnorm_path, steps = latest_checkpoint(tmp_path)
+    assert steps == 32 and vecnorm_path.is_file()
+    assert PPO.load(model_path, device="cpu").num_timesteps == 32
+
+    model = train(tmp_path, timesteps=96, resume=True, **kwargs)
+    assert model.num_timesteps == 96
+    assert PPO.load(tmp_path / "model.zip", device="cpu").num_timesteps == 96
+    assert latest_checkpoint(tmp_path)[2] == 96
+    # One tensorboard run, continued.
+    assert [p.name for p in (tmp_path / "tb").iterdir()] == ["PPO_1"]
+
+    # The CLI resumes with a larger budget and keeps the saved config.
+    assert (
+        main(
+            [
+                "train",
+                "--resume",
+                "--timesteps",
+                "128",
+                "--out",
+                str(tmp_path),
+                "--n-envs",
+                "1",
+                "--no-progress",
+            ]
+        )
+        == 0
+    )
+    assert PPO.load(tmp_path / "model.zip", device="cpu").num_timesteps == 128
+    with pytest.raises(SystemExit, match="contradicts"):
+        main(["train", "--resume", "--detector", "aldm", "--out", str(tmp_path)])
+
+
+@pytest.mark.slow
+def test_quick_cli_with_subprocess_envs(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    """``train --quick`` (2 subprocess envs) and ``evaluate --quick`` end to end."""
+    out = tmp_path / "quick"
+    assert main(["train", "--quick", "--out", str(out), "--no-progress"]) == 0
+    assert PPO.load(out / "model.zip", device="cpu").num_timesteps == 1024
+    assert main(["evaluate", "--quick", "--model", str(out / "model.zip"), "--no-progress"]) == 0
+    assert capsys.readouterr().out.strip().splitlines()[-1].startswith("model (1024 steps")
