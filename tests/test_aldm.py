@@ -407,6 +407,53 @@ def test_leaf_kernels_python_and_numba_agree_exactly() -> None:
     np.testing.assert_array_equal(r_py[3], r_nb[3])
 
 
+@pytest.mark.parametrize("kind", ["uniform", "ties", "crowded", "constant", "empty"])
+def test_start_region_y_order_is_a_sort(kind: str) -> None:
+    """``_argsort_y`` (bucket sort of the start region's y) orders ``ys[:m]`` ascending."""
+    rng = np.random.default_rng(7)
+    ys = rng.uniform(-180.0, 180.0, 1200)
+    if kind == "ties":
+        ys = np.round(ys / 10.0) * 10.0
+    elif kind == "crowded":  # most values in a few buckets (argsort path), one far outlier
+        ys[:1000] = np.round(rng.uniform(0.0, 1.0, 1000), 2)
+        ys[1000] = -1e4
+    elif kind == "constant":
+        ys[:] = -0.0
+    m = 0 if kind == "empty" else 1000  # only ys[:m] counts
+    for argsort_y in (K._argsort_y, K._argsort_y_py):
+        yo = argsort_y(ys, m)
+        np.testing.assert_array_equal(np.sort(yo), np.arange(m))
+        np.testing.assert_array_equal(ys[yo], np.sort(ys[:m]))
+
+
+@pytest.mark.parametrize("fit_length", [40.0, 20.0])
+def test_trace_fit_window_dense_line_and_gap(fit_length: float) -> None:
+    """The trace's running fit sums: > HIST points in the window, and a gap that leaves
+    only the new point in it (fit_length 20 m < the 25 m gap < gap_search_length)."""
+    x = np.concatenate([np.arange(5.0, 60.0, 0.25), np.arange(85.0, 180.0, 0.25)])
+    pts = np.concatenate([np.column_stack([x, np.full_like(x, y)]) for y in (1.8, -1.9)])
+    params = make_params(fit_length=fit_length, gap_search_length=30.0)
+    det = detect_lanes(pts, params)
+    for name, y in (("ego_left", 1.8), ("ego_right", -1.9)):
+        line = getattr(det, name)
+        assert line[0, 0] == 5.0 and line[-1, 0] == 179.75
+        np.testing.assert_allclose(line[:, 1], y, atol=1e-9)
+    # The trace kernel alone, plain Python vs compiled, on a noisy copy.
+    noisy = pts + np.random.default_rng(3).normal(0.0, 0.05, pts.shape)
+    fp, _ip = _packed(params)
+    xs, ys = K._gather(noisy, False, 0.5, 500.0)
+    grid = K._build_grid(xs, ys, fp[K.P_GATE_MAX])
+    seed = (xs <= 23.52) & (ys > 0.0)
+    first, last = np.flatnonzero(seed)[[0, -1]]
+    masks, bit = [], np.uint8(2)
+    for trace in (K._robust_trace_py, K._robust_trace):
+        mask = np.where(seed, 2, 0).astype(np.uint8)
+        trace(xs, ys, first, last, 0.0, 0.0, fp, 2.5, 1.0, np.zeros((0, 3)), grid, mask, bit)
+        masks.append(mask)
+    np.testing.assert_array_equal(masks[0], masks[1])
+    assert xs[masks[1] == 2].max() > 170.0
+
+
 def test_fully_plain_python_run_agrees_with_numba(tmp_path: Path) -> None:
     """NUMBA_DISABLE_JIT=1: every kernel runs as plain Python in a subprocess."""
     _road, pts = frame(15, radius=300, noise=0.05, dropout=0.1)

@@ -261,6 +261,17 @@ def _ridge_quadratic_py(us, ys, n, a0, b0, lam_a, lam_b, a_max, work):
         t0 += y
         t1 += u * y
         t2 += uu * y
+    return _ridge_solve(s0, s1, s2, s3, s4, t0, t1, t2, a0, b0, lam_a, lam_b, a_max, work)
+
+
+_ridge_quadratic = numba.njit(cache=True)(_ridge_quadratic_py)
+
+
+def _ridge_solve_py(s0, s1, s2, s3, s4, t0, t1, t2, a0, b0, lam_a, lam_b, a_max, work):
+    """:func:`_ridge_quadratic` from the point sums ``s_k = sum u^k``, ``t_k = sum y u^k``.
+
+    Lets a trace keep running sums over its sliding fit window (:func:`_robust_trace`).
+    """
     m = work[0]
     inv = work[1]
     m[0, 0] = s4 + lam_a
@@ -298,7 +309,7 @@ def _ridge_quadratic_py(us, ys, n, a0, b0, lam_a, lam_b, a_max, work):
     return a, b, c, inv
 
 
-_ridge_quadratic = numba.njit(cache=True)(_ridge_quadratic_py)
+_ridge_solve = numba.njit(cache=True)(_ridge_solve_py)
 
 
 # =============================================================== paper mode
@@ -532,19 +543,21 @@ def _build_grid_py(xs, ys, cell_y):
     igx = 1.0 / gx
     igy = 1.0 / gy
     nc = nx * ny
-    # start[c]: count of cell c, then (prefix sum) its end, then (scatter) its start
+    # start[c]: count of cell c, then (prefix sum) its end, then (scatter) its start;
+    # each point's cell is computed once (cell[i]).
     start = np.zeros(nc + 1, dtype=np.int64)
+    cell = np.empty(n, dtype=np.int64)
     for i in range(n):
         bx = min(int((xs[i] - x0) * igx), nx - 1)
         by = min(int((ys[i] - y0) * igy), ny - 1)
-        start[bx * ny + by] += 1
+        c = bx * ny + by
+        cell[i] = c
+        start[c] += 1
     for c in range(1, nc):
         start[c] += start[c - 1]
     pts = np.empty(n, dtype=np.int64)
     for i in range(n - 1, -1, -1):
-        bx = min(int((xs[i] - x0) * igx), nx - 1)
-        by = min(int((ys[i] - y0) * igy), ny - 1)
-        c = bx * ny + by
+        c = cell[i]
         start[c] -= 1
         pts[start[c]] = i
     start[nc] = n
@@ -703,6 +716,58 @@ def _find_py(parent, i):
 _find = numba.njit(cache=True)(_find_py)
 
 
+def _argsort_y_py(ys, m):
+    """Indices of ``ys[:m]`` in ascending order (ties in any order), by a bucket sort.
+
+    As :func:`_gather`: one bucket per value over the range, insertion sort inside
+    a bucket, ``np.argsort`` for a crowded one, so O(m) for spread values and
+    O(m log m) at worst. Cheaper than ``np.argsort`` for the ~1,000 start-region
+    points of a crowded frame.
+    """
+    yo = np.empty(m, dtype=np.int64)
+    if m == 0:
+        return yo
+    lo = ys[0]
+    hi = ys[0]
+    for i in range(m):
+        lo = min(lo, ys[i])
+        hi = max(hi, ys[i])
+    scale = m / (hi - lo) if hi > lo else 0.0
+    if not math.isfinite(scale):
+        scale = 0.0
+    key = np.empty(m, dtype=np.int64)
+    cnt = np.zeros(m + 1, dtype=np.int64)
+    for i in range(m):
+        b = min(int((ys[i] - lo) * scale), m - 1)
+        key[i] = b
+        cnt[b + 1] += 1
+    for b in range(m):
+        cnt[b + 1] += cnt[b]
+    fill = cnt[:m].copy()
+    for i in range(m):
+        b = key[i]
+        yo[fill[b]] = i
+        fill[b] += 1
+    for b in range(m):
+        s = cnt[b]
+        e = cnt[b + 1]
+        if e - s > SMALL_RUN:
+            yo[s:e] = yo[s:e][np.argsort(ys[yo[s:e]])]
+            continue
+        for i in range(s + 1, e):
+            v = yo[i]
+            y = ys[v]
+            j = i - 1
+            while j >= s and ys[yo[j]] > y:
+                yo[j + 1] = yo[j]
+                j -= 1
+            yo[j + 1] = v
+    return yo
+
+
+_argsort_y = numba.njit(cache=True)(_argsort_y_py)
+
+
 def _seed_chains_py(xs, ys, m, link_dx, link_dy):
     """Chain start-region points into pieces of marking (robust start condition).
 
@@ -718,7 +783,7 @@ def _seed_chains_py(xs, ys, m, link_dx, link_dy):
     parent = np.arange(m)
     # Any sort will do: the candidates of a point are all those within link_dy in y
     # whatever the order among equal y, and the choice among them is by value.
-    yo = np.argsort(ys[:m])
+    yo = _argsort_y(ys, m)
     pos = np.empty(m, dtype=np.int64)
     for q in range(m):
         pos[yo[q]] = q
@@ -939,28 +1004,46 @@ def _robust_trace_py(xs, ys, first, last, a0, b0, fp, lam_a, lam_b, guide, grid,
             head += 1
     if head == 0:
         return
-    us = np.empty(HIST)
-    vs = np.empty(HIST)
     work = np.empty((2, 3, 3))
     sig2 = fp[P_NOISE] * fp[P_NOISE]
     lam_ga = sig2 / (fp[P_GUIDE_A_STD] * fp[P_GUIDE_A_STD])
     lam_gb = sig2 / (fp[P_GUIDE_B_STD] * fp[P_GUIDE_B_STD])
     ng = guide.shape[0]
+    fit_length = fp[P_FIT_LENGTH]
     # The nearest gated point wins, so a window longer than the paper's 18 m only
     # matters when a whole dash (or both ends of a gap) was not measured.
     search = max(fp[P_SEARCH], fp[P_GAP_SEARCH])
+    # Fit window: accepted points lo..head-1 (x is nondecreasing along hist), the
+    # newest HIST of them with u = x - x_last >= -fit_length. Its sums s_k = sum u^k,
+    # t_k = sum y u^k are kept running: shifted to the new x_last, the new point
+    # added and the points that fall out subtracted, rather than summed afresh each
+    # step (the same window; the sums differ from fresh ones at rounding level).
+    x_last = xs[hist[(head - 1) % HIST]]
+    lo = head - 1
+    while lo > 0 and lo > head - HIST and xs[hist[(lo - 1) % HIST]] - x_last >= -fit_length:
+        lo -= 1
+    s0 = 0.0
+    s1 = 0.0
+    s2 = 0.0
+    s3 = 0.0
+    s4 = 0.0
+    t0 = 0.0
+    t1 = 0.0
+    t2 = 0.0
+    for q in range(head - 1, lo - 1, -1):
+        j = hist[q % HIST]
+        u = xs[j] - x_last
+        y = ys[j]
+        uu = u * u
+        s0 += 1.0
+        s1 += u
+        s2 += uu
+        s3 += uu * u
+        s4 += uu * uu
+        t0 += y
+        t1 += u * y
+        t2 += uu * y
     while True:
-        i_last = hist[(head - 1) % HIST]
-        x_last = xs[i_last]
-        nfit = 0
-        for t in range(min(head, HIST)):
-            j = hist[(head - 1 - t) % HIST]
-            u = xs[j] - x_last
-            if u < -fp[P_FIT_LENGTH]:
-                break
-            us[nfit] = u
-            vs[nfit] = ys[j]
-            nfit += 1
         # Priors: the guide's shape at x_last, else the start region's common shape.
         pa = a0
         pb = b0 + 2.0 * a0 * x_last
@@ -972,16 +1055,71 @@ def _robust_trace_py(xs, ys, first, last, a0, b0, fp, lam_a, lam_b, guide, grid,
             pa = guide[g, 2]
             la = lam_ga
             lb = lam_gb
-        A, B, C, inv = _ridge_quadratic(us, vs, nfit, pa, pb, la, lb, fp[P_A_MAX], work)
+        A, B, C, inv = _ridge_solve(
+            s0, s1, s2, s3, s4, t0, t1, t2, pa, pb, la, lb, fp[P_A_MAX], work
+        )
         if abs(B) > fp[P_MAX_SLOPE]:
             break
         geo, start, pts = grid
         best = _grid_search(xs, ys, mask, geo, start, pts, x_last, A, B, C, inv, fp, sig2, search)
         if best < 0:
             break
+        x_new = xs[best]
+        # Drop the oldest points (the window holds at most HIST, and the ring slot
+        # of the new point is about to be overwritten) ...
+        while head + 1 - lo > HIST:
+            j = hist[lo % HIST]
+            u = xs[j] - x_last
+            y = ys[j]
+            uu = u * u
+            s0 -= 1.0
+            s1 -= u
+            s2 -= uu
+            s3 -= uu * u
+            s4 -= uu * uu
+            t0 -= y
+            t1 -= u * y
+            t2 -= uu * y
+            lo += 1
         mask[best] |= bit
         hist[head % HIST] = best
         head += 1
+        # ... shift the sums to u' = u + e (e = x_last - x_new <= 0) ...
+        e = x_last - x_new
+        e2 = e * e
+        s4 = s4 + 4.0 * e * s3 + 6.0 * e2 * s2 + 4.0 * e2 * e * s1 + e2 * e2 * s0
+        s3 = s3 + 3.0 * e * s2 + 3.0 * e2 * s1 + e2 * e * s0
+        s2 = s2 + 2.0 * e * s1 + e2 * s0
+        s1 = s1 + e * s0
+        t2 = t2 + 2.0 * e * t1 + e2 * t0
+        t1 = t1 + e * t0
+        x_last = x_new
+        # ... add the new point (u = 0) and drop those now more than fit_length behind.
+        s0 += 1.0
+        t0 += ys[best]
+        while xs[hist[lo % HIST]] - x_last < -fit_length:
+            j = hist[lo % HIST]
+            u = xs[j] - x_last
+            y = ys[j]
+            uu = u * u
+            s0 -= 1.0
+            s1 -= u
+            s2 -= uu
+            s3 -= uu * u
+            s4 -= uu * uu
+            t0 -= y
+            t1 -= u * y
+            t2 -= uu * y
+            lo += 1
+        if lo == head - 1:  # the new point alone: the sums are exact, drop the residue
+            s0 = 1.0
+            s1 = 0.0
+            s2 = 0.0
+            s3 = 0.0
+            s4 = 0.0
+            t0 = ys[best]
+            t1 = 0.0
+            t2 = 0.0
 
 
 _robust_trace = numba.njit(cache=True)(_robust_trace_py)
@@ -994,20 +1132,19 @@ def _guide_table_py(xs, ys, mask, bit, fp, a0, b0, lam_a, lam_b):
     than ``GUIDE_MIN_EXTENT`` in x.
     """
     n = xs.shape[0]
+    idx = np.empty(n, dtype=np.int64)  # the line's points, one pass over the mask
     cnt = 0
     for i in range(n):
         if mask[i] & bit:
+            idx[cnt] = i
             cnt += 1
     if cnt < GUIDE_MIN_POINTS:
         return np.zeros((0, 3))
     lx = np.empty(cnt)
     ly = np.empty(cnt)
-    k = 0
-    for i in range(n):
-        if mask[i] & bit:
-            lx[k] = xs[i]
-            ly[k] = ys[i]
-            k += 1
+    for k in range(cnt):
+        lx[k] = xs[idx[k]]
+        ly[k] = ys[idx[k]]
     if lx[cnt - 1] - lx[0] < GUIDE_MIN_EXTENT:
         return np.zeros((0, 3))
     g = int((lx[cnt - 1] - lx[0]) / GUIDE_STEP) + 1
@@ -1302,9 +1439,15 @@ def _assemble_py(xs, ys, mask, fp, ip, a0, b0):
     cnt = np.zeros(N_LINES, dtype=np.int64)
     x_lo = np.full(N_LINES, np.inf)
     x_hi = np.full(N_LINES, -np.inf)
+    # owned[:n_owned]: the points of any line, so each line's pass below visits
+    # only those (a few hundred) rather than all N points.
+    owned = np.empty(n, dtype=np.int64)
+    n_owned = 0
     for i in range(n):
         mk = mask[i]
         if mk != 0:
+            owned[n_owned] = i
+            n_owned += 1
             for s in range(N_LINES):
                 if mk & (1 << s):
                     cnt[s] += 1
@@ -1324,7 +1467,8 @@ def _assemble_py(xs, ys, mask, fp, ip, a0, b0):
         lx = np.empty(cnt[s])
         ly = np.empty(cnt[s])
         k = 0
-        for i in range(n):
+        for t in range(n_owned):
+            i = owned[t]
             if mask[i] & (1 << s):
                 lx[k] = xs[i]
                 ly[k] = ys[i]
