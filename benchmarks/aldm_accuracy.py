@@ -67,8 +67,9 @@ def run(frames: int, seed: int) -> dict[tuple, dict[str, list]]:
                         r["preview"].append(sc[side].preview)
                         line = det.line(side)
                         if len(line):
-                            err = np.abs(line[:, 1] - true_line(road, frame, marks[side],
-                                                                line[:, 0]))
+                            err = np.abs(
+                                line[:, 1] - true_line(road, frame, marks[side], line[:, 0])
+                            )
                             r["err"].extend(np.where(np.isnan(err), 99.0, err).tolist())
                     for side in ("left_adjacent", "right_adjacent"):
                         if marks[side] is not None:
@@ -99,19 +100,25 @@ def main() -> None:
     t0 = time.perf_counter()
     res = run(args.frames, args.seed)
     n_frames = args.frames * len(ROADS) * 2
-    print(f"{args.frames} poses x {len(ROADS)} road classes x 2 road models = {n_frames} "
-          f"frames per noise/dropout cell ({time.perf_counter() - t0:.0f} s)\n")
+    print(
+        f"{args.frames} poses x {len(ROADS)} road classes x 2 road models = {n_frames} "
+        f"frames per noise/dropout cell ({time.perf_counter() - t0:.0f} s)\n"
+    )
 
     def cell(pred) -> dict[str, dict[str, float]]:  # type: ignore[no-untyped-def]
         return {
-            d: summarise([v for k, v in res.items() if k[4] == d and pred(k)])
-            for d in DETECTORS
+            d: summarise([v for k, v in res.items() if k[4] == d and pred(k)]) for d in DETECTORS
         }
 
-    print("Both ego lines correct [%], ego-line lateral error p50/p95 [cm], mean ego "
-          "preview [m], adjacent lines correct [%]; all road classes and both models.\n")
-    hdr = "| noise | dropout | " + " | ".join(
-        f"{d} both | {d} p50/p95 | {d} preview | {d} adj" for d in DETECTORS) + " |"
+    print(
+        "Both ego lines correct [%], ego-line lateral error p50/p95 [cm], mean ego "
+        "preview [m], adjacent lines correct [%]; all road classes and both models.\n"
+    )
+    hdr = (
+        "| noise | dropout | "
+        + " | ".join(f"{d} both | {d} p50/p95 | {d} preview | {d} adj" for d in DETECTORS)
+        + " |"
+    )
     print(hdr)
     print("|" + "---|" * (2 + 4 * len(DETECTORS)))
     for noise, drop in itertools.product(NOISE, DROPOUT):
@@ -119,11 +126,17 @@ def main() -> None:
         parts = [f"{100 * noise:.0f} cm", f"{100 * drop:.0f} %"]
         for d in DETECTORS:
             s = c[d]
-            parts += [f"{s['both']:.0f}", f"{s['p50']:.1f}/{s['p95']:.0f}",
-                      f"{s['preview']:.0f}", f"{s['adj']:.0f}"]
+            parts += [
+                f"{s['both']:.0f}",
+                f"{s['p50']:.1f}/{s['p95']:.0f}",
+                f"{s['preview']:.0f}",
+                f"{s['adj']:.0f}",
+            ]
         print("| " + " | ".join(parts) + " |")
-    print("\nBoth ego lines correct [%] by road class and model (noise 0 / 5 cm + 10 % "
-          "dropout / 10 cm + 20 % dropout).\n")
+    print(
+        "\nBoth ego lines correct [%] by road class and model (noise 0 / 5 cm + 10 % "
+        "dropout / 10 cm + 20 % dropout).\n"
+    )
     print("| road | model | " + " | ".join(DETECTORS) + " |")
     print("|---|---|" + "---|" * len(DETECTORS))
     for rname, model in itertools.product(ROADS, ("per_dash", "editor")):

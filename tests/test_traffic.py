@@ -21,6 +21,7 @@ from aldm_gym.envs.traffic import (
     FastRoad,
     FastRoadNetwork,
     _clip,
+    _not_zero,
     _power,
     use_fast_road,
 )
@@ -276,6 +277,14 @@ def test_scalar_helpers_match_numpy() -> None:
             assert _power(base, exponent) == float(np.power(base, exponent))
 
 
+def test_not_zero_matches_highway_env() -> None:
+    """The inlined ``not_zero`` returns highway-env's value, signed zeros and NaN included."""
+    from highway_env import utils
+
+    for x in [0.0, -0.0, 0.01, -0.01, 0.005, -0.005, 0.0100001, -3.0, 25.0, math.nan, math.inf]:
+        assert np.array(_not_zero(x)).tobytes() == np.array(utils.not_zero(x)).tobytes(), x
+
+
 def test_use_fast_road_is_idempotent_and_repoints_vehicles() -> None:
     """Every vehicle of the env queries the FastRoad, also after a reset."""
     env = gym.make("highway-fast-v0")
@@ -383,7 +392,40 @@ def test_project_many_kernel_matches_plain_python_and_project() -> None:
     assert again.tobytes() == scalar.tobytes()
 
 
-def test_pose_at_matches_vectorised_interpolation() -> None:
+def test_remembered_projections_equal_fresh_ones() -> None:
+    """Batch-memoised positions (FastRoad.step's lane look-up) project as a fresh call does."""
+    from aldm_gym.roads.highway import HighwayRoad
+
+    road = HighwayRoad({"min_radius": 100.0, "max_radius": 400.0, "seed": 2})
+    ref = road.reference
+    rng = np.random.default_rng(8)
+    s = rng.uniform(-30.0, ref.length + 30.0, 200)
+    d = rng.uniform(-12.0, 12.0, 200)
+    points = np.vstack([ref.position(s, d), [[0.0, -0.0], [1e5, -3e4]]])
+    fresh = [ref.project(p) for p in points]
+    ref._point_memo.clear()
+    road.network.prepare_closest_lanes(points)
+    assert len(ref._point_memo) == len(points)
+    for p, expected in zip(points, fresh, strict=True):
+        got = ref.project(p.copy())
+        assert np.array(got).tobytes() == np.array(expected).tobytes()
+        assert road.network.get_closest_lane_index(p.copy()) == (
+            RoadNetwork.get_closest_lane_index(road.network, p.copy())
+        )
+
+
+def test_deferred_lane_updates_match_immediate_ones() -> None:
+    """FastRoad.step's batched closest-lane look-up leaves the lanes of per-vehicle updates."""
+    env = _aldm_env(30)
+    env.reset(seed=4)
+    road = env.unwrapped.road
+    for _ in range(3):
+        env.step(1)
+        for v in road.vehicles:
+            lane_index = v.lane_index
+            Vehicle.on_state_update(v)
+            assert v.lane_index == lane_index
+
     """The scalar pose (fast path of lane.heading_at / position) equals ``_interp``."""
     from aldm_gym.roads.highway import HighwayRoad
 
@@ -401,7 +443,9 @@ def test_aldm_env_fast_paths_change_nothing(monkeypatch: pytest.MonkeyPatch) -> 
     """A seeded ALDMHighway-v0 rollout is bit-identical with every fast path switched off.
 
     Off: the projection memo and batch kernel, the shared-reference neighbour tables,
-    the scalar lane heading, the collision narrow phase and the inlined path fit.
+    the scalar lane heading, the collision narrow phase, the inlined path fit and the
+    deferred (batch-projected) lane look-up after the vehicles move, the ego's
+    numpy-free bicycle step.
     """
     from aldm_gym.envs import highway as env_module
     from aldm_gym.envs import traffic
@@ -443,5 +487,7 @@ def test_aldm_env_fast_paths_change_nothing(monkeypatch: pytest.MonkeyPatch) -> 
         ReferenceLane, "heading_at", lambda self, s: float(self.reference.heading_at(s))
     )
     monkeypatch.setattr(traffic, "_boxes_separated", lambda a, b: False)
+    monkeypatch.setattr(traffic, "_STEPS_ENDING_WITH_UPDATE", frozenset())
+    monkeypatch.setattr(env_module.SensorVehicle, "step", Vehicle.step)
     monkeypatch.setattr(env_module, "_driving_trajectory", driving_trajectory)
     assert rollout() == fast

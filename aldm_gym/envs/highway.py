@@ -19,7 +19,7 @@ from highway_env.vehicle.kinematics import Vehicle
 from aldm_gym.envs.config import default_config, merge_config, road_config
 from aldm_gym.envs.control import LKAController
 from aldm_gym.envs.observation import build_observation, observation_space
-from aldm_gym.envs.traffic import FastRoad
+from aldm_gym.envs.traffic import BatchedLaneUpdate, FastControlledVehicle, FastRoad, _clip
 from aldm_gym.roads.highway import HighwayRoad, RoadConfig
 from aldm_gym.sensor.detection import LaneDetection, driving_trajectory
 from aldm_gym.sensor.frame import SensorFrame
@@ -76,7 +76,7 @@ _driving_trajectory = driving_trajectory
 one compiled call for detector lines)."""
 
 
-class SensorVehicle(Vehicle):
+class SensorVehicle(BatchedLaneUpdate, Vehicle):
     """The ego vehicle: laterally controlled only from the detected lanes.
 
     highway-env's kinematic bicycle (``Vehicle``) with its ``lane_index``
@@ -210,11 +210,18 @@ class SensorVehicle(Vehicle):
             # No path: hold the last steering (a curve continues), like a driver briefly blind.
             steer_iso = self.steering_iso if steer is None else steer
             accel = self.lka.speed_gain * (self.target_speed - self.speed)
-        steer_iso = float(np.clip(steer_iso, -self.lka.max_steering, self.lka.max_steering))
-        accel = float(np.clip(accel, -self.max_acceleration, self.max_acceleration))
+        # np.clip's result for scalars with non-NaN bounds, without its ~4 µs dispatch.
+        max_steering = float(self.lka.max_steering)
+        max_acceleration = float(self.max_acceleration)
+        steer_iso = float(_clip(float(steer_iso), -max_steering, max_steering))
+        accel = float(_clip(float(accel), -max_acceleration, max_acceleration))
         self.steering_iso = steer_iso
         # highway-env's world: a positive steering angle turns towards the driver's right.
         self.action = {"steering": -steer_iso, "acceleration": accel}
+
+    step = FastControlledVehicle.step
+    """``Vehicle.step``'s bicycle model with the same float operations, numpy-free
+    (:class:`~aldm_gym.envs.traffic.FastControlledVehicle`)."""
 
     @property
     def yaw_rate(self) -> float:

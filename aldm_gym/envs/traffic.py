@@ -63,6 +63,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "FAST_MATH_MATCHES_NUMPY",
+    "BatchedLaneUpdate",
     "FastControlledVehicle",
     "FastIDMVehicle",
     "FastRoad",
@@ -298,7 +299,7 @@ class _SortedNeighbours:
 
     __slots__ = ("keys", "objects", "query_s")
 
-    def __init__(self, keys: list[float], objects: list[RoadObject], query_s: FloatArray) -> None:
+    def __init__(self, keys: list[float], objects: list[RoadObject], query_s: list[float]) -> None:
         self.keys = keys
         self.objects = objects
         self.query_s = query_s
@@ -335,6 +336,7 @@ class FastRoad(Road):
             network = FastRoadNetwork.from_network(network)
         self._record_history = bool(record_history)
         self._cache_valid = False
+        self._deferred_updates: list[Vehicle] | None = None
         super().__init__(
             network=network,
             vehicles=vehicles,
@@ -536,7 +538,7 @@ class FastRoad(Road):
         entry = _SortedNeighbours(
             keys=keys[order].tolist(),
             objects=[items[i] for i in candidates[order].tolist()],
-            query_s=primary.s,
+            query_s=primary.s.tolist(),
         )
         self._sorted[key] = entry
         return entry
@@ -562,7 +564,7 @@ class FastRoad(Road):
         n_lanes = len(lanes)
         if n == 0:
             for i in range(n_lanes):
-                self._sorted[((_from, _to, i), False)] = _SortedNeighbours([], [], np.zeros(0))
+                self._sorted[((_from, _to, i), False)] = _SortedNeighbours([], [], [])
             return True
         geometry = np.array(
             [
@@ -599,7 +601,7 @@ class FastRoad(Road):
             self._sorted[((_from, _to, i), False)] = _SortedNeighbours(
                 keys=sorted_s[i, :count].tolist(),
                 objects=[items[k] for k in order[i, :count].tolist()],
-                query_s=s[i],
+                query_s=s[i].tolist(),
             )
         return True
 
@@ -629,35 +631,29 @@ class FastRoad(Road):
         n = len(items)
         if n == 0:
             for i in range(len(lanes)):
-                self._sorted[((_from, _to, i), False)] = _SortedNeighbours([], [], np.zeros(0))
+                self._sorted[((_from, _to, i), False)] = _SortedNeighbours([], [], [])
             return True
         s, d = reference.project_many(self._positions)
-        geometry = np.array(
-            [
-                (
-                    lane.offset,
-                    lane.width / 2 + _NEIGHBOUR_MARGIN,
-                    -lane.VEHICLE_LENGTH,
-                    lane.length + lane.VEHICLE_LENGTH,
-                )
-                for lane in lanes
-            ],
-            dtype=np.float64,
-        )
-        # local_coordinates_many's r and on_lane(margin=1), broadcast to (lanes, N).
-        r = geometry[:, 0:1] - d
-        on = (np.abs(r) <= geometry[:, 1:2]) & (geometry[:, 2:3] <= s) & (s < geometry[:, 3:4])
+        # One stable sort by s (ties in object order), then each lane keeps the objects
+        # passing on_lane(margin=1): r = offset - d and the comparisons on Python floats
+        # (the same IEEE operations as local_coordinates_many and AbstractLane.on_lane;
+        # a NaN coordinate fails every comparison, as there). For a few dozen objects
+        # this is cheaper than the broadcast numpy version.
         order = np.argsort(s, kind="stable")
-        sorted_s = s[order]
-        on_sorted = on[:, order]
+        rows = list(zip(s[order].tolist(), d[order].tolist(), order.tolist(), strict=True))
+        query_s = s.tolist()
         for i, lane in enumerate(lanes):
-            self._lane_tables[id(lane)] = _LaneTable(s, r[i], on[i])
-            keep = on_sorted[i]
-            self._sorted[((_from, _to, i), False)] = _SortedNeighbours(
-                keys=sorted_s[keep].tolist(),
-                objects=[items[k] for k in order[keep].tolist()],
-                query_s=s,
-            )
+            offset = lane.offset
+            half_width = lane.width / 2 + _NEIGHBOUR_MARGIN
+            low = -lane.VEHICLE_LENGTH
+            high = lane.length + lane.VEHICLE_LENGTH
+            keys: list[float] = []
+            objects: list[RoadObject] = []
+            for sk, dk, k in rows:
+                if abs(offset - dk) <= half_width and low <= sk and sk < high:
+                    keys.append(sk)
+                    objects.append(items[k])
+            self._sorted[((_from, _to, i), False)] = _SortedNeighbours(keys, objects, query_s)
         return True
 
     # -- Road API -------------------------------------------------------------------
@@ -675,11 +671,20 @@ class FastRoad(Road):
         lane_index = lane_index or vehicle.lane_index
         if not lane_index:
             return None, None
-        self._ensure_cache()
-        entry = self._sorted_neighbours(lane_index)
+        # _ensure_cache's and _sorted_neighbours' fast checks inlined (tens of queries
+        # per simulation step).
+        if not (
+            self._cache_valid
+            and self._cache_vehicles == self.vehicles
+            and self._cache_objects == self.objects
+        ):
+            self._ensure_cache()
+        entry = self._sorted.get((lane_index, bool(self.neighbour_vehicles_connected_lanes)))
+        if entry is None:
+            entry = self._sorted_neighbours(lane_index)
         i = self._index.get(id(vehicle))
         if i is not None and self._items[i] is vehicle:
-            s = float(entry.query_s[i])
+            s = entry.query_s[i]
         else:
             s = float(self.network.get_lane(lane_index).local_coordinates(vehicle.position)[0])
         if s != s:  # NaN: no comparison holds in the base loop
@@ -689,7 +694,7 @@ class FastRoad(Road):
         size = len(keys)
         # Front: smallest key >= s; among equal keys the base loop keeps the last one.
         front = None
-        j = bisect_left(keys, s)
+        first_at_or_after = j = bisect_left(keys, s)
         while j < size and front is None:
             end = bisect_right(keys, keys[j], j)
             for m in range(end - 1, j - 1, -1):
@@ -699,7 +704,7 @@ class FastRoad(Road):
             j = end
         # Rear: largest key < s; among equal keys the base loop keeps the first one.
         rear = None
-        j = bisect_left(keys, s) - 1
+        j = first_at_or_after - 1
         while j >= 0 and rear is None:
             start = bisect_left(keys, keys[j], 0, j)
             for m in range(start, j + 1):
@@ -767,10 +772,33 @@ class FastRoad(Road):
     def step(self, dt: float) -> None:
         """Move every vehicle by ``dt`` [s], then resolve collisions (base-class result).
 
+        Vehicles whose ``step`` ends with ``on_state_update`` (see
+        :class:`BatchedLaneUpdate`) have their closest-lane look-up deferred until all
+        have moved: the look-up depends only on the vehicle's own pose, so the order
+        does not matter, and the network may then prepare every position in one batch
+        (``prepare_closest_lanes``, e.g. one compiled projection of all vehicles).
+
         :param dt: timestep [s].
         """
-        for vehicle in self.vehicles:
-            vehicle.step(dt)
+        deferred: list[Vehicle] = []
+        try:
+            for vehicle in self.vehicles:
+                self._deferred_updates = (
+                    deferred if type(vehicle).step in _STEPS_ENDING_WITH_UPDATE else None
+                )
+                vehicle.step(dt)
+        finally:
+            self._deferred_updates = None
+        if deferred:
+            prepare: Callable[[FloatArray], None] | None = getattr(
+                self.network, "prepare_closest_lanes", None
+            )
+            if prepare is not None:
+                # Built like _ensure_cache's array: when every object is a deferred
+                # vehicle (a highway), the next act's batch projection is a memo hit.
+                prepare(np.array([v.position for v in deferred], dtype=np.float64).reshape(-1, 2))
+            for vehicle in deferred:
+                Vehicle.on_state_update(vehicle)
         self.invalidate()
         self._handle_collisions(dt)
 
@@ -967,6 +995,15 @@ def _clip(x: float, low: float, high: float) -> float:
     return x
 
 
+def _not_zero(x: float) -> float:
+    """``highway_env.utils.not_zero(x)`` (eps = 0.01) with the same comparisons."""
+    if abs(x) > 0.01:
+        return x
+    if x >= 0:
+        return 0.01
+    return -0.01
+
+
 _BASE_KINEMATICS: dict[type, bool] = {}
 
 
@@ -982,7 +1019,25 @@ def _uses_base_kinematics(obj: RoadObject) -> bool:
     return base
 
 
-class FastControlledVehicle(ControlledVehicle):
+class BatchedLaneUpdate(Vehicle):
+    """Mixin: lets :meth:`FastRoad.step` defer this vehicle's closest-lane look-up.
+
+    ``Vehicle.on_state_update`` (called at the end of ``step``) looks up the closest
+    lane of the new position. Inside :meth:`FastRoad.step` the call is queued and run,
+    unchanged, once every vehicle has moved, after the network has had the chance to
+    project all positions in one batch. Anywhere else it runs at once.
+    """
+
+    def on_state_update(self) -> None:
+        """Update the lane (now, or after all vehicles moved in ``FastRoad.step``)."""
+        deferred: list[Vehicle] | None = getattr(self.road, "_deferred_updates", None)
+        if deferred is not None:
+            deferred.append(self)
+            return
+        Vehicle.on_state_update(self)
+
+
+class FastControlledVehicle(BatchedLaneUpdate, ControlledVehicle):
     """A ``ControlledVehicle`` whose hot paths avoid numpy scalar overhead.
 
     ``step`` (the bicycle model of ``Vehicle.step``), ``steering_control``,
@@ -1071,12 +1126,10 @@ class FastControlledVehicle(ControlledVehicle):
         speed = self.speed
         lane_future_heading = target_lane.heading_at(s + speed * self.TAU_PURSUIT)
         lateral_speed_command = -self.KP_LATERAL * r
-        heading_command = _asin(_clip(lateral_speed_command / utils.not_zero(speed), -1, 1))
+        heading_command = _asin(_clip(lateral_speed_command / _not_zero(speed), -1, 1))
         heading_ref = lane_future_heading + _clip(heading_command, -np.pi / 4, np.pi / 4)
         heading_rate_command = self.KP_HEADING * utils.wrap_to_pi(heading_ref - self.heading)
-        slip_angle = _asin(
-            _clip(self.LENGTH / 2 / utils.not_zero(speed) * heading_rate_command, -1, 1)
-        )
+        slip_angle = _asin(_clip(self.LENGTH / 2 / _not_zero(speed) * heading_rate_command, -1, 1))
         steering_angle = _atan(2 * _tan(slip_angle))
         return float(_clip(steering_angle, -self.MAX_STEERING_ANGLE, self.MAX_STEERING_ANGLE))
 
@@ -1144,12 +1197,11 @@ class FastIDMVehicle(FastControlledVehicle, IDMVehicle):
         if ego_vehicle.lane and ego_vehicle.lane.speed_limit is not None:
             ego_target_speed = _clip(ego_target_speed, 0, ego_vehicle.lane.speed_limit)
         acceleration = self.COMFORT_ACC_MAX * (
-            1
-            - _power(max(ego_vehicle.speed, 0) / abs(utils.not_zero(ego_target_speed)), self.DELTA)
+            1 - _power(max(ego_vehicle.speed, 0) / abs(_not_zero(ego_target_speed)), self.DELTA)
         )
         if front_vehicle:
             d = ego_vehicle.lane_distance_to(front_vehicle)
-            ratio = self.desired_gap(ego_vehicle, front_vehicle) / utils.not_zero(d)
+            ratio = self.desired_gap(ego_vehicle, front_vehicle) / _not_zero(d)
             # np.power(x, 2) is computed as x * x.
             acceleration -= self.COMFORT_ACC_MAX * (ratio * ratio)
         return acceleration
@@ -1187,6 +1239,13 @@ class FastIDMVehicle(FastControlledVehicle, IDMVehicle):
         else:
             dv = ego_speed - front_vehicle.speed
         return d0 + ego_speed * tau + ego_speed * dv / (2 * math.sqrt(ab))
+
+
+_STEPS_ENDING_WITH_UPDATE = frozenset(
+    {Vehicle.step, FastControlledVehicle.step, FastIDMVehicle.step}
+)
+"""``step`` methods whose last action is ``self.on_state_update()`` (nothing after it
+reads the lane), so :meth:`FastRoad.step` may defer that call."""
 
 
 def use_fast_road(env: Any) -> AbstractEnv:

@@ -265,6 +265,43 @@ class ReferenceLine:
             memo[key] = result
         return result
 
+    def remember_projections(self, points: FloatArray) -> dict[bytes, tuple[float, float]]:
+        """Project ``(N, 2)`` points in one batch and memoise each for :meth:`project`.
+
+        :meth:`project_many` gives :meth:`project`'s results bit for bit, so a later
+        ``project`` of one of these positions returns the very floats it would compute.
+
+        :return: ``{point.tobytes(): (s, d)}`` of this batch (empty if a coordinate is
+            not finite: nothing is memoised then).
+        """
+        pts = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 2)
+        # One reduction checks project_many's batch condition (NaN fails the comparison).
+        if len(pts) == 0 or not float(np.abs(pts).max()) < _BATCH_COORD_LIMIT:
+            return {}  # a NaN position fails in project itself, at its own look-up
+        s, d = _project_many(
+            self.xy,
+            self.heading,
+            self.step,
+            self._CELL,
+            self._hash_keys,
+            self._hash_ptr,
+            self._hash_idx,
+            self._coarse,
+            2 * self._STRIDE,
+            pts,
+        )
+        raw = pts.tobytes()  # row k is raw[16 k : 16 (k + 1)], as point.tobytes() in project
+        self._memo = (raw, s, d)  # project_many's memo (it hands out copies)
+        batch = {
+            raw[16 * k : 16 * k + 16]: sd
+            for k, sd in enumerate(zip(s.tolist(), d.tolist(), strict=True))
+        }
+        memo = self._point_memo
+        if len(memo) + len(batch) > _POINT_MEMO_SIZE:
+            memo.clear()
+        memo.update(batch)
+        return batch
+
     def project_many(self, points: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Vectorised :meth:`project` for ``(N, 2)`` points: ``(s (N,), d (N,))``.
 

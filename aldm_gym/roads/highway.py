@@ -393,8 +393,10 @@ class HighwayRoad:
             lo, hi = s_origin - margin, s_origin + reach
         else:
             lo, hi = s_origin - reach, s_origin + margin
-        i0 = max(int(np.floor(lo / ref.step)), 0)
-        i1 = min(int(np.ceil(hi / ref.step)) + 1, len(ref.s))
+        # math.floor/ceil: int(np.floor(x)) without numpy's scalar dispatch (same
+        # integers; NaN and inf raise as int() does).
+        i0 = max(math.floor(lo / ref.step), 0)
+        i1 = min(math.ceil(hi / ref.step) + 1, len(ref.s))
         m = len(self.markings)
         y_out = np.full((m, len(xs)), np.nan)
         u_out = np.full((m, len(xs)), np.nan)
@@ -434,6 +436,7 @@ class HighwayNetwork(RoadNetwork):
         """Create the (still empty) network of ``road``."""
         super().__init__()
         self._road = road
+        self._prepared: dict[bytes, tuple[str, str, int]] = {}
 
     def get_closest_lane_index(
         self, position: np.ndarray, heading: float | None = None
@@ -443,8 +446,26 @@ class HighwayNetwork(RoadNetwork):
         lanes = self.graph.get(EDGE[0], {}).get(EDGE[1], [])
         if len(self.graph) != 1 or len(lanes) != road.lanes_count:
             return super().get_closest_lane_index(position, heading)  # type: ignore[return-value]
+        if type(position) is np.ndarray and position.dtype == np.float64 and position.shape == (2,):
+            prepared = self._prepared.get(position.tobytes())
+            if prepared is not None:
+                return prepared
         # Nearest lane centre; at an exact boundary the lower id wins, as np.argmin does.
         return (EDGE[0], EDGE[1], road.locate(position)[2])
+
+    def prepare_closest_lanes(self, positions: FloatArray) -> None:
+        """Project ``(N, 2)`` world positions [m] in one batch ahead of their look-ups.
+
+        The projections are those :meth:`get_closest_lane_index` computes one at a time
+        (:meth:`ReferenceLine.remember_projections`, bit for bit), so the lanes
+        remembered here for the next look-ups are the lanes it would return. Only the
+        latest batch is kept.
+        """
+        batch = self._road.reference.remember_projections(positions)
+        lane_of_offset = self._road.lane_of_offset
+        self._prepared = {
+            key: (EDGE[0], EDGE[1], lane_of_offset(d)) for key, (_, d) in batch.items()
+        }
 
 
 def _sample_lines_py(
