@@ -31,6 +31,17 @@ def _tiny_train(out: Path, timesteps: int, *extra: str) -> int:
     return main(["train", "--timesteps", str(timesteps), "--out", str(out), *TINY, *extra])
 
 
+def test_checkpoints_follow_the_frequency(tmp_path: Path) -> None:
+    out = tmp_path / "freq"
+    assert _tiny_train(out, 160, "--checkpoint-freq", "64") == 0
+    steps = sorted(
+        int(p.stem.split("_")[1]) for p in (out / "checkpoints").glob("model_*_steps.zip")
+    )
+    # Rollouts of 32 steps: a checkpoint after the first rollout ending >= 64 steps after
+    # the last one, plus the final state.
+    assert steps == [64, 128, 160]
+
+
 def test_import_stays_light() -> None:
     """Building the CLI parser must not import stable-baselines3 or torch."""
     code = (

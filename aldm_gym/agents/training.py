@@ -211,6 +211,7 @@ def _callbacks(out: Path, checkpoint_freq: int, target: int, progress: bool) -> 
 
         def save(self, steps: int | None = None) -> Path:
             steps = self.model.num_timesteps if steps is None else steps
+            self.last_saved = steps
             return save_checkpoint(self.model, out, steps)
 
     class Progress(BaseCallback):
