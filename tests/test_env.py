@@ -255,36 +255,6 @@ def test_render_rgb_array_shape_and_record_video(tmp_path: object) -> None:
     assert list(tmp_path.glob("*.mp4"))  # type: ignore[attr-defined]
 
 
-def test_inlined_path_fit_matches_driving_trajectory() -> None:
-    """The env's per-step path fit is ``driving_trajectory``'s result, bit for bit."""
-    import warnings
-
-    from aldm_gym.envs.highway import _driving_trajectory
-    from aldm_gym.sensor.detection import driving_trajectory
-
-    rng = np.random.default_rng(1)
-    for trial in range(600):
-        lines = []
-        for side in (1.0, -1.0):
-            k = int(rng.integers(0, 30))
-            kind = trial % 5
-            if kind == 0:  # repeated x values: lower degree, fit_cubic's own path
-                x = np.sort(rng.integers(0, 5, k).astype(float))
-            else:
-                x = np.sort(rng.uniform(-3.0, 200.0, k))
-            if kind == 2:
-                x = x + 1e6  # badly conditioned
-            y = side * 1.8 + 0.01 * x + 1e-4 * x**2 + rng.normal(0.0, 0.05, k)
-            if kind == 3:
-                y = -0.0 * x
-            lines.append(np.column_stack([x, y]))
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            expected = driving_trajectory(lines[0], lines[1], 3.75)
-            got = _driving_trajectory(lines[0], lines[1], 3.75)
-        assert got.shape == expected.shape and got.tobytes() == expected.tobytes()
-
-
 def test_near_path_fits_the_first_max_x_metres() -> None:
     """``near_path`` is ``driving_trajectory`` of the lines cut at ``max_x`` (>= 4 points)."""
     from aldm_gym.envs.highway import near_path

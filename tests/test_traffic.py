@@ -451,7 +451,6 @@ def test_aldm_env_fast_paths_change_nothing(monkeypatch: pytest.MonkeyPatch) -> 
     from aldm_gym.envs import traffic
     from aldm_gym.roads import geometry
     from aldm_gym.roads.lane import ReferenceLane
-    from aldm_gym.sensor.detection import driving_trajectory
 
     actions = [1, 0, 1, 3, 2, 1, 4, 1, 1, 2, 1, 0]
 
@@ -489,5 +488,4 @@ def test_aldm_env_fast_paths_change_nothing(monkeypatch: pytest.MonkeyPatch) -> 
     monkeypatch.setattr(traffic, "_boxes_separated", lambda a, b: False)
     monkeypatch.setattr(traffic, "_STEPS_ENDING_WITH_UPDATE", frozenset())
     monkeypatch.setattr(env_module.SensorVehicle, "step", Vehicle.step)
-    monkeypatch.setattr(env_module, "_driving_trajectory", driving_trajectory)
     assert rollout() == fast

@@ -68,10 +68,9 @@ def near_path(left: FloatArray, right: FloatArray, lane_width: float, max_x: flo
         k = max(int(np.searchsorted(line[:, 0], max_x, side="right")), 4)
         return line[:k]
 
-    return _driving_trajectory(cut(left), cut(right), lane_width)
+    return driving_trajectory(cut(left), cut(right), lane_width)
 
 
-_driving_trajectory = driving_trajectory
 """The path fit of :func:`near_path` (``driving_trajectory``: its fits and path are
 one compiled call for detector lines)."""
 
