@@ -71,10 +71,6 @@ def near_path(left: FloatArray, right: FloatArray, lane_width: float, max_x: flo
     return driving_trajectory(cut(left), cut(right), lane_width)
 
 
-"""The path fit of :func:`near_path` (``driving_trajectory``: its fits and path are
-one compiled call for detector lines)."""
-
-
 class SensorVehicle(BatchedLaneUpdate, Vehicle):
     """The ego vehicle: laterally controlled only from the detected lanes.
 
