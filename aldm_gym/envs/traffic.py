@@ -209,20 +209,7 @@ class FastRoadNetwork(RoadNetwork):
             for _from, to_dict in self.graph.items():
                 for _to, lanes in to_dict.items():
                     for _id, lane in enumerate(lanes):
-                        consts = None
-                        if _is_plain_straight(lane):
-                            assert isinstance(lane, StraightLane)
-                            consts = (
-                                float(lane.start[0]),
-                                float(lane.start[1]),
-                                float(lane.direction[0]),
-                                float(lane.direction[1]),
-                                float(lane.direction_lateral[0]),
-                                float(lane.direction_lateral[1]),
-                                float(lane.length),
-                                float(lane.heading),
-                            )
-                        flat.append(((_from, _to, _id), lane, consts))
+                        flat.append(((_from, _to, _id), lane, _straight_geometry(lane)))
             self._flat = flat
             self._flat_shape = shape
         return self._flat
