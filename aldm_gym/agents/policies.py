@@ -38,7 +38,7 @@ class IdlePolicy:
         state: Any = None,
         episode_start: Any = None,
         deterministic: bool = True,
-    ) -> tuple[np.ndarray | int, Any]:
+    ) -> tuple[np.ndarray | np.int64, Any]:
         """``(IDLE, state)``; a batch of IDLEs for a batched observation."""
         if _batched(observation):
             return np.full(np.asarray(observation["ego"]).shape[0], IDLE), state

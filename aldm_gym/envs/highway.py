@@ -416,8 +416,8 @@ class ALDMHighwayEnv(AbstractEnv):
 
     def define_spaces(self) -> None:
         """Observation and action types and spaces from the config."""
-        self.observation_type = _ObservationType(self)  # type: ignore[assignment]
-        self.action_type = _ActionType(self)  # type: ignore[assignment]
+        self.observation_type = _ObservationType(self)
+        self.action_type = _ActionType(self)
         self.observation_space = self.observation_type.space()
         self.action_space = self.action_type.space()
 

@@ -93,7 +93,7 @@ def eval_line(line: FloatArray, x: FloatArray) -> FloatArray:
     if xs[-1] > xs[-2]:
         s1 = (ys[-1] - ys[-2]) / (xs[-1] - xs[-2])
         y = np.where(x > xs[-1], ys[-1] + s1 * (x - xs[-1]), y)
-    return y  # type: ignore[no-any-return]
+    return y
 
 
 def assign_lanes(

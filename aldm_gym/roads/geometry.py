@@ -216,8 +216,8 @@ class ReferenceLine:
     def position(self, s: FloatArray | float, d: FloatArray | float = 0.0) -> FloatArray:
         """World position at arc length ``s`` [m] and left offset ``d`` [m], shape ``(..., 2)``."""
         if isinstance(s, float | int) and isinstance(d, float | int) and math.isfinite(s):
-            x, y, h = self.pose_at(float(s))
-            return np.array([x + d * math.sin(h), y - d * math.cos(h)])
+            x, y, hs = self.pose_at(float(s))
+            return np.array([x + d * math.sin(hs), y - d * math.cos(hs)])
         p, h = self._interp(s)
         return p + np.asarray(d, dtype=np.float64)[..., None] * left_normal(h)
 

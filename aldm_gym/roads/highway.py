@@ -445,7 +445,7 @@ class HighwayNetwork(RoadNetwork):
         road = self._road
         lanes = self.graph.get(EDGE[0], {}).get(EDGE[1], [])
         if len(self.graph) != 1 or len(lanes) != road.lanes_count:
-            return super().get_closest_lane_index(position, heading)  # type: ignore[return-value]
+            return super().get_closest_lane_index(position, heading)
         if type(position) is np.ndarray and position.dtype == np.float64 and position.shape == (2,):
             prepared = self._prepared.get(position.tobytes())
             if prepared is not None:
