@@ -278,18 +278,7 @@ class ReferenceLine:
         # One reduction checks project_many's batch condition (NaN fails the comparison).
         if len(pts) == 0 or not float(np.abs(pts).max()) < _BATCH_COORD_LIMIT:
             return {}  # a NaN position fails in project itself, at its own look-up
-        s, d = _project_many(
-            self.xy,
-            self.heading,
-            self.step,
-            self._CELL,
-            self._hash_keys,
-            self._hash_ptr,
-            self._hash_idx,
-            self._coarse,
-            2 * self._STRIDE,
-            pts,
-        )
+        s, d = self._batch_project(pts)
         raw = pts.tobytes()  # row k is raw[16 k : 16 (k + 1)], as point.tobytes() in project
         self._memo = (raw, s, d)  # project_many's memo (it hands out copies)
         batch = {
@@ -301,6 +290,21 @@ class ReferenceLine:
             memo.clear()
         memo.update(batch)
         return batch
+
+    def _batch_project(self, pts: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """One compiled call projecting finite ``(N, 2)`` points (see :meth:`project`)."""
+        return _project_many(
+            self.xy,
+            self.heading,
+            self.step,
+            self._CELL,
+            self._hash_keys,
+            self._hash_ptr,
+            self._hash_idx,
+            self._coarse,
+            2 * self._STRIDE,
+            pts,
+        )
 
     def project_many(self, points: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Vectorised :meth:`project` for ``(N, 2)`` points: ``(s (N,), d (N,))``.
@@ -315,18 +319,7 @@ class ReferenceLine:
         if self._memo is not None and self._memo[0] == key:
             return self._memo[1].copy(), self._memo[2].copy()
         if np.isfinite(pts).all() and (np.abs(pts) < _BATCH_COORD_LIMIT).all():
-            s, d = _project_many(
-                self.xy,
-                self.heading,
-                self.step,
-                self._CELL,
-                self._hash_keys,
-                self._hash_ptr,
-                self._hash_idx,
-                self._coarse,
-                2 * self._STRIDE,
-                pts,
-            )
+            s, d = self._batch_project(pts)
         else:  # NaN / huge coordinates: the scalar path (and its errors)
             out = np.array([self.project(p) for p in pts], dtype=np.float64).reshape(-1, 2)
             s, d = out[:, 0].copy(), out[:, 1].copy()
