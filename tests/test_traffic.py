@@ -100,13 +100,10 @@ def test_seeded_episodes_are_identical(env_id: str, vehicles: int, seed: int) ->
     assert runs[0] == runs[1]
 
 
-@pytest.mark.parametrize("connected", [False, True])
-def test_neighbours_match_base_every_step(connected: bool) -> None:
-    """At every simulation step, before the vehicles act, neighbours equal Road's."""
-    env = _make_env("highway-v0", 30, fast=True, neighbour_vehicles_connected_lanes=connected)
-    env.reset(seed=3)
-    base = env.unwrapped
-    road = base.road
+def _neighbours_checked_while_stepping(env: Any, seed: int, steps: int) -> int:
+    """Step with IDLE, comparing neighbours with Road's before every ``act``; checks made."""
+    env.reset(seed=seed)
+    road = env.unwrapped.road
     assert isinstance(road, FastRoad)
     checked = 0
     act = road.act
@@ -117,11 +114,18 @@ def test_neighbours_match_base_every_step(connected: bool) -> None:
         act()
 
     road.act = checked_act  # type: ignore[method-assign]
-    for _ in range(6):
+    for _ in range(steps):
         _, _, terminated, _, _ = env.step(1)
         if terminated:
             break
-    assert checked > 0
+    return checked
+
+
+@pytest.mark.parametrize("connected", [False, True])
+def test_neighbours_match_base_every_step(connected: bool) -> None:
+    """At every simulation step, before the vehicles act, neighbours equal Road's."""
+    env = _make_env("highway-v0", 30, fast=True, neighbour_vehicles_connected_lanes=connected)
+    assert _neighbours_checked_while_stepping(env, seed=3, steps=6) > 0
 
 
 def test_close_objects_match_base() -> None:
@@ -338,24 +342,7 @@ def _aldm_env(vehicles: int = 25) -> Any:
 
 def test_reference_edge_neighbours_match_base_every_step() -> None:
     """On an aldm-gym highway (one shared reference line), neighbours equal Road's."""
-    env = _aldm_env()
-    env.reset(seed=5)
-    road = env.unwrapped.road
-    assert isinstance(road, FastRoad)
-    checked = 0
-    act = road.act
-
-    def checked_act() -> None:
-        nonlocal checked
-        checked += _check_neighbours(road)
-        act()
-
-    road.act = checked_act  # type: ignore[method-assign]
-    for _ in range(4):
-        _, _, terminated, _, _ = env.step(1)
-        if terminated:
-            break
-    assert checked > 300
+    assert _neighbours_checked_while_stepping(_aldm_env(), seed=5, steps=4) > 300
 
 
 def test_project_many_kernel_matches_plain_python_and_project() -> None:
