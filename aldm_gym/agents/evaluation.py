@@ -9,15 +9,18 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 
 from aldm_gym.envs.highway import LANE_LEFT, LANE_RIGHT
 
 
-class Policy:
-    """Protocol of a policy: SB3's ``predict``."""
+class Policy(Protocol):
+    """What :func:`run_episode` needs of a policy: SB3's ``predict``.
+
+    ``IdlePolicy``, ``RuleBasedLCA``, ``LKAController`` and SB3 models all satisfy it.
+    """
 
     def predict(
         self,
@@ -27,7 +30,7 @@ class Policy:
         deterministic: bool = True,
     ) -> tuple[Any, Any]:
         """``(action, state)``."""
-        raise NotImplementedError
+        ...
 
 
 @dataclass
@@ -79,7 +82,7 @@ def _scalar_action(action: Any) -> Any:
     return int(arr.reshape(-1)[0]) if arr.dtype.kind in "iu" and arr.size == 1 else action
 
 
-def run_episode(env: Any, policy: Any, seed: int, max_steps: int | None = None) -> EpisodeStats:
+def run_episode(env: Any, policy: Policy, seed: int, max_steps: int | None = None) -> EpisodeStats:
     """Play one episode with ``policy`` from ``env.reset(seed=seed)``.
 
     :param env: an ``ALDMHighway-v0`` environment (possibly wrapped).
@@ -137,7 +140,7 @@ def run_episode(env: Any, policy: Any, seed: int, max_steps: int | None = None) 
 
 def run_episodes(
     env: Any,
-    policy: Any,
+    policy: Policy,
     seeds: Iterable[int],
     progress: Callable[[int], None] | None = None,
 ) -> list[EpisodeStats]:
