@@ -273,3 +273,44 @@ def test_near_path_fits_the_first_max_x_metres() -> None:
         got = near_path(lines[0], lines[1], 3.5, 80.0)
         want = driving_trajectory(cuts[0], cuts[1], 3.5)
         assert got.shape == want.shape and got.tobytes() == want.tobytes()
+
+
+def test_lanes_summary_matches_ground_truth_gaps() -> None:
+    env = make({"vehicles_count": 25, "initial_lane_id": 1})
+    obs, _ = env.reset(seed=4)
+    for _ in range(3):
+        obs, *_ = env.step(1)
+    base = env.unwrapped
+    ego = base.vehicle
+    ego_lane = base._truth[2]
+    lanes = obs["lanes"]
+    assert lanes.shape == (3, 4) and env.observation_space["lanes"].contains(lanes)
+    # Ground truth: nearest vehicle ahead in each true lane, gap along the road.
+    s_ego = base.highway.locate(ego.position)[0]
+    n_checked = 0
+    for row, lane in enumerate((ego_lane - 1, ego_lane, ego_lane + 1)):
+        ahead = []
+        for v in base.road.vehicles:
+            if v is ego or base.highway.lane_id_at(v.position) != lane:
+                continue
+            ds = base.highway.locate(v.position)[0] - s_ego
+            if 5.0 < ds < 90.0:
+                ahead.append(ds)
+        if ahead:
+            assert abs(lanes[row, 0] - (min(ahead) - 5.0)) < 1.0, (row, lanes, ahead)
+            n_checked += 1
+    assert n_checked > 0
+
+
+def test_lane_gaps_pick_nearest_vehicle_per_lane() -> None:
+    from aldm_gym.envs.observation import LANE_EGO, LANE_LEFT, LANE_OTHER, lane_gaps
+
+    codes = np.array([LANE_EGO, LANE_EGO, LANE_LEFT, LANE_EGO, LANE_OTHER], dtype=float)
+    x = np.array([40.0, 20.0, -30.0, -12.0, 8.0])
+    vx = np.array([1.0, -2.0, 3.0, 4.0, -9.0])
+    gaps = lane_gaps(codes, x, vx, 100.0)
+    np.testing.assert_array_equal(gaps[1], [15.0, -2.0, 7.0, 4.0])  # ego lane
+    np.testing.assert_array_equal(gaps[0], [100.0, 0.0, 25.0, 3.0])  # left: one behind
+    np.testing.assert_array_equal(gaps[2], [100.0, 0.0, 100.0, 0.0])  # right: empty
+    # Overlapping vehicles read a zero gap, never a negative one.
+    assert lane_gaps(np.array([1.0]), np.array([2.0]), np.array([0.0]), 100.0)[1, 0] == 0.0

@@ -560,6 +560,8 @@ class ALDMHighwayEnv(AbstractEnv):
             rel = np.zeros((0, 4))
         ego_state = np.array([ego.speed, ego.yaw_rate, ego.steering_iso, float(ego.lane_change)])
         o = self.config["observation"]
+        back = ego.position - frame.origin
+        ego_x = float(back[0] * cy + back[1] * sy)
         return build_observation(
             self.detection,
             ego.trajectory,
@@ -567,6 +569,7 @@ class ALDMHighwayEnv(AbstractEnv):
             rel,
             int(o["vehicles_count"]),
             float(o["perception_distance"]),
+            ego_x,
         )
 
     # ------------------------------------------------------------------ reward / end

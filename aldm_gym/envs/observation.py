@@ -18,7 +18,18 @@ key                    shape        content
 ``vehicles``           (N, 6)       per nearby vehicle (nearest first): present (0/1), x, y [m],
                                     relative vx, vy [m/s] (sensor frame), lane code
                                     (1 ego, 2 left, 3 right, 0 other/unknown)
+``lanes``              (3, 4)       per detected lane (left, ego, right): gap to the nearest
+                                    vehicle ahead [m], its relative vx [m/s], gap to the
+                                    nearest vehicle behind [m], its relative vx [m/s]
 =====================  ===========  ==========================================================
+
+``lanes`` summarises every vehicle within ``perception_distance`` (not only the N
+nearest) by the same lane codes: a gap is bumper to bumper along x, measured from the
+ego's centre (the sensor sits ``mount_x`` ahead of it), ``|x - x_ego| - VEHICLE_LENGTH``
+clipped to ``[0, perception_distance]``; an empty lane (or a
+lane not detected) reads ``perception_distance`` with relative speed 0. It is what an
+object-to-lane assignment of a highway chauffeur hands to its decision layer, and what
+a learning agent needs most: "is my lane blocked, is the next one free".
 """
 
 from __future__ import annotations
@@ -43,6 +54,12 @@ SPEED_BOUND = 80.0
 
 LANE_OTHER, LANE_EGO, LANE_LEFT, LANE_RIGHT = 0, 1, 2, 3
 """Lane codes of the ``vehicles`` observation."""
+
+LANE_ROWS = (LANE_LEFT, LANE_EGO, LANE_RIGHT)
+"""Lane code of each row of the ``lanes`` observation."""
+
+VEHICLE_LENGTH = 5.0
+"""highway-env's vehicle length [m], subtracted from centre distances to give gaps."""
 
 
 def observation_space(vehicles_count: int, perception_distance: float) -> spaces.Dict:
@@ -75,6 +92,12 @@ def observation_space(vehicles_count: int, perception_distance: float) -> spaces
                 f32,
             ),
             "vehicles": spaces.Box(veh_low, veh_high, (vehicles_count, 6), f32),
+            "lanes": spaces.Box(
+                np.tile(np.array([0.0, -SPEED_BOUND] * 2, dtype=f32), (3, 1)),
+                np.tile(np.array([perception_distance, SPEED_BOUND] * 2, dtype=f32), (3, 1)),
+                (3, 4),
+                f32,
+            ),
         }
     )
 
@@ -122,6 +145,35 @@ def assign_lanes(
     return codes
 
 
+def lane_gaps(
+    codes: FloatArray, x: FloatArray, vx: FloatArray, perception_distance: float
+) -> FloatArray:
+    """The ``lanes`` observation: per lane of :data:`LANE_ROWS`, nearest vehicle ahead and behind.
+
+    :param codes: ``(N,)`` lane codes of the vehicles (see :func:`assign_lanes`).
+    :param x: ``(N,)`` longitudinal positions relative to the ego's centre, along the
+        sensor's x axis [m].
+    :param vx: ``(N,)`` longitudinal speeds relative to the ego [m/s].
+    :return: ``(3, 4)``: front gap [m], front relative vx [m/s], rear gap [m], rear
+        relative vx [m/s]; gaps ``perception_distance`` and speeds 0 where no vehicle.
+    """
+    pd = perception_distance
+    out = np.tile(np.array([pd, 0.0, pd, 0.0]), (3, 1))
+    for row, code in enumerate(LANE_ROWS):
+        mine = codes == code
+        ahead = np.flatnonzero(mine & (x >= 0.0))
+        if len(ahead):
+            i = ahead[np.argmin(x[ahead])]
+            out[row, 0] = min(max(x[i] - VEHICLE_LENGTH, 0.0), pd)
+            out[row, 1] = vx[i]
+        behind = np.flatnonzero(mine & (x < 0.0))
+        if len(behind):
+            i = behind[np.argmax(x[behind])]
+            out[row, 2] = min(max(-x[i] - VEHICLE_LENGTH, 0.0), pd)
+            out[row, 3] = vx[i]
+    return out
+
+
 def build_observation(
     detection: LaneDetection | None,
     trajectory: FloatArray,
@@ -129,6 +181,7 @@ def build_observation(
     others: FloatArray,
     vehicles_count: int,
     perception_distance: float,
+    ego_x: float = 0.0,
 ) -> dict[str, np.ndarray]:
     """Assemble the observation dict.
 
@@ -137,6 +190,8 @@ def build_observation(
     :param ego_state: ``(4,)`` speed, yaw rate, steering, lane-change direction.
     :param others: ``(M, 4)`` x, y, vx, vy of other vehicles in the sensor frame
         (velocities relative to the ego) [m, m/s].
+    :param ego_x: x of the ego's centre in the sensor frame [m] (``-mount_x``); the
+        ``lanes`` gaps are measured from it.
     """
     lines = np.zeros((4, N_POINTS, 2))
     valid = np.zeros(4)
@@ -156,15 +211,18 @@ def build_observation(
         traj = t
         traj_valid[0] = 1.0
     veh = np.zeros((vehicles_count, 6))
+    lanes = lane_gaps(np.zeros(0), np.zeros(0), np.zeros(0), perception_distance)
     if len(others):
         dist = np.hypot(others[:, 0], others[:, 1])
         near = np.flatnonzero(dist <= perception_distance)
-        near = near[np.argsort(dist[near], kind="stable")][:vehicles_count]
-        sel = others[near]
-        k = len(sel)
+        near = near[np.argsort(dist[near], kind="stable")]
+        seen = others[near]
+        codes = assign_lanes(full, seen[:, 0], seen[:, 1])
+        lanes = lane_gaps(codes, seen[:, 0] - ego_x, seen[:, 2], perception_distance)
+        k = min(len(seen), vehicles_count)
         veh[:k, 0] = 1.0
-        veh[:k, 1:5] = sel
-        veh[:k, 5] = assign_lanes(full, sel[:, 0], sel[:, 1])
+        veh[:k, 1:5] = seen[:k]
+        veh[:k, 5] = codes[:k]
     pd = perception_distance
     veh[:, 1:3] = np.clip(veh[:, 1:3], -pd, pd)
     veh[:, 3:5] = np.clip(veh[:, 3:5], -SPEED_BOUND, SPEED_BOUND)
@@ -180,5 +238,6 @@ def build_observation(
         "trajectory_valid": traj_valid.astype(np.float32),
         "ego": ego.astype(np.float32),
         "vehicles": veh.astype(np.float32),
+        "lanes": np.clip(lanes, [0.0, -SPEED_BOUND] * 2, [pd, SPEED_BOUND] * 2).astype(np.float32),
     }
     return out
