@@ -15,7 +15,9 @@ from stable_baselines3 import PPO
 from stable_baselines3.common.callbacks import BaseCallback
 
 from aldm_gym.agents.training import (
+    ENV_ID,
     EVAL_COLUMNS,
+    VALIDATION_SEED,
     PPOParams,
     latest_checkpoint,
     load_policy,
@@ -23,8 +25,12 @@ from aldm_gym.agents.training import (
 )
 from aldm_gym.cli import main
 
-TINY = ["--n-envs", "1", "--n-steps", "32", "--duration", "5", "--vehicles", "5", "--no-progress"]
-"""A few seconds of training: 1 env, 32-step rollouts, 5 s episodes, 5 vehicles."""
+TINY = [
+    *("--n-envs", "1", "--n-steps", "32", "--duration", "5", "--vehicles", "5"),
+    *("--validation-freq", "0", "--no-progress"),
+]
+"""A few seconds of training: 1 env, 32-step rollouts, 5 s episodes, 5 vehicles, no
+validation (tested on its own)."""
 
 
 def _tiny_train(out: Path, timesteps: int, *extra: str) -> int:
@@ -60,6 +66,9 @@ def test_import_stays_light() -> None:
         ["train", "--detector", "canny"],
         ["train", "--n-envs", "-2"],
         ["train", "--duration", "-1"],
+        ["train", "--lr-schedule", "cosine"],
+        ["train", "--validation-freq", "-1"],
+        ["train", "--validation-episodes", "0"],
         ["evaluate"],  # --model is required
         ["evaluate", "--model", "m.zip", "--episodes", "0"],
         ["evaluate", "--model", "m.zip", "--marking-model", "dashed"],
@@ -70,6 +79,15 @@ def test_bad_arguments_are_rejected(argv: list[str], capsys: pytest.CaptureFixtu
         main(argv)
     assert exc.value.code == 2
     assert "error" in capsys.readouterr().err
+
+
+def test_linear_learning_rate_decays_to_zero_over_the_budget() -> None:
+    schedule = PPOParams(learning_rate=4e-4, lr_schedule="linear").learning_rate_schedule()
+    assert callable(schedule)
+    assert [schedule(p) for p in (1.0, 0.5, 0.0)] == [4e-4, 2e-4, 0.0]
+    assert PPOParams().learning_rate_schedule() == 5e-4
+    with pytest.raises(ValueError, match="lr_schedule must be one of"):
+        PPOParams(lr_schedule="cosine")
 
 
 def test_clear_errors_for_missing_model_and_resume(tmp_path: Path) -> None:
@@ -119,6 +137,37 @@ def test_train_writes_loadable_model_and_evaluate_prints_table(
     assert [r["policy"] for r in report["rows"]] == ["idle", "rule_based", "model"]
 
 
+def test_validation_keeps_the_model_it_scored_best(tmp_path: Path) -> None:
+    import gymnasium as gym
+    import numpy as np
+
+    from aldm_gym.agents.evaluation import run_episodes
+
+    out = tmp_path / "val"
+    extra = ("--validation-freq", "32", "--validation-episodes", "2")
+    assert _tiny_train(out, 96, *extra) == 0
+    record = json.loads((out / "validation.json").read_text())
+    history = record["history"]
+    # After each update (32, 64 steps) and at the end (96).
+    assert [h["steps"] for h in history] == [32, 64, 96]
+    assert record["seeds"] == [VALIDATION_SEED, VALIDATION_SEED + 1]
+    best = max(history, key=lambda h: h["mean_return"])
+    assert record["best_steps"] == best["steps"]
+    # best_model.zip is the validated policy: replaying the validation seeds with it
+    # (and its saved normalisation) gives the recorded return exactly.
+    policy, meta = load_policy(out / "best_model.zip")
+    assert policy.vecnormalize is not None
+    assert policy.model.num_timesteps == best["steps"]
+    env = gym.make(ENV_ID, config=meta["env_config"])
+    episodes = run_episodes(env, policy, range(VALIDATION_SEED, VALIDATION_SEED + 2))
+    assert float(np.mean([e.reward for e in episodes])) == best["mean_return"]
+    assert any(
+        "validation" in line
+        for p in (out / "tb").rglob("events.out.tfevents.*")
+        for line in [p.read_bytes().decode("latin-1")]
+    )
+
+
 class _InterruptAt(BaseCallback):
     """Raise KeyboardInterrupt (as Ctrl-C would) once ``steps`` steps are done."""
 
@@ -139,13 +188,14 @@ def test_resume_after_interruption_continues_step_count(tmp_path: Path) -> None:
         duration=5.0,
         vehicles_count=5,
         checkpoint_freq=1000,
+        validation_freq=0,
         progress=False,
     )
     with pytest.raises(KeyboardInterrupt):
         train(
             tmp_path,
             timesteps=96,
-            params=PPOParams(n_steps=32),
+            params=PPOParams(n_steps=32, lr_schedule="linear"),
             callback=_InterruptAt(40),
             **kwargs,
         )
@@ -156,6 +206,9 @@ def test_resume_after_interruption_continues_step_count(tmp_path: Path) -> None:
 
     model = train(tmp_path, timesteps=96, resume=True, **kwargs)
     assert model.num_timesteps == 96
+    # The linear schedule is restored with the model (not frozen to a constant).
+    assert json.loads((tmp_path / "training.json").read_text())["ppo"]["lr_schedule"] == "linear"
+    assert model.lr_schedule(1.0) == 5e-4 and model.lr_schedule(0.0) == 0.0
     assert PPO.load(tmp_path / "model.zip", device="cpu").num_timesteps == 96
     assert latest_checkpoint(tmp_path)[2] == 96
     # One tensorboard run, continued.

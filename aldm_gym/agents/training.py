@@ -20,7 +20,20 @@ Output folder of a training::
     <out>/model.zip            final model (SB3 PPO)
     <out>/vecnormalize.pkl     final observation normalisation
     <out>/checkpoints/model_<steps>_steps.zip, vecnormalize_<steps>_steps.pkl
+    <out>/best_model.zip       the model of the best validation so far, with
+    <out>/best_vecnormalize.pkl  its normalisation and
+    <out>/validation.json      every validation's metrics and the best one's steps
     <out>/tb/PPO_1/            tensorboard events
+
+Validation: every ``validation_freq`` steps (after the PPO update that ends a rollout)
+and at the end, the current policy drives ``validation_episodes`` episodes with the
+fixed seeds ``VALIDATION_SEED ..`` (deterministic actions), disjoint from the training
+envs' seeds (``seed ..``) and from :func:`evaluate`'s (``10000 ..``). The policy with
+the highest mean episode return (the env's reward, i.e. the objective the training
+optimises) is kept as ``best_model.zip``. PPO on this task is not monotone: collisions
+are rare events and successive checkpoints of one run differ by several collisions in
+30 episodes, so choosing on held-out seeds is what makes a training's result
+reproducible without peeking at the evaluation seeds.
 
 stable-baselines3 and torch are imported inside the functions: the CLI imports this
 module to build its parser, and ``import aldm_gym`` stays light.
@@ -62,6 +75,12 @@ TRAINING_FILE = "training.json"
 MODEL_FILE = "model.zip"
 VECNORM_FILE = "vecnormalize.pkl"
 CHECKPOINT_DIR = "checkpoints"
+BEST_MODEL_FILE = "best_model.zip"
+BEST_VECNORM_FILE = "best_vecnormalize.pkl"
+VALIDATION_FILE = "validation.json"
+
+VALIDATION_SEED = 20_000
+"""First seed of the validation episodes (training envs use ``seed ..``, evaluation 10000..)."""
 
 EVAL_COLUMNS = (
     "policy",
@@ -102,6 +121,8 @@ class PPOParams:
     at 1 Hz the reward of the next ~5 s matters; lr 5e-4, 10 epochs, batch 64).
 
     :ivar n_steps: rollout length per environment [policy steps].
+    :ivar lr_schedule: ``"constant"``, or ``"linear"``: ``learning_rate`` decays
+        linearly to 0 at the end of the budget (SB3's ``progress_remaining``).
     """
 
     n_steps: int = 256
@@ -113,6 +134,26 @@ class PPOParams:
     ent_coef: float = 0.01
     clip_range: float = 0.2
     net_arch: list[int] = field(default_factory=lambda: [128, 128])
+    lr_schedule: str = "constant"
+
+    def __post_init__(self) -> None:
+        if self.lr_schedule not in LR_SCHEDULES:
+            raise ValueError(f"lr_schedule must be one of {LR_SCHEDULES}, got {self.lr_schedule!r}")
+
+    def learning_rate_schedule(self) -> float | Callable[[float], float]:
+        """What SB3's ``learning_rate`` argument takes for this schedule."""
+        if self.lr_schedule == "linear":
+            return functools.partial(_linear, self.learning_rate)
+        return self.learning_rate
+
+
+LR_SCHEDULES = ("constant", "linear")
+"""Learning-rate schedules of :class:`PPOParams`."""
+
+
+def _linear(start: float, progress_remaining: float) -> float:
+    """``start`` scaled by SB3's ``progress_remaining`` (1 at the start, 0 at the end)."""
+    return start * progress_remaining
 
 
 def env_config(
@@ -180,8 +221,20 @@ def latest_checkpoint(out: Path) -> tuple[Path, Path, int] | None:
     return model, vecnorm, steps
 
 
-def _callbacks(out: Path, checkpoint_freq: int, target: int, progress: bool) -> Any:
-    """SB3 callbacks: periodic checkpoints and a tqdm bar (SB3's own needs ``rich``)."""
+def _callbacks(
+    out: Path,
+    checkpoint_freq: int,
+    target: int,
+    progress: bool,
+    config: dict[str, Any],
+    validation_freq: int,
+    validation_episodes: int,
+) -> Any:
+    """SB3 callbacks: periodic checkpoints, validation (see the module docstring) and a
+    tqdm bar (SB3's own needs ``rich``).
+
+    :return: ``(checkpoints, list of all callbacks)``.
+    """
     from stable_baselines3.common.callbacks import BaseCallback
 
     class Checkpoints(BaseCallback):
@@ -235,8 +288,83 @@ def _callbacks(out: Path, checkpoint_freq: int, target: int, progress: bool) -> 
         def _on_training_end(self) -> None:
             self.bar.close()
 
+    class Validation(BaseCallback):
+        """Validate on fixed seeds every ``validation_freq`` steps; keep the best model."""
+
+        def __init__(self) -> None:
+            super().__init__()
+            self.env: Any = None
+            self.last = 0
+            self.history: list[dict[str, Any]] = []
+            self.best: dict[str, Any] | None = None
+
+        def _on_training_start(self) -> None:
+            import gymnasium as gym
+
+            self.last = self.model.num_timesteps
+            path = out / VALIDATION_FILE
+            if path.exists() and self.model.num_timesteps > 0:  # a resume
+                saved = json.loads(path.read_text())
+                self.history = [
+                    h for h in saved["history"] if h["steps"] <= self.model.num_timesteps
+                ]
+                best = [h for h in self.history if h["steps"] == saved.get("best_steps")]
+                self.best = best[0] if best else None
+            self.env = gym.make(ENV_ID, config=config)
+
+        def _on_rollout_start(self) -> None:
+            if self.model.num_timesteps - self.last >= validation_freq:
+                self.validate()
+
+        def _on_step(self) -> bool:
+            return True
+
+        def _on_training_end(self) -> None:
+            if self.model.num_timesteps > self.last or self.best is None:
+                self.validate()
+            self.env.close()
+
+        def validate(self) -> None:
+            from aldm_gym.agents.evaluation import run_episodes, summarize
+
+            steps = self.model.num_timesteps
+            self.last = steps
+            policy = NormalizedModel(self.model, self.model.get_vec_normalize_env())
+            seeds = range(VALIDATION_SEED, VALIDATION_SEED + validation_episodes)
+            episodes = run_episodes(self.env, policy, seeds)
+            metrics = summarize(episodes)
+            row = {
+                "steps": int(steps),
+                "mean_return": float(sum(e.reward for e in episodes) / len(episodes)),
+                **{k: metrics[k] for k in ("success_rate", "mean_speed", "collisions")},
+                "departures_per_km": metrics["departures_per_km"],
+            }
+            for key in ("mean_return", "success_rate", "mean_speed", "collisions"):
+                self.logger.record(f"validation/{key}", row[key])
+            self.history.append(row)
+            if self.best is None or row["mean_return"] > self.best["mean_return"]:
+                self.best = row
+                _save_atomic(self.model.save, out / BEST_MODEL_FILE)
+                vecnorm = self.model.get_vec_normalize_env()
+                if vecnorm is not None:
+                    _save_atomic(vecnorm.save, out / BEST_VECNORM_FILE)
+            record = {
+                "seeds": [VALIDATION_SEED, VALIDATION_SEED + validation_episodes - 1],
+                "best_steps": self.best["steps"],
+                "history": self.history,
+            }
+            _save_atomic(
+                lambda p: Path(p).write_text(json.dumps(record, indent=2) + "\n"),
+                out / VALIDATION_FILE,
+            )
+
     checkpoints = Checkpoints()
-    return checkpoints, ([checkpoints, Progress()] if progress else [checkpoints])
+    callbacks: list[Any] = [checkpoints]
+    if validation_freq > 0 and validation_episodes > 0:
+        callbacks.append(Validation())
+    if progress:
+        callbacks.append(Progress())
+    return checkpoints, callbacks
 
 
 def save_checkpoint(model: Any, out: Path, steps: int) -> Path:
@@ -298,6 +426,8 @@ def train(
     vehicles_count: int | None = None,
     collision_reward: float | None = None,
     params: PPOParams | None = None,
+    validation_freq: int = 4_096,
+    validation_episodes: int = 20,
     resume: bool = False,
     progress: bool = True,
     verbose: int = 0,
@@ -311,6 +441,8 @@ def train(
     :param checkpoint_freq: save a checkpoint every this many steps [policy steps].
     :param duration, vehicles_count, collision_reward: env overrides (None: the env's
         defaults).
+    :param validation_freq: validate every this many steps (0: never) [policy steps].
+    :param validation_episodes: episodes per validation (seeds ``VALIDATION_SEED ..``).
     :param callback: extra SB3 callback(s) (a list or one).
     :param resume: continue from the latest checkpoint of ``out``; the env config and
         hyperparameters are those saved in ``<out>/training.json``, ``n_envs`` and
@@ -327,6 +459,8 @@ def train(
     out = Path(out)
     if timesteps < 1 or n_envs < 1 or checkpoint_freq < 1:
         raise ValueError("timesteps, n_envs and checkpoint_freq must be >= 1")
+    if validation_freq < 0 or validation_episodes < 0:
+        raise ValueError("validation_freq and validation_episodes must be >= 0")
     torch.set_num_threads(1)  # the envs need the cores; the MLP is tiny
     meta_path = out / TRAINING_FILE
     if resume:
@@ -358,7 +492,7 @@ def train(
             n_steps=params.n_steps,
             batch_size=min(params.batch_size, params.n_steps * n_envs),
             n_epochs=params.n_epochs,
-            learning_rate=params.learning_rate,
+            learning_rate=params.learning_rate_schedule(),
             gamma=params.gamma,
             gae_lambda=params.gae_lambda,
             ent_coef=params.ent_coef,
@@ -380,10 +514,20 @@ def train(
         "seed": seed,
         "timesteps": int(timesteps),
         "checkpoint_freq": int(checkpoint_freq),
+        "validation_freq": int(validation_freq),
+        "validation_episodes": int(validation_episodes),
     }
     meta_path.write_text(json.dumps(meta, indent=2) + "\n")
     model.tensorboard_log = str(out / "tb")
-    checkpoints, callbacks = _callbacks(out, checkpoint_freq, int(timesteps), progress)
+    checkpoints, callbacks = _callbacks(
+        out,
+        checkpoint_freq,
+        int(timesteps),
+        progress,
+        config,
+        validation_freq,
+        validation_episodes,
+    )
     if callback is not None:
         callbacks += callback if isinstance(callback, list) else [callback]
     interrupted = False
@@ -456,6 +600,8 @@ def _vecnormalize_for(model_path: Path) -> Path | None:
     match = _CHECKPOINT_RE.search(model_path.name)
     if match:
         path = model_path.with_name(f"vecnormalize_{match.group(1)}_steps.pkl")
+    elif model_path.name == BEST_MODEL_FILE:
+        path = model_path.with_name(BEST_VECNORM_FILE)
     else:
         path = model_path.with_name(VECNORM_FILE)
     return path if path.exists() else None
@@ -601,6 +747,25 @@ def add_train_arguments(parser: argparse.ArgumentParser) -> None:
         help="checkpoint every this many steps (2048)",
     )
     parser.add_argument(
+        "--lr-schedule",
+        choices=LR_SCHEDULES,
+        default=None,
+        help="learning rate constant, or decaying linearly to 0 over --timesteps (constant)",
+    )
+    parser.add_argument(
+        "--validation-freq",
+        type=non_negative_int,
+        default=None,
+        help="validate (and keep best_model.zip) every this many steps, 0 = never "
+        "(4096; --quick 0)",
+    )
+    parser.add_argument(
+        "--validation-episodes",
+        type=positive_int,
+        default=20,
+        help=f"episodes per validation, seeds {VALIDATION_SEED}.. (20)",
+    )
+    parser.add_argument(
         "--duration", type=positive_float, default=None, help="episode length [s] (env: 40)"
     )
     parser.add_argument(
@@ -647,6 +812,9 @@ def run_train(args: argparse.Namespace) -> int:
     """``aldm-gym train``."""
     timesteps = args.timesteps or (QUICK_TIMESTEPS if args.quick else 20_000)
     n_steps = args.n_steps or (64 if args.quick else 256)
+    validation_freq = args.validation_freq
+    if validation_freq is None:
+        validation_freq = 0 if args.quick else 4_096
     out: Path = args.out
     if args.resume:
         meta_path = out / TRAINING_FILE
@@ -661,6 +829,7 @@ def run_train(args: argparse.Namespace) -> int:
             ("--vehicles", args.vehicles, cfg.get("vehicles_count")),
             ("--collision-reward", args.collision_reward, cfg.get("collision_reward")),
             ("--n-steps", args.n_steps, meta["ppo"]["n_steps"]),
+            ("--lr-schedule", args.lr_schedule, meta["ppo"].get("lr_schedule", "constant")),
         ):
             if value is not None and value != saved:
                 raise SystemExit(
@@ -668,6 +837,8 @@ def run_train(args: argparse.Namespace) -> int:
                     f"({saved}); omit it with --resume"
                 )
         timesteps = args.timesteps or meta["timesteps"]
+        if args.validation_freq is None:
+            validation_freq = meta.get("validation_freq", validation_freq)
     elif (out / TRAINING_FILE).exists() or latest_checkpoint(out) is not None:
         raise SystemExit(
             f"aldm-gym train: {out} already holds a training; pass --resume to continue it "
@@ -686,7 +857,9 @@ def run_train(args: argparse.Namespace) -> int:
             duration=args.duration or (10.0 if args.quick else None),
             vehicles_count=args.vehicles,
             collision_reward=args.collision_reward,
-            params=PPOParams(n_steps=n_steps),
+            params=PPOParams(n_steps=n_steps, lr_schedule=args.lr_schedule or "constant"),
+            validation_freq=validation_freq,
+            validation_episodes=args.validation_episodes,
             resume=args.resume,
             progress=not args.no_progress,
         )
@@ -699,6 +872,16 @@ def run_train(args: argparse.Namespace) -> int:
         f"{out / MODEL_FILE}, checkpoints in {out / CHECKPOINT_DIR}, tensorboard logs in "
         f"{out / 'tb'} (tensorboard --logdir {out / 'tb'})"
     )
+    validation = out / VALIDATION_FILE
+    if validation_freq > 0 and validation.exists():
+        record = json.loads(validation.read_text())
+        best = next(h for h in record["history"] if h["steps"] == record["best_steps"])
+        print(
+            f"best validation at {best['steps']} steps (mean return {best['mean_return']:.2f}, "
+            f"success {best['success_rate']:.2f}, {best['mean_speed']:.2f} m/s): "
+            f"{out / BEST_MODEL_FILE}; evaluate it with "
+            f"aldm-gym evaluate --model {out / BEST_MODEL_FILE}"
+        )
     return 0
 
 
