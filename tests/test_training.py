@@ -151,6 +151,8 @@ def test_validation_keeps_the_model_it_scored_best(tmp_path: Path) -> None:
     # After each update (32, 64 steps) and at the end (96).
     assert [h["steps"] for h in history] == [32, 64, 96]
     assert record["seeds"] == [VALIDATION_SEED, VALIDATION_SEED + 1]
+    assert set(record["baselines"]) == {"idle", "rule_based"}
+    assert (out / "validation.png").stat().st_size > 0
     best = max(history, key=lambda h: h["mean_return"])
     assert record["best_steps"] == best["steps"]
     # best_model.zip is the validated policy: replaying the validation seeds with it

@@ -22,7 +22,9 @@ Output folder of a training::
     <out>/checkpoints/model_<steps>_steps.zip, vecnormalize_<steps>_steps.pkl
     <out>/best_model.zip       the model of the best validation so far, with
     <out>/best_vecnormalize.pkl  its normalisation and
-    <out>/validation.json      every validation's metrics and the best one's steps
+    <out>/validation.json      every validation's metrics, the best one's steps, and
+                               IDLE's and the rule-based LCA's on the same seeds
+    <out>/validation.png       the same as a figure
     <out>/tb/PPO_1/            tensorboard events
 
 Validation: every ``validation_freq`` steps (after the PPO update that ends a rollout)
@@ -78,6 +80,7 @@ CHECKPOINT_DIR = "checkpoints"
 BEST_MODEL_FILE = "best_model.zip"
 BEST_VECNORM_FILE = "best_vecnormalize.pkl"
 VALIDATION_FILE = "validation.json"
+VALIDATION_PLOT = "validation.png"
 
 VALIDATION_SEED = 20_000
 """First seed of the validation episodes (training envs use ``seed ..``, evaluation 10000..)."""
@@ -297,12 +300,18 @@ def _callbacks(
             self.last = 0
             self.history: list[dict[str, Any]] = []
             self.best: dict[str, Any] | None = None
+            self.baselines: dict[str, Any] = {}
 
         def _on_training_start(self) -> None:
             import gymnasium as gym
 
+            from aldm_gym.agents.evaluation import run_episodes
+            from aldm_gym.agents.policies import IdlePolicy, RuleBasedLCA
+
             self.last = self.model.num_timesteps
+            self.env = gym.make(ENV_ID, config=config)
             path = out / VALIDATION_FILE
+            saved: dict[str, Any] = {}
             if path.exists() and self.model.num_timesteps > 0:  # a resume
                 saved = json.loads(path.read_text())
                 self.history = [
@@ -310,7 +319,27 @@ def _callbacks(
                 ]
                 best = [h for h in self.history if h["steps"] == saved.get("best_steps")]
                 self.best = best[0] if best else None
-            self.env = gym.make(ENV_ID, config=config)
+            self.baselines = saved.get("baselines") or {
+                name: self.row(run_episodes(self.env, policy, self.seeds))
+                for name, policy in (("idle", IdlePolicy()), ("rule_based", RuleBasedLCA()))
+            }
+
+        @property
+        def seeds(self) -> range:
+            return range(VALIDATION_SEED, VALIDATION_SEED + validation_episodes)
+
+        @staticmethod
+        def row(episodes: list[Any]) -> dict[str, Any]:
+            from aldm_gym.agents.evaluation import summarize
+
+            metrics = summarize(episodes)
+            return {
+                "mean_return": float(sum(e.reward for e in episodes) / len(episodes)),
+                **{
+                    k: metrics[k]
+                    for k in ("success_rate", "mean_speed", "collisions", "departures_per_km")
+                },
+            }
 
         def _on_rollout_start(self) -> None:
             if self.model.num_timesteps - self.last >= validation_freq:
@@ -325,20 +354,12 @@ def _callbacks(
             self.env.close()
 
         def validate(self) -> None:
-            from aldm_gym.agents.evaluation import run_episodes, summarize
+            from aldm_gym.agents.evaluation import run_episodes
 
             steps = self.model.num_timesteps
             self.last = steps
             policy = NormalizedModel(self.model, self.model.get_vec_normalize_env())
-            seeds = range(VALIDATION_SEED, VALIDATION_SEED + validation_episodes)
-            episodes = run_episodes(self.env, policy, seeds)
-            metrics = summarize(episodes)
-            row = {
-                "steps": int(steps),
-                "mean_return": float(sum(e.reward for e in episodes) / len(episodes)),
-                **{k: metrics[k] for k in ("success_rate", "mean_speed", "collisions")},
-                "departures_per_km": metrics["departures_per_km"],
-            }
+            row = {"steps": int(steps), **self.row(run_episodes(self.env, policy, self.seeds))}
             for key in ("mean_return", "success_rate", "mean_speed", "collisions"):
                 self.logger.record(f"validation/{key}", row[key])
             self.history.append(row)
@@ -351,12 +372,14 @@ def _callbacks(
             record = {
                 "seeds": [VALIDATION_SEED, VALIDATION_SEED + validation_episodes - 1],
                 "best_steps": self.best["steps"],
+                "baselines": self.baselines,
                 "history": self.history,
             }
             _save_atomic(
                 lambda p: Path(p).write_text(json.dumps(record, indent=2) + "\n"),
                 out / VALIDATION_FILE,
             )
+            plot_validation(record, out / VALIDATION_PLOT)
 
     checkpoints = Checkpoints()
     callbacks: list[Any] = [checkpoints]
@@ -562,6 +585,42 @@ def train(
     if vecnorm is not None:
         _save_atomic(vecnorm.save, out / VECNORM_FILE)
     return model
+
+
+def plot_validation(record: dict[str, Any], path: Path) -> None:
+    """Plot a ``validation.json`` record: return, collisions and speed over training.
+
+    Horizontal lines: IDLE and the rule-based LCA on the same seeds; the dotted
+    vertical line marks the kept (best) model.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    history = record["history"]
+    steps = [h["steps"] for h in history]
+    n = record["seeds"][1] - record["seeds"][0] + 1
+    panels = (
+        ("mean_return", "mean return"),
+        ("collisions", f"collisions [of {n} episodes]"),
+        ("mean_speed", "mean speed [m/s]"),
+    )
+    fig, axes = plt.subplots(len(panels), 1, figsize=(6.4, 6.4), sharex=True)
+    for ax, (key, label) in zip(axes, panels, strict=True):
+        ax.plot(steps, [h[key] for h in history], "o-", color="C0", label="PPO")
+        colours = {"idle": "C7", "rule_based": "C2"}
+        for name, base in record.get("baselines", {}).items():
+            ax.axhline(base[key], color=colours.get(name, "C1"), ls="--", lw=1, label=name)
+        ax.axvline(record["best_steps"], color="C3", ls=":", lw=1, label="kept (best return)")
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=8, loc="best")
+    axes[-1].set_xlabel("training steps")
+    fig.suptitle(f"validation on seeds {record['seeds'][0]}..{record['seeds'][1]}", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
 
 
 # --------------------------------------------------------------------------- evaluation
