@@ -67,6 +67,7 @@ def test_import_stays_light() -> None:
         ["train", "--n-envs", "-2"],
         ["train", "--duration", "-1"],
         ["train", "--lr-schedule", "cosine"],
+        ["train", "--gamma", "1.5"],
         ["train", "--validation-freq", "-1"],
         ["train", "--validation-episodes", "0"],
         ["evaluate"],  # --model is required

@@ -64,7 +64,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-from aldm_gym.argtypes import non_negative_int, positive_float, positive_int
+from aldm_gym.argtypes import fraction, non_negative_int, positive_float, positive_int
 from aldm_gym.envs.config import DETECTORS, MARKING_MODELS
 from aldm_gym.report import format_table
 
@@ -806,6 +806,12 @@ def add_train_arguments(parser: argparse.ArgumentParser) -> None:
         help="checkpoint every this many steps (2048)",
     )
     parser.add_argument(
+        "--gamma",
+        type=fraction,
+        default=None,
+        help=f"discount factor per policy step ({PPOParams.gamma})",
+    )
+    parser.add_argument(
         "--lr-schedule",
         choices=LR_SCHEDULES,
         default=None,
@@ -889,6 +895,7 @@ def run_train(args: argparse.Namespace) -> int:
             ("--collision-reward", args.collision_reward, cfg.get("collision_reward")),
             ("--n-steps", args.n_steps, meta["ppo"]["n_steps"]),
             ("--lr-schedule", args.lr_schedule, meta["ppo"].get("lr_schedule", "constant")),
+            ("--gamma", args.gamma, meta["ppo"]["gamma"]),
         ):
             if value is not None and value != saved:
                 raise SystemExit(
@@ -916,7 +923,11 @@ def run_train(args: argparse.Namespace) -> int:
             duration=args.duration or (10.0 if args.quick else None),
             vehicles_count=args.vehicles,
             collision_reward=args.collision_reward,
-            params=PPOParams(n_steps=n_steps, lr_schedule=args.lr_schedule or "constant"),
+            params=PPOParams(
+                n_steps=n_steps,
+                gamma=PPOParams.gamma if args.gamma is None else args.gamma,
+                lr_schedule=args.lr_schedule or "constant",
+            ),
             validation_freq=validation_freq,
             validation_episodes=args.validation_episodes,
             resume=args.resume,
