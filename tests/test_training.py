@@ -164,6 +164,12 @@ def test_validation_keeps_the_model_it_scored_best(tmp_path: Path) -> None:
     env = gym.make(ENV_ID, config=meta["env_config"])
     episodes = run_episodes(env, policy, range(VALIDATION_SEED, VALIDATION_SEED + 2))
     assert float(np.mean([e.reward for e in episodes])) == best["mean_return"]
+    # A resume continues the record (same seeds, baselines kept) with the saved settings.
+    resume = ["--resume", "--timesteps", "128", "--n-envs", "1", "--no-progress"]
+    assert main(["train", "--out", str(out), *resume]) == 0
+    resumed = json.loads((out / "validation.json").read_text())
+    assert [h["steps"] for h in resumed["history"]] == [32, 64, 96, 128]
+    assert resumed["baselines"] == record["baselines"]
     assert any(
         "validation" in line
         for p in (out / "tb").rglob("events.out.tfevents.*")

@@ -314,6 +314,9 @@ def _callbacks(
             saved: dict[str, Any] = {}
             if path.exists() and self.model.num_timesteps > 0:  # a resume
                 saved = json.loads(path.read_text())
+            if saved.get("seeds") != [self.seeds[0], self.seeds[-1]]:
+                saved = {}  # other validation episodes: not comparable, start afresh
+            if saved:
                 self.history = [
                     h for h in saved["history"] if h["steps"] <= self.model.num_timesteps
                 ]
@@ -827,7 +830,7 @@ def add_train_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--validation-episodes",
         type=positive_int,
-        default=20,
+        default=None,
         help=f"episodes per validation, seeds {VALIDATION_SEED}.. (20)",
     )
     parser.add_argument(
@@ -880,6 +883,7 @@ def run_train(args: argparse.Namespace) -> int:
     validation_freq = args.validation_freq
     if validation_freq is None:
         validation_freq = 0 if args.quick else 4_096
+    validation_episodes = args.validation_episodes or 20
     out: Path = args.out
     if args.resume:
         meta_path = out / TRAINING_FILE
@@ -905,6 +909,8 @@ def run_train(args: argparse.Namespace) -> int:
         timesteps = args.timesteps or meta["timesteps"]
         if args.validation_freq is None:
             validation_freq = meta.get("validation_freq", validation_freq)
+        if args.validation_episodes is None:
+            validation_episodes = meta.get("validation_episodes", validation_episodes)
     elif (out / TRAINING_FILE).exists() or latest_checkpoint(out) is not None:
         raise SystemExit(
             f"aldm-gym train: {out} already holds a training; pass --resume to continue it "
@@ -929,7 +935,7 @@ def run_train(args: argparse.Namespace) -> int:
                 lr_schedule=args.lr_schedule or "constant",
             ),
             validation_freq=validation_freq,
-            validation_episodes=args.validation_episodes,
+            validation_episodes=validation_episodes,
             resume=args.resume,
             progress=not args.no_progress,
         )
