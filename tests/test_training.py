@@ -86,7 +86,7 @@ def test_linear_learning_rate_decays_to_zero_over_the_budget() -> None:
     schedule = PPOParams(learning_rate=4e-4, lr_schedule="linear").learning_rate_schedule()
     assert callable(schedule)
     assert [schedule(p) for p in (1.0, 0.5, 0.0)] == [4e-4, 2e-4, 0.0]
-    assert PPOParams().learning_rate_schedule() == 5e-4
+    assert PPOParams(lr_schedule="constant").learning_rate_schedule() == 5e-4
     with pytest.raises(ValueError, match="lr_schedule must be one of"):
         PPOParams(lr_schedule="cosine")
 
@@ -118,6 +118,7 @@ def test_train_writes_loadable_model_and_evaluate_prints_table(
         "marking_model": "per_dash",
         "duration": 5.0,
         "vehicles_count": 5,
+        "collision_reward": -2.0,  # the training default
     }
     policy, _ = load_policy(out / "checkpoints" / "model_32_steps.zip")
     assert policy.vecnormalize is not None
@@ -249,7 +250,7 @@ def test_resume_after_interruption_continues_step_count(tmp_path: Path) -> None:
 def test_quick_cli_with_subprocess_envs(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     """``train --quick`` (2 subprocess envs) and ``evaluate --quick`` end to end."""
     out = tmp_path / "quick"
-    assert main(["train", "--quick", "--out", str(out), "--no-progress"]) == 0
+    assert main(["train", "--quick", "--n-envs", "2", "--out", str(out), "--no-progress"]) == 0
     assert PPO.load(out / "model.zip", device="cpu").num_timesteps == 1024
     assert main(["evaluate", "--quick", "--model", str(out / "model.zip"), "--no-progress"]) == 0
     assert capsys.readouterr().out.strip().splitlines()[-1].startswith("model (1024 steps")

@@ -82,6 +82,12 @@ BEST_VECNORM_FILE = "best_vecnormalize.pkl"
 VALIDATION_FILE = "validation.json"
 VALIDATION_PLOT = "validation.png"
 
+DEFAULT_TIMESTEPS = 49_152
+"""Default training budget [policy steps] (about 15 min on 2 cores, see docs/results.md)."""
+
+DEFAULT_COLLISION_REWARD = -2.0
+"""Collision weight of a training's reward (the env's default is -1; see docs/results.md)."""
+
 VALIDATION_SEED = 20_000
 """First seed of the validation episodes (training envs use ``seed ..``, evaluation 10000..)."""
 
@@ -121,7 +127,8 @@ class PPOParams:
     """PPO hyperparameters (SB3 names).
 
     Defaults follow highway-env's PPO example for the meta actions (``gamma`` 0.8:
-    at 1 Hz the reward of the next ~5 s matters; lr 5e-4, 10 epochs, batch 64).
+    at 1 Hz the reward of the next ~5 s matters; lr 5e-4, 10 epochs, batch 64), with
+    the learning rate decaying linearly (see ``docs/results.md`` (b) for why).
 
     :ivar n_steps: rollout length per environment [policy steps].
     :ivar lr_schedule: ``"constant"``, or ``"linear"``: ``learning_rate`` decays
@@ -137,7 +144,7 @@ class PPOParams:
     ent_coef: float = 0.01
     clip_range: float = 0.2
     net_arch: list[int] = field(default_factory=lambda: [128, 128])
-    lr_schedule: str = "constant"
+    lr_schedule: str = "linear"
 
     def __post_init__(self) -> None:
         if self.lr_schedule not in LR_SCHEDULES:
@@ -444,13 +451,13 @@ def train(
     *,
     detector: str = "aldm",
     marking_model: str = "per_dash",
-    timesteps: int = 20_000,
-    n_envs: int = 2,
+    timesteps: int = DEFAULT_TIMESTEPS,
+    n_envs: int = 1,
     seed: int = 0,
-    checkpoint_freq: int = 2_048,
+    checkpoint_freq: int = 4_096,
     duration: float | None = None,
     vehicles_count: int | None = None,
-    collision_reward: float | None = None,
+    collision_reward: float | None = DEFAULT_COLLISION_REWARD,
     params: PPOParams | None = None,
     validation_freq: int = 4_096,
     validation_episodes: int = 20,
@@ -467,6 +474,10 @@ def train(
     :param checkpoint_freq: save a checkpoint every this many steps [policy steps].
     :param duration, vehicles_count, collision_reward: env overrides (None: the env's
         defaults).
+
+    The defaults (one env, 49152 steps, collision weight -2, linearly decaying learning
+    rate) are the recipe of ``docs/results.md`` (b). It is sensitive to the rollout size:
+    two envs with the same or with halved rollouts missed the aim there.
     :param validation_freq: validate every this many steps (0: never) [policy steps].
     :param validation_episodes: episodes per validation (seeds ``VALIDATION_SEED ..``).
     :param callback: extra SB3 callback(s) (a list or one).
@@ -495,7 +506,8 @@ def train(
             raise FileNotFoundError(f"nothing to resume in {out}: no checkpoint or {TRAINING_FILE}")
         meta = json.loads(meta_path.read_text())
         config = meta["env_config"]
-        params = PPOParams(**meta["ppo"])
+        # Trainings written before lr_schedule existed ran with a constant rate.
+        params = PPOParams(**{"lr_schedule": "constant", **meta["ppo"]})
         model_path, vecnorm_path, done = found
         venv = make_vec_env(config, n_envs, seed + done)
         venv = VecNormalize.load(str(vecnorm_path), venv)
@@ -796,17 +808,23 @@ def add_train_arguments(parser: argparse.ArgumentParser) -> None:
         "--timesteps",
         type=positive_int,
         default=None,
-        help="total policy steps, counting steps before a resume (20000; --quick 1024)",
+        help=f"total policy steps, counting steps before a resume ({DEFAULT_TIMESTEPS}; "
+        f"--quick {QUICK_TIMESTEPS})",
     )
-    parser.add_argument("--n-envs", type=positive_int, default=2, help="parallel envs (2)")
+    parser.add_argument(
+        "--n-envs",
+        type=positive_int,
+        default=1,
+        help="parallel envs (1; more run in subprocesses, but change the results)",
+    )
     parser.add_argument(
         "--n-steps", type=positive_int, default=None, help="PPO rollout length per env (256)"
     )
     parser.add_argument(
         "--checkpoint-freq",
         type=positive_int,
-        default=2_048,
-        help="checkpoint every this many steps (2048)",
+        default=4_096,
+        help="checkpoint every this many steps (4096)",
     )
     parser.add_argument(
         "--gamma",
@@ -818,7 +836,7 @@ def add_train_arguments(parser: argparse.ArgumentParser) -> None:
         "--lr-schedule",
         choices=LR_SCHEDULES,
         default=None,
-        help="learning rate constant, or decaying linearly to 0 over --timesteps (constant)",
+        help="learning rate constant, or decaying linearly to 0 over --timesteps (linear)",
     )
     parser.add_argument(
         "--validation-freq",
@@ -843,7 +861,8 @@ def add_train_arguments(parser: argparse.ArgumentParser) -> None:
         "--collision-reward",
         type=float,
         default=None,
-        help="weight of the collision penalty in the reward (env: -1)",
+        help=f"weight of the collision penalty in the reward ({DEFAULT_COLLISION_REWARD}; "
+        "the env's default is -1)",
     )
     parser.add_argument("--seed", type=int, default=0, help="seed of envs and network (0)")
     parser.add_argument("--out", type=Path, default=Path("out/train"), help="output folder")
@@ -878,7 +897,7 @@ def add_evaluate_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run_train(args: argparse.Namespace) -> int:
     """``aldm-gym train``."""
-    timesteps = args.timesteps or (QUICK_TIMESTEPS if args.quick else 20_000)
+    timesteps = args.timesteps or (QUICK_TIMESTEPS if args.quick else DEFAULT_TIMESTEPS)
     n_steps = args.n_steps or (64 if args.quick else 256)
     validation_freq = args.validation_freq
     if validation_freq is None:
@@ -928,11 +947,13 @@ def run_train(args: argparse.Namespace) -> int:
             checkpoint_freq=args.checkpoint_freq,
             duration=args.duration or (10.0 if args.quick else None),
             vehicles_count=args.vehicles,
-            collision_reward=args.collision_reward,
+            collision_reward=(
+                DEFAULT_COLLISION_REWARD if args.collision_reward is None else args.collision_reward
+            ),
             params=PPOParams(
                 n_steps=n_steps,
                 gamma=PPOParams.gamma if args.gamma is None else args.gamma,
-                lr_schedule=args.lr_schedule or "constant",
+                lr_schedule=args.lr_schedule or PPOParams.lr_schedule,
             ),
             validation_freq=validation_freq,
             validation_episodes=validation_episodes,
