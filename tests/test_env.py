@@ -314,3 +314,7 @@ def test_lane_gaps_pick_nearest_vehicle_per_lane() -> None:
     np.testing.assert_array_equal(gaps[2], [100.0, 0.0, 100.0, 0.0])  # right: empty
     # Overlapping vehicles read a zero gap, never a negative one.
     assert lane_gaps(np.array([1.0]), np.array([2.0]), np.array([0.0]), 100.0)[1, 0] == 0.0
+    with pytest.raises(ValueError, match="one length"):
+        lane_gaps(codes, x[:3], vx, 100.0)
+    with pytest.raises(ValueError, match="finite"):
+        lane_gaps(codes, np.where(x > 30, np.nan, x), vx, 100.0)

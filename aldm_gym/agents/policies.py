@@ -13,12 +13,9 @@ from typing import Any
 import numpy as np
 
 from aldm_gym.envs.highway import FASTER, IDLE, LANE_LEFT, LANE_RIGHT, SLOWER
-from aldm_gym.envs.observation import LANE_EGO
+from aldm_gym.envs.observation import LANE_EGO, VEHICLE_LENGTH
 from aldm_gym.envs.observation import LANE_LEFT as CODE_LEFT
 from aldm_gym.envs.observation import LANE_RIGHT as CODE_RIGHT
-
-VEHICLE_LENGTH = 5.0
-"""highway-env's vehicle length [m]."""
 
 
 def _batched(observation: dict[str, Any]) -> bool:

@@ -156,7 +156,15 @@ def lane_gaps(
     :param vx: ``(N,)`` longitudinal speeds relative to the ego [m/s].
     :return: ``(3, 4)``: front gap [m], front relative vx [m/s], rear gap [m], rear
         relative vx [m/s]; gaps ``perception_distance`` and speeds 0 where no vehicle.
+    :raises ValueError: arrays of different shapes, or non-finite x / vx.
     """
+    codes, x, vx = (np.asarray(a, dtype=np.float64) for a in (codes, x, vx))
+    if not (codes.ndim == 1 and codes.shape == x.shape == vx.shape):
+        raise ValueError(
+            f"codes, x and vx must be 1-D of one length, got {codes.shape}, {x.shape}, {vx.shape}"
+        )
+    if not (np.all(np.isfinite(x)) and np.all(np.isfinite(vx))):
+        raise ValueError("x and vx must be finite")
     pd = perception_distance
     out = np.tile(np.array([pd, 0.0, pd, 0.0]), (3, 1))
     for row, code in enumerate(LANE_ROWS):
