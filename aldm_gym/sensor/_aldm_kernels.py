@@ -976,6 +976,28 @@ def _robust_seeds_py(xs, ys, m, fp, ip, lam_a, lam_b, label, offsets):
 _robust_seeds = numba.njit(cache=True)(_robust_seeds_py)
 
 
+def _drop_sums_py(s0, s1, s2, s3, s4, t0, t1, t2, u, y):
+    """The running fit sums without the point ``(u, y)`` (u = x - x_last) [m].
+
+    ``s_k = Σ u^k`` (k = 0..4) and ``t_k = Σ u^k y`` (k = 0..2) of the points in the
+    fit window; the inverse of adding a point.
+    """
+    uu = u * u
+    return (
+        s0 - 1.0,
+        s1 - u,
+        s2 - uu,
+        s3 - uu * u,
+        s4 - uu * uu,
+        t0 - y,
+        t1 - u * y,
+        t2 - uu * y,
+    )
+
+
+_drop_sums = numba.njit(cache=True, inline="always")(_drop_sums_py)
+
+
 def _robust_trace_py(xs, ys, first, last, a0, b0, fp, lam_a, lam_b, guide, grid, mask, bit):
     """Trace one line forward from its seed with a gated ridge quadratic (robust).
 
@@ -1069,17 +1091,9 @@ def _robust_trace_py(xs, ys, first, last, a0, b0, fp, lam_a, lam_b, guide, grid,
         # of the new point is about to be overwritten) ...
         while head + 1 - lo > HIST:
             j = hist[lo % HIST]
-            u = xs[j] - x_last
-            y = ys[j]
-            uu = u * u
-            s0 -= 1.0
-            s1 -= u
-            s2 -= uu
-            s3 -= uu * u
-            s4 -= uu * uu
-            t0 -= y
-            t1 -= u * y
-            t2 -= uu * y
+            s0, s1, s2, s3, s4, t0, t1, t2 = _drop_sums(
+                s0, s1, s2, s3, s4, t0, t1, t2, xs[j] - x_last, ys[j]
+            )
             lo += 1
         mask[best] |= bit
         hist[head % HIST] = best
@@ -1099,17 +1113,9 @@ def _robust_trace_py(xs, ys, first, last, a0, b0, fp, lam_a, lam_b, guide, grid,
         t0 += ys[best]
         while xs[hist[lo % HIST]] - x_last < -fit_length:
             j = hist[lo % HIST]
-            u = xs[j] - x_last
-            y = ys[j]
-            uu = u * u
-            s0 -= 1.0
-            s1 -= u
-            s2 -= uu
-            s3 -= uu * u
-            s4 -= uu * uu
-            t0 -= y
-            t1 -= u * y
-            t2 -= uu * y
+            s0, s1, s2, s3, s4, t0, t1, t2 = _drop_sums(
+                s0, s1, s2, s3, s4, t0, t1, t2, xs[j] - x_last, ys[j]
+            )
             lo += 1
         if lo == head - 1:  # the new point alone: the sums are exact, drop the residue
             s0 = 1.0
