@@ -228,6 +228,50 @@ def _inv3_py(m, inv):
 _inv3 = numba.njit(cache=True)(_inv3_py)
 
 
+def _add_sums_py(s0, s1, s2, s3, s4, t0, t1, t2, u, y):
+    """The running fit sums with the point ``(u, y)`` added (u = x - x_last) [m].
+
+    ``s_k = Σ u^k`` (k = 0..4) and ``t_k = Σ u^k y`` (k = 0..2): the normal equations
+    of the quadratic fit ``y = A u² + B u + C``.
+    """
+    uu = u * u
+    return (
+        s0 + 1.0,
+        s1 + u,
+        s2 + uu,
+        s3 + uu * u,
+        s4 + uu * uu,
+        t0 + y,
+        t1 + u * y,
+        t2 + uu * y,
+    )
+
+
+_add_sums = numba.njit(cache=True, inline="always")(_add_sums_py)
+
+
+def _drop_sums_py(s0, s1, s2, s3, s4, t0, t1, t2, u, y):
+    """The running fit sums without the point ``(u, y)`` (u = x - x_last) [m].
+
+    ``s_k = Σ u^k`` (k = 0..4) and ``t_k = Σ u^k y`` (k = 0..2) of the points in the
+    fit window; the inverse of :func:`_add_sums_py`.
+    """
+    uu = u * u
+    return (
+        s0 - 1.0,
+        s1 - u,
+        s2 - uu,
+        s3 - uu * u,
+        s4 - uu * uu,
+        t0 - y,
+        t1 - u * y,
+        t2 - uu * y,
+    )
+
+
+_drop_sums = numba.njit(cache=True, inline="always")(_drop_sums_py)
+
+
 def _ridge_quadratic_py(us, ys, n, a0, b0, lam_a, lam_b, a_max, work):
     """Ridge least-squares quadratic ``y = A u^2 + B u + C`` through ``n`` points.
 
@@ -250,17 +294,7 @@ def _ridge_quadratic_py(us, ys, n, a0, b0, lam_a, lam_b, a_max, work):
     t1 = 0.0
     t2 = 0.0
     for k in range(n):
-        u = us[k]
-        y = ys[k]
-        uu = u * u
-        s0 += 1.0
-        s1 += u
-        s2 += uu
-        s3 += uu * u
-        s4 += uu * uu
-        t0 += y
-        t1 += u * y
-        t2 += uu * y
+        s0, s1, s2, s3, s4, t0, t1, t2 = _add_sums(s0, s1, s2, s3, s4, t0, t1, t2, us[k], ys[k])
     return _ridge_solve(s0, s1, s2, s3, s4, t0, t1, t2, a0, b0, lam_a, lam_b, a_max, work)
 
 
@@ -976,28 +1010,6 @@ def _robust_seeds_py(xs, ys, m, fp, ip, lam_a, lam_b, label, offsets):
 _robust_seeds = numba.njit(cache=True)(_robust_seeds_py)
 
 
-def _drop_sums_py(s0, s1, s2, s3, s4, t0, t1, t2, u, y):
-    """The running fit sums without the point ``(u, y)`` (u = x - x_last) [m].
-
-    ``s_k = Σ u^k`` (k = 0..4) and ``t_k = Σ u^k y`` (k = 0..2) of the points in the
-    fit window; the inverse of adding a point.
-    """
-    uu = u * u
-    return (
-        s0 - 1.0,
-        s1 - u,
-        s2 - uu,
-        s3 - uu * u,
-        s4 - uu * uu,
-        t0 - y,
-        t1 - u * y,
-        t2 - uu * y,
-    )
-
-
-_drop_sums = numba.njit(cache=True, inline="always")(_drop_sums_py)
-
-
 def _robust_trace_py(xs, ys, first, last, a0, b0, fp, lam_a, lam_b, guide, grid, mask, bit):
     """Trace one line forward from its seed with a gated ridge quadratic (robust).
 
@@ -1054,17 +1066,9 @@ def _robust_trace_py(xs, ys, first, last, a0, b0, fp, lam_a, lam_b, guide, grid,
     t2 = 0.0
     for q in range(head - 1, lo - 1, -1):
         j = hist[q % HIST]
-        u = xs[j] - x_last
-        y = ys[j]
-        uu = u * u
-        s0 += 1.0
-        s1 += u
-        s2 += uu
-        s3 += uu * u
-        s4 += uu * uu
-        t0 += y
-        t1 += u * y
-        t2 += uu * y
+        s0, s1, s2, s3, s4, t0, t1, t2 = _add_sums(
+            s0, s1, s2, s3, s4, t0, t1, t2, xs[j] - x_last, ys[j]
+        )
     while True:
         # Priors: the guide's shape at x_last, else the start region's common shape.
         pa = a0
