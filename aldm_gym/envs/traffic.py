@@ -530,6 +530,19 @@ class FastRoad(Road):
         self._sorted[key] = entry
         return entry
 
+    def _edge_lanes(
+        self, lane_index: LaneIndex, qualifies: Callable[[AbstractLane], bool]
+    ) -> list[AbstractLane] | None:
+        """The lanes of ``lane_index``'s edge if it exists and every lane qualifies, else None."""
+        _from, _to, _ = lane_index
+        try:
+            lanes = self.network.graph[_from][_to]
+        except (KeyError, TypeError):
+            return None
+        if not lanes or not all(qualifies(lane) for lane in lanes):
+            return None
+        return lanes
+
     def _build_straight_edge(self, lane_index: LaneIndex) -> bool:
         """Sorted neighbours of every lane of ``lane_index``'s edge in one numpy pass.
 
@@ -540,11 +553,8 @@ class FastRoad(Road):
         :return: False (nothing built) if the edge does not qualify.
         """
         _from, _to, _ = lane_index
-        try:
-            lanes = self.network.graph[_from][_to]
-        except (KeyError, TypeError):
-            return False
-        if not lanes or not all(_is_plain_straight(lane) for lane in lanes):
+        lanes = self._edge_lanes(lane_index, _is_plain_straight)
+        if lanes is None:
             return False
         items = self._items
         n = len(items)
@@ -605,11 +615,8 @@ class FastRoad(Road):
         :return: False (nothing built) if the edge does not qualify.
         """
         _from, _to, _ = lane_index
-        try:
-            lanes = self.network.graph[_from][_to]
-        except (KeyError, TypeError):
-            return False
-        if not lanes or not all(type(lane) is ReferenceLane for lane in lanes):
+        lanes = self._edge_lanes(lane_index, lambda lane: type(lane) is ReferenceLane)
+        if lanes is None:
             return False
         reference = lanes[0].reference
         if any(lane.reference is not reference for lane in lanes):
