@@ -303,9 +303,11 @@ def test_lanes_summary_matches_ground_truth_gaps() -> None:
 
 
 def test_lane_gaps_pick_nearest_vehicle_per_lane() -> None:
-    from aldm_gym.envs.observation import LANE_EGO, LANE_LEFT, LANE_OTHER, lane_gaps
+    from aldm_gym.envs.observation import LaneCode, lane_gaps
 
-    codes = np.array([LANE_EGO, LANE_EGO, LANE_LEFT, LANE_EGO, LANE_OTHER], dtype=float)
+    codes = np.array(
+        [LaneCode.EGO, LaneCode.EGO, LaneCode.LEFT, LaneCode.EGO, LaneCode.OTHER], dtype=float
+    )
     x = np.array([40.0, 20.0, -30.0, -12.0, 8.0])
     vx = np.array([1.0, -2.0, 3.0, 4.0, -9.0])
     gaps = lane_gaps(codes, x, vx, 100.0)

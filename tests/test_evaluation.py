@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from aldm_gym.agents.evaluation import EpisodeStats, run_episode, summarize
-from aldm_gym.envs.highway import IDLE, LANE_LEFT, LANE_RIGHT
+from aldm_gym.envs.actions import MetaAction
 
 
 class _Unwrapped:
@@ -72,7 +72,7 @@ def test_known_departures_offsets_and_distance() -> None:
         mk(arc_length=75.0, lateral_offset=0.2),
         mk(arc_length=100.0, lateral_offset=-1.2, lane_departure=True, crashed=True),
     ]
-    st = run_episode(ScriptedEnv(infos), ScriptedPolicy([IDLE] * 4), seed=0)
+    st = run_episode(ScriptedEnv(infos), ScriptedPolicy([MetaAction.IDLE] * 4), seed=0)
     assert st.distance == 100.0 and st.steps == 4
     assert st.departures == 2 and st.collided and not st.success
     row = summarize([st])
@@ -86,19 +86,27 @@ def test_known_departures_offsets_and_distance() -> None:
 def test_lane_change_outcomes_are_judged_by_ground_truth() -> None:
     mk = ScriptedEnv._info
     infos = [
-        # LANE_LEFT accepted, completes in lane 0: ok.
+        # MetaAction.LANE_LEFT accepted, completes in lane 0: ok.
         mk(arc_length=25.0, lane_change=1, lane_index=1),
         mk(arc_length=50.0, lane_changes_completed=1, lane_index=0),
-        # LANE_RIGHT refused: failed.
+        # MetaAction.LANE_RIGHT refused: failed.
         mk(arc_length=75.0, lane_changes_completed=1, lane_index=0, lane_change_refused=True),
-        # LANE_RIGHT accepted, aborted: failed.
+        # MetaAction.LANE_RIGHT accepted, aborted: failed.
         mk(arc_length=100.0, lane_changes_completed=1, lane_index=0, lane_change=-1),
         mk(arc_length=125.0, lane_changes_completed=1, lane_changes_aborted=1, lane_index=0),
-        # LANE_RIGHT accepted, "completes" but ends two lanes over: failed.
+        # MetaAction.LANE_RIGHT accepted, "completes" but ends two lanes over: failed.
         mk(arc_length=150.0, lane_changes_completed=1, lane_changes_aborted=1, lane_change=-1),
         mk(arc_length=175.0, lane_changes_completed=2, lane_changes_aborted=1, lane_index=2),
     ]
-    actions = [LANE_LEFT, IDLE, LANE_RIGHT, LANE_RIGHT, IDLE, LANE_RIGHT, IDLE]
+    actions = [
+        MetaAction.LANE_LEFT,
+        MetaAction.IDLE,
+        MetaAction.LANE_RIGHT,
+        MetaAction.LANE_RIGHT,
+        MetaAction.IDLE,
+        MetaAction.LANE_RIGHT,
+        MetaAction.IDLE,
+    ]
     st = run_episode(ScriptedEnv(infos), ScriptedPolicy(actions), seed=0)
     assert st.lane_changes_ok == 1
     assert st.lane_changes_failed == 3
@@ -114,7 +122,13 @@ def test_both_correct_and_preview() -> None:
         mk(arc_length=10.0, detection={"ego_left": ok, "ego_right": ok}),
         mk(arc_length=20.0, detection={"ego_left": ok, "ego_right": miss}),
     ]
-    row = summarize([run_episode(ScriptedEnv(infos), ScriptedPolicy([IDLE, IDLE]), seed=0)])
+    row = summarize(
+        [
+            run_episode(
+                ScriptedEnv(infos), ScriptedPolicy([MetaAction.IDLE, MetaAction.IDLE]), seed=0
+            )
+        ]
+    )
     assert row["both_correct"] == 0.5
     assert row["mean_preview_m"] == pytest.approx((100 + 100 + 100 + 0) / 4)
 

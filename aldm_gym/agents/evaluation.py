@@ -13,7 +13,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from aldm_gym.envs.highway import LANE_LEFT, LANE_RIGHT
+from aldm_gym.envs.actions import MetaAction
 
 
 class Policy(Protocol):
@@ -115,11 +115,17 @@ def run_episode(env: Any, policy: Policy, seed: int, max_steps: int | None = Non
         det = info["detection"]
         stats.both_correct += int(det["ego_left"]["correct"] and det["ego_right"]["correct"])
         stats.previews += [det["ego_left"]["preview"], det["ego_right"]["preview"]]
-        if isinstance(action, int) and action in (LANE_LEFT, LANE_RIGHT) and pending is None:
+        if (
+            isinstance(action, int)
+            and action in (MetaAction.LANE_LEFT, MetaAction.LANE_RIGHT)
+            and pending is None
+        ):
             if info["lane_change_refused"]:
                 stats.lane_changes_failed += 1
             elif info["lane_change"] != 0 or info["lane_changes_completed"] > completed_before:
-                direction = -1 if action == LANE_LEFT else 1  # lane ids grow to the right
+                direction = (
+                    -1 if action == MetaAction.LANE_LEFT else 1
+                )  # lane ids grow to the right
                 pending = (direction, lane_before, completed_before)
         if pending is not None:
             direction, start, count = pending

@@ -12,10 +12,8 @@ from typing import Any
 
 import numpy as np
 
-from aldm_gym.envs.highway import FASTER, IDLE, LANE_LEFT, LANE_RIGHT, SLOWER
-from aldm_gym.envs.observation import LANE_EGO, VEHICLE_LENGTH
-from aldm_gym.envs.observation import LANE_LEFT as CODE_LEFT
-from aldm_gym.envs.observation import LANE_RIGHT as CODE_RIGHT
+from aldm_gym.envs.actions import MetaAction
+from aldm_gym.envs.observation import VEHICLE_LENGTH, LaneCode
 
 
 def _batched(observation: dict[str, Any]) -> bool:
@@ -27,7 +25,7 @@ def _unbatch(observation: dict[str, Any], i: int) -> dict[str, Any]:
 
 
 class IdlePolicy:
-    """Always IDLE: lane keeping on the detected lanes at the current target speed."""
+    """Always MetaAction.IDLE: lane keeping on the detected lanes at the current target speed."""
 
     def predict(
         self,
@@ -36,10 +34,10 @@ class IdlePolicy:
         episode_start: Any = None,
         deterministic: bool = True,
     ) -> tuple[np.ndarray | np.int64, Any]:
-        """``(IDLE, state)``; a batch of IDLEs for a batched observation."""
+        """``(MetaAction.IDLE, state)``; a batch of IDLEs for a batched observation."""
         if _batched(observation):
-            return np.full(np.asarray(observation["ego"]).shape[0], IDLE), state
-        return np.int64(IDLE), state
+            return np.full(np.asarray(observation["ego"]).shape[0], MetaAction.IDLE), state
+        return np.int64(MetaAction.IDLE), state
 
 
 @dataclass
@@ -104,8 +102,8 @@ class RuleBasedLCA:
         valid = np.asarray(observation["line_valid"]) > 0.5
         veh = np.asarray(observation["vehicles"], dtype=np.float64)
         if ego[3] != 0:  # a lane change is under way
-            return IDLE
-        lead = self._lead(veh, LANE_EGO)
+            return MetaAction.IDLE
+        lead = self._lead(veh, LaneCode.EGO)
         blocked = lead is not None and (
             lead[0] - VEHICLE_LENGTH < self.front_gap or lead[1] < -self.slower_by
         )
@@ -115,26 +113,26 @@ class RuleBasedLCA:
             and ready
             and valid[0]
             and valid[1]
-            and self._free(veh, CODE_LEFT, self.left_clear)
+            and self._free(veh, LaneCode.LEFT, self.left_clear)
         ):
-            left_lead = self._lead(veh, CODE_LEFT)
+            left_lead = self._lead(veh, LaneCode.LEFT)
             if left_lead is None or left_lead[0] > lead[0] + 10.0:  # type: ignore[index]
                 self._since = 0
-                return LANE_LEFT
+                return MetaAction.LANE_LEFT
         if (
             not blocked
             and ready
             and valid[2]
             and valid[3]
-            and self._free(veh, CODE_RIGHT, self.right_clear)
+            and self._free(veh, LaneCode.RIGHT, self.right_clear)
         ):
             self._since = 0
-            return LANE_RIGHT
+            return MetaAction.LANE_RIGHT
         if lead is not None and lead[0] - VEHICLE_LENGTH < 0.5 * self.front_gap and lead[1] < 0:
-            return SLOWER
+            return MetaAction.SLOWER
         if lead is None or lead[0] - VEHICLE_LENGTH > 2 * self.front_gap:
-            return FASTER
-        return IDLE
+            return MetaAction.FASTER
+        return MetaAction.IDLE
 
     def predict(
         self,

@@ -35,6 +35,7 @@ a learning agent needs most: "is my lane blocked, is the next one free".
 from __future__ import annotations
 
 import math
+from enum import IntEnum
 from typing import Any
 
 import numpy as np
@@ -52,10 +53,17 @@ LINE_BOUND = 250.0
 SPEED_BOUND = 80.0
 """Bound of speeds and relative speeds [m/s]."""
 
-LANE_OTHER, LANE_EGO, LANE_LEFT, LANE_RIGHT = 0, 1, 2, 3
-"""Lane codes of the ``vehicles`` observation."""
 
-LANE_ROWS = (LANE_LEFT, LANE_EGO, LANE_RIGHT)
+class LaneCode(IntEnum):
+    """Lane of a vehicle per the *detected* lines (the ``vehicles`` observation's last column)."""
+
+    OTHER = 0  # beyond the detected lanes, or the lines are not detected
+    EGO = 1
+    LEFT = 2
+    RIGHT = 3
+
+
+LANE_ROWS = (LaneCode.LEFT, LaneCode.EGO, LaneCode.RIGHT)
 """Lane code of each row of the ``lanes`` observation."""
 
 VEHICLE_LENGTH = 5.0
@@ -126,22 +134,22 @@ def assign_lanes(
 
     A point between the ego lines is in the ego lane; between ``ego_left`` and
     ``left_adjacent`` in the left lane; likewise on the right. Without both ego lines
-    every point is ``LANE_OTHER`` (unknown).
+    every point is ``LaneCode.OTHER`` (unknown).
 
     :param detection_lines: line name -> ``(K, 2)`` points (empty when missing).
     :return: ``(N,)`` float codes.
     """
-    codes = np.full(len(x), float(LANE_OTHER))
+    codes = np.full(len(x), float(LaneCode.OTHER))
     el, er = detection_lines["ego_left"], detection_lines["ego_right"]
     if len(el) < 2 or len(er) < 2 or len(x) == 0:
         return codes
     yl, yr = eval_line(el, x), eval_line(er, x)
-    codes[(y < yl) & (y > yr)] = LANE_EGO
+    codes[(y < yl) & (y > yr)] = LaneCode.EGO
     la, ra = detection_lines["left_adjacent"], detection_lines["right_adjacent"]
     if len(la) >= 2:
-        codes[(y >= yl) & (y < eval_line(la, x))] = LANE_LEFT
+        codes[(y >= yl) & (y < eval_line(la, x))] = LaneCode.LEFT
     if len(ra) >= 2:
-        codes[(y <= yr) & (y > eval_line(ra, x))] = LANE_RIGHT
+        codes[(y <= yr) & (y > eval_line(ra, x))] = LaneCode.RIGHT
     return codes
 
 
