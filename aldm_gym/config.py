@@ -1,19 +1,190 @@
 """Validated configuration: unknown keys and impossible values raise ``ValueError``.
 
-Every configurable component (road generator, line sensor, detector, environment)
-declares its defaults as a frozen dataclass. :func:`build_config` turns a user's
-mapping into an instance, naming any unknown key together with the allowed ones,
-so that a misspelled key can never be silently ignored.
+Every configurable component (road generator, line sensor, ALDM, LKA, the env's
+action / observation sections and the env itself) declares its settings as a frozen
+dataclass whose fields carry their default *and* their rule, once::
+
+    @dataclass(frozen=True)
+    class RoadConfig:
+        lanes_count: int = setting(4, lo=1, hi=6, integer=True)
+        max_radius: float = setting(3000.0, lo="min_radius")   # bound by another field
+
+        def __post_init__(self) -> None:
+            validate(self, "road")
+
+:func:`validate` is the one validator for all of them: finite numbers within their
+range (numpy scalars accepted and turned into Python numbers), integers, booleans,
+choices, ``(min, max)`` pairs and number lists, ``None`` where allowed; the message
+names ``section.key``. :func:`build_config` turns a user's mapping into an instance,
+naming any unknown key together with the allowed ones, so that a misspelled key can
+never be silently ignored. Rules that relate several fields in other ways stay in
+the class's ``__post_init__``, after :func:`validate`.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
+import numbers
 from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import Any, TypeVar
 
+import numpy as np
+
 T = TypeVar("T")
+
+Bound = float | str | None
+"""A range bound: a number, the name of another field of the same config, or none."""
+
+
+@dataclass(frozen=True)
+class Rule:
+    """What a config field accepts (stored in the field's ``metadata["rule"]``).
+
+    :ivar kind: ``"number"`` (int or float), ``"bool"``, ``"str"``, ``"choice"``,
+        ``"pair"`` (a (min, max) pair of numbers, min <= max), ``"numbers"`` (a
+        non-empty sequence of numbers), ``"any"`` (checked by the owner).
+    :ivar lo, hi: inclusive bounds of numbers (of every item for pairs and lists);
+        a string names another field whose value is the bound.
+    :ivar lo_open: exclude ``lo`` itself.
+    :ivar integer: numbers must be integral.
+    :ivar choices: allowed values of a ``"choice"``.
+    :ivar optional: ``None`` is allowed.
+    :ivar increasing: a ``"numbers"`` list must be sorted ascending.
+    """
+
+    kind: str = "number"
+    lo: Bound = None
+    hi: Bound = None
+    lo_open: bool = False
+    integer: bool = False
+    choices: tuple[Any, ...] = ()
+    optional: bool = False
+    increasing: bool = False
+
+
+def setting(default: Any = dataclasses.MISSING, **rule: Any) -> Any:
+    """A dataclass field with its default and its :class:`Rule` (keyword arguments).
+
+    The kind is inferred when not given: ``bool`` defaults are ``"bool"``, ``str``
+    defaults with ``choices`` are ``"choice"``, list defaults are ``"numbers"``
+    (copied per instance), everything else ``"number"``.
+    """
+    if "kind" not in rule:
+        if isinstance(default, bool):
+            rule["kind"] = "bool"
+        elif "choices" in rule:
+            rule["kind"] = "choice"
+        elif isinstance(default, str):
+            rule["kind"] = "str"
+        elif isinstance(default, list):
+            rule["kind"] = "numbers"
+    if "choices" in rule:
+        rule["choices"] = tuple(rule["choices"])
+    meta = {"rule": Rule(**rule)}
+    if isinstance(default, list):
+        frozen = list(default)
+        return dataclasses.field(default_factory=lambda: list(frozen), metadata=meta)
+    return dataclasses.field(default=default, metadata=meta)
+
+
+def is_number(value: Any) -> bool:
+    """A real number (Python or numpy), not a bool."""
+    return isinstance(value, numbers.Real) and not isinstance(value, bool | np.bool_)
+
+
+def _plain(value: Any) -> Any:
+    """A numpy scalar as the Python number it holds; anything else unchanged."""
+    if isinstance(value, numbers.Integral) and not isinstance(value, int | bool):
+        return int(value)
+    if isinstance(value, numbers.Real) and not isinstance(value, int | float | bool):
+        return float(value)
+    return value
+
+
+def _bound(obj: Any, bound: Bound) -> float | None:
+    return getattr(obj, bound) if isinstance(bound, str) else bound
+
+
+def check_value(where: str, name: str, value: Any, rule: Rule, obj: Any = None) -> Any:
+    """Check ``value`` against ``rule``; return it normalised (numpy scalars made plain).
+
+    :param obj: the config holding the field, to resolve bounds that name fields.
+    :raises ValueError: naming ``where.name``, what is allowed and what was given.
+    """
+    if value is None and rule.optional:
+        return None
+    kind = rule.kind
+    lo, hi = _bound(obj, rule.lo), _bound(obj, rule.hi)
+    if kind == "any":
+        return value
+    if kind == "bool":
+        if isinstance(value, bool):
+            return value
+        if type(value).__name__ == "bool_":
+            return bool(value)
+        raise ValueError(f"{where}.{name} must be a bool, got {value!r}")
+    if kind == "choice":
+        if isinstance(value, str | numbers.Number) and value in rule.choices:
+            return _plain(value)
+        raise ValueError(f"{where}.{name} must be one of {list(rule.choices)}, got {value!r}")
+    if kind == "str":
+        if not isinstance(value, str):
+            raise ValueError(f"{where}.{name} must be a string, got {value!r}")
+        return value
+    if kind == "number":
+        value = _plain(value)
+        check_range(where, name, value, lo, hi, lo_open=rule.lo_open, integer=rule.integer)
+        return int(value) if rule.integer else value
+    if kind in ("pair", "numbers"):
+        if isinstance(value, str | bytes) or not hasattr(value, "__len__"):
+            raise ValueError(f"{where}.{name} must be a sequence of numbers, got {value!r}")
+        items = [_plain(v) for v in value]
+        if kind == "pair" and len(items) != 2:
+            raise ValueError(f"{where}.{name} must be a (min, max) pair, got {value!r}")
+        if not items:
+            raise ValueError(f"{where}.{name} must be a non-empty list, got {value!r}")
+        for k, v in enumerate(items):
+            check_range(
+                where, f"{name}[{k}]", v, lo, hi, lo_open=rule.lo_open, integer=rule.integer
+            )
+        if kind == "pair" and items[1] < items[0]:
+            raise ValueError(f"{where}.{name} must be (min, max) with min <= max, got {value!r}")
+        if rule.increasing and items != sorted(items):
+            raise ValueError(f"{where}.{name} must be increasing, got {value!r}")
+        return tuple(items) if kind == "pair" else items
+    raise TypeError(f"unknown rule kind {kind!r} for {where}.{name}")
+
+
+def validate(obj: Any, where: str) -> None:
+    """Check every field of config dataclass ``obj`` that declares a :class:`Rule`.
+
+    Fields are checked in declaration order, so a bound may name an earlier field.
+    Normalised values (numpy scalars made plain, pairs made tuples) are written back,
+    also on frozen dataclasses.
+
+    :param where: the section name for messages (``"road"``, ``"sensor"``, ...).
+    :raises ValueError: naming ``where.key`` and the rule it breaks.
+    """
+    for f in dataclasses.fields(obj):
+        rule = f.metadata.get("rule")
+        if rule is None:
+            continue
+        value = getattr(obj, f.name)
+        new = check_value(where, f.name, value, rule, obj)
+        if new is not value:
+            object.__setattr__(obj, f.name, new)
+
+
+def rules(cls: Any) -> dict[str, Rule]:
+    """Field name -> :class:`Rule` of a config dataclass (for docs and tests)."""
+    return {f.name: f.metadata["rule"] for f in dataclasses.fields(cls) if "rule" in f.metadata}
+
+
+def defaults(cls: Any) -> dict[str, Any]:
+    """Field name -> default value of a config dataclass (fresh copies)."""
+    return dataclasses.asdict(cls())
 
 
 def build_config(cls: type[T], overrides: Mapping[str, Any] | T | None, *, where: str) -> T:
@@ -59,10 +230,9 @@ def check_range(
     :param lo_open: exclude ``lo`` itself (``value > lo``).
     :param integer: require an integral value.
     """
-    ok_type = isinstance(value, int | float) and not isinstance(value, bool)
-    if not ok_type or not math.isfinite(float(value)):
+    if not is_number(value) or not math.isfinite(float(value)):
         raise ValueError(f"{where}.{name} must be a finite number, got {value!r}")
-    if integer and float(value) != int(value):
+    if integer and float(value) != math.floor(value):
         raise ValueError(f"{where}.{name} must be an integer, got {value!r}")
     if lo is not None and (value <= lo if lo_open else value < lo):
         op = ">" if lo_open else ">="

@@ -8,7 +8,22 @@ to the ego vehicle (:class:`~aldm_gym.envs.vehicle.SensorVehicle`).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from enum import IntEnum
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from gymnasium import spaces
+
+from aldm_gym.config import setting, validate
+
+if TYPE_CHECKING:
+    from highway_env.vehicle.kinematics import Vehicle
+
+    from aldm_gym.envs.highway import ALDMHighwayEnv
+
+ACTION_TYPES = ("DiscreteMetaAction", "ContinuousAction")
+"""Action types: highway-env's meta actions (via the LKA), or (steering, acceleration)."""
 
 
 class MetaAction(IntEnum):
@@ -26,3 +41,87 @@ ACTIONS_ALL: dict[int, str] = {int(a): a.name for a in MetaAction}
 
 LANE_CHANGES = frozenset({MetaAction.LANE_LEFT, MetaAction.LANE_RIGHT})
 """The meta actions that request a lane change."""
+
+
+@dataclass(frozen=True)
+class ActionConfig:
+    """The env's ``action`` section.
+
+    :ivar type: ``"DiscreteMetaAction"`` (:class:`MetaAction` through the LKA) or
+        ``"ContinuousAction"`` (steering [rad], acceleration [m/s²]).
+    :ivar target_speeds: the speeds FASTER/SLOWER step through [m/s], increasing.
+    :ivar lane_change_timeout: a lane change not completed after this is aborted [s].
+    :ivar max_acceleration: acceleration saturation, both signs [m/s²].
+    """
+
+    type: str = setting("DiscreteMetaAction", choices=ACTION_TYPES)
+    target_speeds: list[float] = setting([20.0, 25.0, 30.0], lo=0.0, hi=40.0, increasing=True)
+    lane_change_timeout: float = setting(8.0, lo=0.5, hi=60.0)
+    max_acceleration: float = setting(5.0, lo=0.0, lo_open=True, hi=20.0)
+
+    def __post_init__(self) -> None:
+        validate(self, "action")
+
+
+class ALDMAction:
+    """highway-env's ``ActionType`` for the env: the space, and acting on the ego.
+
+    Meta actions go to :meth:`SensorVehicle.set_meta_action
+    <aldm_gym.envs.vehicle.SensorVehicle.set_meta_action>` once per policy step;
+    continuous actions (clipped to the space) are held by the ego until the next one.
+    """
+
+    def __init__(self, env: ALDMHighwayEnv) -> None:
+        self.env = env
+        cfg = env.config
+        self.continuous = cfg["action"]["type"] == "ContinuousAction"
+        self.max_steering = float(env.lka.max_steering)
+        self.max_acceleration = float(cfg["action"]["max_acceleration"])
+        self.last_action: Any = None
+
+    def space(self) -> spaces.Space:
+        """``Discrete(5)`` or ``Box([-max_steer, -max_acc], [max_steer, max_acc])``."""
+        if self.continuous:
+            hi = np.array([self.max_steering, self.max_acceleration], dtype=np.float32)
+            return spaces.Box(-hi, hi, (2,), np.float32)
+        return spaces.Discrete(len(MetaAction))
+
+    @property
+    def vehicle_class(self) -> type:
+        """The ego vehicle class."""
+        from aldm_gym.envs.vehicle import SensorVehicle
+
+        return SensorVehicle
+
+    @property
+    def controlled_vehicle(self) -> Vehicle:
+        """The ego vehicle."""
+        return self.env.vehicle
+
+    def act(self, action: Any) -> None:
+        """Pass an agent action to the ego (once per policy step)."""
+        ego = self.env.vehicle
+        self.last_action = action
+        if self.continuous:
+            a = np.asarray(action, dtype=np.float64).reshape(-1)
+            if a.shape != (2,) or not np.all(np.isfinite(a)):
+                raise ValueError(f"continuous action must be 2 finite numbers, got {action!r}")
+            hi = np.array([self.max_steering, self.max_acceleration])
+            ego.command = np.clip(a, -hi, hi)
+        else:
+            a = int(np.asarray(action).reshape(-1)[0])
+            if not 0 <= a < len(MetaAction):
+                raise ValueError(f"meta action must be in [0, 4], got {action!r}")
+            ego.set_meta_action(a)
+
+    def is_lane_change(self, action: Any) -> bool:
+        """Whether ``action`` (as given to :meth:`act`) requests a lane change."""
+        return (
+            not self.continuous
+            and action is not None
+            and int(np.asarray(action).reshape(-1)[0]) in LANE_CHANGES
+        )
+
+    def get_available_actions(self) -> list[int]:
+        """All meta actions (refused ones are no-ops)."""
+        return [int(a) for a in MetaAction]

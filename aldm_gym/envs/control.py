@@ -20,17 +20,40 @@ converts.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
+from aldm_gym.config import setting, validate
+from aldm_gym.sensor.line_sensor import LineSensorConfig
 from aldm_gym.types import FloatArray
 
 WHEELBASE = 5.0
 """highway-env's ``Vehicle.LENGTH``, the wheelbase of its bicycle model [m]."""
 
-SENSOR_X = 1.0
-"""Default sensor position ahead of the vehicle centre [m] (``LineSensorConfig.mount_x``)."""
+
+@dataclass(frozen=True)
+class LKAConfig:
+    """The env's ``lka`` section: the lane keeping on the detected trajectory.
+
+    :ivar lookahead_time: look-ahead distance per unit speed [s].
+    :ivar min_lookahead: smallest look-ahead distance [m].
+    :ivar max_steering: steering saturation [rad].
+    :ivar path_range: the trajectory is fitted on the detected lines up to this x [m]
+        (``None``: the whole visible line). A cubic over 200 m of an R = 100 m curve
+        is metres off near the car, where the controller looks; 80 m (beyond the
+        paper's 60 m preview) keeps the path exact near the car on any radius the
+        road generator allows.
+    """
+
+    lookahead_time: float = setting(0.9, lo=0.0, hi=10.0)
+    min_lookahead: float = setting(10.0, lo=1.0, hi=200.0)
+    max_steering: float = setting(math.pi / 4, lo=0.0, hi=math.pi / 2)
+    path_range: float | None = setting(80.0, lo=10.0, hi=1000.0, optional=True)
+
+    def __post_init__(self) -> None:
+        validate(self, "lka")
 
 
 class LKAController:
@@ -55,11 +78,11 @@ class LKAController:
 
     def __init__(
         self,
-        lookahead_time: float = 0.9,
-        min_lookahead: float = 10.0,
-        max_steering: float = math.pi / 4,
+        lookahead_time: float = LKAConfig.lookahead_time,
+        min_lookahead: float = LKAConfig.min_lookahead,
+        max_steering: float = LKAConfig.max_steering,
         wheelbase: float = WHEELBASE,
-        sensor_x: float = SENSOR_X,
+        sensor_x: float = LineSensorConfig.mount_x,
         speed_gain: float = 1.0 / 0.6,
         target_speed: float | None = None,
     ) -> None:

@@ -6,289 +6,30 @@ See :class:`ALDMHighwayEnv`'s docstring (spaces, reward, episode end) and ``docs
 from __future__ import annotations
 
 import math
-from collections import OrderedDict
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
-from gymnasium import spaces
 from highway_env import utils
 from highway_env.envs.common.abstract import AbstractEnv
 from highway_env.vehicle.kinematics import Vehicle
 
+from aldm_gym.envs.actions import ALDMAction
 from aldm_gym.envs.config import default_config, merge_config, road_config
 from aldm_gym.envs.control import LKAController
-from aldm_gym.envs.observation import build_observation, observation_space
-from aldm_gym.envs.traffic import BatchedLaneUpdate, FastControlledVehicle, FastRoad, _clip
-from aldm_gym.roads.highway import HighwayRoad, RoadConfig
-from aldm_gym.sensor.detection import LaneDetection, driving_trajectory
+from aldm_gym.envs.observation import ALDMObservation
+from aldm_gym.envs.traffic import FastRoad
+from aldm_gym.envs.vehicle import SensorVehicle, near_path
+from aldm_gym.roads.cache import cached_road
+from aldm_gym.roads.highway import HighwayRoad
+from aldm_gym.sensor.detection import LaneDetection
+from aldm_gym.sensor.detectors import Detector, make_detector
 from aldm_gym.sensor.frame import SensorFrame
-from aldm_gym.sensor.ground_truth import ground_truth_detect, score_detection
-from aldm_gym.sensor.line_sensor import LineSensor
-from aldm_gym.sensor.naive import naive_detect
-from aldm_gym.types import FloatArray
-
-LANE_LEFT, IDLE, LANE_RIGHT, FASTER, SLOWER = 0, 1, 2, 3, 4
-"""highway-env's ``DiscreteMetaAction`` indices."""
+from aldm_gym.sensor.ground_truth import score_detection
+from aldm_gym.sensor.line_sensor import LineSensor, LineSensorConfig
 
 ROAD_END_MARGIN = 250.0
 """The episode is truncated when the ego is this close to the end of the road [m]."""
-
-_ROAD_CACHE: OrderedDict[RoadConfig, HighwayRoad] = OrderedDict()
-_ROAD_CACHE_SIZE = 8
-
-
-def _cached_road(config: RoadConfig) -> HighwayRoad:
-    """A :class:`HighwayRoad` per road config, shared across resets (roads are immutable)."""
-    road = _ROAD_CACHE.get(config)
-    if road is None:
-        road = HighwayRoad(config)
-        _ROAD_CACHE[config] = road
-        while len(_ROAD_CACHE) > _ROAD_CACHE_SIZE:
-            _ROAD_CACHE.popitem(last=False)
-    else:
-        _ROAD_CACHE.move_to_end(config)
-    return road
-
-
-def near_path(left: FloatArray, right: FloatArray, lane_width: float, max_x: float) -> FloatArray:
-    """Driving path midway between two lines, fitted on their part up to ``max_x`` [m].
-
-    :func:`~aldm_gym.sensor.detection.driving_trajectory` fits one cubic over the
-    whole visible line (up to 200 m); in a tight curve (R = 100 m the marking turns
-    sideways within the view) that cubic is off by metres near the car, where the
-    controller looks. Fitting only the first ``max_x`` metres (default 80 m, beyond
-    the paper's 60 m preview) keeps the path exact near the car on any radius the
-    road generator allows. A line keeps at least its first 4 points.
-    """
-
-    def cut(line: FloatArray) -> FloatArray:
-        if len(line) <= 4:
-            return line
-        k = max(int(np.searchsorted(line[:, 0], max_x, side="right")), 4)
-        return line[:k]
-
-    return driving_trajectory(cut(left), cut(right), lane_width)
-
-
-class SensorVehicle(BatchedLaneUpdate, Vehicle):
-    """The ego vehicle: laterally controlled only from the detected lanes.
-
-    highway-env's kinematic bicycle (``Vehicle``) with its ``lane_index``
-    bookkeeping (traffic needs it), but :meth:`act` steers with the
-    :class:`~aldm_gym.envs.control.LKAController` on ``self.detection`` (set by the
-    environment after every simulation step), never on the true lane.
-
-    Meta actions: IDLE follows the detected trajectory; LANE_LEFT/RIGHT steer onto
-    the centre of the detected adjacent lane (midway between the ego line and the
-    adjacent line, cubic fits as for the trajectory) and are refused when that
-    adjacent line is not detected; FASTER/SLOWER step through ``target_speeds``.
-    The change is under way until the detection shows the ego centred in the new
-    lane (|y(0)| < ``LC_DONE_OFFSET``) or ``lane_change_timeout`` elapses.
-    """
-
-    LC_DONE_OFFSET = 0.3
-    """A lane change is complete when the new ego trajectory starts within this of 0 [m]."""
-
-    def __init__(
-        self,
-        road: Any,
-        position: Any,
-        heading: float = 0.0,
-        speed: float = 0.0,
-        lka: LKAController | None = None,
-        target_speeds: tuple[float, ...] = (20.0, 25.0, 30.0),
-        continuous: bool = False,
-        lane_change_timeout: float = 8.0,
-        max_acceleration: float = 5.0,
-        lane_width: float = 3.75,
-    ) -> None:
-        super().__init__(road, position, heading, speed)
-        self.lka = lka or LKAController()
-        self.target_speeds = np.asarray(target_speeds, dtype=np.float64)
-        self.speed_index = int(np.argmin(np.abs(self.target_speeds - speed)))
-        self.target_speed = float(self.target_speeds[self.speed_index])
-        self.continuous = continuous
-        self.lane_change_timeout = lane_change_timeout
-        self.max_acceleration = max_acceleration
-        self.lane_width = lane_width
-        self.detection: LaneDetection | None = None
-        self.trajectory: FloatArray = np.zeros((0, 2))
-        self.path_range = 80.0
-        self.command = np.zeros(2)  # continuous mode: (steering ISO [rad], acceleration)
-        self.steering_iso = 0.0
-        self.lane_change = 0  # +1 left, -1 right, 0 none
-        self.lane_change_elapsed = 0.0
-        self.lane_change_target_y = 0.0
-        self.lane_change_refused = False
-        self.lane_changes_completed = 0
-        self.lane_changes_aborted = 0  # lost the target lane or timed out
-        self.planned_path: FloatArray = np.zeros((0, 2))
-
-    # ------------------------------------------------------------------ actions
-    def set_meta_action(self, action: int) -> None:
-        """Apply a ``DiscreteMetaAction`` index (see the env docstring)."""
-        self.lane_change_refused = False
-        if action == FASTER:
-            self.speed_index = min(self.speed_index + 1, len(self.target_speeds) - 1)
-        elif action == SLOWER:
-            self.speed_index = max(self.speed_index - 1, 0)
-        elif action in (LANE_LEFT, LANE_RIGHT) and self.lane_change == 0:
-            direction = 1 if action == LANE_LEFT else -1
-            path = self._adjacent_path(direction)
-            if len(path) < 2:
-                self.lane_change_refused = True
-            else:
-                self.lane_change = direction
-                self.lane_change_elapsed = 0.0
-                self.lane_change_target_y = float(path[0, 1])
-        self.target_speed = float(self.target_speeds[self.speed_index])
-
-    def _adjacent_path(self, direction: int) -> FloatArray:
-        """Centre path of the detected adjacent lane (+1 left, -1 right), or empty."""
-        det = self.detection
-        if det is None:
-            return np.zeros((0, 2))
-        if direction > 0:
-            if not (det.found("left_adjacent") and det.found("ego_left")):
-                return np.zeros((0, 2))
-            return near_path(det.left_adjacent, det.ego_left, self.lane_width, self.path_range)
-        if not (det.found("right_adjacent") and det.found("ego_right")):
-            return np.zeros((0, 2))
-        return near_path(det.ego_right, det.right_adjacent, self.lane_width, self.path_range)
-
-    def _lateral_path(self) -> FloatArray:
-        """The path to follow now: the ego trajectory, or the lane-change target's centre."""
-        det = self.detection
-        if det is None:
-            return np.zeros((0, 2))
-        if self.lane_change == 0:
-            return self.trajectory
-        self.lane_change_elapsed += 1.0 / self.sim_frequency
-        # The detected lines are relabelled while the ego crosses the marking, so the
-        # target lane is tracked by continuity: the candidate centre whose offset at
-        # the sensor is nearest to where the target was at the previous step.
-        cands = [(0, self.trajectory), (1, self._adjacent_path(1)), (-1, self._adjacent_path(-1))]
-        cands = [(k, p) for k, p in cands if len(p) >= 2]
-        if not cands:
-            self.lane_change = 0
-            self.lane_changes_aborted += 1
-            return np.zeros((0, 2))
-        k, path = min(cands, key=lambda kp: abs(float(kp[1][0, 1]) - self.lane_change_target_y))
-        jump = abs(float(path[0, 1]) - self.lane_change_target_y)
-        timed_out = self.lane_change_elapsed > self.lane_change_timeout
-        if jump > 0.5 * self.lane_width or timed_out:
-            self.lane_change = 0  # lost the target lane or took too long: keep the lane
-            self.lane_changes_aborted += 1
-            return self.trajectory
-        self.lane_change_target_y = float(path[0, 1])
-        if k == 0 and abs(self.lane_change_target_y) < self.LC_DONE_OFFSET:
-            self.lane_change = 0
-            self.lane_changes_completed += 1
-        return path
-
-    sim_frequency = 10.0
-    """Simulation frequency [Hz] (set by the environment), for the lane-change clock."""
-
-    def act(self, action: dict | str | None = None) -> None:
-        """Compute (steering, acceleration) for the next simulation step from the detection."""
-        if isinstance(action, dict):  # a raw highway-env action (manual control, tests)
-            super().act(action)
-            return
-        if self.continuous:
-            steer_iso, accel = float(self.command[0]), float(self.command[1])
-            self.planned_path = self.trajectory
-        else:
-            path = self._lateral_path()
-            self.planned_path = path
-            steer = self.lka.steering(path, self.speed)
-            # No path: hold the last steering (a curve continues), like a driver briefly blind.
-            steer_iso = self.steering_iso if steer is None else steer
-            accel = self.lka.speed_gain * (self.target_speed - self.speed)
-        # np.clip's result for scalars with non-NaN bounds, without its ~4 µs dispatch.
-        max_steering = float(self.lka.max_steering)
-        max_acceleration = float(self.max_acceleration)
-        steer_iso = float(_clip(float(steer_iso), -max_steering, max_steering))
-        accel = float(_clip(float(accel), -max_acceleration, max_acceleration))
-        self.steering_iso = steer_iso
-        # highway-env's world: a positive steering angle turns towards the driver's right.
-        self.action = {"steering": -steer_iso, "acceleration": accel}
-
-    step = FastControlledVehicle.step
-    """``Vehicle.step``'s bicycle model with the same float operations, numpy-free
-    (:class:`~aldm_gym.envs.traffic.FastControlledVehicle`)."""
-
-    @property
-    def yaw_rate(self) -> float:
-        """Yaw rate [rad/s], ISO sign (> 0 turning left)."""
-        beta = math.atan(0.5 * math.tan(float(self.action["steering"])))
-        return -self.speed * math.sin(beta) / (0.5 * self.LENGTH)
-
-
-class _ActionType:
-    """highway-env ``ActionType`` protocol for the two action modes of the env."""
-
-    def __init__(self, env: ALDMHighwayEnv) -> None:
-        self.env = env
-        cfg = env.config
-        self.continuous = cfg["action"]["type"] == "ContinuousAction"
-        self.max_steering = float(env.lka.max_steering)
-        self.max_acceleration = float(cfg["action"]["max_acceleration"])
-        self.last_action: Any = None
-
-    def space(self) -> spaces.Space:
-        """``Discrete(5)`` or ``Box([-max_steer, -max_acc], [max_steer, max_acc])``."""
-        if self.continuous:
-            hi = np.array([self.max_steering, self.max_acceleration], dtype=np.float32)
-            return spaces.Box(-hi, hi, (2,), np.float32)
-        return spaces.Discrete(5)
-
-    @property
-    def vehicle_class(self) -> type:
-        """The ego vehicle class."""
-        return SensorVehicle
-
-    @property
-    def controlled_vehicle(self) -> Vehicle:
-        """The ego vehicle."""
-        return self.env.vehicle
-
-    def act(self, action: Any) -> None:
-        """Pass an agent action to the ego (once per policy step)."""
-        ego = self.env.vehicle
-        self.last_action = action
-        if self.continuous:
-            a = np.asarray(action, dtype=np.float64).reshape(-1)
-            if a.shape != (2,) or not np.all(np.isfinite(a)):
-                raise ValueError(f"continuous action must be 2 finite numbers, got {action!r}")
-            hi = np.array([self.max_steering, self.max_acceleration])
-            ego.command = np.clip(a, -hi, hi)
-        else:
-            a = int(np.asarray(action).reshape(-1)[0])
-            if not 0 <= a <= 4:
-                raise ValueError(f"meta action must be in [0, 4], got {action!r}")
-            ego.set_meta_action(a)
-
-    def get_available_actions(self) -> list[int]:
-        """All meta actions (refused ones are no-ops)."""
-        return [0, 1, 2, 3, 4]
-
-
-class _ObservationType:
-    """highway-env ``ObservationType`` protocol around :mod:`aldm_gym.envs.observation`."""
-
-    def __init__(self, env: ALDMHighwayEnv) -> None:
-        self.env = env
-        self.observer_vehicle = env.vehicle
-
-    def space(self) -> spaces.Space:
-        """See :func:`aldm_gym.envs.observation.observation_space`."""
-        o = self.env.config["observation"]
-        return observation_space(int(o["vehicles_count"]), float(o["perception_distance"]))
-
-    def observe(self) -> dict[str, np.ndarray]:
-        """The current observation."""
-        return self.env._observe()
 
 
 class ALDMHighwayEnv(AbstractEnv):
@@ -385,12 +126,11 @@ class ALDMHighwayEnv(AbstractEnv):
         self.frame: SensorFrame | None = None
         self.detection: LaneDetection | None = None
         self.lka = LKAController()
-        self._detector: Callable[[SensorFrame], LaneDetection] | None = None
+        self._detector: Detector | None = None
         self._departed_step = False
         self._departures = 0
         self._truth = (0.0, 0.0, 0)  # s, lateral offset, lane id
         self._s_before = 0.0
-        self._path_range: float | None = 80.0
         super().__init__(dict(config) if config else None, render_mode)
 
     # ------------------------------------------------------------------ config
@@ -408,16 +148,19 @@ class ALDMHighwayEnv(AbstractEnv):
         if self.config["offscreen_rendering"] is None:
             self.config["offscreen_rendering"] = self.render_mode != "human"
         lka = dict(self.config["lka"])
-        self._path_range = lka.pop("path_range", 80.0)
-        self.lka = LKAController(**lka, sensor_x=self._sensor_x())
+        lka.pop("path_range")
+        mount_x = LineSensorConfig(**self.config["sensor"]).mount_x
+        self.lka = LKAController(**lka, sensor_x=float(mount_x))
 
-    def _sensor_x(self) -> float:
-        return float(self.config["sensor"].get("mount_x", 1.0))
+    @property
+    def path_range(self) -> float | None:
+        """The trajectory is fitted on the detected lines up to this x [m] (``lka.path_range``)."""
+        return self.config["lka"]["path_range"]
 
     def define_spaces(self) -> None:
         """Observation and action types and spaces from the config."""
-        self.observation_type = _ObservationType(self)
-        self.action_type = _ActionType(self)
+        self.observation_type = ALDMObservation(self)
+        self.action_type = ALDMAction(self)
         self.observation_space = self.observation_type.space()
         self.action_space = self.action_type.space()
 
@@ -427,9 +170,9 @@ class ALDMHighwayEnv(AbstractEnv):
         seed = (
             int(self.np_random.integers(0, 2**31 - 1)) if cfg["road"].get("seed", 0) is None else 0
         )
-        self.highway = _cached_road(road_config(cfg, seed))
+        self.highway = cached_road(road_config(cfg, seed))
         self.sensor = LineSensor(cfg["sensor"])
-        self._detector = self._make_detector()
+        self._detector = make_detector(cfg["detector"], cfg["detector_params"])
         self.road = FastRoad(
             network=self.highway.network,
             np_random=self.np_random,
@@ -463,34 +206,16 @@ class ALDMHighwayEnv(AbstractEnv):
             continuous=act["type"] == "ContinuousAction",
             lane_change_timeout=float(act["lane_change_timeout"]),
             max_acceleration=float(act["max_acceleration"]),
-            lane_width=self.highway.lane_width if self.highway else 3.75,
+            lane_width=self.highway.lane_width,
+            path_range=self.path_range,
         )
         ego.sim_frequency = float(cfg["simulation_frequency"])
-        ego.path_range = 1e9 if self._path_range is None else float(self._path_range)
         self.controlled_vehicles = [ego]
         self.road.vehicles.append(ego)
         for _ in range(int(cfg["vehicles_count"])):
             v = other_type.create_random(self.road, spacing=1.0 / float(cfg["vehicles_density"]))
             v.randomize_behavior()
             self.road.vehicles.append(v)
-
-    def _make_detector(self) -> Callable[[SensorFrame], LaneDetection]:
-        cfg = self.config
-        name = cfg["detector"]
-        lane_width = self.highway.lane_width if self.highway else 3.75
-        if name == "aldm":
-            from aldm_gym.sensor.aldm import detect_lanes, make_params
-
-            params = make_params(None, **cfg["detector_params"])
-            return lambda frame: detect_lanes(frame, params)
-        if name == "naive":
-            return lambda frame: naive_detect(frame, lane_width)
-
-        def truth(frame: SensorFrame) -> LaneDetection:
-            assert self.highway is not None
-            return ground_truth_detect(self.highway, frame, self._truth[2])
-
-        return truth
 
     # ------------------------------------------------------------------ simulation
     def _perceive(self) -> None:
@@ -507,12 +232,12 @@ class ALDMHighwayEnv(AbstractEnv):
         self.frame = self.sensor.measure(
             hw, (ego.position[0], ego.position[1], ego.heading), t, rng=rng, s_hint=s + mount_x
         )
-        self.detection = det = self._detector(self.frame)
+        self.detection = det = self._detector(self.frame, hw, lane_id)
         ego.detection = det
-        if self._path_range is None:
+        if self.path_range is None:
             ego.trajectory = det.trajectory
         else:
-            ego.trajectory = near_path(det.ego_left, det.ego_right, hw.lane_width, self._path_range)
+            ego.trajectory = near_path(det.ego_left, det.ego_right, hw.lane_width, self.path_range)
         # A wheel over a marking: |offset| + half the vehicle width beyond half the lane.
         over = abs(offset) + 0.5 * ego.WIDTH > 0.5 * hw.lane_width
         if over and ego.lane_change == 0:
@@ -537,41 +262,6 @@ class ALDMHighwayEnv(AbstractEnv):
                 self._automatic_rendering()
         self.enable_auto_render = False
 
-    # ------------------------------------------------------------------ observation
-    def _observe(self) -> dict[str, np.ndarray]:
-        ego = self.vehicle
-        frame = self.frame
-        assert frame is not None
-        cy, sy = math.cos(frame.yaw), math.sin(frame.yaw)
-        others = [v for v in self.road.vehicles if v is not ego]
-        if others:
-            pos = np.array([v.position for v in others], dtype=np.float64) - frame.origin
-            vel = np.array([v.velocity for v in others], dtype=np.float64) - ego.velocity
-            # World -> sensor frame (y to the driver's left, see roads.geometry).
-            rel = np.column_stack(
-                [
-                    pos[:, 0] * cy + pos[:, 1] * sy,
-                    pos[:, 0] * sy - pos[:, 1] * cy,
-                    vel[:, 0] * cy + vel[:, 1] * sy,
-                    vel[:, 0] * sy - vel[:, 1] * cy,
-                ]
-            )
-        else:
-            rel = np.zeros((0, 4))
-        ego_state = np.array([ego.speed, ego.yaw_rate, ego.steering_iso, float(ego.lane_change)])
-        o = self.config["observation"]
-        back = ego.position - frame.origin
-        ego_x = float(back[0] * cy + back[1] * sy)
-        return build_observation(
-            self.detection,
-            ego.trajectory,
-            ego_state,
-            rel,
-            int(o["vehicles_count"]),
-            float(o["perception_distance"]),
-            ego_x,
-        )
-
     # ------------------------------------------------------------------ reward / end
     def _rewards(self, action: Any) -> dict[str, float]:
         cfg = self.config
@@ -582,11 +272,7 @@ class ALDMHighwayEnv(AbstractEnv):
         lo, hi = cfg["reward_speed_range"]
         forward_speed = ego.speed * math.cos(ego.heading - float(hw.reference.heading_at(s)))
         step_time = 1.0 / cfg["policy_frequency"]
-        is_lc = (
-            not self.action_type.continuous
-            and action is not None
-            and int(np.asarray(action).reshape(-1)[0]) in (LANE_LEFT, LANE_RIGHT)
-        )
+        is_lc = self.action_type.is_lane_change(action)
         return {
             "collision_reward": float(ego.crashed),
             "departure_reward": float(self._departed_step),

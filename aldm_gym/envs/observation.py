@@ -35,14 +35,19 @@ a learning agent needs most: "is my lane blocked, is the next one free".
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from enum import IntEnum
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from gymnasium import spaces
 
+from aldm_gym.config import setting, validate
 from aldm_gym.sensor.detection import LINE_NAMES, LaneDetection, resample_line
 from aldm_gym.types import FloatArray
+
+if TYPE_CHECKING:
+    from aldm_gym.envs.highway import ALDMHighwayEnv
 
 N_POINTS = 13
 """Points per line in the observation (paper: 13 equally distributed points)."""
@@ -68,6 +73,24 @@ LANE_ROWS = (LaneCode.LEFT, LaneCode.EGO, LaneCode.RIGHT)
 
 VEHICLE_LENGTH = 5.0
 """highway-env's vehicle length [m], subtracted from centre distances to give gaps."""
+
+
+@dataclass(frozen=True)
+class ObservationConfig:
+    """The env's ``observation`` section.
+
+    :ivar type: ``"ALDMObservation"`` (the only one: the Dict of the module table).
+    :ivar vehicles_count: rows N of the ``vehicles`` key (nearest vehicles first).
+    :ivar perception_distance: vehicles farther than this along x or y are not
+        observed; also the bound of gaps [m].
+    """
+
+    type: str = setting("ALDMObservation", choices=("ALDMObservation",))
+    vehicles_count: int = setting(8, lo=1, hi=64, integer=True)
+    perception_distance: float = setting(100.0, lo=1.0, hi=250.0)
+
+    def __post_init__(self) -> None:
+        validate(self, "observation")
 
 
 def observation_space(vehicles_count: int, perception_distance: float) -> spaces.Dict:
@@ -257,3 +280,77 @@ def build_observation(
         "lanes": np.clip(lanes, [0.0, -SPEED_BOUND] * 2, [pd, SPEED_BOUND] * 2).astype(np.float32),
     }
     return out
+
+
+def to_sensor_frame(
+    positions: FloatArray, velocities: FloatArray, origin: FloatArray, yaw: float
+) -> FloatArray:
+    """World positions and velocities as sensor-frame ``(x, y, vx, vy)`` rows.
+
+    :param positions: ``(N, 2)`` world positions [m].
+    :param velocities: ``(N, 2)`` world velocities relative to the ego [m/s].
+    :param origin: the sensor's world position [m].
+    :param yaw: the sensor's world heading [rad] (highway-env's convention: the
+        driver's left is ``(sin yaw, -cos yaw)``, see :mod:`aldm_gym.roads.geometry`).
+    :return: ``(N, 4)``: x forward, y left [m], vx, vy [m/s] (ISO 8855).
+    """
+    cy, sy = math.cos(yaw), math.sin(yaw)
+    pos = positions - origin
+    vel = velocities
+    return np.column_stack(
+        [
+            pos[:, 0] * cy + pos[:, 1] * sy,
+            pos[:, 0] * sy - pos[:, 1] * cy,
+            vel[:, 0] * cy + vel[:, 1] * sy,
+            vel[:, 0] * sy - vel[:, 1] * cy,
+        ]
+    )
+
+
+class ALDMObservation:
+    """highway-env's ``ObservationType`` of the env: the space and the observation.
+
+    It reads the env's current sensor frame, detection and ego vehicle, transforms
+    the other vehicles into the sensor frame (:func:`to_sensor_frame`) and builds the
+    Dict of the module table (:func:`build_observation`).
+    """
+
+    def __init__(self, env: ALDMHighwayEnv) -> None:
+        self.env = env
+        self.config = ObservationConfig(**env.config["observation"])
+        self.observer_vehicle = env.vehicle
+
+    def space(self) -> spaces.Space:
+        """See :func:`observation_space`."""
+        return observation_space(self.config.vehicles_count, self.config.perception_distance)
+
+    def observe(self) -> dict[str, np.ndarray]:
+        """The observation of the env's current state."""
+        env = self.env
+        ego = env.vehicle
+        frame = env.frame
+        if frame is None:
+            raise RuntimeError("observe() before the env measured a sensor frame (call reset)")
+        others = [v for v in env.road.vehicles if v is not ego]
+        if others:
+            rel = to_sensor_frame(
+                np.array([v.position for v in others], dtype=np.float64),
+                np.array([v.velocity for v in others], dtype=np.float64) - ego.velocity,
+                frame.origin,
+                frame.yaw,
+            )
+        else:
+            rel = np.zeros((0, 4))
+        ego_state = np.array([ego.speed, ego.yaw_rate, ego.steering_iso, float(ego.lane_change)])
+        ego_x = float(
+            to_sensor_frame(ego.position[None, :], np.zeros((1, 2)), frame.origin, frame.yaw)[0, 0]
+        )
+        return build_observation(
+            env.detection,
+            ego.trajectory,
+            ego_state,
+            rel,
+            self.config.vehicles_count,
+            float(self.config.perception_distance),
+            ego_x,
+        )

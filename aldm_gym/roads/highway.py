@@ -30,7 +30,7 @@ import numpy as np
 from highway_env.road.lane import LineType
 from highway_env.road.road import RoadNetwork
 
-from aldm_gym.config import build_config, check_choice, check_range
+from aldm_gym.config import build_config, check_choice, check_range, setting, validate
 from aldm_gym.roads.geometry import ReferenceLine, Segment
 from aldm_gym.roads.lane import ReferenceLane
 from aldm_gym.roads.markings import Marking, MarkingRole, MarkingType
@@ -82,67 +82,52 @@ class RoadConfig:
         drawn in CarMaker's road editor). The painted geometry is the same.
     """
 
-    lanes_count: int = 4
-    lane_width: float = 3.75
-    length: float = 6000.0
-    curved: bool = True
-    min_radius: float = 500.0
-    max_radius: float = 3000.0
-    straight_length: tuple[float, float] = (150.0, 600.0)
-    arc_length: tuple[float, float] = (150.0, 600.0)
-    transition_length: tuple[float, float] = (60.0, 150.0)
-    segments: tuple[tuple[float, float, float], ...] | None = None
-    dash_length: float = 6.0
-    gap_length: float = 12.0
-    dash_phase: float = 0.0
-    lane_line_type: int = 2
-    lane_line_width: float = 0.15
-    edge_line_width: float = 0.30
-    guard_rail: bool = False
-    guard_rail_offset: float = 1.0
-    guard_rail_height: float = 0.75
-    speed_limit: float = 36.0
-    seed: int = 0
-    marking_model: str = "per_dash"
+    lanes_count: int = setting(4, lo=1, hi=6, integer=True)
+    lane_width: float = setting(3.75, lo=2.5, hi=5.0)
+    length: float = setting(6000.0, lo=200.0, hi=100_000.0)
+    curved: bool = setting(True)
+    min_radius: float = setting(500.0, lo=100.0, hi=1e6)
+    max_radius: float = setting(3000.0, lo="min_radius", hi=1e6)
+    straight_length: tuple[float, float] = setting((150.0, 600.0), kind="pair", lo=1.0, hi=1e5)
+    arc_length: tuple[float, float] = setting((150.0, 600.0), kind="pair", lo=1.0, hi=1e5)
+    transition_length: tuple[float, float] = setting((60.0, 150.0), kind="pair", lo=1.0, hi=1e5)
+    segments: tuple[tuple[float, float, float], ...] | None = setting(None, kind="any")
+    dash_length: float = setting(6.0, lo=0.0, lo_open=True, hi=1000.0)
+    gap_length: float = setting(12.0, lo=0.0, lo_open=True, hi=1000.0)
+    dash_phase: float = setting(0.0, lo=-1e5, hi=1e5)
+    lane_line_type: int = setting(2, choices=(1, 2, 3))
+    lane_line_width: float = setting(0.15, lo=0.0, lo_open=True, hi=1.0)
+    edge_line_width: float = setting(0.30, lo=0.0, lo_open=True, hi=1.0)
+    guard_rail: bool = setting(False)
+    guard_rail_offset: float = setting(1.0, lo=0.0, hi=10.0)
+    guard_rail_height: float = setting(0.75, lo=0.0, lo_open=True, hi=3.0)
+    speed_limit: float = setting(36.0, lo=0.0, lo_open=True, hi=100.0)
+    seed: int = setting(0, lo=0, hi=2**63 - 1, integer=True)
+    marking_model: str = setting("per_dash", choices=MARKING_MODELS)
 
     def __post_init__(self) -> None:
-        w = "road"
-        check_range(w, "lanes_count", self.lanes_count, 1, 6, integer=True)
-        check_range(w, "lane_width", self.lane_width, 2.5, 5.0)
-        check_range(w, "length", self.length, 200.0, 100_000.0)
-        check_range(w, "min_radius", self.min_radius, 100.0)
-        check_range(w, "max_radius", self.max_radius, self.min_radius)
-        for name in ("straight_length", "arc_length", "transition_length"):
-            lo, hi = _pair(w, name, getattr(self, name))
-            check_range(w, name + "[0]", lo, 1.0)
-            check_range(w, name + "[1]", hi, lo)
-        check_range(w, "dash_length", self.dash_length, 0.0, lo_open=True)
-        check_range(w, "gap_length", self.gap_length, 0.0, lo_open=True)
-        check_range(w, "dash_phase", self.dash_phase)
-        if self.lane_line_type not in (1, 2, 3):
-            raise ValueError(f"road.lane_line_type must be 1, 2 or 3, got {self.lane_line_type!r}")
-        check_range(w, "lane_line_width", self.lane_line_width, 0.0, 1.0, lo_open=True)
-        check_range(w, "edge_line_width", self.edge_line_width, 0.0, 1.0, lo_open=True)
-        check_range(w, "guard_rail_offset", self.guard_rail_offset, 0.0, 10.0)
-        check_range(w, "guard_rail_height", self.guard_rail_height, 0.0, 3.0, lo_open=True)
-        check_range(w, "speed_limit", self.speed_limit, 0.0, 100.0, lo_open=True)
-        check_range(w, "seed", self.seed, 0, integer=True)
-        check_choice(w, "marking_model", self.marking_model, MARKING_MODELS)
+        validate(self, "road")
         if self.segments is not None:
-            if len(self.segments) == 0:
-                raise ValueError("road.segments must not be empty")
-            for k, seg in enumerate(self.segments):
-                if len(seg) != 3:
-                    raise ValueError(f"road.segments[{k}] must be (length, kappa_start, kappa_end)")
-                check_range(w, f"segments[{k}].length", seg[0], 0.0, lo_open=True)
-                for kk in seg[1:]:
-                    check_range(w, f"segments[{k}].kappa", kk, -1.0 / 100.0, 1.0 / 100.0)
+            object.__setattr__(self, "segments", _segments(self.segments))
 
 
-def _pair(where: str, name: str, value: Any) -> tuple[float, float]:
-    if not isinstance(value, tuple | list) or len(value) != 2:
-        raise ValueError(f"{where}.{name} must be a (min, max) pair, got {value!r}")
-    return float(value[0]), float(value[1])
+def _segments(value: Any) -> tuple[tuple[float, float, float], ...]:
+    """``road.segments`` checked and normalised to a tuple of float triples."""
+    if isinstance(value, str | bytes) or not hasattr(value, "__len__"):
+        raise ValueError(
+            f"road.segments must be a sequence of (length, kappa_start, kappa_end), got {value!r}"
+        )
+    if len(value) == 0:
+        raise ValueError("road.segments must not be empty")
+    out = []
+    for k, seg in enumerate(value):
+        if isinstance(seg, str | bytes) or not hasattr(seg, "__len__") or len(seg) != 3:
+            raise ValueError(f"road.segments[{k}] must be (length, kappa_start, kappa_end)")
+        check_range("road", f"segments[{k}].length", seg[0], 0.0, 1e5, lo_open=True)
+        for kk in seg[1:]:
+            check_range("road", f"segments[{k}].kappa", kk, -1.0 / 100.0, 1.0 / 100.0)
+        out.append((float(seg[0]), float(seg[1]), float(seg[2])))
+    return tuple(out)
 
 
 def curvature_profile(config: RoadConfig) -> list[Segment]:

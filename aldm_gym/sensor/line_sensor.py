@@ -25,7 +25,7 @@ from typing import Any
 import numba
 import numpy as np
 
-from aldm_gym.config import build_config, check_range
+from aldm_gym.config import build_config, setting, validate
 from aldm_gym.roads.highway import HighwayRoad
 from aldm_gym.sensor.frame import SensorFrame
 from aldm_gym.types import FloatArray
@@ -60,45 +60,29 @@ class LineSensorConfig:
     :ivar dropout: probability that a point is missing, independently per point.
     """
 
-    range: float = 200.0
-    fov_start: float = 5.52
-    dx: float = 2.0
-    max_lateral: float = 30.0
-    max_lines_per_side: int = 100
-    max_points_per_line: int = 200
-    relevant_points: int = 30
-    sensor_index: int = 0
-    mount_x: float = 1.0
-    mount_y: float = 0.0
-    mount_z: float = 1.3
-    mount_roll: float = 0.0
-    mount_pitch: float = 0.0
-    mount_yaw: float = 0.0
-    lateral_noise: float = 0.0
-    longitudinal_noise: float = 0.0
-    height_noise: float = 0.0
-    dropout: float = 0.0
+    range: float = setting(200.0, lo=0.0, lo_open=True, hi=1000.0)
+    fov_start: float = setting(5.52, lo=0.0, hi="range")
+    dx: float = setting(2.0, lo=0.1, hi=50.0)
+    max_lateral: float = setting(30.0, lo=0.0, lo_open=True, hi=200.0)
+    max_lines_per_side: int = setting(100, lo=1, hi=100, integer=True)
+    max_points_per_line: int = setting(200, lo=1, hi=200, integer=True)
+    relevant_points: int = setting(30, lo=1, hi=200, integer=True)
+    sensor_index: int = setting(0, lo=0, hi=15, integer=True)
+    mount_x: float = setting(1.0, lo=-20.0, hi=20.0)
+    mount_y: float = setting(0.0, lo=-20.0, hi=20.0)
+    mount_z: float = setting(1.3, lo=0.0, hi=10.0)
+    mount_roll: float = setting(0.0, lo=-2 * np.pi, hi=2 * np.pi)
+    mount_pitch: float = setting(0.0, lo=-2 * np.pi, hi=2 * np.pi)
+    mount_yaw: float = setting(0.0, lo=-2 * np.pi, hi=2 * np.pi)
+    lateral_noise: float = setting(0.0, lo=0.0, hi=5.0)
+    longitudinal_noise: float = setting(0.0, lo=0.0, hi=5.0)
+    height_noise: float = setting(0.0, lo=0.0, hi=5.0)
+    dropout: float = setting(0.0, lo=0.0, hi=1.0)
 
     def __post_init__(self) -> None:
-        w = "sensor"
-        check_range(w, "range", self.range, 0.0, 1000.0, lo_open=True)
-        check_range(w, "fov_start", self.fov_start, 0.0, self.range)
+        validate(self, "sensor")
         if self.fov_start >= self.range:
             raise ValueError(f"sensor.fov_start ({self.fov_start}) must be < range ({self.range})")
-        check_range(w, "dx", self.dx, 0.1, 50.0)
-        check_range(w, "max_lateral", self.max_lateral, 0.0, 200.0, lo_open=True)
-        check_range(w, "max_lines_per_side", self.max_lines_per_side, 1, 100, integer=True)
-        check_range(w, "max_points_per_line", self.max_points_per_line, 1, 200, integer=True)
-        check_range(w, "relevant_points", self.relevant_points, 1, 200, integer=True)
-        check_range(w, "sensor_index", self.sensor_index, 0, 15, integer=True)
-        for name in ("mount_x", "mount_y"):
-            check_range(w, name, getattr(self, name), -20.0, 20.0)
-        check_range(w, "mount_z", self.mount_z, 0.0, 10.0)
-        for name in ("mount_roll", "mount_pitch", "mount_yaw"):
-            check_range(w, name, getattr(self, name), -2 * np.pi, 2 * np.pi)
-        for name in ("lateral_noise", "longitudinal_noise", "height_noise"):
-            check_range(w, name, getattr(self, name), 0.0, 5.0)
-        check_range(w, "dropout", self.dropout, 0.0, 1.0)
         if self.dropout >= 1.0:
             raise ValueError("sensor.dropout must be < 1 (1 would drop every point)")
 
