@@ -16,15 +16,8 @@ from highway_env.vehicle.behavior import IDMVehicle
 from highway_env.vehicle.kinematics import Vehicle
 from highway_env.vehicle.objects import Landmark, Obstacle
 
-from aldm_gym.envs.traffic import (
-    FastIDMVehicle,
-    FastRoad,
-    FastRoadNetwork,
-    _clip,
-    _not_zero,
-    _power,
-    use_fast_road,
-)
+from aldm_gym.envs.traffic import FastIDMVehicle, FastRoad, FastRoadNetwork, use_fast_road
+from aldm_gym.envs.traffic.scalar import clip_scalar, not_zero_scalar, power_scalar
 
 FAST_IDM = "aldm_gym.envs.traffic.FastIDMVehicle"
 
@@ -266,27 +259,27 @@ def test_cache_follows_vehicles_moved_outside_road_step() -> None:
 
 
 def test_scalar_helpers_match_numpy() -> None:
-    """_clip / _power reproduce np.clip / np.power bit for bit (signed zeros, NaN)."""
+    """clip_scalar / power_scalar reproduce np.clip / np.power bit for bit (signed zeros, NaN)."""
     values = [-0.0, 0.0, -2.0, 0.3, 1.0, 7.5, math.inf, -math.inf, math.nan]
     for x in values:
         for low, high in ((-1, 1), (0, 30), (-0.0, 0.0), (-math.pi / 4, math.pi / 4)):
             expected = float(np.clip(x, low, high))
-            got = _clip(x, low, high)
+            got = clip_scalar(x, low, high)
             assert (math.isnan(expected) and math.isnan(got)) or (
                 expected == got and math.copysign(1, expected) == math.copysign(1, got)
             )
     rng = np.random.default_rng(0)
     for base in rng.uniform(0, 3, 200).tolist():
         for exponent in (2, 2.0, 0.5, -1.0, 3.5, 4.0, 4.4):
-            assert _power(base, exponent) == float(np.power(base, exponent))
+            assert power_scalar(base, exponent) == float(np.power(base, exponent))
 
 
 def test_not_zero_matches_highway_env() -> None:
-    """The inlined ``not_zero`` returns highway-env's value, signed zeros and NaN included."""
+    """``not_zero_scalar`` returns highway-env's ``not_zero``, signed zeros and NaN included."""
     from highway_env import utils
 
     for x in [0.0, -0.0, 0.01, -0.01, 0.005, -0.005, 0.0100001, -3.0, 25.0, math.nan, math.inf]:
-        assert np.array(_not_zero(x)).tobytes() == np.array(utils.not_zero(x)).tobytes(), x
+        assert np.array(not_zero_scalar(x)).tobytes() == np.array(utils.not_zero(x)).tobytes(), x
 
 
 def test_use_fast_road_is_idempotent_and_repoints_vehicles() -> None:
@@ -303,7 +296,7 @@ def test_use_fast_road_is_idempotent_and_repoints_vehicles() -> None:
 
 def test_box_separation_implies_no_collision() -> None:
     """Wherever the narrow-phase filter skips a pair, highway-env's polygon test is a no-op."""
-    from aldm_gym.envs.traffic import _boxes_separated
+    from aldm_gym.envs.traffic.collisions import _boxes_separated
 
     rng = np.random.default_rng(7)
     road = Road(network=RoadNetwork.straight_road_network(4, length=1e4))
@@ -413,6 +406,8 @@ def test_deferred_lane_updates_match_immediate_ones() -> None:
             Vehicle.on_state_update(v)
             assert v.lane_index == lane_index
 
+
+def test_scalar_pose_matches_interp() -> None:
     """The scalar pose (fast path of lane.heading_at / position) equals ``_interp``."""
     from aldm_gym.roads.highway import HighwayRoad
 
@@ -435,7 +430,8 @@ def test_aldm_env_fast_paths_change_nothing(monkeypatch: pytest.MonkeyPatch) -> 
     numpy-free bicycle step.
     """
     from aldm_gym.envs import highway as env_module
-    from aldm_gym.envs import traffic
+    from aldm_gym.envs.traffic import collisions, neighbours
+    from aldm_gym.envs.traffic import road as road_module
     from aldm_gym.roads import geometry
     from aldm_gym.roads.lane import ReferenceLane
 
@@ -468,11 +464,13 @@ def test_aldm_env_fast_paths_change_nothing(monkeypatch: pytest.MonkeyPatch) -> 
 
     monkeypatch.setattr(geometry.ReferenceLine, "project", plain_project)
     monkeypatch.setattr(geometry.ReferenceLine, "project_many", plain_project_many)
-    monkeypatch.setattr(FastRoad, "_build_reference_edge", lambda self, index: False)
+    monkeypatch.setattr(
+        neighbours.NeighbourCache, "_build_reference_edge", lambda self, index: False
+    )
     monkeypatch.setattr(
         ReferenceLane, "heading_at", lambda self, s: float(self.reference.heading_at(s))
     )
-    monkeypatch.setattr(traffic, "_boxes_separated", lambda a, b: False)
-    monkeypatch.setattr(traffic, "_STEPS_ENDING_WITH_UPDATE", frozenset())
+    monkeypatch.setattr(collisions, "_boxes_separated", lambda a, b: False)
+    monkeypatch.setattr(road_module, "STEPS_ENDING_WITH_UPDATE", frozenset())
     monkeypatch.setattr(env_module.SensorVehicle, "step", Vehicle.step)
     assert rollout() == fast
