@@ -429,9 +429,9 @@ def test_aldm_env_fast_paths_change_nothing(monkeypatch: pytest.MonkeyPatch) -> 
     deferred (batch-projected) lane look-up after the vehicles move, the ego's
     numpy-free bicycle step.
     """
-    from aldm_gym.envs import highway as env_module
     from aldm_gym.envs.traffic import collisions, neighbours
     from aldm_gym.envs.traffic import road as road_module
+    from aldm_gym.envs.vehicle import SensorVehicle
     from aldm_gym.roads import geometry
     from aldm_gym.roads.lane import ReferenceLane
 
@@ -472,5 +472,5 @@ def test_aldm_env_fast_paths_change_nothing(monkeypatch: pytest.MonkeyPatch) -> 
     )
     monkeypatch.setattr(collisions, "_boxes_separated", lambda a, b: False)
     monkeypatch.setattr(road_module, "STEPS_ENDING_WITH_UPDATE", frozenset())
-    monkeypatch.setattr(env_module.SensorVehicle, "step", Vehicle.step)
+    monkeypatch.setattr(SensorVehicle, "step", Vehicle.step)
     assert rollout() == fast
