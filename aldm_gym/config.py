@@ -96,10 +96,11 @@ def is_number(value: Any) -> bool:
 
 def _plain(value: Any) -> Any:
     """A numpy scalar as the Python number it holds; anything else unchanged."""
-    if isinstance(value, numbers.Integral) and not isinstance(value, int | bool):
-        return int(value)
-    if isinstance(value, numbers.Real) and not isinstance(value, int | float | bool):
-        return float(value)
+    if isinstance(value, np.generic) and not isinstance(value, np.bool_):
+        if isinstance(value, np.integer):
+            return int(value)
+        if isinstance(value, np.floating):
+            return float(value)
     return value
 
 
@@ -122,7 +123,7 @@ def check_value(where: str, name: str, value: Any, rule: Rule, obj: Any = None) 
     if kind == "bool":
         if isinstance(value, bool):
             return value
-        if type(value).__name__ == "bool_":
+        if isinstance(value, np.bool_):
             return bool(value)
         raise ValueError(f"{where}.{name} must be a bool, got {value!r}")
     if kind == "choice":
@@ -153,6 +154,7 @@ def check_value(where: str, name: str, value: Any, rule: Rule, obj: Any = None) 
             raise ValueError(f"{where}.{name} must be (min, max) with min <= max, got {value!r}")
         if rule.increasing and items != sorted(items):
             raise ValueError(f"{where}.{name} must be increasing, got {value!r}")
+        items = [int(v) if rule.integer else float(v) for v in items]
         return tuple(items) if kind == "pair" else items
     raise TypeError(f"unknown rule kind {kind!r} for {where}.{name}")
 

@@ -70,8 +70,12 @@ class ALDMHighwayEnv(AbstractEnv):
     | `trajectory_valid` | (1,)     | 1 if there is a trajectory                          |
     | `ego`              | (4,)     | speed, yaw rate, steering, lane change (+1/-1/0)    |
     | `vehicles`         | (N,6)    | present, x, y, rel. vx, vy, lane by detected lines  |
+    | `lanes`            | (3,4)    | left/ego/right detected lane: gap, rel. vx of the   |
+    |                    |          | nearest vehicle ahead, then of the nearest behind   |
 
-    Lane codes of `vehicles`: 1 ego lane, 2 left, 3 right, 0 other / unknown.
+    Lane codes of `vehicles` (:class:`~aldm_gym.envs.observation.LaneCode`): 1 ego
+    lane, 2 left, 3 right, 0 other / unknown. Built by
+    :class:`~aldm_gym.envs.observation.ALDMObservation`; details in ``docs/env.md``.
 
     ## Rewards
 
