@@ -189,11 +189,30 @@ def test_trusted_detection_matches_validating_constructor() -> None:
         assert arr.dtype == np.float64 and arr.flags.c_contiguous
 
 
-def test_trajectory_matches_driving_trajectory() -> None:
+@pytest.mark.parametrize("mode", ["robust", "paper"])
+@pytest.mark.parametrize("n_points", [13, 0, 3])
+def test_trajectory_is_driving_trajectory_of_the_ego_lines(mode: str, n_points: int) -> None:
+    """One trajectory function: the kernel's path is ``driving_trajectory``'s, bit for
+    bit, on the whole lines and cut at ``path_range`` (3 points: the numpy fallback)."""
     _road, pts = frame(9, radius=700)
-    det = detect_lanes(pts)
-    ref = driving_trajectory(det.ego_left, det.ego_right)
-    np.testing.assert_allclose(det.trajectory, ref, atol=1e-9)
+    for reach in (None, 80.0, 30.0):
+        det = detect_lanes(pts, mode=mode, n_points=n_points, path_range=reach)
+        assert det.found("ego_left") and det.found("ego_right")
+        ref = driving_trajectory(det.ego_left, det.ego_right, path_range=reach)
+        assert det.trajectory.tobytes() == ref.tobytes()
+    assert same(detect_lanes(pts, path_range=None), detect_lanes(pts))
+    with pytest.raises(ValueError, match="path_range"):
+        detect_lanes(pts, path_range=0.0)
+
+
+def test_trajectory_follows_the_true_lane_centre() -> None:
+    """Behaviour against ground truth: the path is the lane centre (here y = -0.05 m)."""
+    road = S.highway(lanes=3, ego_lane=1, radius=np.inf, lateral=0.05)
+    pts, _ = S.sample(road, noise=0.02, seed=4)
+    for reach, tol in ((None, 0.03), (80.0, 0.1)):  # 80 m: ~5 of the 13 points
+        det = detect_lanes(pts, path_range=reach)
+        assert det.trajectory[0, 0] == 0.0 and det.trajectory[-1, 0] > 60.0
+        np.testing.assert_allclose(det.trajectory[:, 1], -0.05, atol=tol)
 
 
 def test_one_line_trajectory_uses_lane_width_from_adjacent_line() -> None:
@@ -204,6 +223,14 @@ def test_one_line_trajectory_uses_lane_width_from_adjacent_line() -> None:
     assert len(det.ego_right) == 0 and det.found("ego_left")
     # path = left line - half the estimated lane width (3.25 m, not the 3.75 default)
     np.testing.assert_allclose(det.trajectory[:, 1], 1.625 - 1.625, atol=0.05)
+    # The same function as every detector, given the kernel's width estimate.
+    fp, ip = _packed(make_params(None))
+    for reach in (np.inf, 80.0):
+        width = K._detect(pts, fp, ip, reach)[-1]
+        assert 3.2 < width < 3.3
+        got = detect_lanes(pts, path_range=reach).trajectory
+        want = driving_trajectory(det.ego_left, det.ego_right, width, path_range=reach)
+        assert got.tobytes() == want.tobytes()
 
 
 # ----------------------------------------------------------------- paper mode
@@ -377,11 +404,12 @@ def _kernel_inputs(seed: int, mode: str):  # type: ignore[no-untyped-def]
 
 
 @pytest.mark.parametrize("mode", ["robust", "paper"])
-def test_python_and_numba_pipeline_agree_exactly(mode: str) -> None:
+@pytest.mark.parametrize("reach", [np.inf, 80.0])
+def test_python_and_numba_pipeline_agree_exactly(mode: str, reach: float) -> None:
     """The top-level kernel as Python (its helpers compiled) vs fully compiled."""
     pts, fp, ip = _kernel_inputs(13, mode)
-    got_py = K._detect_py(pts, fp, ip)
-    got_nb = K._detect(pts, fp, ip)
+    got_py = K._detect_py(pts, fp, ip, reach)
+    got_nb = K._detect(pts, fp, ip, reach)
     for a, b in zip(got_py, got_nb, strict=True):
         np.testing.assert_array_equal(a, b)
 
@@ -454,6 +482,7 @@ def test_trace_fit_window_dense_line_and_gap(fit_length: float) -> None:
     assert xs[masks[1] == 2].max() > 170.0
 
 
+@pytest.mark.slow
 def test_fully_plain_python_run_agrees_with_numba(tmp_path: Path) -> None:
     """NUMBA_DISABLE_JIT=1: every kernel runs as plain Python in a subprocess."""
     _road, pts = frame(15, radius=300, noise=0.05, dropout=0.1)

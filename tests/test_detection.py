@@ -79,7 +79,7 @@ def _polynomial_trajectory(
     left: np.ndarray, right: np.ndarray, lane_width: float = 3.75, spacing: float = 2.0
 ) -> np.ndarray:
     """The previous ``driving_trajectory``: ``Polynomial.fit`` per line (frozen copy)."""
-    from aldm_gym.sensor.detection import fit_cubic
+    from aldm_gym.sensor.trajectory import fit_cubic
 
     fl, fr = fit_cubic(left), fit_cubic(right)
     if fl is None and fr is None:
@@ -167,20 +167,143 @@ def test_path_fit_falls_back_to_fit_cubic_bit_for_bit() -> None:
 
 
 def test_path_kernels_match_their_python_references() -> None:
-    from aldm_gym.sensor import detection as d
+    from aldm_gym.sensor import trajectory as t
 
     rng = np.random.default_rng(8)
-    for _ in range(50):
+    for trial in range(50):
         lines = []
         for side in (1.0, -1.0):
             k = int(rng.choice([0, 4, 5, 13, 60]))
             x = np.sort(rng.uniform(5.0, 200.0, k))
             lines.append(np.column_stack([x, side * 1.8 + 2e-3 * x**2 + rng.normal(0, 0.1, k)]))
-        ok_c, got = d._path(lines[0], lines[1], 3.75, 2.0)
-        ok_p, want = d._path_py(lines[0], lines[1], 3.75, 2.0)
+        reach = (np.inf, 80.0, 20.0)[trial % 3]
+        ok_c, got = t._path(lines[0], lines[1], 3.75, 2.0, reach)
+        ok_p, want = t._path_py(lines[0], lines[1], 3.75, 2.0, reach)
         assert ok_c == ok_p
         assert got.tobytes() == want.tobytes()
+        for line in lines:
+            assert t._cut_length(line, reach) == t._cut_length_py(line, reach)
         if len(lines[0]):
             xq = np.linspace(0.0, 100.0, 51)
-            a = d._cubic_values(lines[0], xq)
-            assert a.tobytes() == d._cubic_values_py(lines[0], xq).tobytes()
+            a = t._cubic_values(lines[0], xq)
+            assert a.tobytes() == t._cubic_values_py(lines[0], xq).tobytes()
+
+
+# --------------------------------------------------------------------------- path range
+def near_path(left: np.ndarray, right: np.ndarray, lane_width: float, max_x: float) -> np.ndarray:
+    """The environment's near-range path (frozen copy of ``envs.highway.near_path``):
+    each line cut to its points with x <= ``max_x`` (at least its first 4), then the
+    whole-line ``driving_trajectory``."""
+
+    def cut(line: np.ndarray) -> np.ndarray:
+        if len(line) <= 4:
+            return line
+        k = max(int(np.searchsorted(line[:, 0], max_x, side="right")), 4)
+        return line[:k]
+
+    return driving_trajectory(cut(left), cut(right), lane_width)
+
+
+@pytest.mark.parametrize("reach", [0.5, 7.0, 30.0, 80.0, 1e9, np.inf])
+def test_cut_length_is_searchsorted_with_at_least_4_points(reach: float) -> None:
+    from aldm_gym.sensor import trajectory as t
+
+    rng = np.random.default_rng(2)
+    for k in (0, 1, 4, 5, 13, 100):
+        x = np.sort(np.round(rng.uniform(0.0, 100.0, k)))  # repeated x too
+        line = np.column_stack([x, np.zeros(k)])
+        want = k if k <= 4 else max(int(np.searchsorted(x, reach, side="right")), 4)
+        assert t._cut_length(line, reach) == t._cut_length_py(line, reach) == want
+
+
+def test_path_range_is_the_fit_of_the_cut_lines() -> None:
+    """``path_range`` = ``near_path``: compiled lines, fallback lines and single lines."""
+    rng = np.random.default_rng(4)
+    good = _line(-1.9, 1e-3)
+    short = good[:3]
+    repeated = np.repeat(_line(1.8, 1e-3, x1=60.0), 2, axis=0)  # x not increasing
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # rank warnings of degenerate fits
+        for left in (_line(1.8, 2e-3), short, repeated, np.zeros((0, 2))):
+            for right in (good, short, np.zeros((0, 2))):
+                right = right + np.column_stack(
+                    [np.zeros(len(right)), rng.normal(0, 0.05, len(right))]
+                )
+                for reach in (10.0, 80.0, 1e9):
+                    want = near_path(left, right, 3.5, reach)
+                    got = driving_trajectory(left, right, 3.5, path_range=reach)
+                    assert got.tobytes() == want.tobytes()
+                assert (
+                    driving_trajectory(left, right, 3.5, path_range=None).tobytes()
+                    == driving_trajectory(left, right, 3.5).tobytes()
+                )
+    for bad in (0.0, -5.0, float("nan")):
+        with pytest.raises(ValueError, match="path_range"):
+            driving_trajectory(good, good, path_range=bad)
+
+
+def test_path_range_keeps_the_path_exact_near_the_car_in_a_tight_curve() -> None:
+    """Against the true lane centre on a circle of R = 250 m: one cubic over the whole
+    200 m view is off by almost 1 m near the car; the fit of the first 80 m by 1 cm."""
+    radius = 250.0
+    x = np.arange(5.52, 200.0, 2.0)
+
+    # Circle through the origin tangent to x, centre (0, R): y = R - sqrt(R^2 - x^2).
+    def arc(offset: float) -> np.ndarray:
+        r = radius - offset
+        xs = x[x < 0.97 * r]
+        return np.column_stack([xs, radius - np.sqrt(r * r - xs * xs)])
+
+    left, right = arc(1.875), arc(-1.875)
+    near = driving_trajectory(left, right, path_range=80.0)
+    whole = driving_trajectory(left, right)
+    for path in (near, whole):
+        assert path[0, 0] == 0.0
+    sel = near[:, 0] <= 40.0
+    true_near = radius - np.sqrt(radius**2 - near[sel, 0] ** 2)
+    err_near = np.abs(near[sel, 1] - true_near).max()
+    sel_w = whole[:, 0] <= 40.0
+    err_whole = np.abs(whole[sel_w, 1] - (radius - np.sqrt(radius**2 - whole[sel_w, 0] ** 2))).max()
+    assert err_near < 0.02 and err_whole > 0.5
+
+
+def _detector_frames():  # type: ignore[no-untyped-def]
+    """Seeded frames (road, frame, true lane) on a tight and a gentle road, noisy too."""
+    from aldm_gym.roads import HighwayRoad
+    from aldm_gym.sensor import LineSensor
+    from aldm_gym.sensor.evaluation import sample_poses
+
+    for seed, rcfg in ((3, {"min_radius": 100.0, "max_radius": 250.0}), (2, {})):
+        base = HighwayRoad({**rcfg, "seed": seed, "length": 3000.0})
+        poses = sample_poses(base, 6, np.random.default_rng(seed))
+        for model in ("per_dash", "editor"):
+            road = base.with_marking_model(model)
+            for noise, drop in ((0.0, 0.0), (0.1, 0.2)):
+                sensor = LineSensor({"lateral_noise": noise, "dropout": drop}, seed=seed)
+                for p in poses:
+                    yield road, sensor.measure(road, p.pose), p.lane_id
+
+
+@pytest.mark.parametrize("name", ["aldm", "naive", "ground_truth"])
+def test_detector_path_range_80_is_the_env_near_path_bit_for_bit(name: str) -> None:
+    """``make_detector(name, path_range=80)``'s trajectory is what the environment's
+    ``near_path(det.ego_left, det.ego_right, lane_width, 80)`` gives. The lane width
+    of a one-line path is the road's for naive and ground truth; the ALDM uses its own
+    estimate (checked in ``test_aldm``), so only its two-line frames are compared here."""
+    from aldm_gym.sensor.detectors import make_detector
+
+    near_det = make_detector(name, path_range=80.0)
+    whole_det = make_detector(name)
+    compared = 0
+    for road, frame, lane_id in _detector_frames():
+        det = near_det(frame, road, lane_id)
+        whole = whole_det(frame, road, lane_id)
+        for line in LaneDetection.__dataclass_fields__:
+            if line not in ("trajectory", "source"):
+                assert np.array_equal(getattr(det, line), getattr(whole, line))
+        if name == "aldm" and not (det.found("ego_left") and det.found("ego_right")):
+            continue
+        want = near_path(det.ego_left, det.ego_right, road.lane_width, 80.0)
+        assert det.trajectory.tobytes() == want.tobytes()
+        compared += 1
+    assert compared >= 40

@@ -22,6 +22,8 @@ import math
 import numba
 import numpy as np
 
+from aldm_gym.sensor.trajectory import PATH_STEP, _path
+
 # --------------------------------------------------------------------------- types
 # Array types of the kernels' arguments (pynndescent habit). Signatures are inferred
 # lazily on the first call and cached on disk (``cache=True``), so importing the
@@ -1306,132 +1308,6 @@ def _smooth_at_py(lx, ly, xq, h, a0, b0, lam_a, lam_b, a_max):
 _smooth_at = numba.njit(cache=True)(_smooth_at_py)
 
 
-def _solve_small_py(m, r):
-    """Solve ``m x = r`` (m small, square) by Gaussian elimination, partial pivot."""
-    n = r.shape[0]
-    a = m.copy()
-    x = r.copy()
-    for col in range(n):
-        p = col
-        for row in range(col + 1, n):
-            if abs(a[row, col]) > abs(a[p, col]):
-                p = row
-        if p != col:
-            for j in range(n):
-                tmp = a[col, j]
-                a[col, j] = a[p, j]
-                a[p, j] = tmp
-            tmp = x[col]
-            x[col] = x[p]
-            x[p] = tmp
-        piv = a[col, col]
-        if piv == 0.0:
-            continue
-        for row in range(col + 1, n):
-            f = a[row, col] / piv
-            for j in range(col, n):
-                a[row, j] -= f * a[col, j]
-            x[row] -= f * x[col]
-    for col in range(n - 1, -1, -1):
-        s = x[col]
-        for j in range(col + 1, n):
-            s -= a[col, j] * x[j]
-        x[col] = s / a[col, col] if a[col, col] != 0.0 else 0.0
-    return x
-
-
-_solve_small = numba.njit(cache=True)(_solve_small_py)
-
-
-def _cubic_eval_py(line, xq):
-    """Least-squares polynomial of degree ``min(3, K - 1)`` through a line, at ``xq``.
-
-    Same fit as ``detection.fit_cubic`` (x mapped to [-1, 1] over the line's
-    range, as ``numpy.polynomial.Polynomial.fit`` does).
-    """
-    k = line.shape[0]
-    out = np.empty(xq.shape[0])
-    if k == 1:
-        out[:] = line[0, 1]
-        return out
-    deg = min(3, k - 1)
-    x_lo = line[0, 0]
-    x_hi = line[0, 0]
-    for i in range(k):
-        x_lo = min(x_lo, line[i, 0])
-        x_hi = max(x_hi, line[i, 0])
-    half = 0.5 * (x_hi - x_lo)
-    mid = 0.5 * (x_hi + x_lo)
-    if half <= 0.0:
-        half = 1.0
-    nc = deg + 1
-    g = np.zeros((nc, nc))
-    r = np.zeros(nc)
-    pw = np.empty(nc)
-    for i in range(k):
-        t = (line[i, 0] - mid) / half
-        pw[0] = 1.0
-        for d in range(1, nc):
-            pw[d] = pw[d - 1] * t
-        for p in range(nc):
-            r[p] += pw[p] * line[i, 1]
-            for q in range(nc):
-                g[p, q] += pw[p] * pw[q]
-    coef = _solve_small(g, r)
-    for j in range(xq.shape[0]):
-        t = (xq[j] - mid) / half
-        v = 0.0
-        for d in range(nc - 1, -1, -1):
-            v = v * t + coef[d]
-        out[j] = v
-    return out
-
-
-_cubic_eval = numba.njit(cache=True)(_cubic_eval_py)
-
-
-def _trajectory_py(left, right, lane_width, spacing):
-    """Desired path midway between cubic fits of the ego lines (§ALDM, last part).
-
-    Same rules as ``detection.driving_trajectory``: from x = 0 to the end of the
-    shorter line; one line only: its fit offset by half ``lane_width`` inwards.
-
-    :return: ``(M, 2)`` path [m], or ``(0, 2)``.
-    """
-    nl = left.shape[0]
-    nr = right.shape[0]
-    if nl == 0 and nr == 0:
-        return np.zeros((0, 2))
-    x_end = np.inf
-    if nl > 0:
-        x_end = min(x_end, left[nl - 1, 0])
-    if nr > 0:
-        x_end = min(x_end, right[nr - 1, 0])
-    if x_end <= 0.0:
-        return np.zeros((0, 2))
-    mm = max(2, math.ceil(x_end / spacing) + 1)
-    xq = np.linspace(0.0, x_end, mm)
-    out = np.empty((mm, 2))
-    out[:, 0] = xq
-    if nl > 0 and nr > 0:
-        yl = _cubic_eval(left, xq)
-        yr = _cubic_eval(right, xq)
-        for j in range(mm):
-            out[j, 1] = 0.5 * (yl[j] + yr[j])
-    elif nl > 0:
-        yl = _cubic_eval(left, xq)
-        for j in range(mm):
-            out[j, 1] = yl[j] - 0.5 * lane_width
-    else:
-        yr = _cubic_eval(right, xq)
-        for j in range(mm):
-            out[j, 1] = yr[j] + 0.5 * lane_width
-    return out
-
-
-_trajectory = numba.njit(cache=True)(_trajectory_py)
-
-
 def _assemble_py(xs, ys, mask, fp, ip, a0, b0):
     """Output lines: measured or smoothed, all points or ``n_out`` equally spaced.
 
@@ -1503,15 +1379,44 @@ def _assemble_py(xs, ys, mask, fp, ip, a0, b0):
 _assemble = numba.njit(cache=True)(_assemble_py)
 
 
-def _detect_py(pts, fp, ip):
+def _one_line_width_py(starts, offsets, fp):
+    """Lane width [m] for a trajectory from one ego line (§ALDM is silent).
+
+    With only one ego line found, the distance between its offset at x = 0 and that
+    of the adjacent line on the same side, when found and within
+    [min_lane_width, max_lane_width]; otherwise (and with two or no ego lines, where
+    it is unused) the ``lane_width`` parameter.
+    """
+    width = fp[P_LANE_WIDTH]
+    nl = starts[L_EGO_LEFT + 1] - starts[L_EGO_LEFT]
+    nr = starts[L_EGO_RIGHT + 1] - starts[L_EGO_RIGHT]
+    if nl > 0 and nr == 0 and starts[L_LEFT_ADJ + 1] > starts[L_LEFT_ADJ]:
+        w = offsets[L_LEFT_ADJ] - offsets[L_EGO_LEFT]
+        if fp[P_MIN_LANE] <= w <= fp[P_MAX_LANE]:
+            width = w
+    elif nr > 0 and nl == 0 and starts[L_RIGHT_ADJ + 1] > starts[L_RIGHT_ADJ]:
+        w = offsets[L_EGO_RIGHT] - offsets[L_RIGHT_ADJ]
+        if fp[P_MIN_LANE] <= w <= fp[P_MAX_LANE]:
+            width = w
+    return width
+
+
+_one_line_width = numba.njit(cache=True)(_one_line_width_py)
+
+
+def _detect_py(pts, fp, ip, path_range):
     """The whole ALDM on one frame; the single entry point called from Python.
 
     :param pts: ``(N, 2|3)`` float64 raw points (x, y[, z]) [m].
     :param fp: float parameters (layout ``P_*``).
     :param ip: integer parameters (layout ``I_*``).
-    :return: ``(lines, starts, offsets, trajectory)``: packed output lines (see
-        :func:`_assemble`), the lines' offsets at x = 0 ``(4,)`` [m] (NaN if not
-        found) and the ``(M, 2)`` driving trajectory [m].
+    :param path_range: the trajectory fits the ego lines up to this x [m] (``inf``:
+        whole lines), see :func:`aldm_gym.sensor.trajectory._path`.
+    :return: ``(lines, starts, offsets, ok, trajectory, width)``: packed output lines
+        (see :func:`_assemble`), the lines' offsets at x = 0 ``(4,)`` [m] (NaN if not
+        found), whether the compiled path fit applied (else the caller falls back to
+        ``driving_trajectory`` with the same lines and ``width``), the ``(M, 2)``
+        driving trajectory [m] and the lane width used for a one-line path [m].
     """
     has_z = pts.shape[1] >= 3
     xs, ys = _gather(pts, has_z, fp[P_Z_BAND], fp[P_MAX_RANGE])
@@ -1524,23 +1429,11 @@ def _detect_py(pts, fp, ip):
     else:
         a0, b0 = _robust_detect(xs, ys, fp, ip, mask, offsets)
     lines, starts = _assemble(xs, ys, mask, fp, ip, a0, b0)
-    # Lane width for a one-line trajectory: from the adjacent line on that side
-    # when plausible, otherwise the default.
-    width = fp[P_LANE_WIDTH]
-    nl = starts[L_EGO_LEFT + 1] - starts[L_EGO_LEFT]
-    nr = starts[L_EGO_RIGHT + 1] - starts[L_EGO_RIGHT]
-    if nl > 0 and nr == 0 and starts[L_LEFT_ADJ + 1] > starts[L_LEFT_ADJ]:
-        w = offsets[L_LEFT_ADJ] - offsets[L_EGO_LEFT]
-        if fp[P_MIN_LANE] <= w <= fp[P_MAX_LANE]:
-            width = w
-    elif nr > 0 and nl == 0 and starts[L_RIGHT_ADJ + 1] > starts[L_RIGHT_ADJ]:
-        w = offsets[L_EGO_RIGHT] - offsets[L_RIGHT_ADJ]
-        if fp[P_MIN_LANE] <= w <= fp[P_MAX_LANE]:
-            width = w
+    width = _one_line_width(starts, offsets, fp)
     left = lines[starts[L_EGO_LEFT] : starts[L_EGO_LEFT + 1]]
     right = lines[starts[L_EGO_RIGHT] : starts[L_EGO_RIGHT + 1]]
-    traj = _trajectory(left, right, width, 2.0)
-    return lines, starts, offsets, traj
+    ok, traj = _path(left, right, width, PATH_STEP, path_range)
+    return lines, starts, offsets, ok, traj, width
 
 
 _detect = numba.njit(cache=True)(_detect_py)

@@ -44,7 +44,8 @@ import numpy as np
 
 from aldm_gym.config import build_config, check_choice, check_range
 from aldm_gym.sensor import _aldm_kernels as K
-from aldm_gym.sensor.detection import DEFAULT_LANE_WIDTH, LINE_NAMES, LaneDetection
+from aldm_gym.sensor.detection import LINE_NAMES, LaneDetection
+from aldm_gym.sensor.trajectory import DEFAULT_LANE_WIDTH, PATH_STEP, driving_trajectory, fit_reach
 from aldm_gym.types import FloatArray, IntArray
 
 MODES = ("robust", "paper")
@@ -304,7 +305,13 @@ def as_points(points: Any) -> FloatArray:
     return np.ascontiguousarray(points, dtype=np.float64)
 
 
-def detect_lanes(points: Any, params: ALDMParams | None = None, **overrides: Any) -> LaneDetection:
+def detect_lanes(
+    points: Any,
+    params: ALDMParams | None = None,
+    *,
+    path_range: float | None = None,
+    **overrides: Any,
+) -> LaneDetection:
     """Detect the ego lane's lines and the adjacent lines with the ALDM (§ALDM).
 
     The points are an unordered cloud in the sensor frame (x forward, y left,
@@ -318,11 +325,15 @@ def detect_lanes(points: Any, params: ALDMParams | None = None, **overrides: Any
     equally spaced in x, a line not found is ``(0, 2)``. In robust mode the points
     lie on a local quadratic smoothing of the traced points, in paper mode they are
     interpolated between the measured points (see ``output``). The trajectory is
-    midway between cubic fits of the ego lines; with one ego line, that line offset
-    by half the lane width estimated from its adjacent line (or ``lane_width``).
+    midway between cubic fits of the ego lines
+    (:func:`~aldm_gym.sensor.trajectory.driving_trajectory`, the same function as for
+    every detector); with one ego line, that line offset by half the lane width
+    estimated from its adjacent line (or ``lane_width``).
 
     :param points: ``(N, 2)`` or ``(N, 3)`` float array [m], or a sensor frame.
     :param params: an :class:`ALDMParams` (defaults if omitted).
+    :param path_range: the trajectory fits each ego line on its points with x <= this
+        (at least 4 points) [m]; ``None`` (default): the whole line.
     :param overrides: individual :class:`ALDMParams` fields, e.g. ``mode="paper"``.
     :return: a :class:`~aldm_gym.sensor.detection.LaneDetection` with ``source="aldm"``.
     :raises TypeError: ``points`` is not an array or frame, or has a bad dtype.
@@ -330,9 +341,12 @@ def detect_lanes(points: Any, params: ALDMParams | None = None, **overrides: Any
     """
     p = params if type(params) is ALDMParams and not overrides else make_params(params, **overrides)
     pts = as_points(points)
+    reach = fit_reach(path_range)
     fp, ip = _packed(p)
-    lines, starts, _offsets, traj = K._detect(pts, fp, ip)
+    lines, starts, _offsets, ok, traj, width = K._detect(pts, fp, ip, reach)
     fields = {name: lines[starts[s] : starts[s + 1]] for s, name in enumerate(LINE_NAMES)}
+    if not ok:  # lines of < 4 points (n_points 2 or 3) or repeated x: numpy's fit
+        traj = driving_trajectory(fields["ego_left"], fields["ego_right"], width, PATH_STEP, reach)
     return LaneDetection.trusted(**fields, trajectory=traj, source="aldm")
 
 

@@ -10,6 +10,11 @@ One signature for all: ``detector(frame, road, lane_id) -> LaneDetection``. Only
 ``ground_truth`` reads ``road`` and ``lane_id`` (the true lane); the others see the
 frame alone. Detectors are small picklable objects (no closures), so an environment
 holding one can be copied and pickled.
+
+Every detector takes ``path_range``: its :attr:`LaneDetection.trajectory` fits each
+ego line on its points with x <= ``path_range`` (at least 4 points), through the one
+trajectory function :func:`~aldm_gym.sensor.trajectory.driving_trajectory`;
+``None`` fits the whole line.
 """
 
 from __future__ import annotations
@@ -23,6 +28,7 @@ from aldm_gym.sensor.detection import LaneDetection
 from aldm_gym.sensor.frame import SensorFrame
 from aldm_gym.sensor.ground_truth import ground_truth_detect
 from aldm_gym.sensor.naive import naive_detect
+from aldm_gym.sensor.trajectory import fit_reach
 
 
 class Detector(Protocol):
@@ -38,13 +44,15 @@ class ALDMDetector:
     """The ALDM (:func:`~aldm_gym.sensor.aldm.detect_lanes`) with fixed parameters.
 
     :ivar params: validated :class:`~aldm_gym.sensor.aldm.ALDMParams`.
+    :ivar path_range: the trajectory's fit range [m] (``None``: whole lines).
     """
 
     params: Any
+    path_range: float | None = None
 
     def __call__(self, frame: SensorFrame, road: Any = None, lane_id: int = 0) -> LaneDetection:
         """Detect the lanes of ``frame`` (``road`` and ``lane_id`` unused)."""
-        return detect_lanes(frame, self.params)
+        return detect_lanes(frame, self.params, path_range=self.path_range)
 
 
 @dataclass(frozen=True)
@@ -53,47 +61,55 @@ class NaiveDetector:
 
     :ivar lane_width: lane width for the one-line trajectory [m]; ``None`` takes the
         road's at each call.
+    :ivar path_range: the trajectory's fit range [m] (``None``: whole lines).
     """
 
     lane_width: float | None = None
+    path_range: float | None = None
 
     def __call__(self, frame: SensorFrame, road: Any = None, lane_id: int = 0) -> LaneDetection:
         """Detect the lanes of ``frame`` (``lane_id`` unused)."""
         width = self.lane_width if self.lane_width is not None else road.lane_width
-        return naive_detect(frame, lane_width=width)
+        return naive_detect(frame, lane_width=width, path_range=self.path_range)
 
 
 @dataclass(frozen=True)
 class GroundTruthDetector:
-    """The true markings of the true lane (``ground_truth_detect``)."""
+    """The true markings of the true lane (``ground_truth_detect``).
+
+    :ivar path_range: the trajectory's fit range [m] (``None``: whole lines).
+    """
+
+    path_range: float | None = None
 
     def __call__(self, frame: SensorFrame, road: Any, lane_id: int) -> LaneDetection:
         """The true lines of lane ``lane_id`` of ``road`` in ``frame``'s sensor frame."""
-        return ground_truth_detect(road, frame, lane_id)
+        return ground_truth_detect(road, frame, lane_id, path_range=self.path_range)
 
 
-def _make_aldm(params: Mapping[str, Any]) -> Detector:
-    return ALDMDetector(make_params(None, **params))
+def _make_aldm(params: Mapping[str, Any], path_range: float | None) -> Detector:
+    return ALDMDetector(make_params(None, **params), path_range)
 
 
-def _make_naive(params: Mapping[str, Any]) -> Detector:
-    return NaiveDetector(**params)
+def _make_naive(params: Mapping[str, Any], path_range: float | None) -> Detector:
+    return NaiveDetector(**params, path_range=path_range)
 
 
-def _make_truth(params: Mapping[str, Any]) -> Detector:
-    return GroundTruthDetector(**params)
+def _make_truth(params: Mapping[str, Any], path_range: float | None) -> Detector:
+    return GroundTruthDetector(**params, path_range=path_range)
 
 
 @dataclass(frozen=True)
 class DetectorEntry:
     """One registered detector.
 
-    :ivar factory: builds the detector from its parameters (a mapping).
+    :ivar factory: builds the detector from its parameters (a mapping) and
+        ``path_range``.
     :ivar description: one line for ``--help`` and the docs.
     :ivar params: names of the parameters it takes (``None``: the factory validates).
     """
 
-    factory: Callable[[Mapping[str, Any]], Detector]
+    factory: Callable[[Mapping[str, Any], float | None], Detector]
     description: str
     params: tuple[str, ...] | None = field(default=())
 
@@ -113,14 +129,19 @@ DETECTORS: tuple[str, ...] = tuple(REGISTRY)
 """Names accepted by :func:`make_detector` (and the env's ``detector`` key)."""
 
 
-def make_detector(name: str, params: Mapping[str, Any] | None = None) -> Detector:
+def make_detector(
+    name: str, params: Mapping[str, Any] | None = None, *, path_range: float | None = None
+) -> Detector:
     """The detector ``name`` (:data:`DETECTORS`) with ``params``.
 
     ``aldm`` takes :class:`~aldm_gym.sensor.aldm.ALDMParams` fields; ``naive`` takes
     ``lane_width``; ``ground_truth`` takes none.
 
-    :raises ValueError: unknown name, or parameters the detector does not take (naming
-        them and the allowed ones).
+    :param path_range: every detector's trajectory fits each ego line on its points
+        with x <= this (at least 4 points) [m]; ``None``: the whole line. With 80 it is
+        the path the environment's lane keeping follows.
+    :raises ValueError: unknown name, parameters the detector does not take (naming
+        them and the allowed ones), or ``path_range`` not > 0.
     """
     entry = REGISTRY.get(name) if isinstance(name, str) else None
     if entry is None:
@@ -132,4 +153,5 @@ def make_detector(name: str, params: Mapping[str, Any] | None = None) -> Detecto
             raise ValueError(
                 f"detector {name!r} takes no parameter(s) {unknown}; allowed: {list(entry.params)}"
             )
-    return entry.factory(params)
+    fit_reach(path_range)  # validates
+    return entry.factory(params, path_range)

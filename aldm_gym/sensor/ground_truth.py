@@ -51,12 +51,18 @@ def true_line(road: HighwayRoad, frame: SensorFrame, marking: int, xs: FloatArra
 
 
 def ground_truth_detect(
-    road: HighwayRoad, frame: SensorFrame, lane_id: int, dx: float | None = None
+    road: HighwayRoad,
+    frame: SensorFrame,
+    lane_id: int,
+    dx: float | None = None,
+    path_range: float | None = None,
 ) -> LaneDetection:
     """A perfect detector: the true markings around lane ``lane_id``, sampled like the sensor.
 
     Lines are sampled every ``dx`` (default: the frame's 2 m) from the field-of-view
     start to the range of view; painted or not, as a perfect lane model would know them.
+    The trajectory fits each ego line up to x = ``path_range`` (at least 4 points)
+    [m]; ``None``: the whole line.
     """
     step = 2.0 if dx is None else dx
     xs = np.arange(frame.fov_start, frame.range + 1e-9, step)
@@ -68,7 +74,9 @@ def ground_truth_detect(
             continue
         ok = ~np.isnan(y[j])
         lines[name] = np.column_stack([xs[ok], y[j, ok]])
-    return LaneDetection.from_lines(**lines, source="ground_truth", lane_width=road.lane_width)
+    return LaneDetection.from_lines(
+        **lines, source="ground_truth", lane_width=road.lane_width, path_range=path_range
+    )
 
 
 @dataclass(frozen=True)

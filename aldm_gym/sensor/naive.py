@@ -12,8 +12,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from aldm_gym.sensor.detection import DEFAULT_LANE_WIDTH, LaneDetection
+from aldm_gym.sensor.detection import LaneDetection
 from aldm_gym.sensor.frame import SensorFrame
+from aldm_gym.sensor.trajectory import DEFAULT_LANE_WIDTH
 from aldm_gym.types import FloatArray
 
 ADJACENT_MIN_GAP = 2.0
@@ -40,17 +41,21 @@ def _adjacent(frame: SensorFrame, left: bool) -> FloatArray:
     return frame.line_points(lo + best)[:, :2]
 
 
-def naive_detect(frame: SensorFrame, lane_width: float = DEFAULT_LANE_WIDTH) -> LaneDetection:
+def naive_detect(
+    frame: SensorFrame, lane_width: float = DEFAULT_LANE_WIDTH, path_range: float | None = None
+) -> LaneDetection:
     """CarMaker's default lane detection on a line-sensor frame.
 
     ``ego_left``/``ego_right`` are all points of the relevant object of the left/right
     side (the object whose first point is nearest to the middle axis).
     ``left_adjacent``/``right_adjacent`` apply the same rule to the objects starting
     at least :data:`ADJACENT_MIN_GAP` further out. The trajectory is computed as for
-    every detector (:func:`~aldm_gym.sensor.detection.driving_trajectory`).
+    every detector (:func:`~aldm_gym.sensor.trajectory.driving_trajectory`).
 
     :param frame: a frame from :meth:`~aldm_gym.sensor.LineSensor.measure`.
     :param lane_width: lane width for the single-line trajectory [m].
+    :param path_range: the trajectory fits each ego line up to this x (at least 4
+        points) [m]; ``None``: the whole line.
     :raises TypeError: when ``frame`` is not a :class:`SensorFrame`.
     """
     if not isinstance(frame, SensorFrame):
@@ -62,4 +67,5 @@ def naive_detect(frame: SensorFrame, lane_width: float = DEFAULT_LANE_WIDTH) -> 
         right_adjacent=_adjacent(frame, False),
         source="naive",
         lane_width=lane_width,
+        path_range=path_range,
     )
