@@ -320,3 +320,46 @@ def test_lane_gaps_pick_nearest_vehicle_per_lane() -> None:
         lane_gaps(codes, x[:3], vx, 100.0)
     with pytest.raises(ValueError, match="finite"):
         lane_gaps(codes, np.where(x > 30, np.nan, x), vx, 100.0)
+
+
+@pytest.mark.parametrize(
+    "action", [1.5, 4.99, 1.0, "1", True, None, float("nan"), float("inf"), [], np.array([1, 2])]
+)
+def test_meta_actions_must_be_integers(action: object) -> None:
+    env = make({"vehicles_count": 2})
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match="meta action must be an integer"):
+        env.step(action)
+
+
+@pytest.mark.parametrize("action", [np.int64(1), np.array(1), np.array([1]), 1])
+def test_integer_like_meta_actions_are_accepted(action: object) -> None:
+    from aldm_gym.envs.actions import MetaAction
+
+    env = make({"vehicles_count": 2})
+    env.reset(seed=0)
+    _, _, _, _, info = env.step(action)
+    assert info["action"] is action
+    env.step(MetaAction.IDLE)
+
+
+@pytest.mark.parametrize("action", [np.zeros((2, 1)), np.zeros((1, 2)), [0.0], [0.0, 0.0, 0.0]])
+def test_continuous_actions_must_have_shape_2(action: object) -> None:
+    env = make({"vehicles_count": 2, "action": {"type": "ContinuousAction"}})
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match=r"shape \(2,\)"):
+        env.step(action)
+
+
+def test_reset_seeds_the_action_space_and_keeps_a_users_seed() -> None:
+    env = make({"vehicles_count": 2})
+    first = [env.reset(seed=7)[1]["action"] for _ in range(2)]
+    assert first[0] == first[1]
+    env.action_space.seed(123)
+    space = env.action_space
+    env.reset()
+    assert env.action_space is space  # highway-env's reset rebuilt it before
+    draws = [env.action_space.sample() for _ in range(5)]
+    space.seed(123)
+    space.sample()  # highway-env's reset draws info["action"] from the space
+    assert draws == [space.sample() for _ in range(5)]

@@ -43,6 +43,28 @@ LANE_CHANGES = frozenset({MetaAction.LANE_LEFT, MetaAction.LANE_RIGHT})
 """The meta actions that request a lane change."""
 
 
+def meta_action_index(action: Any) -> int:
+    """``action`` as a :class:`MetaAction` index, accepting only integers.
+
+    Python and numpy integers (a :class:`MetaAction` too) and one-element integer
+    arrays are accepted; floats (1.5, but also 1.0), strings, bools, ``None`` and
+    longer arrays are not, so a wrong action is never silently rounded.
+
+    :raises ValueError: saying what was given.
+    """
+    a = action
+    if isinstance(a, np.ndarray) and a.size == 1 and np.issubdtype(a.dtype, np.integer):
+        a = a.reshape(-1)[0]
+    if isinstance(a, bool | np.bool_) or not isinstance(a, int | np.integer):
+        raise ValueError(
+            f"meta action must be an integer in [0, {len(MetaAction) - 1}] "
+            f"({', '.join(f'{m.value} {m.name}' for m in MetaAction)}), got {action!r}"
+        )
+    if not 0 <= int(a) < len(MetaAction):
+        raise ValueError(f"meta action must be in [0, {len(MetaAction) - 1}], got {action!r}")
+    return int(a)
+
+
 @dataclass(frozen=True)
 class ActionConfig:
     """The env's ``action`` section.
@@ -99,27 +121,36 @@ class ALDMAction:
         return self.env.vehicle
 
     def act(self, action: Any) -> None:
-        """Pass an agent action to the ego (once per policy step)."""
+        """Pass an agent action to the ego (once per policy step).
+
+        :raises ValueError: a meta action that is not an integer in ``[0, 4]`` (Python
+            or numpy integers, or a one-element integer array), or a continuous action
+            that is not exactly 2 finite numbers (shape ``(2,)``).
+        """
         ego = self.env.vehicle
-        self.last_action = action
         if self.continuous:
-            a = np.asarray(action, dtype=np.float64).reshape(-1)
-            if a.shape != (2,) or not np.all(np.isfinite(a)):
-                raise ValueError(f"continuous action must be 2 finite numbers, got {action!r}")
-            hi = np.array([self.max_steering, self.max_acceleration])
-            ego.command = np.clip(a, -hi, hi)
+            ego.command = self._continuous(action)
         else:
-            a = int(np.asarray(action).reshape(-1)[0])
-            if not 0 <= a < len(MetaAction):
-                raise ValueError(f"meta action must be in [0, 4], got {action!r}")
-            ego.set_meta_action(a)
+            ego.set_meta_action(meta_action_index(action))
+        self.last_action = action
+
+    def _continuous(self, action: Any) -> np.ndarray:
+        try:
+            a = np.asarray(action, dtype=np.float64)
+        except (TypeError, ValueError):
+            a = np.zeros(0)
+        if a.shape != (2,) or not np.all(np.isfinite(a)):
+            raise ValueError(
+                "continuous action must be 2 finite numbers of shape (2,) "
+                f"(steering [rad], acceleration [m/s²]), got {action!r}"
+            )
+        hi = np.array([self.max_steering, self.max_acceleration])
+        return np.clip(a, -hi, hi)
 
     def is_lane_change(self, action: Any) -> bool:
         """Whether ``action`` (as given to :meth:`act`) requests a lane change."""
         return (
-            not self.continuous
-            and action is not None
-            and int(np.asarray(action).reshape(-1)[0]) in LANE_CHANGES
+            not self.continuous and action is not None and meta_action_index(action) in LANE_CHANGES
         )
 
     def get_available_actions(self) -> list[int]:

@@ -135,6 +135,7 @@ class ALDMHighwayEnv(AbstractEnv):
         self._departures = 0
         self._truth = (0.0, 0.0, 0)  # s, lateral offset, lane id
         self._s_before = 0.0
+        self._space_seed: int | None = None
         super().__init__(dict(config) if config else None, render_mode)
 
     # ------------------------------------------------------------------ config
@@ -165,8 +166,27 @@ class ALDMHighwayEnv(AbstractEnv):
         """Observation and action types and spaces from the config."""
         self.observation_type = ALDMObservation(self)
         self.action_type = ALDMAction(self)
-        self.observation_space = self.observation_type.space()
-        self.action_space = self.action_type.space()
+        # highway-env rebuilds the spaces at every reset; an equal space is kept so
+        # that a user's ``action_space.seed(...)`` survives.
+        obs_space = self.observation_type.space()
+        if getattr(self, "observation_space", None) != obs_space:
+            self.observation_space = obs_space
+        action_space = self.action_type.space()
+        if getattr(self, "action_space", None) != action_space:
+            self.action_space = action_space
+        if self._space_seed is not None:
+            # reset(seed=...) seeds the spaces too: reset's info["action"] (highway-env
+            # draws it with action_space.sample()) repeats with the seed.
+            self.action_space.seed(self._space_seed)
+            self.observation_space.seed(self._space_seed)
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[Any, dict]:
+        """highway-env's reset; ``seed`` also seeds the action and observation spaces."""
+        self._space_seed = seed
+        try:
+            return super().reset(seed=seed, options=options)
+        finally:
+            self._space_seed = None
 
     # ------------------------------------------------------------------ scene
     def _reset(self) -> None:
@@ -255,8 +275,8 @@ class ALDMHighwayEnv(AbstractEnv):
         dt = 1.0 / self.config["simulation_frequency"]
         self._s_before = self._truth[0]
         self._departed_step = False
-        if action is not None and not self.config["manual_control"]:
-            self.action_type.act(action)
+        if not self.config["manual_control"]:
+            self.action_type.act(action)  # raises ValueError on a bad action (None too)
         for frame in range(frames):
             self.road.act()
             self.road.step(dt)
