@@ -111,7 +111,7 @@ def resolve_collisions(vehicles: list[RoadObject], objects: list[RoadObject], dt
         if not obj.collidable:
             continue  # both sides must be collidable
         px, py = obj.position.tolist()
-        cls = type(obj)
+        cls: type = type(obj)  # annotated: mypy does not see type[Any] as Hashable
         if _has_custom_collisions(cls):
             radius = math.inf  # its own collision logic: pair it with everything
         else:

@@ -274,9 +274,10 @@ class FastIDMVehicle(FastControlledVehicle, IDMVehicle):
         :return: the desired gap [m].
         """
         assert front_vehicle is not None
-        if projected and not (
-            _uses_base_kinematics(type(ego_vehicle)) and _uses_base_kinematics(type(front_vehicle))
-        ):
+        # Annotated: mypy does not see type[Any] as Hashable (the cache's argument).
+        ego_cls: type = type(ego_vehicle)
+        front_cls: type = type(front_vehicle)
+        if projected and not (_uses_base_kinematics(ego_cls) and _uses_base_kinematics(front_cls)):
             return float(super().desired_gap(ego_vehicle, front_vehicle, projected))
         d0 = self.DISTANCE_WANTED
         tau = self.TIME_WANTED
