@@ -62,4 +62,4 @@ __all__ = [
 ]
 
 _clip = clip_scalar
-"""Old private name of :func:`clip_scalar`, kept while ``aldm_gym.envs.highway`` imports it."""
+"""Old private name of :func:`clip_scalar`, kept while ``aldm_gym.envs.vehicle`` imports it."""
