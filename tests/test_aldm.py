@@ -14,8 +14,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from aldm_gym.sensor import _aldm_kernels as K
 from aldm_gym.sensor.aldm import ALDMParams, _packed, detect_lanes, make_params
+from aldm_gym.sensor.aldm_kernels import fit, grid, layout, output, robust, sort
 from aldm_gym.sensor.detection import LINE_NAMES, LaneDetection, driving_trajectory
 
 EGO = ("ego_left", "ego_right")
@@ -226,7 +226,7 @@ def test_one_line_trajectory_uses_lane_width_from_adjacent_line() -> None:
     # The same function as every detector, given the kernel's width estimate.
     fp, ip = _packed(make_params(None))
     for reach in (np.inf, 80.0):
-        width = K._detect(pts, fp, ip, reach)[-1]
+        width = output._detect(pts, fp, ip, reach)[-1]
         assert 3.2 < width < 3.3
         got = detect_lanes(pts, path_range=reach).trajectory
         want = driving_trajectory(det.ego_left, det.ego_right, width, path_range=reach)
@@ -408,36 +408,36 @@ def _kernel_inputs(seed: int, mode: str):  # type: ignore[no-untyped-def]
 def test_python_and_numba_pipeline_agree_exactly(mode: str, reach: float) -> None:
     """The top-level kernel as Python (its helpers compiled) vs fully compiled."""
     pts, fp, ip = _kernel_inputs(13, mode)
-    got_py = K._detect_py(pts, fp, ip, reach)
-    got_nb = K._detect(pts, fp, ip, reach)
+    got_py = output._detect_py(pts, fp, ip, reach)
+    got_nb = output._detect(pts, fp, ip, reach)
     for a, b in zip(got_py, got_nb, strict=True):
         np.testing.assert_array_equal(a, b)
 
 
 def test_leaf_kernels_python_and_numba_agree_exactly() -> None:
     pts, _fp, _ip = _kernel_inputs(14, "robust")
-    xs, ys = K._gather_py(pts, True, 0.5, 500.0)
-    xs2, ys2 = K._gather(pts, True, 0.5, 500.0)
+    xs, ys = sort._gather_py(pts, True, 0.5, 500.0)
+    xs2, ys2 = sort._gather(pts, True, 0.5, 500.0)
     np.testing.assert_array_equal(xs, xs2)
     np.testing.assert_array_equal(ys, ys2)
     m = int(np.searchsorted(xs, 23.52, side="right"))
     np.testing.assert_array_equal(
-        K._seed_chains_py(xs, ys, m, 4.5, 1.5), K._seed_chains(xs, ys, m, 4.5, 1.5)
+        robust._seed_chains_py(xs, ys, m, 4.5, 1.5), robust._seed_chains(xs, ys, m, 4.5, 1.5)
     )
-    g_py, g_nb = K._build_grid_py(xs, ys, 1.2), K._build_grid(xs, ys, 1.2)
+    g_py, g_nb = grid._build_grid_py(xs, ys, 1.2), grid._build_grid(xs, ys, 1.2)
     for a, b in zip(g_py, g_nb, strict=True):
         np.testing.assert_array_equal(a, b)
     us, vs = xs[:20] - xs[19], ys[:20]
     w1, w2 = np.empty((2, 3, 3)), np.empty((2, 3, 3))
-    r_py = K._ridge_quadratic_py(us, vs, 20, 0.001, 0.0, 2.0, 1.0, 0.005, w1)
-    r_nb = K._ridge_quadratic(us, vs, 20, 0.001, 0.0, 2.0, 1.0, 0.005, w2)
+    r_py = fit._ridge_quadratic_py(us, vs, 20, 0.001, 0.0, 2.0, 1.0, 0.005, w1)
+    r_nb = fit._ridge_quadratic(us, vs, 20, 0.001, 0.0, 2.0, 1.0, 0.005, w2)
     assert r_py[:3] == r_nb[:3]
     np.testing.assert_array_equal(r_py[3], r_nb[3])
 
 
 @pytest.mark.parametrize("kind", ["uniform", "ties", "crowded", "constant", "empty"])
 def test_start_region_y_order_is_a_sort(kind: str) -> None:
-    """``_argsort_y`` (bucket sort of the start region's y) orders ``ys[:m]`` ascending."""
+    """The start region's y order (the one bucket sort on ``ys[:m]``) is ascending."""
     rng = np.random.default_rng(7)
     ys = rng.uniform(-180.0, 180.0, 1200)
     if kind == "ties":
@@ -448,10 +448,80 @@ def test_start_region_y_order_is_a_sort(kind: str) -> None:
     elif kind == "constant":
         ys[:] = -0.0
     m = 0 if kind == "empty" else 1000  # only ys[:m] counts
-    for argsort_y in (K._argsort_y, K._argsort_y_py):
-        yo = argsort_y(ys, m)
+    for order in (sort._bucket_order, sort._bucket_order_py):
+        yo = order(ys[:m], ys[:m])
         np.testing.assert_array_equal(np.sort(yo), np.arange(m))
         np.testing.assert_array_equal(ys[yo], np.sort(ys[:m]))
+
+
+@pytest.mark.parametrize("kind", ["uniform", "ties", "crowded", "subnormal_range"])
+def test_bucket_order_is_the_lexicographic_order(kind: str) -> None:
+    """``_bucket_order(k1, k2)`` orders like ``np.lexsort((k2, k1))`` (as values)."""
+    rng = np.random.default_rng(11)
+    k1 = rng.uniform(0.0, 200.0, 2000)
+    k2 = rng.uniform(-50.0, 50.0, 2000)
+    if kind == "ties":
+        k1, k2 = np.round(k1), np.round(k2)
+    elif kind == "crowded":
+        k1[:1900] = np.round(rng.uniform(0.0, 1.0, 1900), 1)
+        k1[0] = 1e4
+    elif kind == "subnormal_range":
+        k1 = np.where(rng.random(2000) < 0.5, 0.0, 5e-324)
+    want = np.lexsort((k2, k1))
+    for order in (sort._bucket_order, sort._bucket_order_py):
+        with np.errstate(over="ignore"):  # plain Python: m / (sub-normal range) is inf
+            got = order(k1, k2)
+        np.testing.assert_array_equal(np.sort(got), np.arange(len(k1)))
+        np.testing.assert_array_equal(k1[got], k1[want])
+        np.testing.assert_array_equal(k2[got], k2[want])
+
+
+def test_fit_sums_update_adds_and_drops_exactly() -> None:
+    """``_update_sums`` with w = ±1 is the former add/drop pair bit for bit (frozen copy),
+    and the sums it builds are the normal equations of the true quadratic."""
+
+    def add_drop(sums: tuple, u: float, y: float, sign: float) -> tuple:
+        s0, s1, s2, s3, s4, t0, t1, t2 = sums
+        uu = u * u
+        if sign > 0:
+            return (
+                s0 + 1.0,
+                s1 + u,
+                s2 + uu,
+                s3 + uu * u,
+                s4 + uu * uu,
+                t0 + y,
+                t1 + u * y,
+                t2 + uu * y,
+            )
+        return (
+            s0 - 1.0,
+            s1 - u,
+            s2 - uu,
+            s3 - uu * u,
+            s4 - uu * uu,
+            t0 - y,
+            t1 - u * y,
+            t2 - uu * y,
+        )
+
+    rng = np.random.default_rng(5)
+    us = -rng.uniform(0.0, 40.0, 60)
+    ys = 1.8 + 0.02 * us + 1e-3 * us * us  # an exact quadratic
+    sums_py = sums_nb = frozen = (0.0,) * 8
+    for k in range(60):
+        for w in (1.0, -1.0) if k % 7 == 3 else (1.0,):  # some points added and dropped
+            sums_py = fit._update_sums_py(*sums_py, us[k], ys[k], w)
+            sums_nb = fit._update_sums(*sums_nb, us[k], ys[k], w)
+            frozen = add_drop(frozen, us[k], ys[k], w)
+            assert sums_py == frozen and sums_nb == frozen
+    for w in (1.0,):  # the dropped points back, then the fit of the true quadratic
+        for k in range(3, 60, 7):
+            sums_nb = fit._update_sums(*sums_nb, us[k], ys[k], w)
+    want = [np.sum(us**j) for j in range(5)] + [np.sum(ys * us**j) for j in range(3)]
+    np.testing.assert_allclose(sums_nb, want, rtol=1e-12)
+    a, b, c, _ = fit._ridge_solve(*sums_nb, 0.0, 0.0, 0.0, 0.0, 1.0, np.empty((2, 3, 3)))
+    np.testing.assert_allclose([a, b, c], [1e-3, 0.02, 1.8], rtol=1e-8)
 
 
 @pytest.mark.parametrize("fit_length", [40.0, 20.0])
@@ -469,14 +539,14 @@ def test_trace_fit_window_dense_line_and_gap(fit_length: float) -> None:
     # The trace kernel alone, plain Python vs compiled, on a noisy copy.
     noisy = pts + np.random.default_rng(3).normal(0.0, 0.05, pts.shape)
     fp, _ip = _packed(params)
-    xs, ys = K._gather(noisy, False, 0.5, 500.0)
-    grid = K._build_grid(xs, ys, fp[K.P_GATE_MAX])
+    xs, ys = sort._gather(noisy, False, 0.5, 500.0)
+    cells = grid._build_grid(xs, ys, fp[layout.P_GATE_MAX])
     seed = (xs <= 23.52) & (ys > 0.0)
     first, last = np.flatnonzero(seed)[[0, -1]]
     masks, bit = [], np.uint8(2)
-    for trace in (K._robust_trace_py, K._robust_trace):
+    for trace in (robust._robust_trace_py, robust._robust_trace):
         mask = np.where(seed, 2, 0).astype(np.uint8)
-        trace(xs, ys, first, last, 0.0, 0.0, fp, 2.5, 1.0, np.zeros((0, 3)), grid, mask, bit)
+        trace(xs, ys, first, last, 0.0, 0.0, fp, 2.5, 1.0, np.zeros((0, 3)), cells, mask, bit)
         masks.append(mask)
     np.testing.assert_array_equal(masks[0], masks[1])
     assert xs[masks[1] == 2].max() > 170.0
@@ -570,7 +640,7 @@ def test_gather_is_the_lexicographic_sort_of_the_valid_points(kind: str) -> None
     keep &= np.abs(pts[:, 2]) <= 0.5
     q = pts[keep] + 0.0
     o = np.lexsort((q[:, 1], q[:, 0]))
-    for gather in (K._gather, K._gather_py):
+    for gather in (sort._gather, sort._gather_py):
         xs, ys = gather(pts[rng.permutation(len(pts))], True, 0.5, 500.0)
         np.testing.assert_array_equal(xs, q[o, 0])
         np.testing.assert_array_equal(ys, q[o, 1])
@@ -590,6 +660,6 @@ def test_both_ego_lines_found_only_beyond_the_start_region() -> None:
 def test_packed_parameters_are_cached_per_instance() -> None:
     p = make_params(noise_std=0.05)
     assert _packed(p) is _packed(p)
-    assert _packed(make_params(noise_std=0.06))[0][K.P_NOISE] == 0.06
+    assert _packed(make_params(noise_std=0.06))[0][layout.P_NOISE] == 0.06
     with pytest.raises(TypeError):
         detect_lanes(frame(0)[1], params={"mode": "paper"})  # type: ignore[arg-type]

@@ -28,8 +28,8 @@ Two modes:
   the output is smoothed by a local quadratic.
 
 Every decision where the paper is silent is listed in ``docs/aldm.md``.
-The hot path is in numba (:mod:`aldm_gym.sensor._aldm_kernels`), compiled once
-into numba's on-disk cache.
+The hot path is in numba (the package :mod:`aldm_gym.sensor.aldm_kernels`, one
+module per stage), compiled once into numba's on-disk cache.
 """
 
 from __future__ import annotations
@@ -43,7 +43,8 @@ from typing import Any
 import numpy as np
 
 from aldm_gym.config import build_config, check_choice, check_range
-from aldm_gym.sensor import _aldm_kernels as K
+from aldm_gym.sensor.aldm_kernels import layout as K
+from aldm_gym.sensor.aldm_kernels.output import _detect
 from aldm_gym.sensor.detection import LINE_NAMES, LaneDetection
 from aldm_gym.sensor.trajectory import DEFAULT_LANE_WIDTH, PATH_STEP, driving_trajectory, fit_reach
 from aldm_gym.types import FloatArray, IntArray
@@ -343,7 +344,7 @@ def detect_lanes(
     pts = as_points(points)
     reach = fit_reach(path_range)
     fp, ip = _packed(p)
-    lines, starts, _offsets, ok, traj, width = K._detect(pts, fp, ip, reach)
+    lines, starts, _offsets, ok, traj, width = _detect(pts, fp, ip, reach)
     fields = {name: lines[starts[s] : starts[s + 1]] for s, name in enumerate(LINE_NAMES)}
     if not ok:  # lines of < 4 points (n_points 2 or 3) or repeated x: numpy's fit
         traj = driving_trajectory(fields["ego_left"], fields["ego_right"], width, PATH_STEP, reach)

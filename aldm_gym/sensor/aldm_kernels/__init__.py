@@ -1,0 +1,32 @@
+"""Numba kernels of the Advanced Lane Detection Model (ALDM), one module per stage.
+
+Data flow of one frame (:func:`output._detect`, the single entry point called from
+:func:`aldm_gym.sensor.aldm.detect_lanes`):
+
+* :mod:`.sort` — drop invalid points, sort the rest by ``(x, y)`` (the one bucket
+  sort, also used for the start region's y order);
+* :mod:`.paper` — paper mode, the §ALDM algorithm verbatim; or
+* :mod:`.robust` — robust mode: seeds from the start region, gated traces, using
+  :mod:`.grid` (the search grid) and :mod:`.fit` (ridge quadratics and their running
+  sums, shared with the output's smoothing);
+* :mod:`.output` — the returned lines and the one-line lane width; the trajectory is
+  the one path fit of every detector, :func:`aldm_gym.sensor.trajectory._path`.
+
+:mod:`.layout` names the parameter vectors' slots and the four line slots.
+
+Written the umap way: every kernel is a plain Python function ``_name_py`` (the
+readable reference, runnable under ``NUMBA_DISABLE_JIT=1``) and its compiled twin
+``_name = numba.njit(cache=True)(_name_py)``. Kernels call each other through the
+compiled names, so with JIT disabled the whole pipeline is plain Python. Signatures
+are inferred lazily on the first call and cached on disk, so importing compiles
+nothing. No ``fastmath``: NaN/inf keep IEEE semantics and results are bit-identical
+with the plain-Python reference. The algorithm and every decision where the paper is
+silent are described in ``docs/aldm.md``; paper references are to its section
+"Advanced Lane Detection Model" (§ALDM).
+
+Numba's on-disk cache tracks each kernel's own source file only: a cached kernel
+holds the compiled code of the kernels it calls, and is *not* recompiled when one of
+those changes in another file (numba issue #1833). After editing a kernel module,
+delete the cache (``find aldm_gym -name '*.nb[ic]' -delete``) before measuring or
+testing.
+"""

@@ -1,0 +1,222 @@
+"""Robust mode's search grid: the points bucketed by x and y, and the gated search.
+
+Each trace step visits only the grid cells its prediction ± the largest gate
+crosses, so a step costs the points near the line, not all N.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from aldm_gym.sensor.aldm_kernels.layout import (
+    P_GATE_MAX,
+    P_GATE_MIN,
+    P_GATE_SIGMAS,
+    P_MAX_SLOPE,
+    P_TIE_DX,
+)
+
+
+def _build_grid_py(xs, ys, cell_y):
+    """Bucket the sorted points into an x-by-y grid (counting sort, O(N + cells)).
+
+    Cells are 2 m in x (one sensor sample) by ``2 cell_y`` in y, coarsened until
+    there are at most ``N + 1024`` cells. Within a cell points keep their
+    canonical (x, y) order. A point's cell is ``floor((x - x0) * (1 / gx))`` by
+    ``floor((y - y0) * (1 / gy))`` (clipped), the same monotone maps the search uses
+    (:func:`_cell_rows`), so a search range in x and y covers every cell that can
+    hold a point in it.
+
+    :return: ``(geo, start, pts)``: ``geo = (x0, 1/gx, y0, 1/gy, nx, ny)``; the
+        points of cell ``c = bx * ny + by`` are ``pts[start[c]:start[c + 1]]``.
+    """
+    n = xs.shape[0]
+    geo = np.zeros(6)
+    if n == 0:
+        geo[1] = 1.0
+        geo[3] = 1.0
+        geo[4] = 1.0
+        geo[5] = 1.0
+        return geo, np.zeros(2, dtype=np.int64), np.zeros(0, dtype=np.int64)
+    x0 = xs[0]
+    y0 = ys[0]
+    y1 = ys[0]
+    for i in range(n):
+        y0 = min(y0, ys[i])
+        y1 = max(y1, ys[i])
+    gx = 2.0
+    gy = max(2.0 * cell_y, 0.5)
+    nx = int((xs[n - 1] - x0) / gx) + 1
+    ny = int((y1 - y0) / gy) + 1
+    while nx * ny > n + 1024:
+        if nx >= ny:
+            gx *= 2.0
+        else:
+            gy *= 2.0
+        nx = int((xs[n - 1] - x0) / gx) + 1
+        ny = int((y1 - y0) / gy) + 1
+    igx = 1.0 / gx
+    igy = 1.0 / gy
+    nc = nx * ny
+    # start[c]: count of cell c, then (prefix sum) its end, then (scatter) its start;
+    # each point's cell is computed once (cell[i]).
+    start = np.zeros(nc + 1, dtype=np.int64)
+    cell = np.empty(n, dtype=np.int64)
+    for i in range(n):
+        bx = min(int((xs[i] - x0) * igx), nx - 1)
+        by = min(int((ys[i] - y0) * igy), ny - 1)
+        c = bx * ny + by
+        cell[i] = c
+        start[c] += 1
+    for c in range(1, nc):
+        start[c] += start[c - 1]
+    pts = np.empty(n, dtype=np.int64)
+    for i in range(n - 1, -1, -1):
+        c = cell[i]
+        start[c] -= 1
+        pts[start[c]] = i
+    start[nc] = n
+    geo[0] = x0
+    geo[1] = igx
+    geo[2] = y0
+    geo[3] = igy
+    geo[4] = nx
+    geo[5] = ny
+    return geo, start, pts
+
+
+_build_grid = numba.njit(cache=True)(_build_grid_py)
+
+
+def _gated_py(xs, ys, k, x_last, A, B, C, inv, fp, sig2):
+    """|residual| of point k against the prediction, or -1 if it fails the gate.
+
+    The gate is ``gate_sigmas`` predicted standard deviations (noise plus the fit's
+    covariance at look-ahead u), clipped to [gate_min, gate_max]; the model must
+    also stay flatter than ``max_slope`` up to the point.
+    """
+    u = xs[k] - x_last
+    if abs(2.0 * A * u + B) > fp[P_MAX_SLOPE]:
+        return -1.0
+    r = abs(ys[k] - ((A * u + B) * u + C))
+    if r > fp[P_GATE_MAX]:
+        return -1.0
+    p0 = u * u
+    # predicted variance / sig2: 1 + phi' inv phi, phi = (u^2, u, 1)
+    v = (
+        inv[0, 0] * p0 * p0
+        + 2.0 * inv[0, 1] * p0 * u
+        + 2.0 * inv[0, 2] * p0
+        + inv[1, 1] * u * u
+        + 2.0 * inv[1, 2] * u
+        + inv[2, 2]
+    )
+    gate = fp[P_GATE_SIGMAS] * math.sqrt(sig2 * (1.0 + max(v, 0.0)))
+    gate = min(max(gate, fp[P_GATE_MIN]), fp[P_GATE_MAX])
+    if r <= gate:
+        return r
+    return -1.0
+
+
+_gated = numba.njit(cache=True)(_gated_py)
+
+
+def _cell_rows_py(geo, x_last, xa, xb, A, B, C, margin):
+    """Range ``(by0, by1)`` of y cells the prediction ± margin crosses on [xa, xb]."""
+    ua = xa - x_last
+    ub = xb - x_last
+    fa = (A * ua + B) * ua + C
+    fb = (A * ub + B) * ub + C
+    lo = min(fa, fb)
+    hi = max(fa, fb)
+    if A != 0.0:
+        uv = -B / (2.0 * A)
+        if ua < uv < ub:
+            fv = (A * uv + B) * uv + C
+            lo = min(lo, fv)
+            hi = max(hi, fv)
+    eps = 1e-9 * (1.0 + abs(lo) + abs(hi))
+    ny = int(geo[5])
+    fy0 = (lo - margin - eps - geo[2]) * geo[3]
+    fy1 = (hi + margin + eps - geo[2]) * geo[3]
+    if fy1 < 0.0 or fy0 >= ny:
+        return 0, -1
+    by0 = max(math.floor(fy0), 0)
+    by1 = min(math.floor(fy1), ny - 1)
+    return by0, by1
+
+
+_cell_rows = numba.njit(cache=True)(_cell_rows_py)
+
+
+def _grid_search_py(xs, ys, mask, geo, start, pts, x_last, A, B, C, inv, fp, sig2, search):
+    """Next point of a robust trace (§ALDM step 2 with a gate), via the grid.
+
+    Among unclaimed points with ``x_last < x <= x_last + search`` that pass the
+    gate (:func:`_gated`), the nearest in x wins; gated points within ``tie_dx`` of
+    it compete by |residual| (ties: smaller (x, y)). Only grid cells the
+    prediction ± gate_max crosses are visited.
+
+    :return: index of the chosen point, or -1.
+    """
+    n = xs.shape[0]
+    if n == 0:
+        return -1
+    x0 = geo[0]
+    igx = geo[1]
+    gx = 1.0 / igx
+    nx = int(geo[4])
+    ny = int(geo[5])
+    x_hi = x_last + search
+    tie_dx = fp[P_TIE_DX]
+    gm = fp[P_GATE_MAX]
+    bx0 = min(int((x_last - x0) * igx), nx - 1) if x_last >= x0 else 0
+    bx1 = min(int((x_hi - x0) * igx), nx - 1)
+    # pass 1: the nearest gated x (bins are visited in x order)
+    x_first = np.inf
+    bx_first = -1
+    for bx in range(bx0, bx1 + 1):
+        xa = max(x0 + bx * gx, x_last)
+        xb = min(x0 + (bx + 1) * gx, x_hi)
+        by0, by1 = _cell_rows(geo, x_last, xa, xb, A, B, C, gm)
+        for by in range(by0, by1 + 1):
+            c = bx * ny + by
+            for q in range(start[c], start[c + 1]):
+                k = pts[q]
+                x = xs[k]
+                if x <= x_last or x > x_hi or mask[k] != 0 or x >= x_first:
+                    continue
+                if _gated(xs, ys, k, x_last, A, B, C, inv, fp, sig2) >= 0.0:
+                    x_first = x
+        if x_first < np.inf:
+            bx_first = bx
+            break
+    if bx_first < 0:
+        return -1
+    # pass 2: smallest residual among gated points within tie_dx of x_first
+    x_tie = min(x_first + tie_dx, x_hi)
+    bx2 = min(int((x_tie - x0) * igx), nx - 1)
+    best = -1
+    best_r = np.inf
+    for bx in range(bx_first, bx2 + 1):
+        xa = max(x0 + bx * gx, x_last)
+        xb = min(x0 + (bx + 1) * gx, x_hi)
+        by0, by1 = _cell_rows(geo, x_last, xa, xb, A, B, C, gm)
+        for by in range(by0, by1 + 1):
+            c = bx * ny + by
+            for q in range(start[c], start[c + 1]):
+                k = pts[q]
+                x = xs[k]
+                if x < x_first or x > x_tie or mask[k] != 0:
+                    continue
+                r = _gated(xs, ys, k, x_last, A, B, C, inv, fp, sig2)
+                if r >= 0.0 and (r < best_r or (r == best_r and k < best)):
+                    best_r = r
+                    best = k
+    return best
+
+
+_grid_search = numba.njit(cache=True)(_grid_search_py)

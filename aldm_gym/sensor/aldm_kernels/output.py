@@ -1,0 +1,168 @@
+"""Output stage: the traced lines as returned, the one-line lane width, and the
+whole pipeline (:func:`_detect`, the single entry point called from Python).
+
+The trajectory is not computed here: :func:`_detect` calls the one path fit of
+every detector, :func:`aldm_gym.sensor.trajectory._path`.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from aldm_gym.sensor.aldm_kernels.fit import _smooth_at
+from aldm_gym.sensor.aldm_kernels.layout import (
+    I_N_OUT,
+    I_PAPER,
+    I_SMOOTH,
+    L_EGO_LEFT,
+    L_EGO_RIGHT,
+    L_LEFT_ADJ,
+    L_RIGHT_ADJ,
+    N_LINES,
+    P_A_MAX,
+    P_A_STD,
+    P_B_STD,
+    P_LANE_WIDTH,
+    P_MAX_LANE,
+    P_MAX_RANGE,
+    P_MIN_LANE,
+    P_NOISE,
+    P_SMOOTH_H,
+    P_Z_BAND,
+)
+from aldm_gym.sensor.aldm_kernels.paper import _paper_detect
+from aldm_gym.sensor.aldm_kernels.robust import _robust_detect
+from aldm_gym.sensor.aldm_kernels.sort import _gather
+from aldm_gym.sensor.trajectory import PATH_STEP, _path
+
+
+def _assemble_py(xs, ys, mask, fp, ip, a0, b0):
+    """Output lines: measured or smoothed, all points or ``n_out`` equally spaced.
+
+    Lines with fewer than two points, or no extent in x, are empty. Output never
+    extends beyond the first and last traced point (no extrapolation).
+
+    :return: ``(lines, starts)``: ``lines[starts[l]:starts[l+1]]`` is line l ``(K, 2)``.
+    """
+    n = xs.shape[0]
+    n_out = ip[I_N_OUT]
+    smooth = ip[I_SMOOTH] == 1
+    sig2 = fp[P_NOISE] * fp[P_NOISE]
+    lam_a = sig2 / (fp[P_A_STD] * fp[P_A_STD])
+    lam_b = sig2 / (fp[P_B_STD] * fp[P_B_STD])
+    cnt = np.zeros(N_LINES, dtype=np.int64)
+    x_lo = np.full(N_LINES, np.inf)
+    x_hi = np.full(N_LINES, -np.inf)
+    # owned[:n_owned]: the points of any line, so each line's pass below visits
+    # only those (a few hundred) rather than all N points.
+    owned = np.empty(n, dtype=np.int64)
+    n_owned = 0
+    for i in range(n):
+        mk = mask[i]
+        if mk != 0:
+            owned[n_owned] = i
+            n_owned += 1
+            for s in range(N_LINES):
+                if mk & (1 << s):
+                    cnt[s] += 1
+                    x_lo[s] = min(x_lo[s], xs[i])
+                    x_hi[s] = max(x_hi[s], xs[i])
+    starts = np.zeros(N_LINES + 1, dtype=np.int64)
+    for s in range(N_LINES):
+        size = 0
+        if cnt[s] >= 2 and x_hi[s] > x_lo[s]:
+            size = n_out if n_out >= 2 else cnt[s]
+        starts[s + 1] = starts[s] + size
+    lines = np.empty((starts[N_LINES], 2))
+    for s in range(N_LINES):
+        size = starts[s + 1] - starts[s]
+        if size == 0:
+            continue
+        lx = np.empty(cnt[s])
+        ly = np.empty(cnt[s])
+        k = 0
+        for t in range(n_owned):
+            i = owned[t]
+            if mask[i] & (1 << s):
+                lx[k] = xs[i]
+                ly[k] = ys[i]
+                k += 1
+        if n_out >= 2:
+            xq = np.linspace(lx[0], lx[k - 1], n_out)
+        else:
+            xq = lx
+        if smooth:
+            yq, _, _ = _smooth_at(lx, ly, xq, fp[P_SMOOTH_H], a0, b0, lam_a, lam_b, fp[P_A_MAX])
+        elif n_out >= 2:
+            yq = np.interp(xq, lx, ly)
+        else:
+            yq = ly
+        o = starts[s]
+        for j in range(size):
+            lines[o + j, 0] = xq[j]
+            lines[o + j, 1] = yq[j]
+    return lines, starts
+
+
+_assemble = numba.njit(cache=True)(_assemble_py)
+
+
+def _one_line_width_py(starts, offsets, fp):
+    """Lane width [m] for a trajectory from one ego line (§ALDM is silent).
+
+    With only one ego line found, the distance between its offset at x = 0 and that
+    of the adjacent line on the same side, when found and within
+    [min_lane_width, max_lane_width]; otherwise (and with two or no ego lines, where
+    it is unused) the ``lane_width`` parameter.
+    """
+    width = fp[P_LANE_WIDTH]
+    nl = starts[L_EGO_LEFT + 1] - starts[L_EGO_LEFT]
+    nr = starts[L_EGO_RIGHT + 1] - starts[L_EGO_RIGHT]
+    if nl > 0 and nr == 0 and starts[L_LEFT_ADJ + 1] > starts[L_LEFT_ADJ]:
+        w = offsets[L_LEFT_ADJ] - offsets[L_EGO_LEFT]
+        if fp[P_MIN_LANE] <= w <= fp[P_MAX_LANE]:
+            width = w
+    elif nr > 0 and nl == 0 and starts[L_RIGHT_ADJ + 1] > starts[L_RIGHT_ADJ]:
+        w = offsets[L_EGO_RIGHT] - offsets[L_RIGHT_ADJ]
+        if fp[P_MIN_LANE] <= w <= fp[P_MAX_LANE]:
+            width = w
+    return width
+
+
+_one_line_width = numba.njit(cache=True)(_one_line_width_py)
+
+
+def _detect_py(pts, fp, ip, path_range):
+    """The whole ALDM on one frame; the single entry point called from Python.
+
+    :param pts: ``(N, 2|3)`` float64 raw points (x, y[, z]) [m].
+    :param fp: float parameters (layout ``P_*``).
+    :param ip: integer parameters (layout ``I_*``).
+    :param path_range: the trajectory fits the ego lines up to this x [m] (``inf``:
+        whole lines), see :func:`aldm_gym.sensor.trajectory._path`.
+    :return: ``(lines, starts, offsets, ok, trajectory, width)``: packed output lines
+        (see :func:`_assemble`), the lines' offsets at x = 0 ``(4,)`` [m] (NaN if not
+        found), whether the compiled path fit applied (else the caller falls back to
+        ``driving_trajectory`` with the same lines and ``width``), the ``(M, 2)``
+        driving trajectory [m] and the lane width used for a one-line path [m].
+    """
+    has_z = pts.shape[1] >= 3
+    xs, ys = _gather(pts, has_z, fp[P_Z_BAND], fp[P_MAX_RANGE])
+    mask = np.zeros(xs.shape[0], dtype=np.uint8)
+    offsets = np.full(N_LINES, np.nan)
+    a0 = 0.0
+    b0 = 0.0
+    if ip[I_PAPER] == 1:
+        _paper_detect(xs, ys, fp, ip, mask, offsets)
+    else:
+        a0, b0 = _robust_detect(xs, ys, fp, ip, mask, offsets)
+    lines, starts = _assemble(xs, ys, mask, fp, ip, a0, b0)
+    width = _one_line_width(starts, offsets, fp)
+    left = lines[starts[L_EGO_LEFT] : starts[L_EGO_LEFT + 1]]
+    right = lines[starts[L_EGO_RIGHT] : starts[L_EGO_RIGHT + 1]]
+    ok, traj = _path(left, right, width, PATH_STEP, path_range)
+    return lines, starts, offsets, ok, traj, width
+
+
+_detect = numba.njit(cache=True)(_detect_py)
