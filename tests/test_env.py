@@ -255,24 +255,25 @@ def test_render_rgb_array_shape_and_record_video(tmp_path: object) -> None:
     assert list(tmp_path.glob("*.mp4"))  # type: ignore[attr-defined]
 
 
-def test_near_path_fits_the_first_max_x_metres() -> None:
-    """``near_path`` is ``driving_trajectory`` of the lines cut at ``max_x`` (>= 4 points)."""
-    from aldm_gym.envs.highway import near_path
+def test_the_lka_follows_the_detections_own_trajectory() -> None:
+    """One trajectory: the ego follows ``detection.trajectory``, fitted up to ``path_range``."""
     from aldm_gym.sensor.detection import driving_trajectory
 
-    rng = np.random.default_rng(4)
-    for _ in range(200):
-        lines, cuts = [], []
-        for side in (1.0, -1.0):
-            k = int(rng.integers(0, 40))
-            x = np.sort(rng.uniform(5.0, 200.0, k))
-            y = side * 1.8 + 0.02 * x + 3e-3 * x**2 + rng.normal(0.0, 0.05, k)
-            line = np.column_stack([x, y])
-            lines.append(line)
-            cuts.append(line if k <= 4 else line[: max(int((x <= 80.0).sum()), 4)])
-        got = near_path(lines[0], lines[1], 3.5, 80.0)
-        want = driving_trajectory(cuts[0], cuts[1], 3.5)
-        assert got.shape == want.shape and got.tobytes() == want.tobytes()
+    for path_range in (80.0, 40.0):
+        env = make({"vehicles_count": 5, "detector": "naive", "lka": {"path_range": path_range}})
+        env.reset(seed=2)
+        for _ in range(3):
+            env.step(1)
+            u = env.unwrapped
+            det = u.detection
+            assert u.vehicle.trajectory is det.trajectory
+            assert len(det.trajectory) >= 2
+            # the fit stops where the shorter cut line ends: within the range (+ 1 step)
+            assert det.trajectory[-1, 0] <= path_range + 2.0 + 1e-9
+            want = driving_trajectory(
+                det.ego_left, det.ego_right, u.highway.lane_width, path_range=path_range
+            )
+            assert det.trajectory.tobytes() == want.tobytes()
 
 
 def test_lanes_summary_matches_ground_truth_gaps() -> None:

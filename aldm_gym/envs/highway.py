@@ -19,7 +19,7 @@ from aldm_gym.envs.config import default_config, merge_config, road_config
 from aldm_gym.envs.control import LKAController
 from aldm_gym.envs.observation import ALDMObservation
 from aldm_gym.envs.traffic import FastRoad
-from aldm_gym.envs.vehicle import SensorVehicle, near_path
+from aldm_gym.envs.vehicle import SensorVehicle
 from aldm_gym.roads.cache import cached_road
 from aldm_gym.roads.highway import HighwayRoad
 from aldm_gym.sensor.detection import LaneDetection
@@ -196,7 +196,9 @@ class ALDMHighwayEnv(AbstractEnv):
         )
         self.highway = cached_road(road_config(cfg, seed))
         self.sensor = LineSensor(cfg["sensor"])
-        self._detector = make_detector(cfg["detector"], cfg["detector_params"])
+        self._detector = make_detector(
+            cfg["detector"], cfg["detector_params"], path_range=self.path_range
+        )
         self.road = FastRoad(
             network=self.highway.network,
             np_random=self.np_random,
@@ -258,10 +260,7 @@ class ALDMHighwayEnv(AbstractEnv):
         )
         self.detection = det = self._detector(self.frame, hw, lane_id)
         ego.detection = det
-        if self.path_range is None:
-            ego.trajectory = det.trajectory
-        else:
-            ego.trajectory = near_path(det.ego_left, det.ego_right, hw.lane_width, self.path_range)
+        ego.trajectory = det.trajectory  # fitted up to lka.path_range by the detector
         # A wheel over a marking: |offset| + half the vehicle width beyond half the lane.
         over = abs(offset) + 0.5 * ego.WIDTH > 0.5 * hw.lane_width
         if over and ego.lane_change == 0:

@@ -19,7 +19,7 @@ from highway_env.vehicle.kinematics import Vehicle
 
 from aldm_gym.envs.actions import ActionConfig, MetaAction
 from aldm_gym.envs.control import LKAConfig, LKAController
-from aldm_gym.envs.traffic import BatchedLaneUpdate, FastControlledVehicle, _clip
+from aldm_gym.envs.traffic import BatchedLaneUpdate, FastBicycleStep, clip_scalar
 from aldm_gym.roads.highway import RoadConfig
 from aldm_gym.sensor.detection import LaneDetection, driving_trajectory
 from aldm_gym.types import FloatArray
@@ -27,27 +27,7 @@ from aldm_gym.types import FloatArray
 _ACTION = ActionConfig()
 
 
-def near_path(left: FloatArray, right: FloatArray, lane_width: float, max_x: float) -> FloatArray:
-    """Driving path midway between two lines, fitted on their part up to ``max_x`` [m].
-
-    :func:`~aldm_gym.sensor.detection.driving_trajectory` fits one cubic over the
-    whole visible line (up to 200 m); in a tight curve (R = 100 m the marking turns
-    sideways within the view) that cubic is off by metres near the car, where the
-    controller looks. Fitting only the first ``max_x`` metres (default 80 m, beyond
-    the paper's 60 m preview) keeps the path exact near the car on any radius the
-    road generator allows. A line keeps at least its first 4 points.
-    """
-
-    def cut(line: FloatArray) -> FloatArray:
-        if len(line) <= 4:
-            return line
-        k = max(int(np.searchsorted(line[:, 0], max_x, side="right")), 4)
-        return line[:k]
-
-    return driving_trajectory(cut(left), cut(right), lane_width)
-
-
-class SensorVehicle(BatchedLaneUpdate, Vehicle):
+class SensorVehicle(FastBicycleStep, BatchedLaneUpdate, Vehicle):
     """The ego vehicle: laterally controlled only from the detected lanes.
 
     highway-env's kinematic bicycle (``Vehicle``) with its ``lane_index``
@@ -90,8 +70,8 @@ class SensorVehicle(BatchedLaneUpdate, Vehicle):
         self.max_acceleration = max_acceleration
         self.lane_width = lane_width
         self.detection: LaneDetection | None = None
-        self.trajectory: FloatArray = np.zeros((0, 2))
-        self.path_range = 1e9 if path_range is None else float(path_range)
+        self.trajectory: FloatArray = np.zeros((0, 2))  # the detection's (set by the env)
+        self.path_range = path_range
         self.command = np.zeros(2)  # continuous mode: (steering ISO [rad], acceleration)
         self.steering_iso = 0.0
         self.lane_change = 0  # +1 left, -1 right, 0 none
@@ -129,10 +109,14 @@ class SensorVehicle(BatchedLaneUpdate, Vehicle):
         if direction > 0:
             if not (det.found("left_adjacent") and det.found("ego_left")):
                 return np.zeros((0, 2))
-            return near_path(det.left_adjacent, det.ego_left, self.lane_width, self.path_range)
+            return driving_trajectory(
+                det.left_adjacent, det.ego_left, self.lane_width, path_range=self.path_range
+            )
         if not (det.found("right_adjacent") and det.found("ego_right")):
             return np.zeros((0, 2))
-        return near_path(det.ego_right, det.right_adjacent, self.lane_width, self.path_range)
+        return driving_trajectory(
+            det.ego_right, det.right_adjacent, self.lane_width, path_range=self.path_range
+        )
 
     def _lateral_path(self) -> FloatArray:
         """The path to follow now: the ego trajectory, or the lane-change target's centre."""
@@ -185,15 +169,11 @@ class SensorVehicle(BatchedLaneUpdate, Vehicle):
         # np.clip's result for scalars with non-NaN bounds, without its ~4 µs dispatch.
         max_steering = float(self.lka.max_steering)
         max_acceleration = float(self.max_acceleration)
-        steer_iso = float(_clip(float(steer_iso), -max_steering, max_steering))
-        accel = float(_clip(float(accel), -max_acceleration, max_acceleration))
+        steer_iso = float(clip_scalar(float(steer_iso), -max_steering, max_steering))
+        accel = float(clip_scalar(float(accel), -max_acceleration, max_acceleration))
         self.steering_iso = steer_iso
         # highway-env's world: a positive steering angle turns towards the driver's right.
         self.action = {"steering": -steer_iso, "acceleration": accel}
-
-    step = FastControlledVehicle.step
-    """``Vehicle.step``'s bicycle model with the same float operations, numpy-free
-    (:class:`~aldm_gym.envs.traffic.FastControlledVehicle`)."""
 
     @property
     def yaw_rate(self) -> float:

@@ -60,6 +60,3 @@ __all__ = [
     "clip_scalar",
     "use_fast_road",
 ]
-
-_clip = clip_scalar
-"""Old private name of :func:`clip_scalar`, kept while ``aldm_gym.envs.vehicle`` imports it."""
