@@ -7,11 +7,14 @@ from pathlib import Path
 
 import pytest
 
-from aldm_gym.cli import CLOSED_LOOP_COLUMNS, main
+from aldm_gym.agents.comparison import CLOSED_LOOP_COLUMNS
+from aldm_gym.cli import main
 from aldm_gym.roads import HighwayRoad
-from aldm_gym.sensor.evaluation import COLUMNS, compare_detectors, make_detector
+from aldm_gym.sensor.detectors import make_detector
+from aldm_gym.sensor.evaluation import COLUMNS, compare_detectors
 
 
+@pytest.mark.slow
 def test_compare_quick_writes_csvs_and_figures(
     tmp_path: Path, capsys: pytest.CaptureFixture
 ) -> None:

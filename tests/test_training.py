@@ -1,4 +1,7 @@
-"""``aldm-gym train`` / ``evaluate``: tiny budgets; checkpoints load; resume keeps counting."""
+"""``aldm-gym train`` / ``evaluate``: tiny budgets; checkpoints load; resume keeps counting.
+
+Tests that train are marked slow (a few seconds to a minute each on 2 cores).
+"""
 
 from __future__ import annotations
 
@@ -14,15 +17,18 @@ pytest.importorskip("stable_baselines3")
 from stable_baselines3 import PPO
 from stable_baselines3.common.callbacks import BaseCallback
 
-from aldm_gym.agents.training import (
-    ENV_ID,
-    EVAL_COLUMNS,
-    VALIDATION_SEED,
-    PPOParams,
+from aldm_gym import ENV_ID
+from aldm_gym.agents.checkpoints import (
+    can_resume,
+    checkpoint_paths,
+    find_training_file,
+    holds_training,
     latest_checkpoint,
     load_policy,
-    train,
+    vecnormalize_for,
 )
+from aldm_gym.agents.model_evaluation import EVAL_COLUMNS
+from aldm_gym.agents.training import VALIDATION_SEED, PPOParams, train
 from aldm_gym.cli import main
 
 TINY = [
@@ -37,6 +43,7 @@ def _tiny_train(out: Path, timesteps: int, *extra: str) -> int:
     return main(["train", "--timesteps", str(timesteps), "--out", str(out), *TINY, *extra])
 
 
+@pytest.mark.slow
 def test_checkpoints_follow_the_frequency(tmp_path: Path) -> None:
     out = tmp_path / "freq"
     assert _tiny_train(out, 160, "--checkpoint-freq", "64") == 0
@@ -82,6 +89,44 @@ def test_bad_arguments_are_rejected(argv: list[str], capsys: pytest.CaptureFixtu
     assert "error" in capsys.readouterr().err
 
 
+def _touch(path: Path) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_bytes(b"")
+
+
+def test_checkpoint_store_finds_the_newest_complete_checkpoint(tmp_path: Path) -> None:
+    assert latest_checkpoint(tmp_path) is None
+    assert not holds_training(tmp_path) and not can_resume(tmp_path)
+    for steps in (64, 128, 1024):
+        model, vecnorm = checkpoint_paths(tmp_path, steps)
+        _touch(model)
+        if steps != 1024:  # the newest lacks its normalisation: incomplete
+            _touch(vecnorm)
+    model, vecnorm, steps = latest_checkpoint(tmp_path)
+    assert steps == 128  # numerically newest, not lexically (1024 < 128 < 64 as text)
+    assert (model.name, vecnorm.name) == ("model_128_steps.zip", "vecnormalize_128_steps.pkl")
+    # A checkpoint without training.json is a training (refuse to overwrite) that
+    # cannot be resumed.
+    assert holds_training(tmp_path) and not can_resume(tmp_path)
+    _touch(tmp_path / "training.json")
+    assert can_resume(tmp_path)
+    # Models find their metadata and normalisation: checkpoints one folder down.
+    assert find_training_file(model) == tmp_path / "training.json"
+    assert vecnormalize_for(model) == vecnorm
+    assert vecnormalize_for(checkpoint_paths(tmp_path, 1024)[0]) is None
+    _touch(tmp_path / "best_model.zip")
+    _touch(tmp_path / "best_vecnormalize.pkl")
+    assert vecnormalize_for(tmp_path / "best_model.zip") == tmp_path / "best_vecnormalize.pkl"
+    assert find_training_file(tmp_path / "elsewhere" / "deeper" / "m.zip") is None
+
+
+def test_a_final_model_alone_also_holds_a_training(tmp_path: Path) -> None:
+    _touch(tmp_path / "model.zip")
+    assert holds_training(tmp_path) and not can_resume(tmp_path)
+    with pytest.raises(SystemExit, match="already holds a training"):
+        main(["train", "--out", str(tmp_path), "--no-progress"])
+
+
 def test_linear_learning_rate_decays_to_zero_over_the_budget() -> None:
     schedule = PPOParams(learning_rate=4e-4, lr_schedule="linear").learning_rate_schedule()
     assert callable(schedule)
@@ -101,6 +146,7 @@ def test_clear_errors_for_missing_model_and_resume(tmp_path: Path) -> None:
         main(["train", "--resume", "--out", str(tmp_path / "empty")])
 
 
+@pytest.mark.slow
 def test_train_writes_loadable_model_and_evaluate_prints_table(
     tmp_path: Path, capsys: pytest.CaptureFixture
 ) -> None:
@@ -139,6 +185,7 @@ def test_train_writes_loadable_model_and_evaluate_prints_table(
     assert [r["policy"] for r in report["rows"]] == ["idle", "rule_based", "model"]
 
 
+@pytest.mark.slow
 def test_validation_keeps_the_model_it_scored_best(tmp_path: Path) -> None:
     import gymnasium as gym
     import numpy as np
@@ -191,6 +238,7 @@ class _InterruptAt(BaseCallback):
         return True
 
 
+@pytest.mark.slow
 def test_resume_after_interruption_continues_step_count(tmp_path: Path) -> None:
     kwargs = dict(
         detector="naive",

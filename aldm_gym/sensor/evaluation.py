@@ -3,7 +3,8 @@
 Seeded vehicle poses are drawn along a road; at each pose the line sensor measures
 a frame and every detector is scored with
 :func:`~aldm_gym.sensor.ground_truth.score_detection`. This is the open-loop half of
-the naive-vs-ALDM comparison (``aldm-gym compare``).
+the naive-vs-ALDM comparison (``aldm-gym compare``). Detectors are chosen by name from
+the registry :mod:`aldm_gym.sensor.detectors`.
 """
 
 from __future__ import annotations
@@ -15,37 +16,10 @@ from typing import Any
 import numpy as np
 
 from aldm_gym.roads.highway import HighwayRoad
-from aldm_gym.sensor.detection import LaneDetection
+from aldm_gym.sensor.detectors import DETECTORS, make_detector
 from aldm_gym.sensor.frame import SensorFrame
-from aldm_gym.sensor.ground_truth import ground_truth_detect, score_detection
+from aldm_gym.sensor.ground_truth import score_detection
 from aldm_gym.sensor.line_sensor import LineSensor
-from aldm_gym.sensor.naive import naive_detect
-
-DETECTORS: tuple[str, ...] = ("naive", "aldm", "ground_truth")
-"""Detector names accepted by :func:`make_detector`."""
-
-Detector = Callable[[SensorFrame, HighwayRoad, int], LaneDetection]
-"""A detector: ``(frame, road, true lane id) -> LaneDetection``; only ``ground_truth`` may
-use the road and lane id."""
-
-
-def make_detector(name: str, **params: Any) -> Detector:
-    """A detector by name (:data:`DETECTORS`); ``params`` go to the ALDM.
-
-    :raises ValueError: unknown name, or parameters for a detector that takes none.
-    """
-    if name not in DETECTORS:
-        raise ValueError(f"unknown detector {name!r}; allowed: {list(DETECTORS)}")
-    if params and name != "aldm":
-        raise ValueError(f"detector {name!r} takes no parameters, got {sorted(params)}")
-    if name == "naive":
-        return lambda frame, road, lane_id: naive_detect(frame, lane_width=road.lane_width)
-    if name == "ground_truth":
-        return lambda frame, road, lane_id: ground_truth_detect(road, frame, lane_id)
-    from aldm_gym.sensor.aldm import detect_lanes, make_params
-
-    p = make_params(None, **params)
-    return lambda frame, road, lane_id: detect_lanes(frame, p)
 
 
 @dataclass(frozen=True)
@@ -175,6 +149,15 @@ def compare_detectors(
             }
         )
     return rows
+
+
+def remeasure(road: HighwayRoad, frame: SensorFrame) -> SensorFrame:
+    """Measure ``road`` from the sensor pose of an earlier ``frame`` (same place, e.g.
+    the other marking model of the same road)."""
+    # The frame's origin is the sensor itself: a sensor mounted at the vehicle's
+    # reference point (mount_x 0) placed there sees from exactly the same pose.
+    sensor = LineSensor({"mount_x": 0.0})
+    return sensor.measure(road, (float(frame.origin[0]), float(frame.origin[1]), frame.yaw))
 
 
 def find_frame(

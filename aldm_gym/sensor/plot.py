@@ -8,13 +8,14 @@ only when a function is called.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from aldm_gym.sensor.detection import LINE_NAMES, LaneDetection
+from aldm_gym.sensor.detectors import DETECTORS
 from aldm_gym.sensor.frame import SensorFrame
 
 if TYPE_CHECKING:
@@ -119,6 +120,37 @@ def plot_frames(
         fig.savefig(path, dpi=130)
         plt.close(fig)
     return fig
+
+
+def plot_detector_bars(rows: Sequence[Mapping[str, Any]], path: str | Path) -> None:
+    """Bars of the share of frames with both ego lines correct, per marking model and
+    detector (rows of :func:`~aldm_gym.sensor.evaluation.compare_detectors`); a PNG."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    models = sorted({r["marking_model"] for r in rows}, reverse=True)
+    dets = [d for d in DETECTORS if any(r["detector"] == d for r in rows)]
+    fig, ax = plt.subplots(figsize=(6, 3.5))
+    width = 0.8 / len(dets)
+    for i, d in enumerate(dets):
+        vals = [
+            next(
+                (r["both_correct"] for r in rows if r["marking_model"] == m and r["detector"] == d),
+                0.0,
+            )
+            for m in models
+        ]
+        ax.bar(np.arange(len(models)) + i * width, vals, width, label=d)
+    ax.set_xticks(np.arange(len(models)) + 0.4 - width / 2, models)
+    ax.set_ylabel("frames with both ego lines correct")
+    ax.set_ylim(0, 1.05)
+    ax.legend()
+    ax.grid(axis="y", alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=130)
+    plt.close(fig)
 
 
 def save_table_figure(rows: list[dict[str, Any]], columns: list[str], path: str | Path) -> None:

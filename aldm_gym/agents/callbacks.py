@@ -1,0 +1,223 @@
+"""stable-baselines3 callbacks of :func:`~aldm_gym.agents.training.train`.
+
+* :class:`RolloutCheckpointCallback`: SB3's ``CheckpointCallback`` saving at rollout
+  boundaries (model + ``VecNormalize``), and on demand when training is interrupted.
+* :class:`ValidationCallback`: plays fixed validation seeds every ``validation_freq``
+  steps and keeps the best model (see :mod:`aldm_gym.agents.training`).
+* :class:`ProgressCallback`: a tqdm bar over the whole (possibly resumed) training.
+
+This module imports stable-baselines3 at import time (the classes subclass its
+callbacks); :func:`~aldm_gym.agents.training.train` imports it only when it runs.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback
+
+from aldm_gym import ENV_ID
+from aldm_gym.agents.checkpoints import (
+    BEST_MODEL_FILE,
+    BEST_VECNORM_FILE,
+    CHECKPOINT_DIR,
+    VALIDATION_FILE,
+    VALIDATION_PLOT,
+    NormalizedModel,
+    save_checkpoint,
+    save_model,
+    write_json,
+)
+from aldm_gym.agents.evaluation import EpisodeStats, run_episodes, summarize
+from aldm_gym.agents.policies import IdlePolicy, RuleBasedLCA
+from aldm_gym.agents.training import VALIDATION_SEED
+
+
+class RolloutCheckpointCallback(CheckpointCallback):
+    """SB3's ``CheckpointCallback``, saving after the PPO update that ends a rollout.
+
+    A checkpoint (``model_<steps>_steps.zip`` and ``vecnormalize_<steps>_steps.pkl`` in
+    ``<out>/checkpoints``) is written at the start of the first rollout that begins at
+    least ``save_freq`` policy steps after the last one. SB3's own saves every
+    ``save_freq`` calls of ``_on_step``, i.e. mid-rollout, where the weights and
+    optimiser do not yet reflect the steps counted; saving between rollouts keeps a
+    checkpoint's weights, optimiser and step count consistent, so a resume is exact.
+
+    :param save_freq: policy steps between checkpoints [policy steps].
+    :param out: the training's output folder.
+    :ivar rollout_start: step count at the start of the current rollout: the state to
+        save on an interruption (the samples of an unfinished rollout are discarded).
+    """
+
+    def __init__(self, save_freq: int, out: Path, verbose: int = 0) -> None:
+        super().__init__(
+            save_freq,
+            str(Path(out) / CHECKPOINT_DIR),
+            name_prefix="model",
+            save_vecnormalize=True,
+            verbose=verbose,
+        )
+        self.out = Path(out)
+        self.last_saved = 0
+        self.rollout_start = 0
+
+    def _on_training_start(self) -> None:
+        self.last_saved = self.model.num_timesteps
+        self.rollout_start = self.model.num_timesteps
+
+    def _on_rollout_start(self) -> None:
+        # Called after the previous rollout's update: the state to save on interrupt.
+        self.rollout_start = self.model.num_timesteps
+        if self.model.num_timesteps - self.last_saved >= self.save_freq:
+            self.save()
+
+    def _on_step(self) -> bool:
+        return True  # saves happen between rollouts, not per step as in SB3's
+
+    def save(self, steps: int | None = None) -> Path:
+        """Write the checkpoint of ``steps`` (default: the model's step count); its path."""
+        steps = self.model.num_timesteps if steps is None else steps
+        self.last_saved = steps
+        return save_checkpoint(self.model, self.out, steps)
+
+
+_VALIDATION_METRICS = ("success_rate", "mean_speed", "collisions", "departures_per_km")
+
+
+def validation_row(episodes: list[EpisodeStats]) -> dict[str, Any]:
+    """Metrics of one validation: mean return (the training objective) and
+    success rate, mean speed [m/s], collisions, departures per km."""
+    metrics = summarize(episodes)
+    return {
+        "mean_return": float(sum(e.reward for e in episodes) / len(episodes)),
+        **{
+            k: metrics[k] for k in ("success_rate", "mean_speed", "collisions", "departures_per_km")
+        },
+    }
+
+
+class ValidationCallback(BaseCallback):
+    """Validate on fixed seeds every ``validation_freq`` steps; keep the best model.
+
+    The current policy (deterministic, with the training's normalisation) drives
+    ``n_episodes`` episodes with seeds ``VALIDATION_SEED ..``; the one with the highest
+    mean return is saved as ``best_model.zip``. Every validation goes to
+    ``validation.json`` (with IDLE's and the rule-based LCA's metrics on the same
+    seeds), ``validation.png`` and tensorboard (``validation/*``). A resume continues
+    the saved record when its seeds match.
+
+    Not SB3's ``EvalCallback``: that one scores with ``evaluate_policy`` on a
+    ``VecEnv`` (no per-episode seeds, returns only) and triggers every ``eval_freq``
+    calls mid-rollout; here every policy plays the same seeded episodes through
+    :func:`~aldm_gym.agents.evaluation.run_episodes` with ground-truth metrics, between
+    rollouts.
+
+    :param out: the training's output folder.
+    :param env_config: ``ALDMHighway-v0`` config of the training.
+    :param validation_freq: policy steps between validations [policy steps].
+    :param n_episodes: episodes per validation.
+    """
+
+    def __init__(
+        self, out: Path, env_config: dict[str, Any], validation_freq: int, n_episodes: int
+    ) -> None:
+        super().__init__()
+        self.out = Path(out)
+        self.env_config = env_config
+        self.validation_freq = validation_freq
+        self.n_episodes = n_episodes
+        self.env: Any = None
+        self.last = 0
+        self.history: list[dict[str, Any]] = []
+        self.best: dict[str, Any] | None = None
+        self.baselines: dict[str, Any] = {}
+
+    @property
+    def seeds(self) -> range:
+        """The validation episodes' seeds."""
+        return range(VALIDATION_SEED, VALIDATION_SEED + self.n_episodes)
+
+    def _on_training_start(self) -> None:
+        self.last = self.model.num_timesteps
+        self.env = gym.make(ENV_ID, config=self.env_config)
+        path = self.out / VALIDATION_FILE
+        saved: dict[str, Any] = {}
+        if path.exists() and self.model.num_timesteps > 0:  # a resume
+            saved = json.loads(path.read_text())
+        if saved.get("seeds") != [self.seeds[0], self.seeds[-1]]:
+            saved = {}  # other validation episodes: not comparable, start afresh
+        if saved:
+            self.history = [h for h in saved["history"] if h["steps"] <= self.model.num_timesteps]
+            best = [h for h in self.history if h["steps"] == saved.get("best_steps")]
+            self.best = best[0] if best else None
+        self.baselines = saved.get("baselines") or {
+            name: validation_row(run_episodes(self.env, policy, self.seeds))
+            for name, policy in (("idle", IdlePolicy()), ("rule_based", RuleBasedLCA()))
+        }
+
+    def _on_rollout_start(self) -> None:
+        if self.model.num_timesteps - self.last >= self.validation_freq:
+            self.validate()
+
+    def _on_step(self) -> bool:
+        return True
+
+    def _on_training_end(self) -> None:
+        if self.model.num_timesteps > self.last or self.best is None:
+            self.validate()
+        self.env.close()
+
+    def validate(self) -> None:
+        """Play the validation seeds now; record, log, and keep the model if best."""
+        from aldm_gym.agents.plot import plot_validation
+
+        steps = self.model.num_timesteps
+        self.last = steps
+        policy = NormalizedModel(self.model, self.model.get_vec_normalize_env())
+        row = {"steps": int(steps), **validation_row(run_episodes(self.env, policy, self.seeds))}
+        for key in ("mean_return", "success_rate", "mean_speed", "collisions"):
+            self.logger.record(f"validation/{key}", row[key])
+        self.history.append(row)
+        if self.best is None or row["mean_return"] > self.best["mean_return"]:
+            self.best = row
+            save_model(self.model, self.out / BEST_MODEL_FILE, self.out / BEST_VECNORM_FILE)
+        record = {
+            "seeds": [VALIDATION_SEED, VALIDATION_SEED + self.n_episodes - 1],
+            "best_steps": self.best["steps"],
+            "baselines": self.baselines,
+            "history": self.history,
+        }
+        write_json(self.out / VALIDATION_FILE, record)
+        plot_validation(record, self.out / VALIDATION_PLOT)
+
+
+class ProgressCallback(BaseCallback):
+    """tqdm bar over the policy steps of the whole (possibly resumed) training.
+
+    Not SB3's ``ProgressBarCallback``: that one needs ``rich`` and counts only the
+    steps of the current ``learn`` call.
+
+    :param total: the training's total budget [policy steps].
+    """
+
+    def __init__(self, total: int) -> None:
+        super().__init__()
+        self.total = total
+        self.bar: Any = None
+
+    def _on_training_start(self) -> None:
+        from tqdm import tqdm
+
+        self.bar = tqdm(
+            total=self.total, initial=self.model.num_timesteps, desc="train", unit="step"
+        )
+
+    def _on_step(self) -> bool:
+        self.bar.update(self.training_env.num_envs)
+        return True
+
+    def _on_training_end(self) -> None:
+        self.bar.close()

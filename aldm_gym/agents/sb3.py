@@ -1,0 +1,27 @@
+"""The gate to stable-baselines3: import it (and torch), or say how to install them.
+
+stable-baselines3 and torch are optional (the ``[rl]`` extra) and heavy; modules that
+need them import them inside functions through :func:`import_sb3`, so that
+``import aldm_gym`` and the ``aldm-gym`` parser stay light.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+
+class MissingRLDependencies(ImportError):
+    """stable-baselines3 or torch is not installed."""
+
+
+def import_sb3() -> Any:
+    """Import stable_baselines3 (and torch) or raise :class:`MissingRLDependencies`."""
+    try:
+        import stable_baselines3
+        import torch  # noqa: F401
+    except ImportError as exc:  # pragma: no cover - depends on the install
+        raise MissingRLDependencies(
+            f"training needs stable-baselines3, torch and tensorboard ({exc}); "
+            "install them with: pip install 'aldm-gym[rl]'"
+        ) from exc
+    return stable_baselines3

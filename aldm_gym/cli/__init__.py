@@ -1,0 +1,42 @@
+"""The ``aldm-gym`` command line: one module per subcommand.
+
+* ``aldm-gym compare`` (:mod:`aldm_gym.cli.compare`): naive vs ALDM vs ground truth on
+  the same seeded frames of both road models, then in closed loop.
+* ``aldm-gym plot`` (:mod:`aldm_gym.cli.plot`): one frame, naive and ALDM side by side.
+* ``aldm-gym train`` (:mod:`aldm_gym.cli.train`): train a PPO lane-change policy.
+* ``aldm-gym evaluate`` (:mod:`aldm_gym.cli.evaluate`): a trained policy against the
+  rule-based ones.
+
+Each subcommand module has ``add_parser(subparsers)``, which declares its arguments
+and sets ``func`` (its ``run(args) -> exit code``) as the parser default;
+:func:`main` calls it. Building the parser imports neither stable-baselines3, torch
+nor matplotlib.
+"""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Sequence
+
+from aldm_gym.cli import compare, evaluate, plot, train
+
+SUBCOMMANDS = (compare, plot, train, evaluate)
+"""The subcommand modules, in the order of ``aldm-gym --help``."""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of ``aldm-gym``."""
+    parser = argparse.ArgumentParser(
+        prog="aldm-gym",
+        description="Lane detection on an emulated CarMaker line sensor: naive vs ALDM.",
+    )
+    sub = parser.add_subparsers(dest="command", required=True)
+    for command in SUBCOMMANDS:
+        command.add_parser(sub)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of ``aldm-gym``: parse ``argv`` and run the subcommand; its exit code."""
+    args = build_parser().parse_args(argv)
+    return int(args.func(args))

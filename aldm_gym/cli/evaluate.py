@@ -1,0 +1,101 @@
+"""``aldm-gym evaluate``: a trained policy against IDLE and the rule-based LCA.
+
+Writes ``evaluate_<model>_<detector>_<marking model>.json`` next to the model (or to
+``--out``) and prints the table and a one-line verdict
+(:mod:`aldm_gym.agents.model_evaluation`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+from typing import Any
+
+from aldm_gym.agents.checkpoints import TRAINING_FILE, find_training_file
+from aldm_gym.agents.model_evaluation import (
+    EVAL_COLUMNS,
+    EVALUATION_SEED,
+    evaluate,
+    summary_line,
+)
+from aldm_gym.agents.sb3 import MissingRLDependencies
+from aldm_gym.cli.argtypes import positive_int
+from aldm_gym.cli.report import format_table
+from aldm_gym.roads.highway import MARKING_MODELS
+from aldm_gym.sensor.detectors import DETECTORS
+
+EPISODES = 30
+"""Default episodes per policy."""
+
+QUICK_EPISODES = 5
+"""``evaluate --quick``: episodes per policy."""
+
+
+def add_parser(subparsers: Any) -> argparse.ArgumentParser:
+    """Declare ``aldm-gym evaluate`` and its arguments."""
+    parser = subparsers.add_parser(
+        "evaluate", help="evaluate a trained policy against rule-based ones"
+    )
+    parser.add_argument("--model", type=Path, required=True, help="model .zip (or checkpoint)")
+    parser.add_argument(
+        "--episodes",
+        type=positive_int,
+        default=None,
+        help=f"episodes per policy ({EPISODES}; quick {QUICK_EPISODES})",
+    )
+    parser.add_argument(
+        "--detector", choices=DETECTORS, default=None, help="override the training detector"
+    )
+    parser.add_argument(
+        "--marking-model", choices=MARKING_MODELS, default=None, help="override the road model"
+    )
+    parser.add_argument(
+        "--seed",
+        type=int,
+        default=EVALUATION_SEED,
+        help=f"first episode seed ({EVALUATION_SEED}; training uses 0..)",
+    )
+    parser.add_argument(
+        "--out", type=Path, default=None, help="folder for evaluation JSON (the model's)"
+    )
+    parser.add_argument(
+        "--quick", action="store_true", help=f"{QUICK_EPISODES} episodes per policy"
+    )
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parser.set_defaults(func=run)
+    return parser
+
+
+def run(args: argparse.Namespace) -> int:
+    """``aldm-gym evaluate``."""
+    episodes = args.episodes or (QUICK_EPISODES if args.quick else EPISODES)
+    if not args.model.is_file():
+        raise SystemExit(f"aldm-gym evaluate: --model {args.model} is not a file")
+    if find_training_file(args.model) is None:
+        raise SystemExit(
+            f"aldm-gym evaluate: no {TRAINING_FILE} next to {args.model} "
+            "(models are read from an aldm-gym train output folder)"
+        )
+    t0 = time.perf_counter()
+    try:
+        rows, info = evaluate(
+            args.model,
+            episodes=episodes,
+            seed=args.seed,
+            detector=args.detector,
+            marking_model=args.marking_model,
+            progress=not args.no_progress,
+        )
+    except MissingRLDependencies as exc:
+        raise SystemExit(f"aldm-gym evaluate: {exc}") from None
+    out: Path = args.out or args.model.parent
+    out.mkdir(parents=True, exist_ok=True)
+    cfg = info["env_config"]
+    path = out / f"evaluate_{args.model.stem}_{cfg['detector']}_{cfg['marking_model']}.json"
+    path.write_text(json.dumps({"rows": rows, **info}, indent=2) + "\n")
+    print(f"wrote {path} ({time.perf_counter() - t0:.0f} s)")
+    print(format_table(rows, EVAL_COLUMNS))
+    print(summary_line(rows, info))
+    return 0

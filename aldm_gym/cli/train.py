@@ -1,0 +1,230 @@
+"""``aldm-gym train``: train (or resume) a PPO lane-change policy.
+
+Flags map onto :func:`~aldm_gym.agents.training.train`; ``--resume`` takes the env
+config and hyperparameters saved in ``<out>/training.json`` and refuses flags that
+contradict them. stable-baselines3 is imported only when the command runs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+from typing import Any
+
+from aldm_gym.agents.checkpoints import (
+    BEST_MODEL_FILE,
+    CHECKPOINT_DIR,
+    MODEL_FILE,
+    TENSORBOARD_DIR,
+    VALIDATION_FILE,
+    can_resume,
+    holds_training,
+    read_training,
+)
+from aldm_gym.agents.sb3 import MissingRLDependencies
+from aldm_gym.agents.training import (
+    DEFAULT_CHECKPOINT_FREQ,
+    DEFAULT_COLLISION_REWARD,
+    DEFAULT_TIMESTEPS,
+    DEFAULT_VALIDATION_EPISODES,
+    DEFAULT_VALIDATION_FREQ,
+    LR_SCHEDULES,
+    VALIDATION_SEED,
+    PPOParams,
+    train,
+)
+from aldm_gym.cli.argtypes import (
+    fraction,
+    non_negative_int,
+    positive_float,
+    positive_int,
+)
+from aldm_gym.roads.highway import MARKING_MODELS
+from aldm_gym.sensor.detectors import DETECTORS
+
+QUICK_TIMESTEPS = 1_024
+"""``train --quick``: a smoke-test budget (about a minute)."""
+
+QUICK_N_STEPS = 64
+"""``train --quick``: rollout length per env [policy steps]."""
+
+QUICK_DURATION = 10.0
+"""``train --quick``: episode length [s]."""
+
+
+def add_parser(subparsers: Any) -> argparse.ArgumentParser:
+    """Declare ``aldm-gym train`` and its arguments."""
+    parser = subparsers.add_parser("train", help="train a PPO lane-change policy")
+    parser.add_argument(
+        "--detector", choices=DETECTORS, default=None, help="lanes in the observation (aldm)"
+    )
+    parser.add_argument(
+        "--marking-model", choices=MARKING_MODELS, default=None, help="road model (per_dash)"
+    )
+    parser.add_argument(
+        "--timesteps",
+        type=positive_int,
+        default=None,
+        help=f"total policy steps, counting steps before a resume ({DEFAULT_TIMESTEPS}; "
+        f"--quick {QUICK_TIMESTEPS})",
+    )
+    parser.add_argument(
+        "--n-envs",
+        type=positive_int,
+        default=1,
+        help="parallel envs (1; more run in subprocesses, but change the results)",
+    )
+    parser.add_argument(
+        "--n-steps",
+        type=positive_int,
+        default=None,
+        help=f"PPO rollout length per env ({PPOParams.n_steps})",
+    )
+    parser.add_argument(
+        "--checkpoint-freq",
+        type=positive_int,
+        default=DEFAULT_CHECKPOINT_FREQ,
+        help=f"checkpoint every this many steps ({DEFAULT_CHECKPOINT_FREQ})",
+    )
+    parser.add_argument(
+        "--gamma",
+        type=fraction,
+        default=None,
+        help=f"discount factor per policy step ({PPOParams.gamma})",
+    )
+    parser.add_argument(
+        "--lr-schedule",
+        choices=LR_SCHEDULES,
+        default=None,
+        help=f"learning rate constant, or decaying linearly to 0 over --timesteps "
+        f"({PPOParams.lr_schedule})",
+    )
+    parser.add_argument(
+        "--validation-freq",
+        type=non_negative_int,
+        default=None,
+        help="validate (and keep best_model.zip) every this many steps, 0 = never "
+        f"({DEFAULT_VALIDATION_FREQ}; --quick 0)",
+    )
+    parser.add_argument(
+        "--validation-episodes",
+        type=positive_int,
+        default=None,
+        help=f"episodes per validation, seeds {VALIDATION_SEED}.. ({DEFAULT_VALIDATION_EPISODES})",
+    )
+    parser.add_argument(
+        "--duration", type=positive_float, default=None, help="episode length [s] (env: 40)"
+    )
+    parser.add_argument(
+        "--vehicles", type=non_negative_int, default=None, help="other vehicles (env: 20)"
+    )
+    parser.add_argument(
+        "--collision-reward",
+        type=float,
+        default=None,
+        help=f"weight of the collision penalty in the reward ({DEFAULT_COLLISION_REWARD}; "
+        "the env's default is -1)",
+    )
+    parser.add_argument("--seed", type=int, default=0, help="seed of envs and network (0)")
+    parser.add_argument("--out", type=Path, default=Path("out/train"), help="output folder")
+    parser.add_argument(
+        "--resume", action="store_true", help="continue from the latest checkpoint in --out"
+    )
+    parser.add_argument("--quick", action="store_true", help="tiny budget (smoke test)")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parser.set_defaults(func=run)
+    return parser
+
+
+def _check_resume(args: argparse.Namespace, meta: dict[str, Any]) -> None:
+    """Refuse flags that contradict the training being resumed (``SystemExit``)."""
+    cfg = meta["env_config"]
+    for name, value, saved in (
+        ("--detector", args.detector, cfg["detector"]),
+        ("--marking-model", args.marking_model, cfg["marking_model"]),
+        ("--duration", args.duration, cfg.get("duration")),
+        ("--vehicles", args.vehicles, cfg.get("vehicles_count")),
+        ("--collision-reward", args.collision_reward, cfg.get("collision_reward")),
+        ("--n-steps", args.n_steps, meta["ppo"]["n_steps"]),
+        ("--lr-schedule", args.lr_schedule, meta["ppo"].get("lr_schedule", "constant")),
+        ("--gamma", args.gamma, meta["ppo"]["gamma"]),
+    ):
+        if value is not None and value != saved:
+            raise SystemExit(
+                f"aldm-gym train: {name} {value} contradicts the training being resumed "
+                f"({saved}); omit it with --resume"
+            )
+
+
+def run(args: argparse.Namespace) -> int:
+    """``aldm-gym train``."""
+    timesteps = args.timesteps or (QUICK_TIMESTEPS if args.quick else DEFAULT_TIMESTEPS)
+    n_steps = args.n_steps or (QUICK_N_STEPS if args.quick else PPOParams.n_steps)
+    validation_freq = args.validation_freq
+    if validation_freq is None:
+        validation_freq = 0 if args.quick else DEFAULT_VALIDATION_FREQ
+    validation_episodes = args.validation_episodes or DEFAULT_VALIDATION_EPISODES
+    out: Path = args.out
+    if args.resume:
+        if not can_resume(out):
+            raise SystemExit(f"aldm-gym train: nothing to resume in {out} (no checkpoint)")
+        meta = read_training(out)
+        _check_resume(args, meta)
+        timesteps = args.timesteps or meta["timesteps"]
+        if args.validation_freq is None:
+            validation_freq = meta.get("validation_freq", validation_freq)
+        if args.validation_episodes is None:
+            validation_episodes = meta.get("validation_episodes", validation_episodes)
+    elif holds_training(out):
+        raise SystemExit(
+            f"aldm-gym train: {out} already holds a training; pass --resume to continue it "
+            "or choose another --out"
+        )
+    try:
+        t0 = time.perf_counter()
+        model = train(
+            out,
+            detector=args.detector or "aldm",
+            marking_model=args.marking_model or "per_dash",
+            timesteps=timesteps,
+            n_envs=args.n_envs,
+            seed=args.seed,
+            checkpoint_freq=args.checkpoint_freq,
+            duration=args.duration or (QUICK_DURATION if args.quick else None),
+            vehicles_count=args.vehicles,
+            collision_reward=(
+                DEFAULT_COLLISION_REWARD if args.collision_reward is None else args.collision_reward
+            ),
+            params=PPOParams(
+                n_steps=n_steps,
+                gamma=PPOParams.gamma if args.gamma is None else args.gamma,
+                lr_schedule=args.lr_schedule or PPOParams.lr_schedule,
+            ),
+            validation_freq=validation_freq,
+            validation_episodes=validation_episodes,
+            resume=args.resume,
+            progress=not args.no_progress,
+        )
+    except MissingRLDependencies as exc:
+        raise SystemExit(f"aldm-gym train: {exc}") from None
+    except KeyboardInterrupt:
+        return 130
+    tb = out / TENSORBOARD_DIR
+    print(
+        f"trained {model.num_timesteps} steps in {time.perf_counter() - t0:.0f} s; wrote "
+        f"{out / MODEL_FILE}, checkpoints in {out / CHECKPOINT_DIR}, tensorboard logs in "
+        f"{tb} (tensorboard --logdir {tb})"
+    )
+    validation = out / VALIDATION_FILE
+    if validation_freq > 0 and validation.exists():
+        record = json.loads(validation.read_text())
+        best = next(h for h in record["history"] if h["steps"] == record["best_steps"])
+        print(
+            f"best validation at {best['steps']} steps (mean return {best['mean_return']:.2f}, "
+            f"success {best['success_rate']:.2f}, {best['mean_speed']:.2f} m/s): "
+            f"{out / BEST_MODEL_FILE}; evaluate it with "
+            f"aldm-gym evaluate --model {out / BEST_MODEL_FILE}"
+        )
+    return 0
