@@ -540,7 +540,7 @@ def test_trace_fit_window_dense_line_and_gap(fit_length: float) -> None:
     noisy = pts + np.random.default_rng(3).normal(0.0, 0.05, pts.shape)
     fp, _ip = _packed(params)
     xs, ys = sort._gather(noisy, False, 0.5, 500.0)
-    cells = grid._build_grid(xs, ys, fp[layout.P_GATE_MAX])
+    cells = grid._build_grid(xs, ys, fp[layout.P.gate_max])
     seed = (xs <= 23.52) & (ys > 0.0)
     first, last = np.flatnonzero(seed)[[0, -1]]
     masks, bit = [], np.uint8(2)
@@ -660,6 +660,22 @@ def test_both_ego_lines_found_only_beyond_the_start_region() -> None:
 def test_packed_parameters_are_cached_per_instance() -> None:
     p = make_params(noise_std=0.05)
     assert _packed(p) is _packed(p)
-    assert _packed(make_params(noise_std=0.06))[0][layout.P_NOISE] == 0.06
+    assert _packed(make_params(noise_std=0.06))[0][layout.P.noise_std] == 0.06
     with pytest.raises(TypeError):
         detect_lanes(frame(0)[1], params={"mode": "paper"})  # type: ignore[arg-type]
+
+
+def test_packed_vectors_follow_the_one_declaration() -> None:
+    """``fp``/``ip`` are the named tuples of ``layout`` in order; fields named as an
+    ``ALDMParams`` field carry its value, the derived ones their formula."""
+    p = make_params(mode="paper", min_radius=200.0, n_points=7, noise_std=0.07)
+    fp, ip = _packed(p)
+    assert fp.shape == (len(layout.FloatParams._fields),)
+    assert ip.shape == (len(layout.IntParams._fields),)
+    for name in layout.FloatParams._fields:
+        if hasattr(p, name):
+            assert fp[getattr(layout.P, name)] == getattr(p, name), name
+    assert fp[layout.P.a_max] == 0.5 / 200.0
+    assert fp[layout.P.a_std] == 0.5 * p.curvature_prior_std
+    assert ip[layout.I.paper] == 1 and ip[layout.I.n_points] == 7 and ip[layout.I.smooth] == 0
+    assert ip[layout.I.start_points] == p.start_points

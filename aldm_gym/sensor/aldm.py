@@ -43,7 +43,7 @@ from typing import Any
 import numpy as np
 
 from aldm_gym.config import build_config, check_choice, check_range
-from aldm_gym.sensor.aldm_kernels import layout as K
+from aldm_gym.sensor.aldm_kernels.layout import FloatParams, IntParams
 from aldm_gym.sensor.aldm_kernels.output import _detect
 from aldm_gym.sensor.detection import LINE_NAMES, LaneDetection
 from aldm_gym.sensor.trajectory import DEFAULT_LANE_WIDTH, PATH_STEP, driving_trajectory, fit_reach
@@ -214,44 +214,48 @@ def _packed(params: ALDMParams) -> tuple[FloatArray, IntArray]:
 
 
 def _pack(params: ALDMParams) -> tuple[FloatArray, IntArray]:
-    fp = np.zeros(K.N_FLOAT_PARAMS)
-    fp[K.P_START_X_MAX] = params.start_x_max
-    fp[K.P_START_SPACING] = params.start_spacing
-    fp[K.P_SEARCH] = params.search_length
-    fp[K.P_ADJ_OFFSET] = params.adjacent_offset
-    fp[K.P_NOISE] = params.noise_std
-    fp[K.P_GATE_SIGMAS] = params.gate_sigmas
-    fp[K.P_GATE_MIN] = params.gate_min
-    fp[K.P_GATE_MAX] = params.gate_max
-    fp[K.P_FIT_LENGTH] = params.fit_length
-    fp[K.P_A_MAX] = 0.5 / params.min_radius  # y ~ x^2 / (2 R)
-    fp[K.P_A_STD] = 0.5 * params.curvature_prior_std
-    fp[K.P_B_STD] = params.heading_prior_std
-    fp[K.P_LINK_DX] = params.link_dx
-    fp[K.P_LINK_DY] = params.link_dy
-    fp[K.P_MERGE_DY] = params.merge_dy
-    fp[K.P_MAX_EGO] = params.max_ego_offset
-    fp[K.P_MAX_LANE] = params.max_lane_width
-    fp[K.P_SMOOTH_H] = params.smooth_half_width
-    fp[K.P_TIE_DX] = params.tie_dx
-    fp[K.P_LANE_WIDTH] = params.lane_width
-    fp[K.P_MIN_LANE] = params.min_lane_width
-    fp[K.P_Z_BAND] = params.z_band
-    fp[K.P_MAX_RANGE] = params.max_range
-    fp[K.P_VIEW_RANGE] = params.view_range
-    fp[K.P_GAP_SEARCH] = params.gap_search_length
-    fp[K.P_MAX_SLOPE] = params.max_slope
-    fp[K.P_GUIDE_A_STD] = 0.5 * params.guide_curvature_std
-    fp[K.P_GUIDE_B_STD] = params.guide_heading_std
-    ip = np.zeros(K.N_INT_PARAMS, dtype=np.int64)
-    ip[K.I_PAPER] = 1 if params.mode == "paper" else 0
-    ip[K.I_START_POINTS] = params.start_points
-    ip[K.I_MIN_SEED] = params.min_seed_points
-    ip[K.I_N_OUT] = params.n_points
-    ip[K.I_SMOOTH] = 1 if params.smooth else 0
-    fp.flags.writeable = False
-    ip.flags.writeable = False
-    return fp, ip
+    fp = FloatParams(
+        start_x_max=params.start_x_max,
+        start_spacing=params.start_spacing,
+        search_length=params.search_length,
+        adjacent_offset=params.adjacent_offset,
+        noise_std=params.noise_std,
+        gate_sigmas=params.gate_sigmas,
+        gate_min=params.gate_min,
+        gate_max=params.gate_max,
+        fit_length=params.fit_length,
+        a_max=0.5 / params.min_radius,  # y ~ x^2 / (2 R)
+        a_std=0.5 * params.curvature_prior_std,
+        b_std=params.heading_prior_std,
+        link_dx=params.link_dx,
+        link_dy=params.link_dy,
+        merge_dy=params.merge_dy,
+        max_ego_offset=params.max_ego_offset,
+        max_lane_width=params.max_lane_width,
+        smooth_half_width=params.smooth_half_width,
+        tie_dx=params.tie_dx,
+        lane_width=params.lane_width,
+        min_lane_width=params.min_lane_width,
+        z_band=params.z_band,
+        max_range=params.max_range,
+        view_range=params.view_range,
+        gap_search_length=params.gap_search_length,
+        max_slope=params.max_slope,
+        guide_a_std=0.5 * params.guide_curvature_std,
+        guide_b_std=params.guide_heading_std,
+    )
+    ip = IntParams(
+        paper=1 if params.mode == "paper" else 0,
+        start_points=params.start_points,
+        min_seed_points=params.min_seed_points,
+        n_points=params.n_points,
+        smooth=1 if params.smooth else 0,
+    )
+    fv = np.array(fp, dtype=np.float64)
+    iv = np.array(ip, dtype=np.int64)
+    fv.flags.writeable = False
+    iv.flags.writeable = False
+    return fv, iv
 
 
 @functools.lru_cache(maxsize=256)

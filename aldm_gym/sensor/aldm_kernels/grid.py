@@ -11,13 +11,7 @@ import math
 import numba
 import numpy as np
 
-from aldm_gym.sensor.aldm_kernels.layout import (
-    P_GATE_MAX,
-    P_GATE_MIN,
-    P_GATE_SIGMAS,
-    P_MAX_SLOPE,
-    P_TIE_DX,
-)
+from aldm_gym.sensor.aldm_kernels.layout import P
 
 
 def _build_grid_py(xs, ys, cell_y):
@@ -99,10 +93,10 @@ def _gated_py(xs, ys, k, x_last, A, B, C, inv, fp, sig2):
     also stay flatter than ``max_slope`` up to the point.
     """
     u = xs[k] - x_last
-    if abs(2.0 * A * u + B) > fp[P_MAX_SLOPE]:
+    if abs(2.0 * A * u + B) > fp[P.max_slope]:
         return -1.0
     r = abs(ys[k] - ((A * u + B) * u + C))
-    if r > fp[P_GATE_MAX]:
+    if r > fp[P.gate_max]:
         return -1.0
     p0 = u * u
     # predicted variance / sig2: 1 + phi' inv phi, phi = (u^2, u, 1)
@@ -114,8 +108,8 @@ def _gated_py(xs, ys, k, x_last, A, B, C, inv, fp, sig2):
         + 2.0 * inv[1, 2] * u
         + inv[2, 2]
     )
-    gate = fp[P_GATE_SIGMAS] * math.sqrt(sig2 * (1.0 + max(v, 0.0)))
-    gate = min(max(gate, fp[P_GATE_MIN]), fp[P_GATE_MAX])
+    gate = fp[P.gate_sigmas] * math.sqrt(sig2 * (1.0 + max(v, 0.0)))
+    gate = min(max(gate, fp[P.gate_min]), fp[P.gate_max])
     if r <= gate:
         return r
     return -1.0
@@ -171,8 +165,8 @@ def _grid_search_py(xs, ys, mask, geo, start, pts, x_last, A, B, C, inv, fp, sig
     nx = int(geo[4])
     ny = int(geo[5])
     x_hi = x_last + search
-    tie_dx = fp[P_TIE_DX]
-    gm = fp[P_GATE_MAX]
+    tie_dx = fp[P.tie_dx]
+    gm = fp[P.gate_max]
     bx0 = min(int((x_last - x0) * igx), nx - 1) if x_last >= x0 else 0
     bx1 = min(int((x_hi - x0) * igx), nx - 1)
     # pass 1: the nearest gated x (bins are visited in x order)

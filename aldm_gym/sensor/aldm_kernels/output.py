@@ -12,24 +12,13 @@ import numpy as np
 
 from aldm_gym.sensor.aldm_kernels.fit import _smooth_at
 from aldm_gym.sensor.aldm_kernels.layout import (
-    I_N_OUT,
-    I_PAPER,
-    I_SMOOTH,
     L_EGO_LEFT,
     L_EGO_RIGHT,
     L_LEFT_ADJ,
     L_RIGHT_ADJ,
     N_LINES,
-    P_A_MAX,
-    P_A_STD,
-    P_B_STD,
-    P_LANE_WIDTH,
-    P_MAX_LANE,
-    P_MAX_RANGE,
-    P_MIN_LANE,
-    P_NOISE,
-    P_SMOOTH_H,
-    P_Z_BAND,
+    I,
+    P,
 )
 from aldm_gym.sensor.aldm_kernels.paper import _paper_detect
 from aldm_gym.sensor.aldm_kernels.robust import _robust_detect
@@ -46,11 +35,11 @@ def _assemble_py(xs, ys, mask, fp, ip, a0, b0):
     :return: ``(lines, starts)``: ``lines[starts[l]:starts[l+1]]`` is line l ``(K, 2)``.
     """
     n = xs.shape[0]
-    n_out = ip[I_N_OUT]
-    smooth = ip[I_SMOOTH] == 1
-    sig2 = fp[P_NOISE] * fp[P_NOISE]
-    lam_a = sig2 / (fp[P_A_STD] * fp[P_A_STD])
-    lam_b = sig2 / (fp[P_B_STD] * fp[P_B_STD])
+    n_out = ip[I.n_points]
+    smooth = ip[I.smooth] == 1
+    sig2 = fp[P.noise_std] * fp[P.noise_std]
+    lam_a = sig2 / (fp[P.a_std] * fp[P.a_std])
+    lam_b = sig2 / (fp[P.b_std] * fp[P.b_std])
     cnt = np.zeros(N_LINES, dtype=np.int64)
     x_lo = np.full(N_LINES, np.inf)
     x_hi = np.full(N_LINES, -np.inf)
@@ -93,7 +82,9 @@ def _assemble_py(xs, ys, mask, fp, ip, a0, b0):
         else:
             xq = lx
         if smooth:
-            yq, _, _ = _smooth_at(lx, ly, xq, fp[P_SMOOTH_H], a0, b0, lam_a, lam_b, fp[P_A_MAX])
+            yq, _, _ = _smooth_at(
+                lx, ly, xq, fp[P.smooth_half_width], a0, b0, lam_a, lam_b, fp[P.a_max]
+            )
         elif n_out >= 2:
             yq = np.interp(xq, lx, ly)
         else:
@@ -116,16 +107,16 @@ def _one_line_width_py(starts, offsets, fp):
     [min_lane_width, max_lane_width]; otherwise (and with two or no ego lines, where
     it is unused) the ``lane_width`` parameter.
     """
-    width = fp[P_LANE_WIDTH]
+    width = fp[P.lane_width]
     nl = starts[L_EGO_LEFT + 1] - starts[L_EGO_LEFT]
     nr = starts[L_EGO_RIGHT + 1] - starts[L_EGO_RIGHT]
     if nl > 0 and nr == 0 and starts[L_LEFT_ADJ + 1] > starts[L_LEFT_ADJ]:
         w = offsets[L_LEFT_ADJ] - offsets[L_EGO_LEFT]
-        if fp[P_MIN_LANE] <= w <= fp[P_MAX_LANE]:
+        if fp[P.min_lane_width] <= w <= fp[P.max_lane_width]:
             width = w
     elif nr > 0 and nl == 0 and starts[L_RIGHT_ADJ + 1] > starts[L_RIGHT_ADJ]:
         w = offsets[L_EGO_RIGHT] - offsets[L_RIGHT_ADJ]
-        if fp[P_MIN_LANE] <= w <= fp[P_MAX_LANE]:
+        if fp[P.min_lane_width] <= w <= fp[P.max_lane_width]:
             width = w
     return width
 
@@ -148,12 +139,12 @@ def _detect_py(pts, fp, ip, path_range):
         driving trajectory [m] and the lane width used for a one-line path [m].
     """
     has_z = pts.shape[1] >= 3
-    xs, ys = _gather(pts, has_z, fp[P_Z_BAND], fp[P_MAX_RANGE])
+    xs, ys = _gather(pts, has_z, fp[P.z_band], fp[P.max_range])
     mask = np.zeros(xs.shape[0], dtype=np.uint8)
     offsets = np.full(N_LINES, np.nan)
     a0 = 0.0
     b0 = 0.0
-    if ip[I_PAPER] == 1:
+    if ip[I.paper] == 1:
         _paper_detect(xs, ys, fp, ip, mask, offsets)
     else:
         a0, b0 = _robust_detect(xs, ys, fp, ip, mask, offsets)

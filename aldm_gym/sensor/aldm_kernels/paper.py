@@ -11,17 +11,13 @@ import numba
 import numpy as np
 
 from aldm_gym.sensor.aldm_kernels.layout import (
-    I_START_POINTS,
     L_EGO_LEFT,
     L_EGO_RIGHT,
     L_LEFT_ADJ,
     L_RIGHT_ADJ,
     N_LINES,
-    P_ADJ_OFFSET,
-    P_SEARCH,
-    P_START_SPACING,
-    P_START_X_MAX,
-    P_VIEW_RANGE,
+    I,
+    P,
 )
 
 
@@ -173,10 +169,10 @@ def _paper_detect_py(xs, ys, fp, ip, mask, offsets):
     """
     n = xs.shape[0]
     m = 0
-    while m < n and xs[m] <= fp[P_START_X_MAX]:
+    while m < n and xs[m] <= fp[P.start_x_max]:
         m += 1
-    k = ip[I_START_POINTS]
-    spacing = fp[P_START_SPACING]
+    k = ip[I.start_points]
+    spacing = fp[P.start_spacing]
     start = np.zeros(max(k, 3), dtype=np.int64)
     ref = np.zeros(3)
     refs = np.zeros((N_LINES, 3))
@@ -194,7 +190,7 @@ def _paper_detect_py(xs, ys, fp, ip, mask, offsets):
             if not found[ego]:
                 continue
             ref[:] = refs[ego]
-            min_off = fp[P_ADJ_OFFSET]
+            min_off = fp[P.adjacent_offset]
         got = _paper_start(xs, ys, m, side, ref, min_off, k, spacing, start)
         if got < k or got < 3:
             continue  # fewer start points than required: the line is not found
@@ -206,7 +202,13 @@ def _paper_detect_py(xs, ys, fp, ip, mask, offsets):
         for t in range(got - 3):
             mask[start[t]] |= np.uint8(1 << slot)
         _paper_trace(
-            xs, ys, start[got - 3 : got], fp[P_SEARCH], fp[P_VIEW_RANGE], mask, np.uint8(1 << slot)
+            xs,
+            ys,
+            start[got - 3 : got],
+            fp[P.search_length],
+            fp[P.view_range],
+            mask,
+            np.uint8(1 << slot),
         )
 
 

@@ -16,31 +16,13 @@ import numpy as np
 from aldm_gym.sensor.aldm_kernels.fit import _ridge_solve, _smooth_at, _update_sums
 from aldm_gym.sensor.aldm_kernels.grid import _build_grid, _grid_search
 from aldm_gym.sensor.aldm_kernels.layout import (
-    I_MIN_SEED,
     L_EGO_LEFT,
     L_EGO_RIGHT,
     L_LEFT_ADJ,
     L_RIGHT_ADJ,
     N_LINES,
-    P_A_MAX,
-    P_A_STD,
-    P_ADJ_OFFSET,
-    P_B_STD,
-    P_FIT_LENGTH,
-    P_GAP_SEARCH,
-    P_GATE_MAX,
-    P_GUIDE_A_STD,
-    P_GUIDE_B_STD,
-    P_LINK_DX,
-    P_LINK_DY,
-    P_MAX_EGO,
-    P_MAX_LANE,
-    P_MAX_SLOPE,
-    P_MERGE_DY,
-    P_NOISE,
-    P_SEARCH,
-    P_SMOOTH_H,
-    P_START_X_MAX,
+    I,
+    P,
 )
 from aldm_gym.sensor.aldm_kernels.sort import _bucket_order
 
@@ -200,8 +182,8 @@ def _robust_seeds_py(xs, ys, m, fp, ip, lam_a, lam_b, label, offsets):
         offsets[s] = np.nan
     if m == 0:
         return 0.0, 0.0
-    comp = _seed_chains(xs, ys, m, fp[P_LINK_DX], fp[P_LINK_DY])
-    a, b, c, cnt = _joint_shape(xs, ys, comp, m, lam_a, lam_b, fp[P_A_MAX])
+    comp = _seed_chains(xs, ys, m, fp[P.link_dx], fp[P.link_dy])
+    a, b, c, cnt = _joint_shape(xs, ys, comp, m, lam_a, lam_b, fp[P.a_max])
     # Chains sorted by offset (ties: root index), then merged into markings.
     nroot = 0
     roots = np.empty(m, dtype=np.int64)
@@ -221,7 +203,7 @@ def _robust_seeds_py(xs, ys, m, fp, ip, lam_a, lam_b, label, offsets):
     prev = -np.inf
     for q in range(nroot):
         r = srt[q]
-        if ng == 0 or c[r] - prev > fp[P_MERGE_DY]:
+        if ng == 0 or c[r] - prev > fp[P.merge_dy]:
             ng += 1
         group[r] = ng - 1
         g_off[ng - 1] += c[r] * cnt[r]
@@ -229,34 +211,34 @@ def _robust_seeds_py(xs, ys, m, fp, ip, lam_a, lam_b, label, offsets):
         prev = c[r]
     for g in range(ng):
         g_off[g] /= g_cnt[g]
-    min_seed = ip[I_MIN_SEED]
+    min_seed = ip[I.min_seed_points]
     chosen = np.full(N_LINES, -1, dtype=np.int64)
     # Ego lines: the nearest marking on each side within max_ego.
     for g in range(ng):
         if g_cnt[g] < min_seed:
             continue
         off = g_off[g]
-        if 0.0 < off <= fp[P_MAX_EGO] and chosen[L_EGO_LEFT] < 0:
+        if 0.0 < off <= fp[P.max_ego_offset] and chosen[L_EGO_LEFT] < 0:
             chosen[L_EGO_LEFT] = g
     for g in range(ng - 1, -1, -1):
         if g_cnt[g] < min_seed:
             continue
         off = g_off[g]
-        if -fp[P_MAX_EGO] <= off <= 0.0 and chosen[L_EGO_RIGHT] < 0:
+        if -fp[P.max_ego_offset] <= off <= 0.0 and chosen[L_EGO_RIGHT] < 0:
             chosen[L_EGO_RIGHT] = g
     # Adjacent lines: nearest marking outside the ego line on its side.
     if chosen[L_EGO_LEFT] >= 0:
         base = g_off[chosen[L_EGO_LEFT]]
         for g in range(ng):
             d = g_off[g] - base
-            if g_cnt[g] >= min_seed and fp[P_ADJ_OFFSET] <= d <= fp[P_MAX_LANE]:
+            if g_cnt[g] >= min_seed and fp[P.adjacent_offset] <= d <= fp[P.max_lane_width]:
                 chosen[L_LEFT_ADJ] = g
                 break
     if chosen[L_EGO_RIGHT] >= 0:
         base = g_off[chosen[L_EGO_RIGHT]]
         for g in range(ng - 1, -1, -1):
             d = base - g_off[g]
-            if g_cnt[g] >= min_seed and fp[P_ADJ_OFFSET] <= d <= fp[P_MAX_LANE]:
+            if g_cnt[g] >= min_seed and fp[P.adjacent_offset] <= d <= fp[P.max_lane_width]:
                 chosen[L_RIGHT_ADJ] = g
                 break
     for s in range(N_LINES):
@@ -303,14 +285,14 @@ def _robust_trace_py(xs, ys, first, last, a0, b0, fp, lam_a, lam_b, guide, grid,
     if head == 0:
         return
     work = np.empty((2, 3, 3))
-    sig2 = fp[P_NOISE] * fp[P_NOISE]
-    lam_ga = sig2 / (fp[P_GUIDE_A_STD] * fp[P_GUIDE_A_STD])
-    lam_gb = sig2 / (fp[P_GUIDE_B_STD] * fp[P_GUIDE_B_STD])
+    sig2 = fp[P.noise_std] * fp[P.noise_std]
+    lam_ga = sig2 / (fp[P.guide_a_std] * fp[P.guide_a_std])
+    lam_gb = sig2 / (fp[P.guide_b_std] * fp[P.guide_b_std])
     ng = guide.shape[0]
-    fit_length = fp[P_FIT_LENGTH]
+    fit_length = fp[P.fit_length]
     # The nearest gated point wins, so a window longer than the paper's 18 m only
     # matters when a whole dash (or both ends of a gap) was not measured.
-    search = max(fp[P_SEARCH], fp[P_GAP_SEARCH])
+    search = max(fp[P.search_length], fp[P.gap_search_length])
     # Fit window: accepted points lo..head-1 (x is nondecreasing along hist), the
     # newest HIST of them with u = x - x_last >= -fit_length. Its sums s_k = sum u^k,
     # t_k = sum y u^k are kept running: shifted to the new x_last, the new point
@@ -346,9 +328,9 @@ def _robust_trace_py(xs, ys, first, last, a0, b0, fp, lam_a, lam_b, guide, grid,
             la = lam_ga
             lb = lam_gb
         A, B, C, inv = _ridge_solve(
-            s0, s1, s2, s3, s4, t0, t1, t2, pa, pb, la, lb, fp[P_A_MAX], work
+            s0, s1, s2, s3, s4, t0, t1, t2, pa, pb, la, lb, fp[P.a_max], work
         )
-        if abs(B) > fp[P_MAX_SLOPE]:
+        if abs(B) > fp[P.max_slope]:
             break
         geo, start, pts = grid
         best = _grid_search(xs, ys, mask, geo, start, pts, x_last, A, B, C, inv, fp, sig2, search)
@@ -425,7 +407,7 @@ def _guide_table_py(xs, ys, mask, bit, fp, a0, b0, lam_a, lam_b):
     gx = np.empty(g)
     for j in range(g):
         gx[j] = lx[0] + GUIDE_STEP * j
-    _, gb, ga = _smooth_at(lx, ly, gx, fp[P_SMOOTH_H], a0, b0, lam_a, lam_b, fp[P_A_MAX])
+    _, gb, ga = _smooth_at(lx, ly, gx, fp[P.smooth_half_width], a0, b0, lam_a, lam_b, fp[P.a_max])
     out = np.empty((g, 3))
     for j in range(g):
         out[j, 0] = gx[j]
@@ -448,11 +430,11 @@ def _robust_detect_py(xs, ys, fp, ip, mask, offsets):
     """
     n = xs.shape[0]
     m = 0
-    while m < n and xs[m] <= fp[P_START_X_MAX]:
+    while m < n and xs[m] <= fp[P.start_x_max]:
         m += 1
-    sig2 = fp[P_NOISE] * fp[P_NOISE]
-    lam_a = sig2 / (fp[P_A_STD] * fp[P_A_STD])
-    lam_b = sig2 / (fp[P_B_STD] * fp[P_B_STD])
+    sig2 = fp[P.noise_std] * fp[P.noise_std]
+    lam_a = sig2 / (fp[P.a_std] * fp[P.a_std])
+    lam_b = sig2 / (fp[P.b_std] * fp[P.b_std])
     label = np.full(m, -1, dtype=np.int64)
     a, b = _robust_seeds(xs, ys, m, fp, ip, lam_a, lam_b, label, offsets)
     if math.isnan(offsets[L_EGO_LEFT]) or math.isnan(offsets[L_EGO_RIGHT]):
@@ -460,7 +442,7 @@ def _robust_detect_py(xs, ys, fp, ip, mask, offsets):
         # look one search window further (x <= 23.52 + 18 m) for that line only. Its
         # offset must be clear of the lines already found.
         m2 = m
-        while m2 < n and xs[m2] <= fp[P_START_X_MAX] + fp[P_SEARCH]:
+        while m2 < n and xs[m2] <= fp[P.start_x_max] + fp[P.search_length]:
             m2 += 1
         label2 = np.full(m2, -1, dtype=np.int64)
         off2 = np.full(N_LINES, np.nan)
@@ -470,7 +452,7 @@ def _robust_detect_py(xs, ys, fp, ip, mask, offsets):
                 continue
             clear = True
             for t in range(N_LINES):
-                if not math.isnan(offsets[t]) and abs(offsets[t] - off2[s]) <= fp[P_MERGE_DY]:
+                if not math.isnan(offsets[t]) and abs(offsets[t] - off2[s]) <= fp[P.merge_dy]:
                     clear = False
             if (s == L_EGO_LEFT and off2[s] <= offsets[L_EGO_RIGHT]) or (
                 s == L_EGO_RIGHT and off2[s] >= offsets[L_EGO_LEFT]
@@ -501,7 +483,7 @@ def _robust_detect_py(xs, ys, fp, ip, mask, offsets):
     # enough support becomes the guide (shape prior) of the others.
     order = np.argsort(-size, kind="mergesort")
     guide = np.zeros((0, 3))
-    grid = _build_grid(xs, ys, fp[P_GATE_MAX])
+    grid = _build_grid(xs, ys, fp[P.gate_max])
     for q in range(N_LINES):
         s = order[q]
         if size[s] == 0.0:
