@@ -188,3 +188,21 @@ def test_unknown_road_key_lists_allowed_keys() -> None:
         HighwayRoad({"lane_widht": 3.5})
     with pytest.raises(ValueError, match="lane_id"):
         HighwayRoad({"length": 500.0}).lane_boundaries(4)
+
+
+@pytest.mark.parametrize("bad", [(np.nan, 0.0), (0.0, np.inf), (1.0,), "ab", None])
+def test_road_methods_name_a_bad_point(bad: object) -> None:
+    road = HighwayRoad({"seed": 0, "length": 1000.0})
+    with pytest.raises(ValueError, match="position"):
+        road.locate(bad)  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="position"):
+        road.lane_id_at(bad)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("method", ["marking_position", "marking_arc_length"])
+def test_road_methods_name_a_bad_arc_length(method: str) -> None:
+    road = HighwayRoad({"seed": 0, "length": 1000.0})
+    with pytest.raises(ValueError, match="s must be finite"):
+        getattr(road, method)(0, np.array([1.0, np.nan]))
+    with pytest.raises(ValueError, match="s must be finite"):
+        road.curvature_at(float("inf"))

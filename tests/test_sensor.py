@@ -409,3 +409,20 @@ def test_assemble_kernel_matches_its_python_reference(curvy_road: HighwayRoad) -
                 for a, b in zip(got, want, strict=True):
                     np.testing.assert_array_equal(a, b)
                     assert np.asarray(a).dtype == np.asarray(b).dtype
+
+
+def test_a_wrong_s_hint_is_rejected_not_silently_empty() -> None:
+    from aldm_gym.roads import HighwayRoad
+    from aldm_gym.sensor import LineSensor
+
+    road = HighwayRoad({"seed": 3, "length": 3000.0})
+    s = 1200.0
+    x, y = road.reference.position(s, road.lane_offset(1))
+    pose = (float(x), float(y), float(road.reference.heading_at(s)))
+    sensor = LineSensor()
+    good = sensor.measure(road, pose, s_hint=s + 1.0)
+    assert good.points().shape[0] > 50
+    assert np.array_equal(good.points(), sensor.measure(road, pose).points())
+    for bad in (s + 500.0, -800.0, float("nan")):
+        with pytest.raises(ValueError, match="s_hint"):
+            sensor.measure(road, pose, s_hint=bad)

@@ -297,7 +297,11 @@ class HighwayRoad:
         return min(max(i, 0), self.lanes_count - 1)
 
     def locate(self, position: FloatArray) -> tuple[float, float, int]:
-        """Ground truth of a world position: ``(s [m], left offset d [m], lane id)``."""
+        """Ground truth of a world position: ``(s [m], left offset d [m], lane id)``.
+
+        :raises ValueError: naming ``position`` unless it is 2 finite numbers [m].
+        """
+        _check_point("position", position)
         s, d = self.reference.project(position)
         return s, d, self.lane_of_offset(d)
 
@@ -320,6 +324,24 @@ class HighwayRoad:
         self._check_lane(lane_id)
         return self.markings[lane_id], self.markings[lane_id + 1]
 
+    def _check_hint(self, origin: FloatArray, s_origin: float) -> None:
+        """Reject an ``s_origin`` hint that does not belong to ``origin`` (never silent)."""
+        if not math.isfinite(s_origin):
+            raise ValueError(f"s_hint must be finite, got {s_origin!r}")
+        ref = self.reference
+        k = min(max(int(s_origin / ref.step + 0.5), 0), len(ref.s) - 1)
+        gap = math.hypot(float(ref.xy[k, 0]) - origin[0], float(ref.xy[k, 1]) - origin[1])
+        # The reference point at s_hint lies across the road from the origin at most,
+        # plus its sampling step and the distance beyond either road end.
+        allowed = 0.5 * self.lanes_count * self.lane_width + 20.0 + ref.step
+        allowed += max(0.0, -s_origin, s_origin - self.length)
+        if gap > allowed:
+            raise ValueError(
+                f"s_hint {s_origin:.1f} m is {gap:.1f} m from the sensor's position "
+                f"({origin[0]:.1f}, {origin[1]:.1f}); it must be the sensor's arc length "
+                "along the road (or None)"
+            )
+
     def _check_lane(self, lane_id: int) -> None:
         if not 0 <= int(lane_id) < self.lanes_count:
             raise ValueError(f"lane_id must be in [0, {self.lanes_count - 1}], got {lane_id}")
@@ -331,15 +353,18 @@ class HighwayRoad:
     def marking_position(self, j: int, s: FloatArray | float) -> FloatArray:
         """World position of marking ``j`` at reference arc length ``s`` [m], shape ``(..., 2)``."""
         self._check_marking(j)
+        _check_finite("s", s)
         return self.reference.position(s, self.markings[j].offset)
 
     def marking_arc_length(self, j: int, s: FloatArray | float) -> FloatArray:
         """Arc length along marking ``j`` [m] at reference arc length ``s`` [m]."""
         self._check_marking(j)
+        _check_finite("s", s)
         return np.interp(s, self.reference.s, self._u[j])
 
     def curvature_at(self, s: FloatArray | float) -> FloatArray:
         """Reference-line curvature at ``s`` [1/m], positive = left curve."""
+        _check_finite("s", s)
         return self.reference.curvature_at(s)
 
     def sample_markings(
@@ -367,9 +392,13 @@ class HighwayRoad:
             NaN where the marking does not reach that x.
         """
         ref = self.reference
-        origin = np.asarray(origin, dtype=np.float64)[:2]
+        origin = _check_point("origin", origin)
+        if not math.isfinite(yaw):
+            raise ValueError(f"yaw must be finite, got {yaw!r}")
         if s_origin is None:
             s_origin, _ = ref.project(origin)
+        else:
+            self._check_hint(origin, s_origin)
         xs = np.asarray(xs, dtype=np.float64)
         x_max = float(xs[-1]) if len(xs) else 0.0
         forward = math.cos(yaw - float(np.interp(s_origin, ref.s, ref.heading))) >= 0.0
@@ -405,6 +434,27 @@ class HighwayRoad:
             u_out,
         )
         return y_out, u_out
+
+
+def _check_point(name: str, value: Any) -> FloatArray:
+    """``value`` as a float64 ``(2,)`` world point; ValueError naming ``name`` otherwise."""
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        arr = np.zeros(0)
+    if arr.shape not in ((2,), (3,)) or not (math.isfinite(arr[0]) and math.isfinite(arr[1])):
+        raise ValueError(f"{name} must be 2 finite numbers (x, y) [m], got {value!r}")
+    return arr[:2]
+
+
+def _check_finite(name: str, value: Any) -> None:
+    """ValueError naming ``name`` unless ``value`` is finite (a number or an array)."""
+    if isinstance(value, float | int):
+        ok = math.isfinite(value)
+    else:
+        ok = bool(np.all(np.isfinite(np.asarray(value, dtype=np.float64))))
+    if not ok:
+        raise ValueError(f"{name} must be finite, got {value!r}")
 
 
 class HighwayNetwork(RoadNetwork):
