@@ -77,3 +77,19 @@ def test_naive_on_empty_frame_finds_nothing(straight_road: HighwayRoad) -> None:
     det = naive_detect(LineSensor().measure(straight_road, (9000.0, 9000.0, 0.0)))
     assert isinstance(det, LaneDetection)
     assert not det.found("ego_left") and det.trajectory.shape == (0, 2)
+
+
+def test_naive_path_range_fits_the_near_part_of_the_lines(curvy_road: HighwayRoad) -> None:
+    """``path_range`` changes only the trajectory: the fit of the lines up to 80 m."""
+    from aldm_gym.sensor.trajectory import driving_trajectory
+
+    road = curvy_road.with_marking_model("editor")
+    frame = LineSensor().measure(road, pose_on_lane(road, 400.0, 1))
+    whole = naive_detect(frame, lane_width=road.lane_width)
+    near = naive_detect(frame, lane_width=road.lane_width, path_range=80.0)
+    for name in ("ego_left", "ego_right", "left_adjacent", "right_adjacent"):
+        np.testing.assert_array_equal(near.line(name), whole.line(name))
+    assert near.preview("ego_left") > 100.0  # long lines: the cut matters
+    want = driving_trajectory(near.ego_left, near.ego_right, road.lane_width, path_range=80.0)
+    assert near.trajectory.tobytes() == want.tobytes()
+    assert near.trajectory[-1, 0] <= 80.0 + 2.0 < whole.trajectory[-1, 0]
