@@ -207,7 +207,7 @@ def test_bad_measure_inputs(straight_road: HighwayRoad) -> None:
         s.measure(straight_road, (np.nan, 0.0, 0.0))
     with pytest.raises(ValueError, match="ext_travel"):
         s.measure(straight_road, (0.0, 0.0, 0.0), ext_travel=(1.0, 2.0))
-    with pytest.raises(TypeError, match="HighwayRoad"):
+    with pytest.raises(TypeError, match="road must be"):
         s.measure("road", (0.0, 0.0, 0.0))  # type: ignore[arg-type]
 
 
@@ -403,7 +403,18 @@ def test_assemble_kernel_matches_its_python_reference(curvy_road: HighwayRoad) -
         for per_dash in (True, False):
             for nz, dr in ((noise, draw), (np.zeros((3, 0, 0)), np.zeros((0, 0)))):
                 args = (xs, ys, us, tab["height"], tab["phase"], tab["period"], tab["dash"])
-                rest = (tab["broken"], per_dash, 30.0, nz, dr, np.array([0.1, 0.2, 0.0]), 0.2, 4)
+                paint = (tab["paint"], tab["paint_start"], np.arange(len(ys)))
+                rest = (
+                    tab["broken"],
+                    *paint,
+                    per_dash,
+                    30.0,
+                    nz,
+                    dr,
+                    np.array([0.1, 0.2, 0.0]),
+                    0.2,
+                    4,
+                )
                 got = _assemble(*args, *rest)
                 want = _assemble_py(*args, *rest)
                 for a, b in zip(got, want, strict=True):

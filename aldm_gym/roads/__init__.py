@@ -14,6 +14,7 @@ from aldm_gym.roads.highway import (
 )
 from aldm_gym.roads.lane import ReferenceLane
 from aldm_gym.roads.markings import Marking, MarkingRole, MarkingType
+from aldm_gym.roads.polyline import MarkingCurve, PolylineMarkings, PolylineRoad
 
 __all__ = [
     "EDGE",
@@ -21,8 +22,11 @@ __all__ = [
     "MIN_RADIUS_BY_SPEED",
     "HighwayRoad",
     "Marking",
+    "MarkingCurve",
     "MarkingRole",
     "MarkingType",
+    "PolylineMarkings",
+    "PolylineRoad",
     "ReferenceLane",
     "ReferenceLine",
     "RoadConfig",

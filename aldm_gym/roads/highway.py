@@ -260,10 +260,14 @@ class HighwayRoad:
         """Marking attributes as arrays indexed by marking (for vectorised sensors).
 
         Keys: ``type``, ``colour`` (int64); ``height``, ``width``, ``dash``, ``period``,
-        ``phase`` (float64, [m]); ``broken`` (bool).
+        ``phase`` (float64, [m]); ``broken`` (bool); ``paint`` ``(0, 2)`` and
+        ``paint_start`` (zeros): no explicit painted intervals, every marking's paint
+        is its periodic pattern (see :mod:`aldm_gym.roads.polyline` for maps).
         """
         mk = self.markings
         return {
+            "paint": np.zeros((0, 2)),
+            "paint_start": np.zeros(len(mk) + 1, dtype=np.int64),
             "type": np.array([int(m.type) for m in mk], dtype=np.int64),
             "colour": np.array([m.colour for m in mk], dtype=np.int64),
             "height": np.array([m.height for m in mk], dtype=np.float64),
@@ -366,6 +370,25 @@ class HighwayRoad:
         """Reference-line curvature at ``s`` [1/m], positive = left curve."""
         _check_finite("s", s)
         return self.reference.curvature_at(s)
+
+    def sample_visible(
+        self,
+        origin: FloatArray,
+        yaw: float,
+        xs: FloatArray,
+        s_origin: float | None = None,
+    ) -> tuple[np.ndarray, FloatArray, FloatArray]:
+        """:meth:`sample_markings` for the sensor: ``(rows, y, u)`` with rows = every marking.
+
+        The road protocol of :class:`~aldm_gym.sensor.LineSensor`: maps return only
+        the markings near the sensor; this road has few markings and returns them all.
+        """
+        y, u = self.sample_markings(origin, yaw, xs, s_origin)
+        return self._all_rows, y, u
+
+    @cached_property
+    def _all_rows(self) -> np.ndarray:
+        return np.arange(len(self.markings), dtype=np.int64)
 
     def sample_markings(
         self,

@@ -198,8 +198,8 @@ class LineSensor:
         :param s_hint: the sensor's reference arc length, if already known [m].
         :return: the frame.
         """
-        if not isinstance(road, HighwayRoad):
-            raise TypeError(f"road must be a HighwayRoad, got {type(road).__name__}")
+        if not hasattr(road, "sample_visible"):
+            raise TypeError(f"road must be a HighwayRoad or a map road, got {type(road).__name__}")
         if not math.isfinite(t):
             raise ValueError(f"t must be finite, got {t}")
         c = self.config
@@ -207,7 +207,7 @@ class LineSensor:
         travel = np.zeros(3) if ext_travel is _NO_TURN else _vec3(ext_travel, "ext_travel")
         origin, yaw = self.world_pose(pose, travel, float(rot[2]))
         xs = self._xs
-        ys, us = road.sample_markings(origin, yaw, xs, s_hint)
+        rows, ys, us = road.sample_visible(origin, yaw, xs, s_hint)
         if c.noisy:
             gen = rng if rng is not None else self._rng
             # Draw for the whole grid so the stream does not depend on what is visible.
@@ -225,6 +225,9 @@ class LineSensor:
             tab["period"],
             tab["dash"],
             tab["broken"],
+            tab["paint"],
+            tab["paint_start"],
+            rows,
             road.marking_model == "per_dash",
             c.max_lateral,
             noise,
@@ -268,6 +271,9 @@ def _assemble_py(
     period: FloatArray,
     dash: FloatArray,
     broken: np.ndarray,
+    paint: FloatArray,
+    paint_start: np.ndarray,
+    rows: np.ndarray,
     per_dash: bool,
     max_lateral: float,
     noise: FloatArray,
@@ -281,11 +287,18 @@ def _assemble_py(
     Plain-Python reference of ``_assemble`` (umap habit: same code, compiled once).
 
     :param xs: ``(K,)`` x grid of the sensor [m].
-    :param ys: ``(M, K)`` noiseless y of marking ``j`` at ``xs[p]`` [m], NaN where absent.
-    :param us: ``(M, K)`` arc length along marking ``j`` there [m].
+    :param ys: ``(R, K)`` noiseless y of marking ``rows[r]`` at ``xs[p]`` [m], NaN where
+        absent.
+    :param us: ``(R, K)`` arc length along that marking there [m].
     :param height: ``(M,)`` marking heights [m]; ``phase``, ``period``, ``dash``
         ``(M,)`` its dash pattern [m]; ``broken`` ``(M,)`` whether it is dashed.
-    :param per_dash: one object per dash of a broken marking (else one per marking).
+    :param paint: ``(P, 2)`` explicit painted intervals of arc length [m];
+        ``paint_start`` ``(M + 1,)``: marking ``j`` owns rows
+        ``paint_start[j]:paint_start[j + 1]``. A marking with explicit intervals is
+        painted exactly there (each interval a piece); else by its periodic pattern.
+    :param rows: ``(R,)`` the marking index of each row of ``ys``/``us``.
+    :param per_dash: one object per painted piece of a broken marking, or of a
+        marking with explicit intervals (else one per marking).
     :param max_lateral: largest noiseless |y| seen [m].
     :param noise: ``(3, M, K)`` standard normal draws for (y, x, z), or ``(3, 0, 0)``
         for a noiseless sensor.
@@ -311,27 +324,47 @@ def _assemble_py(
     n_obj = 0
     last_j = -1
     last_pid = 0.0
-    for j in range(m):
-        split = per_dash and broken[j]
+    for r in range(m):
+        j = rows[r]
+        a = paint_start[j]
+        b = paint_start[j + 1]
+        explicit = b > a
+        split = per_dash and (broken[j] or explicit)
         for p in range(k):
-            # Paint pattern along the marking (arc length u): dash index and on/off.
+            # Paint along the marking (arc length u): piece index and on/off.
             piece = -1.0
-            if broken[j]:
-                rel_u = (us[j, p] - phase[j]) / period[j]
+            if explicit:
+                uq = us[r, p]
+                if not (uq == uq):  # NaN: the marking does not reach xs[p]
+                    continue
+                lo = a
+                hi = b
+                while lo < hi:  # the last interval starting at or before u
+                    mid = (lo + hi) // 2
+                    if paint[mid, 0] <= uq:
+                        lo = mid + 1
+                    else:
+                        hi = mid
+                q = lo - 1
+                if q < a or not (uq < paint[q, 1]):
+                    continue
+                piece = float(q - a)
+            elif broken[j]:
+                rel_u = (us[r, p] - phase[j]) / period[j]
                 piece = np.floor(rel_u)
                 if not ((rel_u - piece) * period[j] < dash[j]):  # NaN: not painted
                     continue
-            y = ys[j, p]
+            y = ys[r, p]
             if not (abs(y) <= max_lateral):  # NaN: the marking does not reach xs[p]
                 continue
             x = xs[p]
             z = height[j]
             if noisy:
-                if not (draw[j, p] >= dropout):
+                if not (draw[r, p] >= dropout):
                     continue
-                y = y + noise_std[0] * noise[0, j, p]
-                x = x + noise_std[1] * noise[1, j, p]
-                z = z + noise_std[2] * noise[2, j, p]
+                y = y + noise_std[0] * noise[0, r, p]
+                x = x + noise_std[1] * noise[1, r, p]
+                z = z + noise_std[2] * noise[2, r, p]
             pid = piece if split else -1.0
             if j != last_j or pid - last_pid != 0.0:
                 obj_first[n_obj] = n

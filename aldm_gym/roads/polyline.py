@@ -1,0 +1,383 @@
+"""Markings as world polylines with their own arc length and painted intervals.
+
+The generated highway (:mod:`aldm_gym.roads.highway`) places every marking at a
+constant offset from one reference line and paints it with one periodic dash
+pattern. Real maps do neither: lane widths vary, lanes open and close, a marking
+changes from broken to solid at an exit, double lines run side by side. Here a
+marking is what a converted road gives CarMaker: a curve (a polyline of world
+vertices, finely sampled) with its own arc length ``u`` [m], and the list of
+intervals of ``u`` that carry paint (one per dash of a broken line, one per painted
+run of a solid line).
+
+:class:`PolylineMarkings` holds all markings of a road in flat CSR arrays (the
+layout numba kernels want) and answers the sensor's one geometric question: where
+does each marking cross the lines ``x = xs`` of a sensor frame
+(:meth:`PolylineMarkings.sample`)? Markings near the sensor are found through
+chunks of vertices with a bounding circle, so the cost does not grow with the map.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+
+from aldm_gym.types import FloatArray
+
+CHUNK = 64
+"""Vertices per chunk of the spatial index (consecutive chunks share one vertex)."""
+
+
+@dataclass(frozen=True)
+class MarkingCurve:
+    """One marking line of a map, as the sensor sees it.
+
+    :ivar xy: ``(N >= 2, 2)`` world vertices [m] in painting order.
+    :ivar painted: ``(P, 2)`` painted intervals ``[u0, u1)`` of the arc length along
+        ``xy`` [m], sorted, not overlapping; one row per dash of a broken line.
+    :ivar type: CarMaker line type (1 continuous, 2 dashed, 3 dotted).
+    :ivar colour: colour index (0 white, 1 yellow, ...).
+    :ivar width: painted width [m].
+    :ivar height: height above the road [m] (> 0 for curbs and barriers).
+    """
+
+    xy: FloatArray
+    painted: FloatArray
+    type: int = 1
+    colour: int = 0
+    width: float = 0.15
+    height: float = 0.0
+
+
+def arc_length(xy: FloatArray) -> FloatArray:
+    """Cumulative arc length [m] along a polyline ``(N, 2)``, starting at 0."""
+    seg = np.hypot(np.diff(xy[:, 0]), np.diff(xy[:, 1]))
+    return np.concatenate([[0.0], np.cumsum(seg)])
+
+
+class PolylineMarkings:
+    """All markings of a road as flat arrays, and their sampling in a sensor frame.
+
+    :ivar xy: ``(N, 2)`` vertices of every marking, marking after marking [m].
+    :ivar u: ``(N,)`` arc length of each vertex along its marking [m].
+    :ivar start: ``(M + 1,)`` marking ``j`` owns vertices ``start[j]:start[j + 1]``.
+    :ivar paint: ``(P, 2)`` painted intervals in ``u`` of every marking [m].
+    :ivar paint_start: ``(M + 1,)`` marking ``j`` owns ``paint[paint_start[j]:paint_start[j + 1]]``.
+    """
+
+    def __init__(self, curves: Sequence[MarkingCurve]) -> None:
+        if not curves:
+            raise ValueError("a road needs at least one marking")
+        xys, us, paints = [], [], []
+        for j, c in enumerate(curves):
+            xy = np.asarray(c.xy, dtype=np.float64)
+            if xy.ndim != 2 or xy.shape[0] < 2 or xy.shape[1] != 2:
+                raise ValueError(f"marking {j}: xy must be (N >= 2, 2), got {xy.shape}")
+            if not np.all(np.isfinite(xy)):
+                raise ValueError(f"marking {j}: xy holds NaN or inf")
+            u = arc_length(xy)
+            if not np.all(np.diff(u) > 0.0):
+                raise ValueError(f"marking {j}: repeated vertices")
+            p = np.asarray(c.painted, dtype=np.float64).reshape(-1, 2)
+            if len(p) and (np.any(p[:, 1] <= p[:, 0]) or np.any(p[1:, 0] < p[:-1, 1])):
+                raise ValueError(f"marking {j}: painted intervals must be sorted and disjoint")
+            xys.append(xy)
+            us.append(u)
+            paints.append(p)
+        self.curves = tuple(curves)
+        self.xy = np.ascontiguousarray(np.concatenate(xys))
+        self.u = np.concatenate(us)
+        self.start = np.concatenate([[0], np.cumsum([len(x) for x in xys])]).astype(np.int64)
+        self.paint = np.ascontiguousarray(np.concatenate(paints).reshape(-1, 2))
+        self.paint_start = np.concatenate([[0], np.cumsum([len(p) for p in paints])]).astype(
+            np.int64
+        )
+        self._build_chunks()
+
+    def __len__(self) -> int:
+        return len(self.curves)
+
+    def _build_chunks(self) -> None:
+        mark, i0, i1, cen, rad = [], [], [], [], []
+        for j in range(len(self.curves)):
+            a, b = int(self.start[j]), int(self.start[j + 1])
+            for c0 in range(a, b - 1, CHUNK):
+                c1 = min(c0 + CHUNK + 1, b)  # share the last vertex with the next chunk
+                pts = self.xy[c0:c1]
+                lo, hi = pts.min(axis=0), pts.max(axis=0)
+                centre = 0.5 * (lo + hi)
+                mark.append(j)
+                i0.append(c0)
+                i1.append(c1)
+                cen.append(centre)
+                rad.append(float(np.max(np.hypot(*(pts - centre).T))))
+        self.chunk_mark = np.asarray(mark, dtype=np.int64)
+        self.chunk_i0 = np.asarray(i0, dtype=np.int64)
+        self.chunk_i1 = np.asarray(i1, dtype=np.int64)
+        self.chunk_centre = np.ascontiguousarray(np.asarray(cen, dtype=np.float64))
+        self.chunk_radius = np.asarray(rad, dtype=np.float64)
+
+    def sample(
+        self, origin: FloatArray, yaw: float, xs: FloatArray, reach: float
+    ) -> tuple[np.ndarray, FloatArray, FloatArray]:
+        """Where the markings near ``origin`` cross the lines ``x = xs`` of a sensor frame.
+
+        The frame has its origin at world ``origin`` and its x axis along world heading
+        ``yaw``; y to the left (ISO 8855; in highway-env's world the left of heading h
+        is ``(sin h, -cos h)``). Each marking is followed from its vertex nearest to
+        the origin in the direction in which x grows, until x stops growing (a marking
+        is never reported twice at one x).
+
+        :param xs: ``(K,)`` increasing x [m].
+        :param reach: markings with no vertex within this distance of the origin are
+            skipped [m] (the sensor's range plus a margin).
+        :return: ``(rows, y, u)``: the indices of the markings considered ``(R,)``, and
+            ``(R, K)`` lateral position [m] and arc length along the marking [m] at
+            each ``xs``; NaN where the marking does not reach that x.
+        """
+        rows, lo, hi = _near_markings(
+            self.chunk_mark,
+            self.chunk_i0,
+            self.chunk_i1,
+            self.chunk_centre,
+            self.chunk_radius,
+            len(self.curves),
+            float(origin[0]),
+            float(origin[1]),
+            float(reach),
+        )
+        y = np.full((len(rows), len(xs)), np.nan)
+        u = np.full((len(rows), len(xs)), np.nan)
+        _sample_polylines(
+            self.xy,
+            self.u,
+            rows,
+            lo,
+            hi,
+            float(origin[0]),
+            float(origin[1]),
+            float(yaw),
+            np.asarray(xs, dtype=np.float64),
+            y,
+            u,
+        )
+        return rows, y, u
+
+
+def _near_markings_py(
+    chunk_mark: np.ndarray,
+    chunk_i0: np.ndarray,
+    chunk_i1: np.ndarray,
+    centre: FloatArray,
+    radius: FloatArray,
+    n_markings: int,
+    ox: float,
+    oy: float,
+    reach: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Markings with a chunk within ``reach`` of ``(ox, oy)``, and their vertex ranges.
+
+    :return: ``(rows, lo, hi)``: marking indices (ascending) and, per row, the range
+        ``[lo, hi)`` of vertices covered by its near chunks.
+    """
+    lo = np.full(n_markings, -1, dtype=np.int64)
+    hi = np.full(n_markings, -1, dtype=np.int64)
+    n = 0
+    for c in range(len(chunk_mark)):
+        dx = centre[c, 0] - ox
+        dy = centre[c, 1] - oy
+        r = reach + radius[c]
+        if dx * dx + dy * dy <= r * r:
+            j = chunk_mark[c]
+            if lo[j] < 0:
+                lo[j] = chunk_i0[c]
+                hi[j] = chunk_i1[c]
+                n += 1
+            else:
+                lo[j] = min(lo[j], chunk_i0[c])
+                hi[j] = max(hi[j], chunk_i1[c])
+    rows = np.empty(n, dtype=np.int64)
+    rlo = np.empty(n, dtype=np.int64)
+    rhi = np.empty(n, dtype=np.int64)
+    q = 0
+    for j in range(n_markings):
+        if lo[j] >= 0:
+            rows[q] = j
+            rlo[q] = lo[j]
+            rhi[q] = hi[j]
+            q += 1
+    return rows, rlo, rhi
+
+
+_near_markings = numba.njit(cache=True)(_near_markings_py)
+
+
+def _sample_polylines_py(
+    xy: FloatArray,
+    u: FloatArray,
+    rows: np.ndarray,
+    row_lo: np.ndarray,
+    row_hi: np.ndarray,
+    ox: float,
+    oy: float,
+    yaw: float,
+    xs: FloatArray,
+    y_out: FloatArray,
+    u_out: FloatArray,
+) -> None:
+    """Fill ``y_out``/``u_out`` (rows of :meth:`PolylineMarkings.sample`); plain twin."""
+    ch = math.cos(yaw)
+    sh = math.sin(yaw)
+    k = len(xs)
+    for r in range(len(rows)):
+        lo = row_lo[r]
+        hi = row_hi[r]
+        if hi - lo < 2:
+            continue
+        # The vertex nearest to the origin.
+        best = lo
+        best_d = np.inf
+        for i in range(lo, hi):
+            dx = xy[i, 0] - ox
+            dy = xy[i, 1] - oy
+            d = dx * dx + dy * dy
+            if d < best_d:
+                best_d = d
+                best = i
+        # Sensor-frame x of a vertex: forward (cos h, sin h); y: left (sin h, -cos h).
+        xb = (xy[best, 0] - ox) * ch + (xy[best, 1] - oy) * sh
+        step = 1
+        if best + 1 < hi:
+            xn = (xy[best + 1, 0] - ox) * ch + (xy[best + 1, 1] - oy) * sh
+            if xn <= xb:
+                step = -1
+        else:
+            step = -1
+        i = best
+        p = 0
+        x0 = xb
+        y0 = (xy[i, 0] - ox) * sh - (xy[i, 1] - oy) * ch
+        while p < k:
+            nxt = i + step
+            if nxt < lo or nxt >= hi:
+                break
+            x1 = (xy[nxt, 0] - ox) * ch + (xy[nxt, 1] - oy) * sh
+            if not x1 > x0:
+                break  # the marking stops advancing in x
+            y1 = (xy[nxt, 0] - ox) * sh - (xy[nxt, 1] - oy) * ch
+            while p < k and xs[p] < x0:
+                p += 1
+            while p < k and xs[p] < x1:
+                t = (xs[p] - x0) / (x1 - x0)
+                y_out[r, p] = y0 + t * (y1 - y0)
+                u_out[r, p] = u[i] + t * (u[nxt] - u[i])
+                p += 1
+            i = nxt
+            x0 = x1
+            y0 = y1
+
+
+_sample_polylines = numba.njit(cache=True)(_sample_polylines_py)
+
+
+MARKING_MODELS = ("per_dash", "editor")
+"""How painted markings become line objects (see :class:`aldm_gym.roads.RoadConfig`)."""
+
+
+class PolylineRoad:
+    """A road given by its marking curves: what the line sensor needs of a map.
+
+    The sensor side of a map road (:class:`aldm_gym.roads.OpenDriveRoad` adds lanes,
+    ground truth and traffic): :meth:`sample_visible`, :meth:`sample_markings`,
+    :attr:`marking_table` and :attr:`marking_model`, the same protocol as
+    :class:`~aldm_gym.roads.HighwayRoad`.
+
+    :param curves: the markings.
+    :param marking_model: ``"per_dash"`` (every painted piece its own line object, as
+        on converted roads) or ``"editor"`` (one object per marking).
+    :param lane_width: nominal lane width [m] (for one-line trajectories).
+    :param reach: markings farther than this from the sensor are not sampled [m].
+    """
+
+    def __init__(
+        self,
+        curves: Sequence[MarkingCurve] | PolylineMarkings,
+        marking_model: str = "per_dash",
+        lane_width: float = 3.75,
+        reach: float = 260.0,
+    ) -> None:
+        if marking_model not in MARKING_MODELS:
+            raise ValueError(
+                f"marking_model must be one of {list(MARKING_MODELS)}, got {marking_model!r}"
+            )
+        self.markings = curves if isinstance(curves, PolylineMarkings) else PolylineMarkings(curves)
+        self._marking_model = marking_model
+        self.lane_width = float(lane_width)
+        self.reach = float(reach)
+        cs = self.markings.curves
+        self.marking_table: dict[str, np.ndarray] = {
+            "type": np.array([int(c.type) for c in cs], dtype=np.int64),
+            "colour": np.array([int(c.colour) for c in cs], dtype=np.int64),
+            "height": np.array([float(c.height) for c in cs], dtype=np.float64),
+            "width": np.array([float(c.width) for c in cs], dtype=np.float64),
+            # No periodic pattern: every marking's paint is its explicit intervals.
+            "dash": np.zeros(len(cs)),
+            "period": np.ones(len(cs)),
+            "phase": np.zeros(len(cs)),
+            "broken": np.array([int(c.type) != 1 for c in cs], dtype=bool),
+            "paint": self.markings.paint,
+            "paint_start": self.markings.paint_start,
+        }
+        """Marking attributes by marking index (the line sensor's table)."""
+
+    @property
+    def marking_model(self) -> str:
+        """``"per_dash"`` or ``"editor"``."""
+        return self._marking_model
+
+    def with_marking_model(self, marking_model: str) -> PolylineRoad:
+        """The same road with another marking model (shares the geometry)."""
+        if marking_model not in MARKING_MODELS:
+            raise ValueError(
+                f"marking_model must be one of {list(MARKING_MODELS)}, got {marking_model!r}"
+            )
+        import copy
+
+        twin = copy.copy(self)
+        twin._marking_model = marking_model
+        return twin
+
+    def sample_visible(
+        self, origin: FloatArray, yaw: float, xs: FloatArray, s_origin: float | None = None
+    ) -> tuple[np.ndarray, FloatArray, FloatArray]:
+        """``(rows, y, u)``: the markings near ``origin`` crossing ``x = xs`` (see
+        :meth:`PolylineMarkings.sample`). ``s_origin`` is accepted for the sensor's
+        protocol and not needed here."""
+        origin = _finite_point("origin", origin)
+        if not math.isfinite(yaw):
+            raise ValueError(f"yaw must be finite, got {yaw!r}")
+        return self.markings.sample(origin, yaw, xs, self.reach)
+
+    def sample_markings(
+        self, origin: FloatArray, yaw: float, xs: FloatArray, s_origin: float | None = None
+    ) -> tuple[FloatArray, FloatArray]:
+        """``(y, u)``, each ``(n_markings, K)``: every marking at ``x = xs`` (NaN where
+        it does not reach), as :meth:`HighwayRoad.sample_markings
+        <aldm_gym.roads.HighwayRoad.sample_markings>`."""
+        rows, y, u = self.sample_visible(origin, yaw, xs, s_origin)
+        m = len(self.markings)
+        y_all = np.full((m, len(xs)), np.nan)
+        u_all = np.full((m, len(xs)), np.nan)
+        y_all[rows] = y
+        u_all[rows] = u
+        return y_all, u_all
+
+
+def _finite_point(name: str, value: object) -> FloatArray:
+    arr = np.asarray(value, dtype=np.float64).reshape(-1)
+    if arr.shape[0] < 2 or not (math.isfinite(arr[0]) and math.isfinite(arr[1])):
+        raise ValueError(f"{name} must be 2 finite numbers (x, y) [m], got {value!r}")
+    return arr[:2]
