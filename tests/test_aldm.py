@@ -679,3 +679,32 @@ def test_packed_vectors_follow_the_one_declaration() -> None:
     assert fp[layout.P.a_std] == 0.5 * p.curvature_prior_std
     assert ip[layout.I.paper] == 1 and ip[layout.I.n_points] == 7 and ip[layout.I.smooth] == 0
     assert ip[layout.I.start_points] == p.start_points
+
+
+@pytest.mark.parametrize(
+    ("key", "value"),
+    [
+        ("search_length", 1e20),
+        ("gap_search_length", 1e20),
+        ("curvature_prior_std", 1e-300),
+        ("heading_prior_std", 1e-300),
+        ("guide_curvature_std", 1e-300),
+        ("guide_heading_std", 1e-300),
+        ("n_points", 1),
+        ("mode", "verbatim"),
+        ("max_lane_width", 1.0),
+    ],
+)
+def test_parameters_out_of_their_declared_range_name_the_key(key: str, value: object) -> None:
+    pts = np.column_stack([np.arange(6.0, 60.0, 2.0), np.full(27, 1.8)])
+    with pytest.raises(ValueError, match=rf"aldm\.{key}"):
+        detect_lanes(pts, **{key: value})
+
+
+def test_every_aldm_parameter_declares_its_rule() -> None:
+    import dataclasses
+
+    from aldm_gym.config import rules
+
+    assert set(rules(ALDMParams)) == {f.name for f in dataclasses.fields(ALDMParams)}
+    assert ALDMParams(n_points=np.int64(5)).n_points == 5

@@ -334,16 +334,19 @@ class HighwayRoad:
             raise ValueError(f"s_hint must be finite, got {s_origin!r}")
         ref = self.reference
         k = min(max(int(s_origin / ref.step + 0.5), 0), len(ref.s) - 1)
-        gap = math.hypot(float(ref.xy[k, 0]) - origin[0], float(ref.xy[k, 1]) - origin[1])
-        # The reference point at s_hint lies across the road from the origin at most,
-        # plus its sampling step and the distance beyond either road end.
-        allowed = 0.5 * self.lanes_count * self.lane_width + 20.0 + ref.step
-        allowed += max(0.0, -s_origin, s_origin - self.length)
-        if gap > allowed:
+        h = float(ref.heading[k])
+        dx = origin[0] - float(ref.xy[k, 0])
+        dy = origin[1] - float(ref.xy[k, 1])
+        # The sensor may be anywhere sideways (off the road too), but along the road it
+        # must lie near the hinted arc length: within the sampling step, 20 m of slack,
+        # and the distance beyond either road end.
+        along = abs(dx * math.cos(h) + dy * math.sin(h))
+        allowed = 20.0 + ref.step + max(0.0, -s_origin, s_origin - self.length)
+        if along > allowed:
             raise ValueError(
-                f"s_hint {s_origin:.1f} m is {gap:.1f} m from the sensor's position "
-                f"({origin[0]:.1f}, {origin[1]:.1f}); it must be the sensor's arc length "
-                "along the road (or None)"
+                f"s_hint {s_origin:.1f} m is {along:.1f} m along the road from the sensor's "
+                f"position ({origin[0]:.1f}, {origin[1]:.1f}); it must be the sensor's arc "
+                "length along the road (or None)"
             )
 
     def _check_lane(self, lane_id: int) -> None:

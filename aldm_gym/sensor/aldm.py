@@ -42,7 +42,7 @@ from typing import Any
 
 import numpy as np
 
-from aldm_gym.config import build_config, check_choice, check_range
+from aldm_gym.config import build_config, setting, validate
 from aldm_gym.sensor.aldm_kernels.layout import FloatParams, IntParams
 from aldm_gym.sensor.aldm_kernels.output import _detect
 from aldm_gym.sensor.detection import LINE_NAMES, LaneDetection
@@ -119,78 +119,47 @@ class ALDMParams:
     :ivar tie_dx: gated candidates within this x of the nearest one compete by residual.
     """
 
-    mode: str = "robust"
-    start_x_max: float = 23.52
-    start_points: int = 3
-    start_spacing: float = 1.8
-    search_length: float = 18.0
-    adjacent_offset: float = 2.0
-    n_points: int = 13
-    output: str = "auto"
-    z_band: float = 0.5
-    max_range: float = 500.0
-    view_range: float = 200.0
-    lane_width: float = DEFAULT_LANE_WIDTH
-    noise_std: float = 0.1
-    gap_search_length: float = 36.0
-    gate_sigmas: float = 4.0
-    gate_min: float = 0.3
-    gate_max: float = 1.2
-    fit_length: float = 40.0
-    min_radius: float = 100.0
-    curvature_prior_std: float = 1.0 / 250.0
-    heading_prior_std: float = 0.1
-    guide_curvature_std: float = 0.001
-    guide_heading_std: float = 0.03
-    max_slope: float = 1.0
-    min_seed_points: int = 1
-    link_dx: float = 4.5
-    link_dy: float = 1.5
-    merge_dy: float = 1.0
-    max_ego_offset: float = 4.0
-    min_lane_width: float = 2.5
-    max_lane_width: float = 5.0
-    smooth_half_width: float = 20.0
-    tie_dx: float = 1.0
+    mode: str = setting("robust", choices=MODES)
+    start_x_max: float = setting(23.52, lo=0.0, lo_open=True, hi=1000.0)
+    start_points: int = setting(3, lo=3, hi=1000, integer=True)
+    start_spacing: float = setting(1.8, lo=0.0, lo_open=True, hi=100.0)
+    # Search windows are bounded: the grid kernel turns them into cell counts, and
+    # nothing beyond the 200 m range of view is meaningful (1e20 used to crash it).
+    search_length: float = setting(18.0, lo=0.0, lo_open=True, hi=1000.0)
+    adjacent_offset: float = setting(2.0, lo=0.0, lo_open=True, hi=50.0)
+    n_points: int = setting(13, lo=0, hi=100_000, integer=True)
+    output: str = setting("auto", choices=OUTPUTS)
+    z_band: float = setting(0.5, lo=0.0, lo_open=True, hi=100.0)
+    max_range: float = setting(500.0, lo=1.0, hi=1.0e4)
+    view_range: float = setting(200.0, lo=0.0, lo_open=True, hi=1.0e4)
+    lane_width: float = setting(DEFAULT_LANE_WIDTH, lo=0.5, hi=20.0)
+    noise_std: float = setting(0.1, lo=0.0, lo_open=True, hi=5.0)
+    gap_search_length: float = setting(36.0, lo=0.0, hi=1000.0)
+    gate_sigmas: float = setting(4.0, lo=0.0, lo_open=True, hi=100.0)
+    gate_min: float = setting(0.3, lo=0.0, lo_open=True, hi=10.0)
+    gate_max: float = setting(1.2, lo="gate_min", hi=10.0)
+    fit_length: float = setting(40.0, lo=0.0, lo_open=True, hi=1000.0)
+    min_radius: float = setting(100.0, lo=1.0, hi=1.0e6)
+    # Prior standard deviations enter the fit as 1 / std²: at least 1e-9 keeps them finite.
+    curvature_prior_std: float = setting(1.0 / 250.0, lo=1e-9, hi=10.0)
+    heading_prior_std: float = setting(0.1, lo=1e-9, hi=100.0)
+    guide_curvature_std: float = setting(0.001, lo=1e-9, hi=10.0)
+    guide_heading_std: float = setting(0.03, lo=1e-9, hi=100.0)
+    max_slope: float = setting(1.0, lo=0.0, lo_open=True, hi=100.0)
+    min_seed_points: int = setting(1, lo=1, hi=1000, integer=True)
+    link_dx: float = setting(4.5, lo=0.0, lo_open=True, hi=100.0)
+    link_dy: float = setting(1.5, lo=0.0, lo_open=True, hi=100.0)
+    merge_dy: float = setting(1.0, lo=0.0, hi=100.0)
+    max_ego_offset: float = setting(4.0, lo=0.0, lo_open=True, hi=100.0)
+    min_lane_width: float = setting(2.5, lo=0.0, hi=20.0)
+    max_lane_width: float = setting(5.0, lo="min_lane_width", hi=50.0)
+    smooth_half_width: float = setting(20.0, lo=0.0, lo_open=True, hi=1000.0)
+    tie_dx: float = setting(1.0, lo=0.0, hi=100.0)
 
     def __post_init__(self) -> None:
-        w = "aldm"
-        check_choice(w, "mode", self.mode, MODES)
-        check_choice(w, "output", self.output, OUTPUTS)
-        check_range(w, "start_x_max", self.start_x_max, 0.0, lo_open=True)
-        check_range(w, "start_points", self.start_points, 3, 1000, integer=True)
-        check_range(w, "start_spacing", self.start_spacing, 0.0, lo_open=True)
-        check_range(w, "search_length", self.search_length, 0.0, lo_open=True)
-        check_range(w, "adjacent_offset", self.adjacent_offset, 0.0, lo_open=True)
-        if self.n_points != 0:
-            check_range(w, "n_points", self.n_points, 2, 100_000, integer=True)
-        else:
-            check_range(w, "n_points", self.n_points, integer=True)
-        check_range(w, "z_band", self.z_band, 0.0, lo_open=True)
-        check_range(w, "max_range", self.max_range, 1.0, 1.0e4)
-        check_range(w, "view_range", self.view_range, 0.0, lo_open=True)
-        check_range(w, "lane_width", self.lane_width, 0.5, 20.0)
-        check_range(w, "noise_std", self.noise_std, 0.0, 5.0, lo_open=True)
-        check_range(w, "gap_search_length", self.gap_search_length, 0.0)
-        check_range(w, "gate_sigmas", self.gate_sigmas, 0.0, lo_open=True)
-        check_range(w, "gate_min", self.gate_min, 0.0, lo_open=True)
-        check_range(w, "gate_max", self.gate_max, self.gate_min)
-        check_range(w, "fit_length", self.fit_length, 0.0, lo_open=True)
-        check_range(w, "min_radius", self.min_radius, 1.0)
-        check_range(w, "curvature_prior_std", self.curvature_prior_std, 0.0, lo_open=True)
-        check_range(w, "heading_prior_std", self.heading_prior_std, 0.0, lo_open=True)
-        check_range(w, "guide_curvature_std", self.guide_curvature_std, 0.0, lo_open=True)
-        check_range(w, "guide_heading_std", self.guide_heading_std, 0.0, lo_open=True)
-        check_range(w, "max_slope", self.max_slope, 0.0, lo_open=True)
-        check_range(w, "min_seed_points", self.min_seed_points, 1, 1000, integer=True)
-        check_range(w, "link_dx", self.link_dx, 0.0, lo_open=True)
-        check_range(w, "link_dy", self.link_dy, 0.0, lo_open=True)
-        check_range(w, "merge_dy", self.merge_dy, 0.0)
-        check_range(w, "max_ego_offset", self.max_ego_offset, 0.0, lo_open=True)
-        check_range(w, "min_lane_width", self.min_lane_width, 0.0)
-        check_range(w, "max_lane_width", self.max_lane_width, self.min_lane_width)
-        check_range(w, "smooth_half_width", self.smooth_half_width, 0.0, lo_open=True)
-        check_range(w, "tie_dx", self.tie_dx, 0.0)
+        validate(self, "aldm")
+        if self.n_points == 1:
+            raise ValueError("aldm.n_points must be 0 (every traced point) or >= 2, got 1")
 
     @property
     def smooth(self) -> bool:
