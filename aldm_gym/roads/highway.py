@@ -349,6 +349,24 @@ class HighwayRoad:
                 "length along the road (or None)"
             )
 
+    def boundary_markings(
+        self, lane_id: int, position: FloatArray | None = None
+    ) -> dict[str, int | None]:
+        """Marking index of the four lines around lane ``lane_id`` (``None``: no such line).
+
+        Keys ``left_adjacent``, ``ego_left``, ``ego_right``, ``right_adjacent``. The
+        outer lines are the adjacent lanes' outer markings only where those lanes exist.
+        ``position`` is not needed here (markings do not change along this road).
+        """
+        self._check_lane(lane_id)
+        n = self.lanes_count
+        return {
+            "left_adjacent": lane_id - 1 if lane_id >= 1 else None,
+            "ego_left": lane_id,
+            "ego_right": lane_id + 1,
+            "right_adjacent": lane_id + 2 if lane_id + 2 <= n else None,
+        }
+
     def _check_lane(self, lane_id: int) -> None:
         if not 0 <= int(lane_id) < self.lanes_count:
             raise ValueError(f"lane_id must be in [0, {self.lanes_count - 1}], got {lane_id}")

@@ -9,6 +9,7 @@ reaches at least ``preview_min`` (60 m, the paper's minimum preview) ahead.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -18,20 +19,17 @@ from aldm_gym.sensor.frame import SensorFrame
 from aldm_gym.types import FloatArray
 
 
-def line_markings(road: HighwayRoad, lane_id: int) -> dict[str, int | None]:
-    """Marking index of each of the four lines for a vehicle in lane ``lane_id``.
+def line_markings(
+    road: HighwayRoad, lane_id: Any, position: FloatArray | None = None
+) -> dict[str, int | None]:
+    """Marking index of each of the four lines (:data:`LINE_NAMES`) for a vehicle in a lane.
 
-    ``None`` where the line does not exist (e.g. no lane left of lane 0). The outer
-    edge lines are the adjacent lines' markings only when that lane exists.
+    The road answers (``road.boundary_markings``): on a generated highway from the lane
+    id alone; on a map, where markings change along the lane, at ``position`` (world
+    [m]; the sensor's origin). ``None`` where the line does not exist (e.g. no lane left
+    of the leftmost one).
     """
-    road.lane_boundaries(lane_id)  # validates lane_id
-    n = road.lanes_count
-    return {
-        "left_adjacent": lane_id - 1 if lane_id >= 1 else None,
-        "ego_left": lane_id,
-        "ego_right": lane_id + 1,
-        "right_adjacent": lane_id + 2 if lane_id + 2 <= n else None,
-    }
+    return road.boundary_markings(lane_id, position)
 
 
 def true_line(road: HighwayRoad, frame: SensorFrame, marking: int, xs: FloatArray) -> FloatArray:
@@ -68,7 +66,7 @@ def ground_truth_detect(
     xs = np.arange(frame.fov_start, frame.range + 1e-9, step)
     y, _ = road.sample_markings(frame.origin, frame.yaw, xs)
     lines: dict[str, FloatArray] = {}
-    for name, j in line_markings(road, lane_id).items():
+    for name, j in line_markings(road, lane_id, frame.origin).items():
         if j is None:
             lines[name] = np.zeros((0, 2))
             continue
@@ -128,7 +126,7 @@ def score_detection(
     **kwargs: float,
 ) -> dict[str, LineScore]:
     """Score the four lines (:data:`LINE_NAMES`) of a detection for a vehicle in ``lane_id``."""
-    marks = line_markings(road, lane_id)
+    marks = line_markings(road, lane_id, frame.origin)
     return {
         name: score_line(detection.line(name), road, frame, marks[name], **kwargs)
         for name in LINE_NAMES
