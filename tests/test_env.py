@@ -96,7 +96,7 @@ def test_vehicle_lane_assignment_uses_detected_lines() -> None:
     veh = obs["vehicles"]
     present = veh[:, 0] > 0
     assert present.any()
-    ego_lane = base._truth[2]
+    ego_lane = base.lane_position.lane
     n_checked = 0
     for row, v in zip(veh[present], _nearest_others(base, int(present.sum())), strict=True):
         true_lane = base.highway.lane_id_at(v.position)
@@ -283,7 +283,7 @@ def test_lanes_summary_matches_ground_truth_gaps() -> None:
         obs, *_ = env.step(1)
     base = env.unwrapped
     ego = base.vehicle
-    ego_lane = base._truth[2]
+    ego_lane = base.lane_position.lane
     lanes = obs["lanes"]
     assert lanes.shape == (3, 4) and env.observation_space["lanes"].contains(lanes)
     # Ground truth: nearest vehicle ahead in each true lane, gap along the road.

@@ -22,6 +22,7 @@ from aldm_gym.envs.traffic import FastRoad
 from aldm_gym.envs.vehicle import SensorVehicle
 from aldm_gym.roads.cache import cached_road
 from aldm_gym.roads.highway import HighwayRoad
+from aldm_gym.roads.position import LanePosition
 from aldm_gym.sensor.detection import LaneDetection
 from aldm_gym.sensor.detectors import Detector, make_detector
 from aldm_gym.sensor.frame import SensorFrame
@@ -133,7 +134,8 @@ class ALDMHighwayEnv(AbstractEnv):
         self._detector: Detector | None = None
         self._departed_step = False
         self._departures = 0
-        self._truth = (0.0, 0.0, 0)  # s, lateral offset, lane id
+        self.lane_position: LanePosition = LanePosition(0.0, 0.0, 0, 0, 1, 3.75, 0.0, 0.0)
+        """The ego's ground-truth position on the road, updated every simulation step."""
         self._s_before = 0.0
         self._space_seed: int | None = None
         super().__init__(dict(config) if config else None, render_mode)
@@ -209,7 +211,7 @@ class ALDMHighwayEnv(AbstractEnv):
         self._departures = 0
         self._departed_step = False
         self._perceive()
-        self._s_before = self._truth[0]
+        self._s_before = self.lane_position.s
 
     def _create_vehicles(self) -> None:
         """Ego then ``vehicles_count`` IDM vehicles ahead of it, as in ``highway-v0``."""
@@ -249,20 +251,22 @@ class ALDMHighwayEnv(AbstractEnv):
         ego = self.vehicle
         hw = self.highway
         assert hw is not None and self.sensor is not None and self._detector is not None
-        s, d, lane_id = hw.locate(ego.position)
-        offset = d - hw.lane_offset(lane_id)
-        self._truth = (float(s), float(offset), lane_id)
+        self.lane_position = pos = hw.lane_position(ego.position)
         mount_x = self.sensor.config.mount_x
         rng = self.np_random if self.sensor.config.noisy else None
         t = self.steps / self.config["simulation_frequency"]
         self.frame = self.sensor.measure(
-            hw, (ego.position[0], ego.position[1], ego.heading), t, rng=rng, s_hint=s + mount_x
+            hw,
+            (ego.position[0], ego.position[1], ego.heading),
+            t,
+            rng=rng,
+            s_hint=pos.s + mount_x,
         )
-        self.detection = det = self._detector(self.frame, hw, lane_id)
+        self.detection = det = self._detector(self.frame, hw, pos.lane)
         ego.detection = det
         ego.trajectory = det.trajectory  # fitted up to lka.path_range by the detector
         # A wheel over a marking: |offset| + half the vehicle width beyond half the lane.
-        over = abs(offset) + 0.5 * ego.WIDTH > 0.5 * hw.lane_width
+        over = abs(pos.offset) + 0.5 * ego.WIDTH > 0.5 * pos.width
         if over and ego.lane_change == 0:
             if not self._departed_step:
                 self._departures += 1
@@ -272,7 +276,7 @@ class ALDMHighwayEnv(AbstractEnv):
         """``simulation_frequency / policy_frequency`` steps; sensor + detector at each."""
         frames = int(self.config["simulation_frequency"] // self.config["policy_frequency"])
         dt = 1.0 / self.config["simulation_frequency"]
-        self._s_before = self._truth[0]
+        self._s_before = self.lane_position.s
         self._departed_step = False
         if not self.config["manual_control"]:
             self.action_type.act(action)  # raises ValueError on a bad action (None too)
@@ -288,21 +292,21 @@ class ALDMHighwayEnv(AbstractEnv):
     # ------------------------------------------------------------------ reward / end
     def _rewards(self, action: Any) -> dict[str, float]:
         cfg = self.config
-        hw = self.highway
-        assert hw is not None
         ego = self.vehicle
-        s, offset, lane_id = self._truth
+        pos = self.lane_position
         lo, hi = cfg["reward_speed_range"]
-        forward_speed = ego.speed * math.cos(ego.heading - float(hw.reference.heading_at(s)))
+        forward_speed = ego.speed * math.cos(ego.heading - pos.heading)
         step_time = 1.0 / cfg["policy_frequency"]
         is_lc = self.action_type.is_lane_change(action)
         return {
             "collision_reward": float(ego.crashed),
             "departure_reward": float(self._departed_step),
             "high_speed_reward": float(np.clip(utils.lmap(forward_speed, [lo, hi], [0, 1]), 0, 1)),
-            "progress_reward": float(np.clip((s - self._s_before) / (hi * step_time), 0.0, 1.0)),
-            "lane_keeping_reward": float(max(0.0, 1.0 - abs(offset) / (0.5 * hw.lane_width))),
-            "right_lane_reward": lane_id / max(hw.lanes_count - 1, 1),
+            "progress_reward": float(
+                np.clip((pos.s - self._s_before) / (hi * step_time), 0.0, 1.0)
+            ),
+            "lane_keeping_reward": float(max(0.0, 1.0 - abs(pos.offset) / (0.5 * pos.width))),
+            "right_lane_reward": pos.index / max(pos.lanes - 1, 1),
             "lane_change_reward": float(is_lc),
         }
 
@@ -319,11 +323,8 @@ class ALDMHighwayEnv(AbstractEnv):
 
     def _is_terminated(self) -> bool:
         cfg = self.config
-        hw = self.highway
-        assert hw is not None
-        offroad = self._truth[2] in (0, hw.lanes_count - 1) and (
-            abs(self._truth[1]) > 0.5 * hw.lane_width
-        )
+        pos = self.lane_position
+        offroad = pos.edge_lane and abs(pos.offset) > 0.5 * pos.width
         return bool(
             self.vehicle.crashed
             or (cfg["offroad_terminal"] and offroad)
@@ -331,26 +332,25 @@ class ALDMHighwayEnv(AbstractEnv):
         )
 
     def _is_truncated(self) -> bool:
-        assert self.highway is not None
         return bool(
             self.time >= self.config["duration"]
-            or self._truth[0] > self.highway.length - ROAD_END_MARGIN
+            or self.lane_position.s > self.lane_position.end - ROAD_END_MARGIN
         )
 
     def _info(self, obs: Any, action: Any = None) -> dict:
         info = super()._info(obs, action)
         ego = self.vehicle
-        _, offset, lane_id = self._truth
+        pos = self.lane_position
         info.update(
             {
-                "lateral_offset": offset,
+                "lateral_offset": pos.offset,
                 "lane_departure": bool(self._departed_step),
-                "lane_index": lane_id,
+                "lane_index": pos.index,
                 "lane_change": int(ego.lane_change),
                 "lane_change_refused": bool(ego.lane_change_refused),
                 "lane_changes_completed": int(ego.lane_changes_completed),
                 "lane_changes_aborted": int(ego.lane_changes_aborted),
-                "arc_length": float(self._truth[0]),
+                "arc_length": pos.s,
                 "departures": self._departures,
                 "detection": self._score(),
             }
@@ -371,7 +371,7 @@ class ALDMHighwayEnv(AbstractEnv):
                 n: {"mean_abs_error": nan, "preview": nan, "correct": 0.0}
                 for n in ("ego_left", "ego_right")
             }
-        scores = score_detection(self.detection, self.highway, self.frame, self._truth[2])
+        scores = score_detection(self.detection, self.highway, self.frame, self.lane_position.lane)
         for name in ("ego_left", "ego_right"):
             sc = scores[name]
             if sc.found:

@@ -34,6 +34,7 @@ from aldm_gym.config import build_config, check_choice, check_range, setting, va
 from aldm_gym.roads.geometry import ReferenceLine, Segment
 from aldm_gym.roads.lane import ReferenceLane
 from aldm_gym.roads.markings import Marking, MarkingRole, MarkingType
+from aldm_gym.roads.position import LanePosition
 from aldm_gym.types import FloatArray
 
 MIN_RADIUS_BY_SPEED = {130: 800.0, 120: 600.0, 110: 500.0, 100: 400.0}
@@ -308,6 +309,27 @@ class HighwayRoad:
         _check_point("position", position)
         s, d = self.reference.project(position)
         return s, d, self.lane_of_offset(d)
+
+    def lane_position(self, position: FloatArray) -> LanePosition:
+        """Ground truth of a world position as a :class:`~aldm_gym.roads.position.LanePosition`.
+
+        The lane is the one whose centre is nearest (clipped to the road's lanes), the
+        offset is from its centre, the direction of travel is the reference line's.
+
+        :raises ValueError: naming ``position`` unless it is 2 finite numbers [m].
+        """
+        s, d, lane_id = self.locate(position)
+        s = float(s)
+        return LanePosition(
+            s=s,
+            offset=float(d - self.lane_offset(lane_id)),
+            lane=lane_id,
+            index=lane_id,
+            lanes=self.lanes_count,
+            width=self.lane_width,
+            heading=float(self.reference.heading_at(s)),
+            end=self.length,
+        )
 
     def lane_id_at(self, position: FloatArray) -> int:
         """Ground-truth lane id at a world position (clipped to the road's lanes)."""

@@ -1,0 +1,45 @@
+"""Ground truth of a vehicle's position on a road, the same for every road source.
+
+The environment scores and ends episodes on ground truth: which lane the ego is in,
+how far it is from that lane's centre, how wide the lane is there, which way the lane
+runs, how much road is left. A generated highway answers from its one reference line;
+a map answers from the lane that contains the position. Both hand back a
+:class:`LanePosition`, so the env never asks which kind of road it drives on.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+
+@dataclass(frozen=True)
+class LanePosition:
+    """Where a world position lies on a road (ground truth; a sensor never sees it).
+
+    :ivar s: arc length along the road (its reference line or route) [m], growing in
+        the driving direction; progress is measured with it.
+    :ivar offset: lateral offset from the lane's centre [m], > 0 to the driver's left.
+    :ivar lane: the road's key of the lane (an ``int`` on a generated highway, 0 =
+        leftmost; a map's own key on a map), what ``road.boundary_markings`` takes.
+    :ivar index: lane number from the left among the lanes of this driving direction
+        at this point (0 = leftmost).
+    :ivar lanes: number of such lanes at this point.
+    :ivar width: the lane's width here [m].
+    :ivar heading: the lane's direction of travel here (world heading [rad]).
+    :ivar end: the arc length ``s`` where the road (route) ends [m].
+    """
+
+    s: float
+    offset: float
+    lane: Any
+    index: int
+    lanes: int
+    width: float
+    heading: float
+    end: float
+
+    @property
+    def edge_lane(self) -> bool:
+        """Whether the lane is the leftmost or the rightmost one here."""
+        return self.index in (0, self.lanes - 1)
