@@ -1,4 +1,5 @@
-"""Roads: highway-env road networks with painted-marking geometry and ground truth."""
+"""Roads: painted-marking geometry and ground truth, generated (HighwayRoad) or read
+from an OpenDRIVE map (OpenDriveRoad)."""
 
 from __future__ import annotations
 
@@ -13,6 +14,7 @@ from aldm_gym.roads.highway import (
     generate_highway,
 )
 from aldm_gym.roads.lane import ReferenceLane
+from aldm_gym.roads.map_road import OpenDriveRoad
 from aldm_gym.roads.markings import Marking, MarkingRole, MarkingType
 from aldm_gym.roads.polyline import MarkingCurve, PolylineMarkings, PolylineRoad
 
@@ -25,6 +27,7 @@ __all__ = [
     "MarkingCurve",
     "MarkingRole",
     "MarkingType",
+    "OpenDriveRoad",
     "PolylineMarkings",
     "PolylineRoad",
     "ReferenceLane",

@@ -120,6 +120,21 @@ class PolylineMarkings:
         self.chunk_centre = np.ascontiguousarray(np.asarray(cen, dtype=np.float64))
         self.chunk_radius = np.asarray(rad, dtype=np.float64)
 
+    def near(self, origin: FloatArray, reach: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Polylines with a chunk within ``reach`` [m] of ``origin``: ``(rows, lo, hi)``,
+        the polyline indices (ascending) and their vertex ranges ``[lo, hi)`` there."""
+        return _near_markings(
+            self.chunk_mark,
+            self.chunk_i0,
+            self.chunk_i1,
+            self.chunk_centre,
+            self.chunk_radius,
+            len(self.curves),
+            float(origin[0]),
+            float(origin[1]),
+            float(reach),
+        )
+
     def sample(
         self, origin: FloatArray, yaw: float, xs: FloatArray, reach: float
     ) -> tuple[np.ndarray, FloatArray, FloatArray]:
@@ -138,17 +153,7 @@ class PolylineMarkings:
             ``(R, K)`` lateral position [m] and arc length along the marking [m] at
             each ``xs``; NaN where the marking does not reach that x.
         """
-        rows, lo, hi = _near_markings(
-            self.chunk_mark,
-            self.chunk_i0,
-            self.chunk_i1,
-            self.chunk_centre,
-            self.chunk_radius,
-            len(self.curves),
-            float(origin[0]),
-            float(origin[1]),
-            float(reach),
-        )
+        rows, lo, hi = self.near(origin, reach)
         y = np.full((len(rows), len(xs)), np.nan)
         u = np.full((len(rows), len(xs)), np.nan)
         _sample_polylines(

@@ -1,0 +1,368 @@
+"""A road from an OpenDRIVE map, with the same interface as the generated highway.
+
+:class:`OpenDriveRoad` turns an :class:`~aldm_gym.roads.opendrive.OpenDriveMap` into
+what the line sensor, the detectors, the ground truth and the environment use:
+
+* the painted marking lines as a :class:`~aldm_gym.roads.polyline.PolylineRoad`
+  (``sample_visible``, ``marking_table``, ``marking_model``): ``"per_dash"`` gives one
+  line object per painted dash (a converted road, the paper's problem), ``"editor"``
+  one per marking line (as CarMaker's road editor draws it);
+* ground truth: :meth:`~OpenDriveRoad.lane_position` (the lane that contains a world
+  position, the offset from its centre, its width and direction, the arc length along
+  the lane's chain of successors) and :meth:`~OpenDriveRoad.boundary_markings` (which
+  marking lines bound that lane, and the adjacent lanes, *there*);
+* :meth:`~OpenDriveRoad.lane_pose`: a world pose on a lane's centre.
+
+World frame. OpenDRIVE's inertial frame is right-handed (x east, y north, heading
+counter-clockwise). highway-env's world, in which vehicles, the sensor and the
+renderer work, has y pointing down the screen: the driver's left of heading ``h`` is
+``(sin h, -cos h)`` (see :mod:`aldm_gym.roads.geometry`). A map enters that world
+mirrored in y: ``(x, y) -> (x, -y)`` and ``heading -> -heading``; lengths, dashes and
+left/right are unchanged, so the sensor frame (ISO 8855, y left) is the same.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import os
+from collections import OrderedDict
+from typing import Any
+
+import numba
+import numpy as np
+
+from aldm_gym.roads.opendrive import OpenDriveMap
+from aldm_gym.roads.opendrive.map import LaneKey, LaneRecord
+from aldm_gym.roads.polyline import MarkingCurve, PolylineMarkings, PolylineRoad
+from aldm_gym.roads.position import LanePosition
+from aldm_gym.types import FloatArray
+
+DRIVING_TYPES = frozenset(
+    {"driving", "entry", "exit", "onRamp", "offRamp", "connectingRamp", "bidirectional"}
+)
+"""OpenDRIVE lane types a vehicle drives on (the rest: shoulders, borders, ...)."""
+
+LOCATE_REACH = 15.0
+"""A position is located on lanes whose centre passes within this distance [m]."""
+
+_CACHE: OrderedDict[tuple, OpenDriveMap] = OrderedDict()
+_CACHE_SIZE = 4
+
+
+def _flip(xy: FloatArray) -> FloatArray:
+    """OpenDRIVE's inertial frame -> highway-env's world (mirror in y)."""
+    out = np.array(xy, dtype=np.float64, copy=True)
+    out[:, 1] = -out[:, 1]
+    return out
+
+
+def _dedupe(xy: FloatArray) -> np.ndarray:
+    """Mask of the vertices that are not a repetition of the previous one."""
+    keep = np.ones(len(xy), dtype=bool)
+    keep[1:] = np.hypot(np.diff(xy[:, 0]), np.diff(xy[:, 1])) > 1e-9
+    return keep
+
+
+def load_map(path: str | os.PathLike[str], **options: Any) -> OpenDriveMap:
+    """:meth:`OpenDriveMap.from_file`, cached per file content and options (a small LRU)."""
+    try:
+        with open(path, "rb") as fh:
+            digest = hashlib.sha256(fh.read()).hexdigest()
+    except FileNotFoundError:
+        raise FileNotFoundError(f"OpenDRIVE file not found: {os.fspath(path)!r}") from None
+    key = (digest, tuple(sorted((k, repr(v)) for k, v in options.items())))
+    got = _CACHE.get(key)
+    if got is None:
+        got = OpenDriveMap.from_file(path, **options)
+        _CACHE[key] = got
+        while len(_CACHE) > _CACHE_SIZE:
+            _CACHE.popitem(last=False)
+    else:
+        _CACHE.move_to_end(key)
+    return got
+
+
+class OpenDriveRoad(PolylineRoad):
+    """An OpenDRIVE map as a road of aldm-gym (see the module docstring).
+
+    :ivar map: the parsed map (OpenDRIVE's frame).
+    :ivar lanes: the driving lanes, in the order of the lane index.
+    :ivar lane_width: the median width of the driving lanes [m] (the nominal width a
+        detector uses for a one-line trajectory).
+    """
+
+    def __init__(self, odr: OpenDriveMap, marking_model: str = "per_dash") -> None:
+        curves = []
+        for m in odr.markings:
+            xy = _flip(m.xy)
+            keep = _dedupe(xy)
+            u_theirs = np.asarray(m.u, dtype=np.float64)[keep]
+            xy = xy[keep]
+            if len(xy) < 2:
+                continue
+            u_ours = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))])
+            # Painted intervals follow the polyline's own arc length.
+            painted = np.interp(np.asarray(m.painted, dtype=np.float64), u_theirs, u_ours)
+            painted = painted[painted[:, 1] > painted[:, 0]].reshape(-1, 2)
+            curves.append(MarkingCurve(xy, painted, int(m.type), int(m.colour), m.width, m.height))
+        # Map marking indices of the file's lines to the kept curves.
+        kept = [i for i, m in enumerate(odr.markings) if _dedupe(_flip(m.xy)).sum() >= 2]
+        self._marking_of = {i: k for k, i in enumerate(kept)}
+        self.map = odr
+        self.lanes: list[LaneKey] = [
+            key for key, rec in odr.lanes.items() if rec.type in DRIVING_TYPES
+        ]
+        if not self.lanes:
+            raise ValueError(f"{odr.path}: no driving lane")
+        widths = np.concatenate([odr.lanes[k].width for k in self.lanes])
+        super().__init__(curves, marking_model, float(np.median(widths)))
+        self._build_lane_index()
+
+    @classmethod
+    def from_file(
+        cls,
+        path: str | os.PathLike[str],
+        marking_model: str = "per_dash",
+        **options: Any,
+    ) -> OpenDriveRoad:
+        """Read an OpenDRIVE file (cached per content and options).
+
+        :param marking_model: ``"per_dash"`` or ``"editor"``.
+        :param options: :meth:`OpenDriveMap.from_file
+            <aldm_gym.roads.opendrive.OpenDriveMap.from_file>` options
+            (``broken_pattern``, ``sample_step``).
+        :raises FileNotFoundError: naming the path.
+        :raises ValueError: a malformed or unusable file (naming file, road, element).
+        """
+        return cls(load_map(path, **options), marking_model)
+
+    # ------------------------------------------------------------------ lanes
+    def _build_lane_index(self) -> None:
+        odr = self.map
+        centres, self._lane_rev = [], []
+        for key in self.lanes:
+            rec = odr.lanes[key]
+            xy = _flip(rec.xy)
+            rev = rec.direction < 0
+            if rev:
+                xy = xy[::-1]
+            keep = _dedupe(xy)
+            centres.append(MarkingCurve(xy[keep], np.zeros((0, 2))))
+            self._lane_rev.append((rev, keep))
+        self._centres = PolylineMarkings(centres)
+        self._key_index = {key: i for i, key in enumerate(self.lanes)}
+        # Lanes of one section and direction, ordered from the driver's left.
+        groups: dict[tuple[str, int, int], list[LaneKey]] = {}
+        for key in self.lanes:
+            rec = odr.lanes[key]
+            groups.setdefault((rec.road_id, rec.section, rec.direction), []).append(key)
+        self._siblings: dict[LaneKey, list[LaneKey]] = {}
+        for (_, _, direction), keys in groups.items():
+            # Travelling along +s the driver's left is +t: higher lane ids first.
+            ordered = sorted(keys, key=lambda k: -k[2] * direction)
+            for k in ordered:
+                self._siblings[k] = ordered
+        self._chain_positions()
+
+    def _chain_positions(self) -> None:
+        """Arc length of each lane's start along its chain of successors, and the chain's end."""
+        odr = self.map
+        length = {
+            k: float(self._centres.u[self._centres.start[i + 1] - 1])
+            for i, k in enumerate(self.lanes)
+        }
+        succ: dict[LaneKey, LaneKey | None] = {}
+        has_pred: set[LaneKey] = set()
+        for k in self.lanes:
+            nxt = [n for n in odr.successors(k[0], k[2], k[1]) if n in self._key_index]
+            succ[k] = nxt[0] if nxt else None
+            has_pred.update(nxt)
+        start: dict[LaneKey, float] = {}
+        for k in [k for k in self.lanes if k not in has_pred] + list(self.lanes):
+            if k in start:
+                continue
+            s, cur, seen = 0.0, k, set()
+            while cur is not None and cur not in seen and cur not in start:
+                seen.add(cur)
+                start[cur] = s
+                s += length[cur]
+                cur = succ[cur]
+        end: dict[LaneKey, float] = {}
+        for k in self.lanes:
+            s, cur, seen = start[k], k, set()
+            total = start[k]
+            while cur is not None and cur not in seen:
+                seen.add(cur)
+                total = s + length[cur]
+                s = total
+                cur = succ[cur]
+            end[k] = total
+        self._start, self._end, self._succ = start, end, succ
+
+    def successor(self, lane: LaneKey) -> LaneKey | None:
+        """The first driving lane continuing ``lane`` in its direction, or ``None``."""
+        return self._succ.get(lane)
+
+    def _project(self, position: FloatArray, only: int = -1) -> tuple[int, int, float, float]:
+        """Nearest driving-lane centre: ``(lane row, segment, offset [m] > 0 left, u [m])``.
+
+        ``segment`` counts from the lane's first vertex (-1 when nothing is near).
+        """
+        c = self._centres
+        rows, lo, hi = c.near(position, LOCATE_REACH)
+        if only >= 0:
+            pick = rows == only
+            rows, lo, hi = rows[pick], lo[pick], hi[pick]
+            if len(rows) == 0:
+                rows = np.array([only], dtype=np.int64)
+                lo = c.start[only : only + 1].copy()
+                hi = c.start[only + 1 : only + 2].copy()
+        if len(rows) == 0:
+            return -1, -1, math.nan, math.nan
+        row, i, offset, u = _project_near(
+            c.xy, c.u, rows, lo, hi, float(position[0]), float(position[1])
+        )
+        return row, i - int(c.start[row]), offset, u
+
+    def lane_position(self, position: FloatArray) -> LanePosition:
+        """Ground truth of a world position on the map (see :class:`LanePosition`).
+
+        The lane is the driving lane whose centre line is nearest (the one containing the
+        position wherever lanes do not overlap); ``s`` runs along the chain of lanes
+        that continue each other (lane links across sections, roads and junctions).
+
+        :raises ValueError: naming ``position`` unless it is 2 finite numbers, or when no
+            driving lane passes within :data:`LOCATE_REACH` of it.
+        """
+        p = _point("position", position)
+        row, seg, offset, u = self._project(p)
+        if row < 0:
+            raise ValueError(
+                f"position ({p[0]:.1f}, {p[1]:.1f}) is more than {LOCATE_REACH} m from any "
+                "driving lane of the map"
+            )
+        key = self.lanes[row]
+        a = self._centres.start[row]
+        xy = self._centres.xy
+        heading = math.atan2(
+            xy[a + seg + 1, 1] - xy[a + seg, 1], xy[a + seg + 1, 0] - xy[a + seg, 0]
+        )
+        siblings = self._siblings[key]
+        return LanePosition(
+            s=self._start[key] + u,
+            offset=offset,
+            lane=key,
+            index=siblings.index(key),
+            lanes=len(siblings),
+            width=self._width_at(row, seg),
+            heading=heading,
+            end=self._end[key],
+        )
+
+    def _width_at(self, row: int, seg: int) -> float:
+        rec = self.map.lanes[self.lanes[row]]
+        rev, keep = self._lane_rev[row]
+        width = rec.width[::-1] if rev else rec.width
+        return float(width[keep][seg])
+
+    def boundary_markings(
+        self, lane: LaneKey, position: FloatArray | None = None
+    ) -> dict[str, int | None]:
+        """Marking index of the four lines around ``lane`` at ``position`` (``None``: none).
+
+        ``ego_left``/``ego_right`` bound the lane on the driver's left/right there;
+        ``left_adjacent``/``right_adjacent`` are the outer lines of the driving lanes
+        beside it (``None`` where there is no such lane or the line is not painted).
+        """
+        if lane not in self._key_index:
+            raise ValueError(f"unknown driving lane {lane!r}")
+        siblings = self._siblings[lane]
+        i = siblings.index(lane)
+        p = None if position is None else _point("position", position)
+
+        def line(key: LaneKey, side: str) -> int | None:
+            rec = self.map.lanes[key]
+            row = self._key_index[key]
+            seg = 0 if p is None else max(self._project(p, only=row)[1], 0)
+            rev, keep = self._lane_rev[row]
+            marks = getattr(rec, side)
+            marks = (marks[::-1] if rev else marks)[keep]
+            j = int(marks[min(seg, len(marks) - 1)])
+            return self._marking_of.get(j) if j >= 0 else None
+
+        return {
+            "left_adjacent": line(siblings[i - 1], "left") if i >= 1 else None,
+            "ego_left": line(lane, "left"),
+            "ego_right": line(lane, "right"),
+            "right_adjacent": line(siblings[i + 1], "right") if i + 1 < len(siblings) else None,
+        }
+
+    def lane_pose(self, road_id: str, lane_id: int, s: float) -> tuple[float, float, float]:
+        """World pose (highway-env's frame) on the centre of a lane at reference ``s``.
+
+        :param road_id: the OpenDRIVE road id.
+        :param lane_id: the OpenDRIVE lane id (> 0 left of the reference line).
+        :param s: arc length along the road's reference line [m].
+        :return: ``(x [m], y [m], heading [rad])`` facing the lane's direction of travel,
+            ready for :meth:`LineSensor.measure <aldm_gym.sensor.LineSensor.measure>`.
+        :raises ValueError: no such road or lane at ``s``.
+        """
+        if not math.isfinite(float(s)):
+            raise ValueError(f"s must be finite, got {s!r}")
+        x, y, h = self.map.lane_pose(str(road_id), int(lane_id), float(s))
+        return (x, -y, -h)
+
+    def lane_record(self, lane: LaneKey) -> LaneRecord:
+        """The map's record of a lane (OpenDRIVE's frame)."""
+        return self.map.lanes[lane]
+
+
+def _point(name: str, value: Any) -> FloatArray:
+    try:
+        arr = np.asarray(value, dtype=np.float64).reshape(-1)
+    except (TypeError, ValueError):
+        arr = np.zeros(0)
+    if arr.shape[0] not in (2, 3) or not (math.isfinite(arr[0]) and math.isfinite(arr[1])):
+        raise ValueError(f"{name} must be 2 finite numbers (x, y) [m], got {value!r}")
+    return arr[:2]
+
+
+def _project_near_py(
+    xy: FloatArray,
+    u: FloatArray,
+    rows: np.ndarray,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    px: float,
+    py: float,
+) -> tuple[int, int, float, float]:
+    """Nearest point on the polylines ``rows`` (vertex ranges ``[lo, hi)``) to ``(px, py)``.
+
+    :return: ``(polyline index, index in ``xy`` of the segment's first vertex, signed
+        offset [m] (> 0 left of the direction of travel; in highway-env's world the left
+        of heading h is (sin h, -cos h)), arc length along the polyline [m])``.
+    """
+    best_d = np.inf
+    best = (-1, -1, np.nan, np.nan)
+    for r in range(len(rows)):
+        for i in range(lo[r], hi[r] - 1):
+            ax = xy[i, 0]
+            ay = xy[i, 1]
+            dx = xy[i + 1, 0] - ax
+            dy = xy[i + 1, 1] - ay
+            ll = dx * dx + dy * dy
+            t = ((px - ax) * dx + (py - ay) * dy) / ll
+            t = min(max(t, 0.0), 1.0)
+            qx = ax + t * dx - px
+            qy = ay + t * dy - py
+            d = qx * qx + qy * qy
+            if d < best_d:
+                best_d = d
+                length = math.sqrt(ll)
+                offset = ((px - ax) * dy - (py - ay) * dx) / length
+                best = (rows[r], i, offset, u[i] + t * (u[i + 1] - u[i]))
+    return best
+
+
+_project_near = numba.njit(cache=True)(_project_near_py)

@@ -1,0 +1,134 @@
+"""An OpenDRIVE map as a road: sensor frames, detectors and ground truth on it."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from aldm_gym.roads import OpenDriveRoad
+from aldm_gym.sensor import LineSensor, detect_lanes, naive_detect, score_detection
+from aldm_gym.sensor.ground_truth import ground_truth_detect, true_line
+
+xodr = pytest.importorskip("scenariogeneration.xodr")
+
+
+@pytest.fixture(scope="module")
+def curved_map(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A 3-lane one-way road: straight, clothoid, R = 500 m arc, clothoid, straight."""
+    road = xodr.create_road(
+        [
+            xodr.Line(300),
+            xodr.Spiral(0.0, -0.002, 100),
+            xodr.Arc(-0.002, 400),
+            xodr.Spiral(-0.002, 0.0, 100),
+            xodr.Line(300),
+        ],
+        id=0,
+        left_lanes=0,
+        right_lanes=3,
+        lane_width=3.75,
+    )
+    odr = xodr.OpenDrive("curved")
+    odr.add_road(road)
+    odr.adjust_roads_and_lanes()
+    path = tmp_path_factory.mktemp("maps") / "curved.xodr"
+    odr.write_xml(str(path))
+    return path
+
+
+def _shifted(pose: tuple[float, float, float], left: float) -> tuple[float, float, float]:
+    x, y, h = pose
+    return (x + left * math.sin(h), y - left * math.cos(h), h)  # highway-env's left
+
+
+def test_lane_pose_on_the_straight_start(curved_map: Path) -> None:
+    road = OpenDriveRoad.from_file(curved_map)
+    # Road starts at the origin heading east; lane -2's centre is 1.5 widths right of
+    # the reference line; highway-env's world mirrors OpenDRIVE's y.
+    x, y, h = road.lane_pose("0", -2, 100.0)
+    assert x == pytest.approx(100.0) and y == pytest.approx(1.5 * 3.75) and h == pytest.approx(0)
+    with pytest.raises(ValueError, match="no lane -4"):
+        road.lane_pose("0", -4, 100.0)
+    with pytest.raises(ValueError, match="s must be finite"):
+        road.lane_pose("0", -1, float("nan"))
+
+
+def test_lane_position_is_the_ground_truth(curved_map: Path) -> None:
+    road = OpenDriveRoad.from_file(curved_map)
+    for s in (50.0, 450.0, 650.0, 1100.0):
+        for k, lane in enumerate((-1, -2, -3)):
+            pose = _shifted(road.lane_pose("0", lane, s), 0.4)
+            pos = road.lane_position(pose[:2])
+            assert pos.lane == ("0", 0, lane)
+            assert pos.index == k and pos.lanes == 3
+            assert pos.offset == pytest.approx(0.4, abs=1e-3)
+            assert pos.width == pytest.approx(3.75)
+            assert math.cos(pos.heading - pose[2]) > 0.9999
+            assert 0.0 < pos.s < pos.end
+    with pytest.raises(ValueError, match="driving lane"):
+        road.lane_position((5000.0, 5000.0))
+    with pytest.raises(ValueError, match="position"):
+        road.lane_position((np.nan, 0.0))
+
+
+@pytest.mark.parametrize(("model", "naive_ok"), [("per_dash", 0.0), ("editor", 1.0)])
+def test_the_papers_contrast_on_a_map(curved_map: Path, model: str, naive_ok: float) -> None:
+    """Naive fails on per-dash objects, works on editor objects; the ALDM works on both."""
+    road = OpenDriveRoad.from_file(curved_map, marking_model=model)
+    sensor = LineSensor()
+    both = {"naive": [], "aldm": [], "truth": []}
+    for s in np.linspace(30.0, 1050.0, 25):
+        for lane in (-1, -2, -3):
+            pose = _shifted(road.lane_pose("0", lane, float(s)), 0.3)
+            lane_key = road.lane_position(pose[:2]).lane
+            frame = sensor.measure(road, pose)
+            assert frame.n_lines > 0
+            # every sensor point lies on its marking's true position
+            for i in range(frame.n_lines):
+                pts = frame.line_points(i)
+                truth = true_line(road, frame, int(frame.line_marking[i]), pts[:, 0])
+                assert np.nanmax(np.abs(truth - pts[:, 1])) < 1e-9
+            dets = {
+                "naive": naive_detect(frame, road.lane_width),
+                "aldm": detect_lanes(frame),
+                "truth": ground_truth_detect(road, frame, lane_key),
+            }
+            for name, det in dets.items():
+                sc = score_detection(det, road, frame, lane_key)
+                both[name].append(sc["ego_left"].correct and sc["ego_right"].correct)
+    assert np.mean(both["aldm"]) == 1.0
+    assert np.mean(both["truth"]) == 1.0
+    assert np.mean(both["naive"]) == naive_ok
+
+
+def test_per_dash_objects_are_dashes_editor_objects_are_lines(curved_map: Path) -> None:
+    per_dash = OpenDriveRoad.from_file(curved_map)
+    editor = per_dash.with_marking_model("editor")
+    pose = per_dash.lane_pose("0", -2, 200.0)
+    a, b = LineSensor().measure(per_dash, pose), LineSensor().measure(editor, pose)
+    assert np.array_equal(np.sort(a.all_points, axis=0), np.sort(b.all_points, axis=0))
+    assert b.n_lines == 4  # two edge lines and two dashed lane lines
+    assert a.n_lines > 4 * 5
+    dashed = a.line_type == 2
+    lengths = [np.ptp(a.line_points(i)[:, 0]) for i in np.flatnonzero(dashed)]
+    assert max(lengths) <= 6.0 + 1e-9  # no object longer than a 6 m dash
+
+
+def test_boundary_markings(curved_map: Path) -> None:
+    road = OpenDriveRoad.from_file(curved_map)
+    pose = road.lane_pose("0", -1, 200.0)
+    lane = road.lane_position(pose[:2]).lane
+    marks = road.boundary_markings(lane, pose[:2])
+    assert marks["left_adjacent"] is None
+    assert marks["right_adjacent"] is not None
+    assert len({marks["ego_left"], marks["ego_right"], marks["right_adjacent"]}) == 3
+    with pytest.raises(ValueError, match="unknown driving lane"):
+        road.boundary_markings(("9", 0, -1))
+
+
+def test_missing_file_is_named(tmp_path: Path) -> None:
+    with pytest.raises(FileNotFoundError, match=r"nope\.xodr"):
+        OpenDriveRoad.from_file(tmp_path / "nope.xodr")
