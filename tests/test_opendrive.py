@@ -10,6 +10,8 @@ import numpy as np
 import pytest
 from scipy.integrate import quad
 
+from aldm_gym.roads.markings import MarkingType
+from aldm_gym.roads.opendrive import MarkingLine, OpenDriveMap
 from aldm_gym.roads.opendrive.geometry import PlanView
 from aldm_gym.roads.opendrive.parse import (
     Arc,
@@ -329,3 +331,323 @@ def test_parse_records(tmp_path: Path) -> None:
     c = parsed.junctions[0].connections[0]
     assert (c.incoming_road, c.connecting_road, c.contact_point) == ("1", "5", "start")
     assert (c.lane_links[0].from_id, c.lane_links[0].to_id) == (-1, -2)
+
+
+# ---------------------------------------------------------------- lanes and road marks
+
+
+def _broken(
+    s_offset: float = 0.0, length: float = 6.0, space: float = 12.0, line_s: float = 0.0
+) -> str:
+    return (
+        f'<roadMark sOffset="{s_offset}" type="broken" color="standard" width="0.15">'
+        f'<type name="b" width="0.15"><line length="{length}" space="{space}" tOffset="0" '
+        f'sOffset="{line_s}" width="0.15"/></type></roadMark>'
+    )
+
+
+def _marking_at(odr: OpenDriveMap, x: float, y: float) -> MarkingLine:
+    """The marking line passing closest to a world point."""
+    dist = [np.hypot(m.xy[:, 0] - x, m.xy[:, 1] - y).min() for m in odr.markings]
+    return odr.markings[int(np.argmin(dist))]
+
+
+def test_lane_offset_and_width_polynomials_give_borders(tmp_path: Path) -> None:
+    offsets = (
+        '<laneOffset s="0" a="0.5" b="0.01" c="0" d="0"/>'
+        '<laneOffset s="60" a="1.1" b="0" c="0" d="0"/>'
+    )
+    widths = (
+        '<width sOffset="0" a="3.0" b="0.002" c="1e-5" d="0"/>'
+        '<width sOffset="50" a="3.125" b="0.01" c="0" d="0"/>'
+    )
+    right = _lane(-1, width=widths) + _lane(-2)
+    left = _lane(1, width='<width sOffset="0" a="3.25" b="0" c="0" d="0"/>')
+    road = _road(
+        "1", _geometry("<line/>", 100.0), 100.0, _section(left=left, right=right), offsets=offsets
+    )
+    odr = OpenDriveMap.from_file(_write(tmp_path / "widths.xodr", road), sample_step=1.0)
+    s = np.linspace(0.0, 100.0, 101)
+    offset = np.where(s < 60.0, 0.5 + 0.01 * s, 1.1)
+    w1 = np.where(s < 50.0, 3.0 + 0.002 * s + 1e-5 * s**2, 3.125 + 0.01 * (s - 50.0))
+    expected = {0: offset, 1: offset + 3.25, -1: offset - w1, -2: offset - w1 - 3.5}
+    for t in expected.values():
+        m = _marking_at(odr, 30.0, float(np.interp(30.0, s, t)))
+        np.testing.assert_allclose(np.interp(s, m.xy[:, 0], m.xy[:, 1]), t, atol=1e-9)
+    lane = odr.lanes[("1", 0, -1)]
+    np.testing.assert_allclose(lane.width, np.interp(lane.s, s, w1), atol=1e-9)
+
+
+def test_explicit_pattern_dashes_start_at_s_offset(tmp_path: Path) -> None:
+    right = _lane(-1, marks=_broken(s_offset=4.0, length=3.0, space=9.0, line_s=2.0)) + _lane(-2)
+    road = _road("1", _geometry("<line/>", 200.0), 200.0, _section(right=right))
+    odr = OpenDriveMap.from_file(_write(tmp_path / "pattern.xodr", road))
+    m = _marking_at(odr, 100.0, -3.5)
+    assert m.type == MarkingType.DASHED and m.xy[0, 0] == pytest.approx(4.0)
+    # u starts at the record's start (s = 4): first dash at u = 2 (s = 6), 3 m, 9 m gaps.
+    starts = 2.0 + 12.0 * np.arange(len(m.painted))
+    np.testing.assert_allclose(m.painted[:, 0], starts, atol=1e-9)
+    np.testing.assert_allclose(np.diff(m.painted, axis=1)[:-1, 0], 3.0, atol=1e-9)
+    assert m.painted[-1, 1] <= m.u[-1] + 1e-9
+
+
+def test_default_broken_pattern_and_option(tmp_path: Path) -> None:
+    plain = '<roadMark sOffset="0" type="broken" color="standard" width="0.15"/>'
+    right = _lane(-1, marks=plain) + _lane(-2)
+    path = _write(
+        tmp_path / "default.xodr",
+        _road("1", _geometry("<line/>", 100.0), 100.0, _section(right=right)),
+    )
+    m = _marking_at(OpenDriveMap.from_file(path), 50.0, -3.5)
+    np.testing.assert_allclose(m.painted[:3], [[0, 6], [18, 24], [36, 42]], atol=1e-9)
+    m = _marking_at(OpenDriveMap.from_file(path, broken_pattern=(3.0, 6.0)), 50.0, -3.5)
+    np.testing.assert_allclose(m.painted[:3], [[0, 3], [9, 12], [18, 21]], atol=1e-9)
+    with pytest.raises(ValueError, match="broken_pattern"):
+        OpenDriveMap.from_file(path, broken_pattern=(6.0, -1.0))
+
+
+def test_dashes_measured_along_the_painted_line_in_a_curve(tmp_path: Path) -> None:
+    right = _lane(-1, marks=_broken()) + _lane(-2, marks=_broken())
+    road = _road("1", _geometry('<arc curvature="0.01"/>', 300.0), 300.0, _section(right=right))
+    odr = OpenDriveMap.from_file(_write(tmp_path / "curve.xodr", road))
+    for t in (-3.5, -7.0):  # outside of the left-hand curve
+        m = _marking_at(odr, 0.0, t)
+        assert m.u[-1] == pytest.approx(300.0 * (1.0 - 0.01 * t), abs=1e-3)
+        np.testing.assert_allclose(np.diff(m.painted, axis=1)[:-1, 0], 6.0, atol=1e-9)
+        np.testing.assert_allclose(np.diff(m.painted[:, 0]), 18.0, atol=1e-9)
+
+
+def test_marking_continues_across_lane_sections_without_jump(tmp_path: Path) -> None:
+    # The second section restarts the pattern at its start (s = 110, mid-dash of the
+    # first pattern); the painted line continues the first section's phase.
+    right = _lane(-1, marks=_broken()) + _lane(-2)
+    sections = _section(0.0, right=right) + _section(110.0, right=right)
+    road = _road("1", _geometry('<arc curvature="0.002"/>', 250.0), 250.0, sections)
+    odr = OpenDriveMap.from_file(_write(tmp_path / "sections.xodr", road))
+    m = _marking_at(odr, 0.0, -3.5)
+    assert m.u[-1] == pytest.approx(250.0 * (1 + 0.002 * 3.5), abs=1e-3)
+    steps = np.hypot(*np.diff(m.xy, axis=0).T)
+    assert steps.max() < 0.51 and steps.min() > 1e-6
+    np.testing.assert_allclose(np.diff(m.u), steps, atol=1e-9)
+    np.testing.assert_allclose(np.diff(m.painted[:, 0]), 18.0, atol=1e-9)
+    np.testing.assert_allclose(np.diff(m.painted, axis=1)[:-1, 0], 6.0, atol=1e-9)
+    # Centre, lane -1 (dashed) and lane -2: each one object over both sections.
+    assert len(odr.markings) == 3
+
+
+def test_mark_type_change_starts_a_new_marking(tmp_path: Path) -> None:
+    marks = _broken() + '<roadMark sOffset="60" type="solid" color="standard" width="0.15"/>'
+    right = _lane(-1, marks=marks) + _lane(-2)
+    road = _road("1", _geometry("<line/>", 100.0), 100.0, _section(right=right))
+    odr = OpenDriveMap.from_file(_write(tmp_path / "change.xodr", road))
+    near = sorted(
+        (m for m in odr.markings if abs(m.xy[0, 1] + 3.5) < 1e-6), key=lambda m: m.xy[0, 0]
+    )
+    assert [m.type for m in near] == [MarkingType.DASHED, MarkingType.CONTINUOUS]
+    assert near[0].xy[-1, 0] == pytest.approx(60.0) and near[1].xy[0, 0] == pytest.approx(60.0)
+    np.testing.assert_allclose(near[1].painted, [[0.0, 40.0]], atol=1e-9)
+
+
+def test_double_marks_and_no_paint(tmp_path: Path) -> None:
+    double = '<roadMark sOffset="0" type="solid broken" color="yellow" width="0.1"/>'
+    centre = '<roadMark sOffset="0" type="broken solid" color="yellow" width="0.1"/>'
+    none = '<roadMark sOffset="0" type="none"/>'
+    right = _lane(-1, marks=double) + _lane(-2, marks=none)
+    left = _lane(1, marks='<roadMark sOffset="0" type="curb"/>')
+    road = _road(
+        "1", _geometry("<line/>", 50.0), 50.0, _section(left=left, right=right, centre_mark=centre)
+    )
+    odr = OpenDriveMap.from_file(_write(tmp_path / "double.xodr", road))
+    half = 0.5 * (0.1 + 0.12)
+    lines = {round(float(m.xy[0, 1]), 6): m for m in odr.markings}
+    # Lane -1's border at t = -3.5: solid inside (towards the centre), broken outside.
+    assert lines[round(-3.5 + half, 6)].type == MarkingType.CONTINUOUS
+    assert lines[round(-3.5 - half, 6)].type == MarkingType.DASHED
+    # The centre lane's double mark from left to right.
+    assert lines[round(half, 6)].type == MarkingType.DASHED
+    assert lines[round(-half, 6)].type == MarkingType.CONTINUOUS
+    assert lines[round(half, 6)].colour == 1
+    curb = lines[3.5]
+    assert curb.type == MarkingType.CONTINUOUS and curb.height > 0.0
+    assert len(odr.markings) == 5  # none at t = -7
+    lane = odr.lanes[("1", 0, -2)]
+    outer = next(i for i, m in enumerate(odr.markings) if m is lines[round(-3.5 - half, 6)])
+    assert (lane.right == -1).all() and (lane.left == outer).all()
+
+
+# ---------------------------------------------------------------- the map
+
+
+def _link(kind: str, element: str, contact: str = "") -> str:
+    cp = f' contactPoint="{contact}"' if contact else ""
+    return f'<{kind} elementType="road" elementId="{element}"{cp}/>'
+
+
+def test_markings_chain_across_linked_roads_forward_and_reversed(tmp_path: Path) -> None:
+    lanes1 = _lane(-1, marks=_broken(), extra='<link><successor id="1"/></link>')
+    lanes2 = _lane(
+        1, marks=_broken(), extra='<link><predecessor id="-1"/><successor id="-1"/></link>'
+    )
+    lanes3 = _lane(-1, marks=_broken(), extra='<link><predecessor id="1"/></link>')
+    # Road 2 runs backwards (end meets end with road 1); road 3 continues road 2's start.
+    r1 = _road(
+        "1",
+        _geometry("<line/>", 100.0),
+        100.0,
+        _section(right=lanes1),
+        _link("successor", "2", "end"),
+    )
+    r2 = _road(
+        "2",
+        _geometry("<line/>", 100.0, x=200.0, hdg=math.pi),
+        100.0,
+        _section(left=lanes2),
+        _link("successor", "1", "end") + _link("predecessor", "3", "start"),
+    )
+    r3 = _road(
+        "3",
+        _geometry("<line/>", 55.0, x=200.0),
+        55.0,
+        _section(right=lanes3),
+        _link("predecessor", "2", "start"),
+    )
+    odr = OpenDriveMap.from_file(_write(tmp_path / "linked.xodr", r1, r2, r3))
+    m = _marking_at(odr, 10.0, -3.5)
+    assert m.road_ids == ("1", "2", "3")
+    assert m.u[-1] == pytest.approx(255.0)
+    np.testing.assert_allclose(m.xy[[0, -1]], [[0.0, -3.5], [255.0, -3.5]], atol=1e-9)
+    np.testing.assert_allclose(np.diff(m.painted[:, 0]), 18.0, atol=1e-9)  # phase carried
+    assert len(odr.markings) == 2  # that line and the centre line
+    assert odr.successors("1", -1, 0) == [("2", 0, 1)]
+    assert odr.successors("2", 1, 0) == [("3", 0, -1)]
+    assert odr.successors("3", -1, 0) == []
+    lane = odr.lanes[("2", 0, 1)]
+    assert lane.direction == -1
+    centre = next(i for i, mk in enumerate(odr.markings) if mk is not m)
+    # Driving east on road 2 (against its s): the centre line is on the driver's left.
+    assert (lane.left == centre).all()
+    assert (lane.right == next(i for i, mk in enumerate(odr.markings) if mk is m)).all()
+
+
+def test_successors_through_a_junction(tmp_path: Path) -> None:
+    r1 = _road(
+        "1",
+        _geometry("<line/>", 100.0),
+        100.0,
+        _section(right=_lane(-1) + _lane(-2)),
+        '<successor elementType="junction" elementId="9"/>',
+    )
+    conn = [
+        _road(
+            "5",
+            _geometry("<line/>", 20.0, x=100.0),
+            20.0,
+            _section(right=_lane(-1)),
+            _link("predecessor", "1", "end"),
+            junction="9",
+        ),
+        _road(
+            "6",
+            _geometry('<arc curvature="-0.01"/>', 20.0, x=100.0, y=-3.5),
+            20.0,
+            _section(right=_lane(-1)),
+            _link("predecessor", "1", "end"),
+            junction="9",
+        ),
+    ]
+    junction = (
+        '<junction id="9">'
+        '<connection id="0" incomingRoad="1" connectingRoad="5" contactPoint="start">'
+        '<laneLink from="-1" to="-1"/></connection>'
+        '<connection id="1" incomingRoad="1" connectingRoad="6" contactPoint="start">'
+        '<laneLink from="-2" to="-1"/></connection></junction>'
+    )
+    odr = OpenDriveMap.from_file(_write(tmp_path / "junction.xodr", r1, *conn, junctions=junction))
+    assert odr.successors("1", -1, 0) == [("5", 0, -1)]
+    assert odr.successors("1", -2, 0) == [("6", 0, -1)]
+    with pytest.raises(ValueError, match="no lane 1 in section 0 of road '1'"):
+        odr.successors("1", 1, 0)
+
+
+def test_lane_pose_straight_arc_and_left_hand_traffic(tmp_path: Path) -> None:
+    widen = _lane(-1, width='<width sOffset="0" a="3" b="0.02" c="0" d="0"/>')
+    straight = _road(
+        "s", _geometry("<line/>", 100.0, x=5.0, y=7.0), 100.0, _section(left=_lane(1), right=widen)
+    )
+    radius = 100.0
+    arc = _road(
+        "a",
+        _geometry(f'<arc curvature="{1 / radius}"/>', 150.0, y=-50.0),
+        150.0,
+        _section(left=_lane(1), right=_lane(-1)),
+    )
+    lht = _road(
+        "l",
+        _geometry("<line/>", 100.0, y=50.0),
+        100.0,
+        _section(left=_lane(1), right=_lane(-1)),
+        rule="LHT",
+    )
+    odr = OpenDriveMap.from_file(_write(tmp_path / "pose.xodr", straight, arc, lht))
+    # Straight: lane -1's centre at t = -(3 + 0.02 s)/2, its heading follows the widening.
+    x, y, h = odr.lane_pose("s", -1, 10.0)
+    assert (x, y) == pytest.approx((15.0, 7.0 - 1.6)) and h == pytest.approx(math.atan(-0.01))
+    x, y, h = odr.lane_pose("s", 1, 10.0)
+    assert (x, y, h) == pytest.approx((15.0, 7.0 + 1.75, math.pi))
+    # Arc centred at (0, -50 + R): lane -1 on the outside, lane 1 inside and reversed.
+    theta = 50.0 / radius
+    for lane_id, r, heading in ((-1, radius + 1.75, theta), (1, radius - 1.75, theta - math.pi)):
+        x, y, h = odr.lane_pose("a", lane_id, 50.0)
+        assert x == pytest.approx(r * math.sin(theta), abs=1e-9)
+        assert y == pytest.approx(-50.0 + radius - r * math.cos(theta), abs=1e-9)
+        assert h == pytest.approx(heading, abs=1e-12)
+    # Left-hand traffic: the left lane drives along s.
+    assert odr.lane_pose("l", 1, 20.0) == pytest.approx((20.0, 51.75, 0.0))
+    assert odr.lane_pose("l", -1, 20.0) == pytest.approx((20.0, 48.25, math.pi))
+    assert odr.lanes[("l", 0, 1)].direction == 1 and odr.lanes[("s", 0, 1)].direction == -1
+    with pytest.raises(ValueError, match=r"no lane -2 on road 's' at s=10"):
+        odr.lane_pose("s", -2, 10.0)
+    with pytest.raises(ValueError, match=r"no lane -1 on road 'x'"):
+        odr.lane_pose("x", -1, 10.0)
+    with pytest.raises(ValueError, match=r"no lane -1 on road 's' at s=101"):
+        odr.lane_pose("s", -1, 101.0)
+
+
+def test_scenariogeneration_file_reads_back(tmp_path: Path) -> None:
+    xodr = pytest.importorskip("scenariogeneration.xodr")
+    geometries = [
+        xodr.Line(100.0),
+        xodr.Spiral(0.0, 0.004, 80.0),
+        xodr.Arc(0.004, 120.0),
+        xodr.Spiral(0.004, -0.002, 90.0),
+        xodr.ParamPoly3(0, 1, 0, 0, 0, 0, 0.002, -1e-5, "arcLength", 40.0),
+        xodr.Line(50.0),
+    ]
+    road = xodr.create_road(geometries, id=1, left_lanes=1, right_lanes=2, lane_width=3.5)
+    odr_out = xodr.OpenDrive("roundtrip")
+    odr_out.add_road(road)
+    odr_out.adjust_roads_and_lanes()
+    path = tmp_path / "sg.xodr"
+    odr_out.write_xml(str(path))
+
+    parsed = parse_file(path)
+    (r,) = parsed.roads
+    kinds = [type(g.shape).__name__ for g in r.geometries]
+    assert kinds == ["Line", "Spiral", "Arc", "Spiral", "ParamPoly3", "Line"]
+    assert r.geometries[1].shape == Spiral(0.0, 0.004) and r.geometries[2].shape == Arc(0.004)
+    assert r.geometries[4].shape.v == (0.0, 0.0, 0.002, -1e-5)
+    widths = {ln.id: ln.widths[0].a for ln in r.sections[0].lanes if ln.id}
+    assert widths == {1: 3.5, -1: 3.5, -2: 3.5}
+    broken = r.sections[0].lane(-1).road_marks[0]
+    assert broken.type == "broken" and (broken.lines[0].length, broken.lines[0].space) == (3.0, 9.0)
+    # Each written geometry start (computed by scenariogeneration) is where our
+    # evaluation of the previous geometry ends.
+    plan = PlanView(r.geometries)
+    for g in r.geometries[1:]:
+        x, y, h = plan.position(np.array([g.s - 1e-12]))
+        assert (x[0], y[0]) == pytest.approx((g.x, g.y), abs=1e-6)
+        assert math.remainder(h[0] - g.hdg, 2 * math.pi) == pytest.approx(0.0, abs=1e-9)
+    odr = OpenDriveMap.from_file(path)
+    m = _marking_at(odr, 1.0, -3.5)
+    assert m.type == MarkingType.DASHED and len(odr.markings) == 4
+    np.testing.assert_allclose(np.diff(m.painted[:, 0]), 12.0, atol=1e-9)
