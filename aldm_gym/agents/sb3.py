@@ -22,6 +22,6 @@ def import_sb3() -> Any:
     except ImportError as exc:  # pragma: no cover - depends on the install
         raise MissingRLDependencies(
             f"training needs stable-baselines3, torch and tensorboard ({exc}); "
-            "install them with: pip install 'aldm-gym[rl]'"
+            "install them with: pip install torch==2.13.0 && pip install -e '.[rl]' (from a clone)"
         ) from exc
     return stable_baselines3

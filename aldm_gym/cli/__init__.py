@@ -18,10 +18,19 @@ from __future__ import annotations
 import argparse
 from collections.abc import Sequence
 
+from aldm_gym import __version__
 from aldm_gym.cli import compare, evaluate, plot, train
 
 SUBCOMMANDS = (compare, plot, train, evaluate)
 """The subcommand modules, in the order of ``aldm-gym --help``."""
+
+
+class _SubcommandParser(argparse.ArgumentParser):
+    """A subcommand's parser: ``--help`` shows every default."""
+
+    def __init__(self, *args: object, **kwargs: object) -> None:
+        kwargs.setdefault("formatter_class", argparse.ArgumentDefaultsHelpFormatter)
+        super().__init__(*args, **kwargs)  # type: ignore[arg-type]
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -30,13 +39,24 @@ def build_parser() -> argparse.ArgumentParser:
         prog="aldm-gym",
         description="Lane detection on an emulated CarMaker line sensor: naive vs ALDM.",
     )
-    sub = parser.add_subparsers(dest="command", required=True)
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
+    sub = parser.add_subparsers(
+        dest="command", required=True, parser_class=_SubcommandParser, metavar="COMMAND"
+    )
     for command in SUBCOMMANDS:
         command.add_parser(sub)
     return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of ``aldm-gym``: parse ``argv`` and run the subcommand; its exit code."""
-    args = build_parser().parse_args(argv)
+    """Entry point of ``aldm-gym``: parse ``argv`` and run the subcommand; its exit code.
+
+    An unknown argument is reported with the usage of the subcommand it was given to
+    (argparse would print the top-level usage), and exits with code 2.
+    """
+    parser = build_parser()
+    args, extra = parser.parse_known_args(argv)
+    if extra:
+        sub = parser._subparsers._group_actions[0].choices[args.command]  # type: ignore[union-attr]
+        sub.error(f"unrecognized arguments: {' '.join(extra)}")
     return int(args.func(args))
