@@ -1,7 +1,7 @@
 """stable-baselines3 callbacks of :func:`~aldm_gym.agents.training.train`.
 
-* :class:`RolloutCheckpointCallback`: SB3's ``CheckpointCallback`` saving at rollout
-  boundaries (model + ``VecNormalize``), and on demand when training is interrupted.
+* :class:`RolloutCheckpointCallback`: SB3's ``CheckpointCallback`` snapshotting the
+  training between rollouts and saving a snapshot periodically and on an interruption.
 * :class:`ValidationCallback`: plays fixed validation seeds every ``validation_freq``
   steps and keeps the best model (see :mod:`aldm_gym.agents.training`).
 * :class:`ProgressCallback`: a tqdm bar over the whole (possibly resumed) training.
@@ -13,6 +13,8 @@ callbacks); :func:`~aldm_gym.agents.training.train` imports it only when it runs
 from __future__ import annotations
 
 import json
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -27,29 +29,42 @@ from aldm_gym.agents.checkpoints import (
     VALIDATION_FILE,
     VALIDATION_PLOT,
     NormalizedModel,
-    save_checkpoint,
+    Snapshot,
+    checkpoint_fault,
+    checkpoint_paths,
+    manifest_path,
     save_model,
+    write_checkpoint,
     write_json,
 )
 from aldm_gym.agents.evaluation import EpisodeStats, run_episodes, summarize
 from aldm_gym.agents.policies import IdlePolicy, RuleBasedLCA
-from aldm_gym.agents.training import VALIDATION_SEED
+from aldm_gym.agents.training import (
+    VALIDATION_SEED,
+    global_rng_state,
+    set_global_rng_state,
+    take_snapshot,
+)
 
 
 class RolloutCheckpointCallback(CheckpointCallback):
-    """SB3's ``CheckpointCallback``, saving after the PPO update that ends a rollout.
+    """SB3's ``CheckpointCallback``, saving consistent snapshots between rollouts.
 
-    A checkpoint (``model_<steps>_steps.zip`` and ``vecnormalize_<steps>_steps.pkl`` in
-    ``<out>/checkpoints``) is written at the start of the first rollout that begins at
-    least ``save_freq`` policy steps after the last one. SB3's own saves every
-    ``save_freq`` calls of ``_on_step``, i.e. mid-rollout, where the weights and
-    optimiser do not yet reflect the steps counted; saving between rollouts keeps a
-    checkpoint's weights, optimiser and step count consistent, so a resume is exact.
+    At the start of every rollout (after the previous rollout's PPO update) the
+    training's state is taken as one :class:`~aldm_gym.agents.checkpoints.Snapshot`:
+    model, normalisation statistics, envs, last observation and RNG states of the same
+    instant. It is written as a checkpoint (``model_<steps>_steps.zip``, ...) when at
+    least ``save_freq`` policy steps have passed since the last one, and by
+    :meth:`save_last_snapshot` when training is interrupted. SB3's own callback saves
+    every ``save_freq`` calls of ``_on_step``, i.e. mid-rollout, where the weights do
+    not reflect the steps counted and the normalisation has seen samples that never
+    reached an update; here an interruption anywhere (collecting, or halfway through
+    an update) saves the state of the last completed update under its own step count.
 
     :param save_freq: policy steps between checkpoints [policy steps].
     :param out: the training's output folder.
-    :ivar rollout_start: step count at the start of the current rollout: the state to
-        save on an interruption (the samples of an unfinished rollout are discarded).
+    :ivar snapshot: the state at the start of the current rollout (None before the
+        first rollout).
     """
 
     def __init__(self, save_freq: int, out: Path, verbose: int = 0) -> None:
@@ -62,26 +77,51 @@ class RolloutCheckpointCallback(CheckpointCallback):
         )
         self.out = Path(out)
         self.last_saved = 0
-        self.rollout_start = 0
+        self.snapshot: Snapshot | None = None
+
+    @property
+    def snapshot_steps(self) -> int | None:
+        """Step count of :attr:`snapshot` [policy steps], or None."""
+        return None if self.snapshot is None else self.snapshot.steps
 
     def _on_training_start(self) -> None:
         self.last_saved = self.model.num_timesteps
-        self.rollout_start = self.model.num_timesteps
 
     def _on_rollout_start(self) -> None:
-        # Called after the previous rollout's update: the state to save on interrupt.
-        self.rollout_start = self.model.num_timesteps
-        if self.model.num_timesteps - self.last_saved >= self.save_freq:
-            self.save()
+        # Called after the previous rollout's update: a consistent state. A signal
+        # arriving while it is taken leaves the previous snapshot in place.
+        self.snapshot = take_snapshot(self.model)
+        if self.snapshot.steps - self.last_saved >= self.save_freq:
+            self._write(self.snapshot)
 
     def _on_step(self) -> bool:
         return True  # saves happen between rollouts, not per step as in SB3's
 
-    def save(self, steps: int | None = None) -> Path:
-        """Write the checkpoint of ``steps`` (default: the model's step count); its path."""
-        steps = self.model.num_timesteps if steps is None else steps
-        self.last_saved = steps
-        return save_checkpoint(self.model, self.out, steps)
+    def _write(self, snapshot: Snapshot) -> Path:
+        self.last_saved = snapshot.steps
+        return write_checkpoint(self.out, snapshot)
+
+    def save_last_snapshot(self) -> Path | None:
+        """Write :attr:`snapshot` unless an intact checkpoint of its step count exists
+        (it holds the same state); the checkpoint's model path, or None if no rollout
+        started."""
+        if self.snapshot is None:
+            return None
+        steps = self.snapshot.steps
+        if manifest_path(self.out, steps).exists() and checkpoint_fault(self.out, steps) is None:
+            return checkpoint_paths(self.out, steps)[0]
+        return self._write(self.snapshot)
+
+
+@contextmanager
+def _rng_preserved() -> Iterator[None]:
+    """Leave the global RNGs as they were: what runs inside (validation episodes)
+    must not change the training's random stream, or a resume would not be exact."""
+    state = global_rng_state()
+    try:
+        yield
+    finally:
+        set_global_rng_state(state)
 
 
 _VALIDATION_METRICS = ("success_rate", "mean_speed", "collisions", "departures_per_km")
@@ -153,10 +193,11 @@ class ValidationCallback(BaseCallback):
             self.history = [h for h in saved["history"] if h["steps"] <= self.model.num_timesteps]
             best = [h for h in self.history if h["steps"] == saved.get("best_steps")]
             self.best = best[0] if best else None
-        self.baselines = saved.get("baselines") or {
-            name: validation_row(run_episodes(self.env, policy, self.seeds))
-            for name, policy in (("idle", IdlePolicy()), ("rule_based", RuleBasedLCA()))
-        }
+        with _rng_preserved():
+            self.baselines = saved.get("baselines") or {
+                name: validation_row(run_episodes(self.env, policy, self.seeds))
+                for name, policy in (("idle", IdlePolicy()), ("rule_based", RuleBasedLCA()))
+            }
 
     def _on_rollout_start(self) -> None:
         if self.model.num_timesteps - self.last >= self.validation_freq:
@@ -177,7 +218,9 @@ class ValidationCallback(BaseCallback):
         steps = self.model.num_timesteps
         self.last = steps
         policy = NormalizedModel(self.model, self.model.get_vec_normalize_env())
-        row = {"steps": int(steps), **validation_row(run_episodes(self.env, policy, self.seeds))}
+        with _rng_preserved():
+            episodes = run_episodes(self.env, policy, self.seeds)
+        row = {"steps": int(steps), **validation_row(episodes)}
         for key in ("mean_return", "success_rate", "mean_speed", "collisions"):
             self.logger.record(f"validation/{key}", row[key])
         self.history.append(row)

@@ -4,13 +4,16 @@
 (``Discrete(5)``) of ``ALDMHighway-v0`` with the observation built from one detector's
 lanes (``naive``, ``aldm`` or ``ground_truth``). Environments run vectorised
 (``SubprocVecEnv`` for more than one), observations are normalised with running
-statistics (``VecNormalize``), tensorboard logs go to ``<out>/tb/`` and checkpoints
-(model ``.zip`` + normalisation ``.pkl``) to ``<out>/checkpoints/`` every
-``checkpoint_freq`` steps and on an interruption (Ctrl-C, SIGTERM). ``resume=True``
-continues from the latest checkpoint with the step count, tensorboard run, optimiser
-state and normalisation statistics of the interrupted run. The output folder's files
-are described in :mod:`aldm_gym.agents.checkpoints`; the callbacks that write them are
-in :mod:`aldm_gym.agents.callbacks`.
+statistics (``VecNormalize``), tensorboard logs go to ``<out>/tb/`` and
+checkpoints to ``<out>/checkpoints/`` every ``checkpoint_freq`` steps (between
+rollouts) and on an interruption (Ctrl-C, SIGTERM). ``resume=True`` continues from the
+newest intact checkpoint with the settings, step count, tensorboard run, optimiser
+state, normalisation statistics, envs and RNG states of the interrupted run: with the
+same ``n_envs`` and ``seed`` it trains on exactly as the uninterrupted run would have.
+The output folder's files (and why a kill, a signal during an update, a second writer
+or a corrupt checkpoint lose nothing) are described in
+:mod:`aldm_gym.agents.checkpoints`; the callbacks that write them are in
+:mod:`aldm_gym.agents.callbacks`.
 
 Validation: every ``validation_freq`` steps (after the PPO update that ends a rollout)
 and at the end, the current policy drives ``validation_episodes`` episodes with the
@@ -29,14 +32,16 @@ Why PPO rather than DQN: PPO is on-policy and collects its rollouts from all vec
 environments at once, which is how the two cores of this machine are used (the env, not
 the network, is the bottleneck); it is robust to hyperparameters on highway-env's meta
 actions (highway-env's own PPO example trains in ~2e4 steps), and its state is the
-weights, the optimiser and the step count, so a resume loses nothing. DQN would also
-need its replay buffer checkpointed (hundreds of MB of Dict observations) for an exact
-resume.
+weights, the optimiser, the step count and the envs', so a resume loses nothing. DQN
+would also need its replay buffer checkpointed (hundreds of MB of Dict observations)
+for an exact resume.
 """
 
 from __future__ import annotations
 
 import functools
+import io
+import pickle
 import signal
 import sys
 import time
@@ -46,18 +51,21 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
+import gymnasium as gym
+
 from aldm_gym import ENV_ID
 from aldm_gym.agents.checkpoints import (
     MODEL_FILE,
     TENSORBOARD_DIR,
     TRAINING_FILE,
     VECNORM_FILE,
-    can_resume,
+    Snapshot,
     holds_training,
-    latest_checkpoint,
+    newest_intact_checkpoint,
+    output_lock,
     read_training,
-    save_checkpoint,
-    save_model,
+    remove_temporary_files,
+    write_bytes_atomic,
     write_json,
 )
 from aldm_gym.agents.sb3 import import_sb3
@@ -152,14 +160,36 @@ def env_config(
     return config
 
 
+class ResumableEnv(gym.Wrapper):
+    """A training env whose whole state can be saved and restored (exact resume).
+
+    Wraps the ``Monitor``-ed env; :meth:`resume_state` pickles the wrapped env (its
+    road, vehicles, RNG and the monitor's episode counters) with the process's global
+    RNG states (a ``SubprocVecEnv`` worker has its own), :meth:`restore_resume_state`
+    puts them back. The vectorised env reaches both through ``env_method``.
+    """
+
+    def resume_state(self) -> bytes:
+        """The wrapped env and this process's global RNG states, pickled."""
+        return pickle.dumps(
+            {"env": self.env, "rng": global_rng_state(torch=False)},
+            protocol=pickle.HIGHEST_PROTOCOL,
+        )
+
+    def restore_resume_state(self, state: bytes) -> None:
+        """Replace the wrapped env and global RNG states by those of ``state``."""
+        data = pickle.loads(state)
+        self.env = data["env"]
+        set_global_rng_state(data["rng"])
+
+
 def _make_env(config: dict[str, Any]) -> Any:
     """One monitored env (module level so ``SubprocVecEnv`` can pickle the factory)."""
-    import gymnasium as gym
     from stable_baselines3.common.monitor import Monitor
 
     import aldm_gym  # noqa: F401  (registers the env in a fresh subprocess)
 
-    return Monitor(gym.make(ENV_ID, config=config))
+    return ResumableEnv(Monitor(gym.make(ENV_ID, config=config)))
 
 
 def make_vec_env(config: dict[str, Any], n_envs: int, seed: int) -> Any:
@@ -176,8 +206,71 @@ def make_vec_env(config: dict[str, Any], n_envs: int, seed: int) -> Any:
     return venv
 
 
+def global_rng_state(torch: bool = True) -> dict[str, Any]:
+    """States of Python's, numpy's global (and torch's) random generators."""
+    import random
+
+    import numpy as np
+
+    state: dict[str, Any] = {"random": random.getstate(), "numpy": np.random.get_state()}  # noqa: NPY002
+    if torch:
+        import torch as th
+
+        state["torch"] = th.get_rng_state()
+    return state
+
+
+def set_global_rng_state(state: dict[str, Any]) -> None:
+    """Restore what :func:`global_rng_state` returned."""
+    import random
+
+    import numpy as np
+
+    random.setstate(state["random"])
+    # SB3 shuffles minibatches with numpy's global generator: it is part of the state.
+    np.random.set_state(state["numpy"])  # noqa: NPY002
+    if "torch" in state:
+        import torch as th
+
+        th.set_rng_state(state["torch"])
+
+
+def take_snapshot(model: Any) -> Snapshot:
+    """The training's state now (call it between rollouts): model, normalisation,
+    envs, last observation and RNG states of one instant."""
+    buffer = io.BytesIO()
+    model.save(buffer)
+    vecnorm = model.get_vec_normalize_env()
+    state = {
+        "n_envs": model.n_envs,
+        "envs": model.get_env().env_method("resume_state"),
+        "last_obs": model._last_obs,
+        "last_episode_starts": model._last_episode_starts,
+        "rng": global_rng_state(),
+    }
+    return Snapshot(
+        steps=int(model.num_timesteps),
+        model=buffer.getvalue(),
+        vecnormalize=pickle.dumps(vecnorm) if vecnorm is not None else b"",
+        resume_state=pickle.dumps(state, protocol=pickle.HIGHEST_PROTOCOL),
+    )
+
+
+def _restore_resume_state(model: Any, path: Path) -> None:
+    """Put the envs, last observation and RNG states of a checkpoint back into
+    ``model`` (loaded from the same checkpoint, with as many envs)."""
+    with open(path, "rb") as fh:
+        state = pickle.load(fh)
+    venv = model.get_env()
+    for i, env_state in enumerate(state["envs"]):
+        venv.env_method("restore_resume_state", env_state, indices=[i])
+    model._last_obs = state["last_obs"]
+    model._last_episode_starts = state["last_episode_starts"]
+    set_global_rng_state(state["rng"])
+
+
 @contextmanager
-def _sigterm_as_interrupt() -> Iterator[None]:
+def _signals_as_interrupt() -> Iterator[None]:
     """Turn SIGTERM into KeyboardInterrupt (``kill PID`` checkpoints like Ctrl-C)."""
 
     def handler(signum: int, frame: Any) -> None:
@@ -194,21 +287,96 @@ def _sigterm_as_interrupt() -> Iterator[None]:
         signal.signal(signal.SIGTERM, previous)
 
 
+@contextmanager
+def _signals_deferred() -> Iterator[None]:
+    """Hold SIGINT and SIGTERM back while the block runs (a final save completes);
+    they are delivered when it ends."""
+    held = {signal.SIGINT, signal.SIGTERM}
+    try:
+        previous = signal.pthread_sigmask(signal.SIG_BLOCK, held)
+    except (AttributeError, ValueError):  # no pthread_sigmask, or not the main thread
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+
+
+RUN_SETTINGS = (
+    "timesteps",
+    "n_envs",
+    "seed",
+    "checkpoint_freq",
+    "validation_freq",
+    "validation_episodes",
+)
+"""Settings of a run that ``resume`` restores from ``training.json`` unless given."""
+
+
+def _run_defaults() -> dict[str, int]:
+    """Default value of each of :data:`RUN_SETTINGS`."""
+    return {
+        "timesteps": DEFAULT_TIMESTEPS,
+        "n_envs": 1,
+        "seed": 0,
+        "checkpoint_freq": DEFAULT_CHECKPOINT_FREQ,
+        "validation_freq": DEFAULT_VALIDATION_FREQ,
+        "validation_episodes": DEFAULT_VALIDATION_EPISODES,
+    }
+
+
+def resolve_run_settings(
+    given: dict[str, int | None], saved: dict[str, Any] | None
+) -> tuple[dict[str, int], list[str]]:
+    """The run settings of a training and, for a resume, what was restored/overridden.
+
+    :param given: each of :data:`RUN_SETTINGS` as passed (None: not given).
+    :param saved: the ``training.json`` being resumed, or None for a new training.
+    :return: the settings, and lines saying which were restored from ``saved`` and
+        which were overridden (empty for a new training).
+    """
+    defaults = _run_defaults()
+    settings: dict[str, int] = {}
+    restored, overridden = [], []
+    for name in RUN_SETTINGS:
+        value = given.get(name)
+        if saved is None:
+            settings[name] = defaults[name] if value is None else int(value)
+            continue
+        was = int(saved.get(name, defaults[name]))
+        if value is None:
+            settings[name] = was
+            restored.append(f"{name}={was}")
+        else:
+            settings[name] = int(value)
+            if int(value) == was:
+                restored.append(f"{name}={was}")
+            else:
+                overridden.append(f"{name}={int(value)} (was {was})")
+    report = []
+    if saved is not None:
+        report.append("restored: env config, PPO hyperparameters, " + ", ".join(restored))
+        if overridden:
+            report.append("overridden: " + ", ".join(overridden))
+    return settings, report
+
+
 def train(
     out: Path,
     *,
     detector: str = "aldm",
     marking_model: str = "per_dash",
-    timesteps: int = DEFAULT_TIMESTEPS,
-    n_envs: int = 1,
-    seed: int = 0,
-    checkpoint_freq: int = DEFAULT_CHECKPOINT_FREQ,
+    timesteps: int | None = None,
+    n_envs: int | None = None,
+    seed: int | None = None,
+    checkpoint_freq: int | None = None,
     duration: float | None = None,
     vehicles_count: int | None = None,
     collision_reward: float | None = DEFAULT_COLLISION_REWARD,
     params: PPOParams | None = None,
-    validation_freq: int = DEFAULT_VALIDATION_FREQ,
-    validation_episodes: int = DEFAULT_VALIDATION_EPISODES,
+    validation_freq: int | None = None,
+    validation_episodes: int | None = None,
     resume: bool = False,
     progress: bool = True,
     verbose: int = 0,
@@ -216,28 +384,83 @@ def train(
 ) -> Any:
     """Train (or resume training) a PPO policy; return the SB3 model.
 
-    :param out: output folder (its files: :mod:`aldm_gym.agents.checkpoints`).
+    :param out: output folder (its files: :mod:`aldm_gym.agents.checkpoints`); held
+        locked while training.
     :param timesteps: total policy steps of the training (counting steps done before a
-        resume), rounded up to whole rollouts (``n_steps × n_envs``).
-    :param checkpoint_freq: save a checkpoint every this many steps [policy steps].
+        resume), rounded up to whole rollouts (``n_steps × n_envs``); default
+        :data:`DEFAULT_TIMESTEPS`.
+    :param n_envs: envs run in parallel (default 1).
+    :param seed: seed of the envs (``seed + i`` for the i-th) and the network (0).
+    :param checkpoint_freq: save a checkpoint every this many steps [policy steps]
+        (default :data:`DEFAULT_CHECKPOINT_FREQ`).
     :param duration, vehicles_count, collision_reward: env overrides (None: the env's
         defaults).
 
     The defaults (one env, 49152 steps, collision weight -2, linearly decaying learning
     rate) are the recipe of ``docs/results.md`` (b). It is sensitive to the rollout size:
     two envs with the same or with halved rollouts missed the aim there.
-    :param validation_freq: validate every this many steps (0: never) [policy steps].
-    :param validation_episodes: episodes per validation (seeds ``VALIDATION_SEED ..``).
+    :param validation_freq: validate every this many steps (0: never) [policy steps]
+        (default :data:`DEFAULT_VALIDATION_FREQ`).
+    :param validation_episodes: episodes per validation (seeds ``VALIDATION_SEED ..``;
+        default :data:`DEFAULT_VALIDATION_EPISODES`).
     :param callback: extra SB3 callback(s) (a list or one).
-    :param resume: continue from the latest checkpoint of ``out``; the env config and
-        hyperparameters are those saved in ``<out>/training.json``, ``n_envs`` and
-        ``timesteps`` may change.
+    :param resume: continue from the newest intact checkpoint of ``out``; the env
+        config and hyperparameters are those saved in ``<out>/training.json``, and so
+        is every one of :data:`RUN_SETTINGS` left None (the settings restored and
+        overridden are printed to stderr). With the saved ``n_envs`` and ``seed`` the
+        envs and RNGs continue exactly where the checkpoint was taken.
     :raises FileExistsError: ``out`` holds a training and ``resume`` is False.
-    :raises FileNotFoundError: ``resume`` without a checkpoint in ``out``.
+    :raises FileNotFoundError: ``resume`` without a ``training.json`` in ``out`` (one
+        without an intact checkpoint starts again from step 0 with its settings).
+    :raises OutputLocked: another training is writing ``out``.
     :raises MissingRLDependencies: stable-baselines3 / torch missing.
     """
     import_sb3()
     import torch
+
+    out = Path(out)
+    given = {
+        "timesteps": timesteps,
+        "n_envs": n_envs,
+        "seed": seed,
+        "checkpoint_freq": checkpoint_freq,
+        "validation_freq": validation_freq,
+        "validation_episodes": validation_episodes,
+    }
+    for name in ("timesteps", "n_envs", "checkpoint_freq"):
+        if given[name] is not None and given[name] < 1:  # type: ignore[operator]
+            raise ValueError(f"{name} must be >= 1, got {given[name]}")
+    for name in ("validation_freq", "validation_episodes"):
+        if given[name] is not None and given[name] < 0:  # type: ignore[operator]
+            raise ValueError(f"{name} must be >= 0, got {given[name]}")
+    torch.set_num_threads(1)  # the envs need the cores; the MLP is tiny
+    with output_lock(out):
+        for path in remove_temporary_files(out):
+            print(f"removed {path}, left by an interrupted write", file=sys.stderr)
+        return _train_locked(
+            out,
+            given,
+            env_config_args=(detector, marking_model, duration, vehicles_count, collision_reward),
+            params=params,
+            resume=resume,
+            progress=progress,
+            verbose=verbose,
+            callback=callback,
+        )
+
+
+def _train_locked(
+    out: Path,
+    given: dict[str, int | None],
+    *,
+    env_config_args: tuple[Any, ...],
+    params: PPOParams | None,
+    resume: bool,
+    progress: bool,
+    verbose: int,
+    callback: Any,
+) -> Any:
+    """:func:`train`, holding the lock of ``out``."""
     from stable_baselines3 import PPO
     from stable_baselines3.common.vec_env import VecNormalize
 
@@ -247,42 +470,63 @@ def train(
         ValidationCallback,
     )
 
-    out = Path(out)
-    if timesteps < 1 or n_envs < 1 or checkpoint_freq < 1:
-        raise ValueError("timesteps, n_envs and checkpoint_freq must be >= 1")
-    if validation_freq < 0 or validation_episodes < 0:
-        raise ValueError("validation_freq and validation_episodes must be >= 0")
-    torch.set_num_threads(1)  # the envs need the cores; the MLP is tiny
-    meta_path = out / TRAINING_FILE
+    saved: dict[str, Any] | None = None
+    found = None
     if resume:
-        found = latest_checkpoint(out) if can_resume(out) else None
-        if found is None:
-            raise FileNotFoundError(f"nothing to resume in {out}: no checkpoint or {TRAINING_FILE}")
-        meta = read_training(out)
-        config = meta["env_config"]
+        if not (out / TRAINING_FILE).exists():
+            raise FileNotFoundError(f"nothing to resume in {out}: no {TRAINING_FILE}")
+        saved = read_training(out)
+        found = newest_intact_checkpoint(out)
+    run, report = resolve_run_settings(given, saved)
+    if saved is not None:
+        config = saved["env_config"]
         # Trainings written before lr_schedule existed ran with a constant rate.
-        params = PPOParams(**{"lr_schedule": "constant", **meta["ppo"]})
-        model_path, vecnorm_path, done = found
-        venv = make_vec_env(config, n_envs, seed + done)
-        venv = VecNormalize.load(str(vecnorm_path), venv)
-        venv.training = True
-        model = PPO.load(model_path, env=venv, device="cpu")
-        # PPO.load takes n_envs from venv and rebuilds the rollout buffer for it.
-        model.set_random_seed(seed + done)
+        params = PPOParams(**{"lr_schedule": "constant", **saved["ppo"]})
     else:
         if holds_training(out):
             raise FileExistsError(
                 f"{out} already holds a training; pass --resume to continue it "
                 "or choose another --out"
             )
-        config = env_config(detector, marking_model, duration, vehicles_count, collision_reward)
+        config = env_config(*env_config_args)
         params = params or PPOParams()
-        venv = VecNormalize(make_vec_env(config, n_envs, seed), norm_reward=False, clip_obs=10.0)
+    if found is not None:
+        assert saved is not None
+        done = found.steps
+        exact = (
+            found.resume_state is not None
+            and run["n_envs"] == int(saved.get("n_envs", 1))
+            and run["seed"] == int(saved.get("seed", 0))
+        )
+        venv = make_vec_env(config, run["n_envs"], run["seed"] + done)
+        venv = VecNormalize.load(str(found.vecnormalize), venv)
+        venv.training = True
+        model = PPO.load(found.model, env=venv, device="cpu")
+        # PPO.load takes n_envs from venv and rebuilds the rollout buffer for it.
+        if exact:
+            assert found.resume_state is not None
+            _restore_resume_state(model, found.resume_state)
+            report.append(f"envs and RNGs continue exactly from {found.model.name}")
+        else:
+            model.set_random_seed(run["seed"] + done)
+            report.append(
+                f"envs restart from seed {run['seed'] + done} (n_envs or seed changed, "
+                "or the checkpoint has no resume state)"
+            )
+    else:
+        # A new training, or a resume of one killed before its first checkpoint (or
+        # whose checkpoints are all corrupt): from step 0 with the saved settings.
+        if saved is not None:
+            report.append("no intact checkpoint: starting again from step 0")
+        done = 0
+        venv = VecNormalize(
+            make_vec_env(config, run["n_envs"], run["seed"]), norm_reward=False, clip_obs=10.0
+        )
         model = PPO(
             "MultiInputPolicy",
             venv,
             n_steps=params.n_steps,
-            batch_size=min(params.batch_size, params.n_steps * n_envs),
+            batch_size=min(params.batch_size, params.n_steps * run["n_envs"]),
             n_epochs=params.n_epochs,
             learning_rate=params.learning_rate_schedule(),
             gamma=params.gamma,
@@ -291,61 +535,73 @@ def train(
             clip_range=params.clip_range,
             policy_kwargs={"net_arch": list(params.net_arch)},
             tensorboard_log=str(out / TENSORBOARD_DIR),
-            seed=seed,
+            seed=run["seed"],
             device="cpu",
             verbose=verbose,
         )
-        done = 0
-    out.mkdir(parents=True, exist_ok=True)
+    if saved is not None:
+        print(f"resuming {out} at {done} steps; " + "; ".join(report), file=sys.stderr)
     meta = {
         "algorithm": "PPO",
         "env_id": ENV_ID,
         "env_config": config,
         "ppo": asdict(params),
-        "n_envs": n_envs,
-        "seed": seed,
-        "timesteps": int(timesteps),
-        "checkpoint_freq": int(checkpoint_freq),
-        "validation_freq": int(validation_freq),
-        "validation_episodes": int(validation_episodes),
+        **run,
     }
-    write_json(meta_path, meta)
+    write_json(out / TRAINING_FILE, meta)
     model.tensorboard_log = str(out / TENSORBOARD_DIR)
+    timesteps = run["timesteps"]
     # In this order: on a rollout boundary the checkpoint is written before validating.
-    checkpoints = RolloutCheckpointCallback(checkpoint_freq, out)
+    checkpoints = RolloutCheckpointCallback(run["checkpoint_freq"], out)
     callbacks: list[Any] = [checkpoints]
-    if validation_freq > 0 and validation_episodes > 0:
-        callbacks.append(ValidationCallback(out, config, validation_freq, validation_episodes))
+    if run["validation_freq"] > 0 and run["validation_episodes"] > 0:
+        callbacks.append(
+            ValidationCallback(out, config, run["validation_freq"], run["validation_episodes"])
+        )
     if progress:
-        callbacks.append(ProgressCallback(int(timesteps)))
+        callbacks.append(ProgressCallback(timesteps))
     if callback is not None:
         callbacks += callback if isinstance(callback, list) else [callback]
     interrupted = False
     t0 = time.perf_counter()
     try:
-        with _sigterm_as_interrupt():
+        with _signals_as_interrupt():
             if timesteps > done:
                 model.learn(
-                    total_timesteps=int(timesteps) - done,
+                    total_timesteps=timesteps - done,
                     callback=callbacks,
-                    reset_num_timesteps=not resume,
+                    reset_num_timesteps=found is None,
                     tb_log_name="PPO",
                 )
+            # The state after the last update (also when resumed with nothing left to
+            # do), taken while the envs are open.
+            final = take_snapshot(model)
     except KeyboardInterrupt:
         interrupted = True
     finally:
+        if interrupted:
+            # Before closing the envs: a second signal must not cut the save short.
+            with _signals_deferred():
+                path = checkpoints.save_last_snapshot()
         try:
             venv.close()
         except (EOFError, BrokenPipeError, ConnectionResetError):  # workers died with Ctrl-C
             pass
     if interrupted:
-        path = checkpoints.save(checkpoints.rollout_start)
+        where = (
+            f"saved {path} ({checkpoints.snapshot_steps} steps)"
+            if path is not None
+            else "nothing new to save (no update finished)"
+        )
         print(
-            f"\ninterrupted after {time.perf_counter() - t0:.0f} s; saved {path} "
-            f"({checkpoints.rollout_start} steps); continue with --resume",
+            f"\ninterrupted after {time.perf_counter() - t0:.0f} s; {where}; "
+            "continue with --resume",
             file=sys.stderr,
         )
         raise KeyboardInterrupt
-    save_checkpoint(model, out, model.num_timesteps)
-    save_model(model, out / MODEL_FILE, out / VECNORM_FILE)
+    with _signals_deferred():
+        checkpoints.snapshot = final
+        checkpoints.save_last_snapshot()
+        write_bytes_atomic(out / MODEL_FILE, final.model)
+        write_bytes_atomic(out / VECNORM_FILE, final.vecnormalize)
     return model

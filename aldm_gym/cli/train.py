@@ -2,14 +2,19 @@
 
 Flags map onto :func:`~aldm_gym.agents.training.train`; ``--resume`` takes the env
 config and hyperparameters saved in ``<out>/training.json`` and refuses flags that
-contradict them. stable-baselines3 is imported only when the command runs.
+contradict them, and restores the run's settings (budget, envs, seed, checkpoint and
+validation periods) unless a flag gives them, saying which it restored and which it
+overrode. Warnings (a stale lock taken over, a corrupt checkpoint skipped) print as one
+line each. stable-baselines3 is imported only when the command runs.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -18,8 +23,10 @@ from aldm_gym.agents.checkpoints import (
     CHECKPOINT_DIR,
     MODEL_FILE,
     TENSORBOARD_DIR,
+    TRAINING_FILE,
     VALIDATION_FILE,
-    can_resume,
+    OutputLocked,
+    check_unlocked,
     holds_training,
     read_training,
 )
@@ -73,7 +80,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     parser.add_argument(
         "--n-envs",
         type=positive_int,
-        default=1,
+        default=None,
         help="parallel envs (1; more run in subprocesses, but change the results)",
     )
     parser.add_argument(
@@ -85,7 +92,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     parser.add_argument(
         "--checkpoint-freq",
         type=positive_int,
-        default=DEFAULT_CHECKPOINT_FREQ,
+        default=None,
         help=f"checkpoint every this many steps ({DEFAULT_CHECKPOINT_FREQ})",
     )
     parser.add_argument(
@@ -127,10 +134,12 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         help=f"weight of the collision penalty in the reward ({DEFAULT_COLLISION_REWARD}; "
         "the env's default is -1)",
     )
-    parser.add_argument("--seed", type=int, default=0, help="seed of envs and network (0)")
+    parser.add_argument("--seed", type=int, default=None, help="seed of envs and network (0)")
     parser.add_argument("--out", type=Path, default=Path("out/train"), help="output folder")
     parser.add_argument(
-        "--resume", action="store_true", help="continue from the latest checkpoint in --out"
+        "--resume",
+        action="store_true",
+        help="continue from the newest intact checkpoint in --out, with its settings unless given",
     )
     parser.add_argument("--quick", action="store_true", help="tiny budget (smoke test)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -158,56 +167,69 @@ def _check_resume(args: argparse.Namespace, meta: dict[str, Any]) -> None:
             )
 
 
+def _one_line_warning(
+    message: Warning | str,
+    category: type[Warning],
+    filename: str,
+    lineno: int,
+    file: Any = None,
+    line: str | None = None,
+) -> None:
+    """Print a warning as ``aldm-gym train: warning: <message>``."""
+    print(f"aldm-gym train: warning: {message}", file=sys.stderr)
+
+
 def run(args: argparse.Namespace) -> int:
     """``aldm-gym train``."""
-    timesteps = args.timesteps or (QUICK_TIMESTEPS if args.quick else DEFAULT_TIMESTEPS)
-    n_steps = args.n_steps or (QUICK_N_STEPS if args.quick else PPOParams.n_steps)
-    validation_freq = args.validation_freq
-    if validation_freq is None:
-        validation_freq = 0 if args.quick else DEFAULT_VALIDATION_FREQ
-    validation_episodes = args.validation_episodes or DEFAULT_VALIDATION_EPISODES
     out: Path = args.out
+    quick = args.quick and not args.resume  # a resume keeps the run's own settings
+    try:
+        check_unlocked(out)
+    except OutputLocked as exc:
+        raise SystemExit(f"aldm-gym train: {exc}") from None
     if args.resume:
-        if not can_resume(out):
-            raise SystemExit(f"aldm-gym train: nothing to resume in {out} (no checkpoint)")
-        meta = read_training(out)
-        _check_resume(args, meta)
-        timesteps = args.timesteps or meta["timesteps"]
-        if args.validation_freq is None:
-            validation_freq = meta.get("validation_freq", validation_freq)
-        if args.validation_episodes is None:
-            validation_episodes = meta.get("validation_episodes", validation_episodes)
+        if not (out / TRAINING_FILE).exists():
+            raise SystemExit(f"aldm-gym train: nothing to resume in {out} (no {TRAINING_FILE})")
+        _check_resume(args, read_training(out))
     elif holds_training(out):
         raise SystemExit(
             f"aldm-gym train: {out} already holds a training; pass --resume to continue it "
             "or choose another --out"
         )
+    validation_freq = args.validation_freq
+    if validation_freq is None and quick:
+        validation_freq = 0
+    n_steps = args.n_steps or (QUICK_N_STEPS if quick else PPOParams.n_steps)
     try:
         t0 = time.perf_counter()
-        model = train(
-            out,
-            detector=args.detector or "aldm",
-            marking_model=args.marking_model or "per_dash",
-            timesteps=timesteps,
-            n_envs=args.n_envs,
-            seed=args.seed,
-            checkpoint_freq=args.checkpoint_freq,
-            duration=args.duration or (QUICK_DURATION if args.quick else None),
-            vehicles_count=args.vehicles,
-            collision_reward=(
-                DEFAULT_COLLISION_REWARD if args.collision_reward is None else args.collision_reward
-            ),
-            params=PPOParams(
-                n_steps=n_steps,
-                gamma=PPOParams.gamma if args.gamma is None else args.gamma,
-                lr_schedule=args.lr_schedule or PPOParams.lr_schedule,
-            ),
-            validation_freq=validation_freq,
-            validation_episodes=validation_episodes,
-            resume=args.resume,
-            progress=not args.no_progress,
-        )
-    except MissingRLDependencies as exc:
+        with warnings.catch_warnings():
+            warnings.showwarning = _one_line_warning
+            model = train(
+                out,
+                detector=args.detector or "aldm",
+                marking_model=args.marking_model or "per_dash",
+                timesteps=args.timesteps or (QUICK_TIMESTEPS if quick else None),
+                n_envs=args.n_envs,
+                seed=args.seed,
+                checkpoint_freq=args.checkpoint_freq,
+                duration=args.duration or (QUICK_DURATION if quick else None),
+                vehicles_count=args.vehicles,
+                collision_reward=(
+                    DEFAULT_COLLISION_REWARD
+                    if args.collision_reward is None
+                    else args.collision_reward
+                ),
+                params=PPOParams(
+                    n_steps=n_steps,
+                    gamma=PPOParams.gamma if args.gamma is None else args.gamma,
+                    lr_schedule=args.lr_schedule or PPOParams.lr_schedule,
+                ),
+                validation_freq=validation_freq,
+                validation_episodes=args.validation_episodes,
+                resume=args.resume,
+                progress=not args.no_progress,
+            )
+    except (MissingRLDependencies, OutputLocked, FileExistsError, FileNotFoundError) as exc:
         raise SystemExit(f"aldm-gym train: {exc}") from None
     except KeyboardInterrupt:
         return 130
@@ -218,7 +240,7 @@ def run(args: argparse.Namespace) -> int:
         f"{tb} (tensorboard --logdir {tb})"
     )
     validation = out / VALIDATION_FILE
-    if validation_freq > 0 and validation.exists():
+    if read_training(out)["validation_freq"] > 0 and validation.exists():
         record = json.loads(validation.read_text())
         best = next(h for h in record["history"] if h["steps"] == record["best_steps"])
         print(
