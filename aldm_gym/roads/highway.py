@@ -33,15 +33,12 @@ from highway_env.road.road import RoadNetwork
 from aldm_gym.config import build_config, check_choice, check_range, setting, validate
 from aldm_gym.roads.geometry import ReferenceLine, Segment
 from aldm_gym.roads.lane import ReferenceLane
-from aldm_gym.roads.markings import Marking, MarkingRole, MarkingType
+from aldm_gym.roads.markings import MARKING_MODELS, Marking, MarkingRole, MarkingType
 from aldm_gym.roads.position import LanePosition
 from aldm_gym.types import FloatArray
 
 MIN_RADIUS_BY_SPEED = {130: 800.0, 120: 600.0, 110: 500.0, 100: 400.0}
 """RVS 03.03.23 minimum curve radius [m] by design speed [km/h] (paper, Table I)."""
-
-MARKING_MODELS = ("per_dash", "editor")
-"""How painted markings are split into line objects (see :class:`RoadConfig`)."""
 
 MAX_HEADING = np.deg2rad(75.0)
 """Largest heading of a generated road relative to its start [rad]: it never turns back."""

@@ -13,6 +13,11 @@ import numpy as np
 
 from aldm_gym.types import FloatArray
 
+MARKING_MODELS = ("per_dash", "editor")
+"""How painted markings become line objects for the sensor: ``"per_dash"`` (every dash
+its own object, as on roads converted from OpenDRIVE or measurements) or ``"editor"``
+(one object per marking line, as CarMaker's road editor draws it)."""
+
 
 class MarkingType(IntEnum):
     """CarMaker line-sensor line type."""

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
+from aldm_gym.roads.markings import MARKING_MODELS
 from aldm_gym.types import FloatArray
 
 CHUNK = 64
@@ -286,10 +287,6 @@ def _sample_polylines_py(
 
 
 _sample_polylines = numba.njit(cache=True)(_sample_polylines_py)
-
-
-MARKING_MODELS = ("per_dash", "editor")
-"""How painted markings become line objects (see :class:`aldm_gym.roads.RoadConfig`)."""
 
 
 class PolylineRoad:
