@@ -1,30 +1,47 @@
-"""A small cache of built roads, shared by environments across resets.
+"""Small caches of built roads, shared by environments across resets.
 
-Building a :class:`~aldm_gym.roads.highway.HighwayRoad` (curvature profile, reference
-line, marking tables) costs milliseconds to seconds; roads are immutable, so every
-env in a process that asks for the same config gets the same object.
+Building a road (a generated highway's curvature profile and tables, or a parsed
+OpenDRIVE map) costs milliseconds to seconds; roads are immutable, so every env in a
+process that asks for the same road gets the same object.
 """
 
 from __future__ import annotations
 
 from collections import OrderedDict
+from collections.abc import Callable, Hashable
+from typing import Generic, TypeVar
 
 from aldm_gym.roads.highway import HighwayRoad, RoadConfig
 
-CACHE_SIZE = 8
-"""Roads kept (least recently used dropped first)."""
+T = TypeVar("T")
 
-_CACHE: OrderedDict[RoadConfig, HighwayRoad] = OrderedDict()
+
+class LRUCache(Generic[T]):
+    """Objects by key, the least recently used dropped beyond ``size``.
+
+    :param size: entries kept.
+    """
+
+    def __init__(self, size: int) -> None:
+        self.size = int(size)
+        self._items: OrderedDict[Hashable, T] = OrderedDict()
+
+    def get(self, key: Hashable, build: Callable[[], T]) -> T:
+        """The object of ``key``, built with ``build()`` on a miss."""
+        got = self._items.get(key)
+        if got is None:
+            got = build()
+            self._items[key] = got
+            while len(self._items) > self.size:
+                self._items.popitem(last=False)
+        else:
+            self._items.move_to_end(key)
+        return got
+
+
+_ROADS: LRUCache[HighwayRoad] = LRUCache(8)
 
 
 def cached_road(config: RoadConfig) -> HighwayRoad:
     """The :class:`HighwayRoad` of ``config``, built once per process (an LRU cache)."""
-    road = _CACHE.get(config)
-    if road is None:
-        road = HighwayRoad(config)
-        _CACHE[config] = road
-        while len(_CACHE) > CACHE_SIZE:
-            _CACHE.popitem(last=False)
-    else:
-        _CACHE.move_to_end(config)
-    return road
+    return _ROADS.get(config, lambda: HighwayRoad(config))

@@ -34,7 +34,7 @@ from aldm_gym.config import build_config, check_choice, check_range, setting, va
 from aldm_gym.roads.geometry import ReferenceLine, Segment
 from aldm_gym.roads.lane import ReferenceLane
 from aldm_gym.roads.markings import MARKING_MODELS, Marking, MarkingRole, MarkingType
-from aldm_gym.roads.position import LanePosition
+from aldm_gym.roads.position import LanePosition, world_point
 from aldm_gym.types import FloatArray
 
 MIN_RADIUS_BY_SPEED = {130: 800.0, 120: 600.0, 110: 500.0, 100: 400.0}
@@ -303,7 +303,7 @@ class HighwayRoad:
 
         :raises ValueError: naming ``position`` unless it is 2 finite numbers [m].
         """
-        _check_point("position", position)
+        world_point("position", position)
         s, d = self.reference.project(position)
         return s, d, self.lane_of_offset(d)
 
@@ -455,7 +455,7 @@ class HighwayRoad:
             NaN where the marking does not reach that x.
         """
         ref = self.reference
-        origin = _check_point("origin", origin)
+        origin = world_point("origin", origin)
         if not math.isfinite(yaw):
             raise ValueError(f"yaw must be finite, got {yaw!r}")
         if s_origin is None:
@@ -497,17 +497,6 @@ class HighwayRoad:
             u_out,
         )
         return y_out, u_out
-
-
-def _check_point(name: str, value: Any) -> FloatArray:
-    """``value`` as a float64 ``(2,)`` world point; ValueError naming ``name`` otherwise."""
-    try:
-        arr = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        arr = np.zeros(0)
-    if arr.shape not in ((2,), (3,)) or not (math.isfinite(arr[0]) and math.isfinite(arr[1])):
-        raise ValueError(f"{name} must be 2 finite numbers (x, y) [m], got {value!r}")
-    return arr[:2]
 
 
 def _check_finite(name: str, value: Any) -> None:

@@ -26,16 +26,16 @@ from __future__ import annotations
 import hashlib
 import math
 import os
-from collections import OrderedDict
 from typing import Any
 
 import numba
 import numpy as np
 
+from aldm_gym.roads.cache import LRUCache
 from aldm_gym.roads.opendrive import OpenDriveMap
 from aldm_gym.roads.opendrive.map import LaneKey, LaneRecord
 from aldm_gym.roads.polyline import MarkingCurve, PolylineMarkings, PolylineRoad
-from aldm_gym.roads.position import LanePosition
+from aldm_gym.roads.position import LanePosition, world_point
 from aldm_gym.types import FloatArray
 
 DRIVING_TYPES = frozenset(
@@ -46,8 +46,7 @@ DRIVING_TYPES = frozenset(
 LOCATE_REACH = 15.0
 """A position is located on lanes whose centre passes within this distance [m]."""
 
-_CACHE: OrderedDict[tuple, OpenDriveMap] = OrderedDict()
-_CACHE_SIZE = 4
+_MAPS: LRUCache[OpenDriveMap] = LRUCache(4)
 
 
 def _flip(xy: FloatArray) -> FloatArray:
@@ -72,15 +71,7 @@ def load_map(path: str | os.PathLike[str], **options: Any) -> OpenDriveMap:
     except FileNotFoundError:
         raise FileNotFoundError(f"OpenDRIVE file not found: {os.fspath(path)!r}") from None
     key = (digest, tuple(sorted((k, repr(v)) for k, v in options.items())))
-    got = _CACHE.get(key)
-    if got is None:
-        got = OpenDriveMap.from_file(path, **options)
-        _CACHE[key] = got
-        while len(_CACHE) > _CACHE_SIZE:
-            _CACHE.popitem(last=False)
-    else:
-        _CACHE.move_to_end(key)
-    return got
+    return _MAPS.get(key, lambda: OpenDriveMap.from_file(path, **options))
 
 
 class OpenDriveRoad(PolylineRoad):
@@ -235,7 +226,7 @@ class OpenDriveRoad(PolylineRoad):
         :raises ValueError: naming ``position`` unless it is 2 finite numbers, or when no
             driving lane passes within :data:`LOCATE_REACH` of it.
         """
-        p = _point("position", position)
+        p = world_point("position", position)
         row, seg, offset, u = self._project(p)
         if row < 0:
             raise ValueError(
@@ -279,7 +270,7 @@ class OpenDriveRoad(PolylineRoad):
             raise ValueError(f"unknown driving lane {lane!r}")
         siblings = self._siblings[lane]
         i = siblings.index(lane)
-        p = None if position is None else _point("position", position)
+        p = None if position is None else world_point("position", position)
 
         def line(key: LaneKey, side: str) -> int | None:
             rec = self.map.lanes[key]
@@ -316,16 +307,6 @@ class OpenDriveRoad(PolylineRoad):
     def lane_record(self, lane: LaneKey) -> LaneRecord:
         """The map's record of a lane (OpenDRIVE's frame)."""
         return self.map.lanes[lane]
-
-
-def _point(name: str, value: Any) -> FloatArray:
-    try:
-        arr = np.asarray(value, dtype=np.float64).reshape(-1)
-    except (TypeError, ValueError):
-        arr = np.zeros(0)
-    if arr.shape[0] not in (2, 3) or not (math.isfinite(arr[0]) and math.isfinite(arr[1])):
-        raise ValueError(f"{name} must be 2 finite numbers (x, y) [m], got {value!r}")
-    return arr[:2]
 
 
 def _project_near_py(

@@ -26,6 +26,7 @@ import numba
 import numpy as np
 
 from aldm_gym.roads.markings import MARKING_MODELS
+from aldm_gym.roads.position import world_point
 from aldm_gym.types import FloatArray
 
 CHUNK = 64
@@ -358,7 +359,7 @@ class PolylineRoad:
         """``(rows, y, u)``: the markings near ``origin`` crossing ``x = xs`` (see
         :meth:`PolylineMarkings.sample`). ``s_origin`` is accepted for the sensor's
         protocol and not needed here."""
-        origin = _finite_point("origin", origin)
+        origin = world_point("origin", origin)
         if not math.isfinite(yaw):
             raise ValueError(f"yaw must be finite, got {yaw!r}")
         return self.markings.sample(origin, yaw, xs, self.reach)
@@ -376,10 +377,3 @@ class PolylineRoad:
         y_all[rows] = y
         u_all[rows] = u
         return y_all, u_all
-
-
-def _finite_point(name: str, value: object) -> FloatArray:
-    arr = np.asarray(value, dtype=np.float64).reshape(-1)
-    if arr.shape[0] < 2 or not (math.isfinite(arr[0]) and math.isfinite(arr[1])):
-        raise ValueError(f"{name} must be 2 finite numbers (x, y) [m], got {value!r}")
-    return arr[:2]

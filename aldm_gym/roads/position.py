@@ -9,8 +9,13 @@ a map answers from the lane that contains the position. Both hand back a
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
+
+import numpy as np
+
+from aldm_gym.types import FloatArray
 
 
 @dataclass(frozen=True)
@@ -43,3 +48,17 @@ class LanePosition:
     def edge_lane(self) -> bool:
         """Whether the lane is the leftmost or the rightmost one here."""
         return self.index in (0, self.lanes - 1)
+
+
+def world_point(name: str, value: Any) -> FloatArray:
+    """``value`` as a float64 ``(2,)`` world point [m] (a 3rd coordinate is dropped).
+
+    :raises ValueError: naming ``name`` unless ``value`` holds 2 (or 3) finite numbers.
+    """
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        arr = np.zeros(0)
+    if arr.shape not in ((2,), (3,)) or not (math.isfinite(arr[0]) and math.isfinite(arr[1])):
+        raise ValueError(f"{name} must be 2 finite numbers (x, y) [m], got {value!r}")
+    return arr[:2]
