@@ -651,3 +651,39 @@ def test_scenariogeneration_file_reads_back(tmp_path: Path) -> None:
     m = _marking_at(odr, 1.0, -3.5)
     assert m.type == MarkingType.DASHED and len(odr.markings) == 4
     np.testing.assert_allclose(np.diff(m.painted[:, 0]), 12.0, atol=1e-9)
+
+
+# ---------------------------------------------------------------- shipped maps
+
+MAPS = Path(__file__).resolve().parents[1] / "aldm_gym" / "roads" / "maps"
+
+
+@pytest.mark.parametrize("name", ["motorway.xodr", "two_plus_one.xodr", "features.xodr"])
+def test_shipped_map_loads(name: str) -> None:
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        odr = OpenDriveMap.from_file(MAPS / name)
+    assert odr.markings and odr.lanes
+    for m in odr.markings:
+        assert m.xy.shape == (len(m.u), 2) and (np.diff(m.u) > 0).all()
+        assert (m.painted[:, 0] >= -1e-9).all() and (m.painted[:, 1] <= m.u[-1] + 1e-9).all()
+        if m.type == MarkingType.DASHED:
+            # 6 m / 12 m along the painted line, explicit or by default.
+            np.testing.assert_allclose(np.diff(m.painted[:, 0]), 18.0, atol=1e-6)
+    for key, lane in odr.lanes.items():
+        mid = 0.5 * (lane.s0 + lane.s1)
+        x, y, _ = odr.lane_pose(key[0], key[2], mid)
+        assert np.hypot(*(lane.xy - (x, y)).T).min() < 0.3
+
+
+def test_shipped_motorway_topology() -> None:
+    odr = OpenDriveMap.from_file(MAPS / "motorway.xodr")
+    assert sum(odr.lengths[r] for r in "123456") >= 5000.0
+    opening = odr.lanes[("3", 1, -4)]
+    assert opening.type == "entry" and opening.width[0] == pytest.approx(0.0)
+    assert opening.width[-1] == pytest.approx(3.75)
+    assert odr.successors("5", -4, 2) == [("7", 0, -1)]
+    assert odr.successors("5", -1, 2) == [("6", 0, -1)]
+    # Lane lines and the left edge run the whole carriageway as single marking lines.
+    long_lines = [m for m in odr.markings if m.road_ids == ("1", "2", "3", "4", "5", "6")]
+    assert len(long_lines) == 3

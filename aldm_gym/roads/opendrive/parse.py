@@ -318,7 +318,8 @@ class Connection:
 
     :ivar id: connection id.
     :ivar incoming_road: road that enters the junction.
-    :ivar connecting_road: road inside the junction that continues it.
+    :ivar connecting_road: road that continues it (``connectingRoad``, or ``linkedRoad``
+        in a direct junction).
     :ivar contact_point: ``"start"`` or ``"end"`` of the connecting road.
     :ivar lane_links: lane correspondences.
     """
@@ -336,11 +337,13 @@ class Junction:
 
     :ivar id: junction id.
     :ivar name: junction name ("" if absent).
+    :ivar type: ``default``, ``direct``, ``virtual`` or ``crossing``.
     :ivar connections: its connections.
     """
 
     id: str
     name: str
+    type: str
     connections: tuple[Connection, ...]
 
 
@@ -683,17 +686,24 @@ def _junction(r: _Reader, el: etree._Element) -> Junction:
         contact = r.text(c, "contactPoint")
         if contact not in ("start", "end"):
             raise r.fail(c, f"contactPoint={contact!r} is not 'start' or 'end'")
+        # A direct junction (OpenDRIVE 1.7) names the continuing road linkedRoad.
+        name = "connectingRoad" if c.get("connectingRoad") is not None else "linkedRoad"
+        if c.get(name) is None:
+            raise r.fail(c, "missing attribute 'connectingRoad' (or 'linkedRoad')")
         connections.append(
             Connection(
                 id=r.text(c, "id"),
                 incoming_road=r.text(c, "incomingRoad"),
-                connecting_road=r.text(c, "connectingRoad"),
+                connecting_road=r.text(c, name),
                 contact_point=contact,
                 lane_links=links,
             )
         )
     return Junction(
-        id=r.text(el, "id"), name=r.text(el, "name", ""), connections=tuple(connections)
+        id=r.text(el, "id"),
+        name=r.text(el, "name", ""),
+        type=r.text(el, "type", "default"),
+        connections=tuple(connections),
     )
 
 
