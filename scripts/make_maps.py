@@ -7,7 +7,7 @@ repository root::
 
 Maps (right-hand traffic, lane width 3.75 m on the motorway, 3.5 m elsewhere):
 
-- ``motorway.xodr``: a curved 3-lane motorway carriageway of about 5.6 km in seven
+- ``motorway.xodr``: a curved 3-lane motorway carriageway of 5.4 km in six
   linked road records (radii 1000 m and 800 m, clothoids between lines and arcs), with
   an on-ramp lane that opens from 0 to 3.75 m and later closes, and an exit lane that
   opens and leaves through a direct junction onto an exit road (which curves away).

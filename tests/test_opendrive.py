@@ -682,6 +682,8 @@ def test_shipped_motorway_topology() -> None:
     opening = odr.lanes[("3", 1, -4)]
     assert opening.type == "entry" and opening.width[0] == pytest.approx(0.0)
     assert opening.width[-1] == pytest.approx(3.75)
+    # Where the ramp lane opens (width 0), the edge line continues along lane -3's border.
+    assert odr.lanes[("3", 0, -3)].right[-1] == odr.lanes[("3", 1, -3)].right[0]
     assert odr.successors("5", -4, 2) == [("7", 0, -1)]
     assert odr.successors("5", -1, 2) == [("6", 0, -1)]
     # Lane lines and the left edge run the whole carriageway as single marking lines.

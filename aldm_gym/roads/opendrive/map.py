@@ -80,7 +80,7 @@ def _check_options(broken_pattern: Sequence[float], sample_step: float) -> tuple
         raise ValueError(f"broken_pattern must be (dash > 0, gap > 0) [m], got {broken_pattern!r}")
     if not (math.isfinite(sample_step) and 0.0 < sample_step <= 10.0):
         raise ValueError(f"sample_step must be in (0, 10] m, got {sample_step!r}")
-    return pattern  # type: ignore[return-value]
+    return pattern[0], pattern[1]
 
 
 def _linked_roads(roads: dict[str, Road], junctions: dict[str, Junction]) -> set[frozenset[str]]:
@@ -267,10 +267,10 @@ class OpenDriveMap:
         x, y, hdg = plan.position(at)
         kappa = plan.curvature(at)
         # Tangent of the offset curve r + t n: (1 - kappa t) T + t' N.
-        heading = hdg + np.arctan2(dt, 1.0 - kappa * t)
+        tangent = float(hdg[0] + np.arctan2(dt[0], 1.0 - kappa[0] * t[0]))
         if driving_direction(road, sec.lane(lane_id)) < 0:  # type: ignore[arg-type]
-            heading = heading + math.pi
-        heading = math.remainder(float(heading[0]), 2.0 * math.pi)
+            tangent += math.pi
+        heading = math.remainder(tangent, 2.0 * math.pi)
         if heading == -math.pi:
             heading = math.pi
         return (

@@ -261,7 +261,11 @@ def _joins(
     road_ends: dict[str, float],
     linked: set[frozenset[str]],
 ) -> list[tuple[int, int]]:
-    """Endpoint pairs (2 i + end, 2 j + end) that continue one another, greedily by kink."""
+    """Endpoint pairs (2 i + end, 2 j + end) that continue one another.
+
+    Greedy: the smallest heading change first; on a tie the same lane border, then the
+    nearest ends.
+    """
     if len(pieces) < 2:
         return []
     points = np.array([p.xy[e] for p in pieces for e in (0, -1)])
@@ -293,9 +297,11 @@ def _joins(
         if cos < cos_max:
             continue
         dist = float(np.hypot(*(points[i] - points[j])))
-        candidates.append((-cos, dist, i, j))
-    joins, used = [], set()
-    for _, _, i, j in sorted(candidates):
+        other_border = a.road_id != b.road_id or a.border != b.border
+        candidates.append((round(-cos, 9), other_border, dist, i, j))
+    joins: list[tuple[int, int]] = []
+    used: set[int] = set()
+    for *_, i, j in sorted(candidates):
         if i not in used and j not in used:
             used.update((i, j))
             joins.append((i, j))
