@@ -26,7 +26,8 @@ from __future__ import annotations
 import hashlib
 import math
 import os
-from typing import Any
+from functools import cached_property
+from typing import TYPE_CHECKING, Any
 
 import numba
 import numpy as np
@@ -38,6 +39,9 @@ from aldm_gym.roads.polyline import MarkingCurve, PolylineMarkings, PolylineRoad
 from aldm_gym.roads.position import LanePosition, world_point
 from aldm_gym.types import FloatArray
 
+if TYPE_CHECKING:
+    from aldm_gym.roads.map_network import MapNetwork
+
 DRIVING_TYPES = frozenset(
     {"driving", "entry", "exit", "onRamp", "offRamp", "connectingRamp", "bidirectional"}
 )
@@ -46,7 +50,11 @@ DRIVING_TYPES = frozenset(
 LOCATE_REACH = 15.0
 """A position is located on lanes whose centre passes within this distance [m]."""
 
+BOUNDARY_REACH = 260.0
+"""Ground-truth lines follow a lane's borders this far ahead [m] (the sensor sees 200 m)."""
+
 _MAPS: LRUCache[OpenDriveMap] = LRUCache(4)
+_MAP_ROADS: LRUCache[OpenDriveRoad] = LRUCache(4)
 
 
 def _flip(xy: FloatArray) -> FloatArray:
@@ -126,7 +134,11 @@ class OpenDriveRoad(PolylineRoad):
         :raises FileNotFoundError: naming the path.
         :raises ValueError: a malformed or unusable file (naming file, road, element).
         """
-        return cls(load_map(path, **options), marking_model)
+        odr = load_map(path, **options)
+        # The road (marking tables, lane index, traffic network) is cached with its map:
+        # environments reset on the same file share one road. The key holds the map
+        # itself (compared by identity), so it cannot be confused with a newer one.
+        return _MAP_ROADS.get((cls, odr, marking_model), lambda: cls(odr, marking_model))
 
     # ------------------------------------------------------------------ lanes
     def _build_lane_index(self) -> None:
@@ -190,6 +202,65 @@ class OpenDriveRoad(PolylineRoad):
                 cur = succ[cur]
             end[k] = total
         self._start, self._end, self._succ = start, end, succ
+
+    def chain_start(self, lane: LaneKey) -> float:
+        """Arc length ``s`` [m] where ``lane`` starts along its chain (``LanePosition.s``)."""
+        return self._start[lane]
+
+    def chain_end(self, lane: LaneKey) -> float:
+        """Arc length ``s`` [m] where the chain of successors of ``lane`` ends."""
+        return self._end[lane]
+
+    def lane_length(self, lane: LaneKey) -> float:
+        """Length of ``lane``'s centre line in its section [m]."""
+        row = self._key_index[lane]
+        c = self._centres
+        return float(c.u[c.start[row + 1] - 1])
+
+    def siblings(self, lane: LaneKey) -> list[LaneKey]:
+        """The driving lanes of ``lane``'s section and direction, from the driver's left."""
+        return list(self._siblings[lane])
+
+    def lane_centre(self, lane: LaneKey) -> FloatArray:
+        """``(N, 2)`` centre line of a driving lane, world (highway-env's frame) [m],
+        in its driving direction."""
+        row = self._key_index[lane]
+        c = self._centres
+        return c.xy[c.start[row] : c.start[row + 1]].copy()
+
+    def lane_widths(self, lane: LaneKey) -> FloatArray:
+        """``(N,)`` width of a driving lane [m] at the vertices of :meth:`lane_centre`."""
+        rec = self.map.lanes[lane]
+        rev, keep = self._lane_rev[self._key_index[lane]]
+        width = rec.width[::-1] if rev else rec.width
+        return np.asarray(width, dtype=np.float64)[keep].copy()
+
+    def _beyond(self, lane: LaneKey) -> float:
+        """How far the chain of ``lane`` reaches past the end of ``lane`` itself [m]."""
+        return self._end[lane] - self._start[lane] - self.lane_length(lane)
+
+    def road_left(self, pos: LanePosition) -> float:
+        """Road ahead of a position [m]: to the end of the farthest-reaching chain of the
+        lanes beside it (its own and its siblings), measured along its own lane."""
+        lane = pos.lane
+        rest = self.lane_length(lane) - (pos.s - self._start[lane])
+        return rest + max(self._beyond(k) for k in self._siblings[lane])
+
+    def lane_ends_in(self, pos: LanePosition) -> float:
+        """Distance [m] to the end of the position's lane chain if it ends before the road
+        (:meth:`road_left`) does, i.e. a lane to merge out of; ``inf`` otherwise."""
+        lane = pos.lane
+        own = self._beyond(lane)
+        if own >= max(self._beyond(k) for k in self._siblings[lane]) - 1.0:
+            return math.inf
+        return pos.end - pos.s
+
+    @cached_property
+    def network(self) -> MapNetwork:
+        """highway-env's lane network of the driving lanes (built on first use)."""
+        from aldm_gym.roads.map_network import MapNetwork
+
+        return MapNetwork(self)
 
     def successor(self, lane: LaneKey) -> LaneKey | None:
         """The first driving lane continuing ``lane`` in its direction, or ``None``."""
@@ -259,35 +330,57 @@ class OpenDriveRoad(PolylineRoad):
 
     def boundary_markings(
         self, lane: LaneKey, position: FloatArray | None = None
-    ) -> dict[str, int | None]:
-        """Marking index of the four lines around ``lane`` at ``position`` (``None``: none).
+    ) -> dict[str, int | tuple[int, ...] | None]:
+        """The true lines around ``lane`` ahead of ``position`` (``None``: no such line).
 
-        ``ego_left``/``ego_right`` bound the lane on the driver's left/right there;
+        ``ego_left``/``ego_right`` bound the lane on the driver's left/right;
         ``left_adjacent``/``right_adjacent`` are the outer lines of the driving lanes
-        beside it (``None`` where there is no such lane or the line is not painted).
+        beside it at ``position``. Each is a marking index, or the chain of marking
+        indices that bound the lane one after another over the next
+        :data:`BOUNDARY_REACH` metres along the lane and its successors (a border
+        changes marking where, e.g., a broken line becomes solid at an exit), or
+        ``None`` where the lane does not exist or the border is not painted.
         """
         if lane not in self._key_index:
             raise ValueError(f"unknown driving lane {lane!r}")
         siblings = self._siblings[lane]
         i = siblings.index(lane)
         p = None if position is None else world_point("position", position)
-
-        def line(key: LaneKey, side: str) -> int | None:
-            rec = self.map.lanes[key]
-            row = self._key_index[key]
-            seg = 0 if p is None else max(self._project(p, only=row)[1], 0)
-            rev, keep = self._lane_rev[row]
-            marks = getattr(rec, side)
-            marks = (marks[::-1] if rev else marks)[keep]
-            j = int(marks[min(seg, len(marks) - 1)])
-            return self._marking_of.get(j) if j >= 0 else None
-
         return {
-            "left_adjacent": line(siblings[i - 1], "left") if i >= 1 else None,
-            "ego_left": line(lane, "left"),
-            "ego_right": line(lane, "right"),
-            "right_adjacent": line(siblings[i + 1], "right") if i + 1 < len(siblings) else None,
+            "left_adjacent": self._border(siblings[i - 1], "left", p) if i >= 1 else None,
+            "ego_left": self._border(lane, "left", p),
+            "ego_right": self._border(lane, "right", p),
+            "right_adjacent": (
+                self._border(siblings[i + 1], "right", p) if i + 1 < len(siblings) else None
+            ),
         }
+
+    def _border(
+        self, lane: LaneKey, side: str, position: FloatArray | None
+    ) -> int | tuple[int, ...] | None:
+        """The markings along one border of ``lane`` from ``position`` on (see above)."""
+        row = self._key_index[lane]
+        seg = 0 if position is None else max(self._project(position, only=row)[1], 0)
+        chain: list[int] = []
+        covered = 0.0
+        key: LaneKey | None = lane
+        seen: set[LaneKey] = set()
+        while key is not None and key not in seen and covered < BOUNDARY_REACH:
+            seen.add(key)
+            row = self._key_index[key]
+            rev, keep = self._lane_rev[row]
+            marks = getattr(self.map.lanes[key], side)
+            marks = (marks[::-1] if rev else marks)[keep][seg:]
+            for j in marks:
+                k = self._marking_of.get(int(j)) if j >= 0 else None
+                if k is not None and (not chain or chain[-1] != k):
+                    chain.append(k)
+            a, b = self._centres.start[row], self._centres.start[row + 1]
+            covered += float(self._centres.u[b - 1] - self._centres.u[a + min(seg, b - a - 1)])
+            key, seg = self._succ.get(key), 0
+        if not chain:
+            return None
+        return chain[0] if len(chain) == 1 else tuple(chain)
 
     def lane_pose(self, road_id: str, lane_id: int, s: float) -> tuple[float, float, float]:
         """World pose (highway-env's frame) on the centre of a lane at reference ``s``.

@@ -18,23 +18,43 @@ from aldm_gym.sensor.detection import LINE_NAMES, LaneDetection
 from aldm_gym.sensor.frame import SensorFrame
 from aldm_gym.types import FloatArray
 
+Boundary = int | tuple[int, ...]
+"""A true line: one marking index, or the chain of markings that bound a lane one after
+another along its course (on maps a border changes marking, e.g. broken to solid)."""
+
 
 def line_markings(
     road: HighwayRoad, lane_id: Any, position: FloatArray | None = None
-) -> dict[str, int | None]:
-    """Marking index of each of the four lines (:data:`LINE_NAMES`) for a vehicle in a lane.
+) -> dict[str, Boundary | None]:
+    """The true line (:data:`Boundary`) of each of the four lines (:data:`LINE_NAMES`).
 
-    The road answers (``road.boundary_markings``): on a generated highway from the lane
-    id alone; on a map, where markings change along the lane, at ``position`` (world
-    [m]; the sensor's origin). ``None`` where the line does not exist (e.g. no lane left
-    of the leftmost one).
+    The road answers (``road.boundary_markings``): on a generated highway one marking
+    per line, from the lane id alone; on a map, where markings change along the lane,
+    the chain of markings ahead of ``position`` (world [m]; the sensor's origin).
+    ``None`` where the line does not exist (e.g. no lane left of the leftmost one).
     """
     return road.boundary_markings(lane_id, position)
 
 
-def true_line(road: HighwayRoad, frame: SensorFrame, marking: int, xs: FloatArray) -> FloatArray:
-    """True lateral position [m] of ``marking`` at sensor x positions ``xs`` (NaN where unseen).
+def boundary_y(y: FloatArray, line: Boundary) -> FloatArray:
+    """The rows of ``y`` (``(n_markings, K)``, as from ``road.sample_markings``) of a line.
 
+    A chain takes, at each x, the first of its markings that is there (NaN if none).
+    """
+    if isinstance(line, int | np.integer):
+        return y[int(line)]
+    out = np.full(y.shape[1], np.nan)
+    for j in line:
+        out = np.where(np.isnan(out), y[j], out)
+    return out
+
+
+def true_line(
+    road: HighwayRoad, frame: SensorFrame, marking: Boundary, xs: FloatArray
+) -> FloatArray:
+    """True lateral position [m] of a line at sensor x positions ``xs`` (NaN where unseen).
+
+    :param marking: a marking index, or a chain of them (:data:`Boundary`).
     :param xs: ``(K,)`` x positions [m], any order.
     :return: ``(K,)`` y [m].
     """
@@ -44,7 +64,7 @@ def true_line(road: HighwayRoad, frame: SensorFrame, marking: int, xs: FloatArra
     order = np.argsort(xs, kind="stable")
     y, _ = road.sample_markings(frame.origin, frame.yaw, xs[order])
     out = np.empty(len(xs))
-    out[order] = y[marking]
+    out[order] = boundary_y(y, marking)
     return out
 
 
@@ -70,8 +90,9 @@ def ground_truth_detect(
         if j is None:
             lines[name] = np.zeros((0, 2))
             continue
-        ok = ~np.isnan(y[j])
-        lines[name] = np.column_stack([xs[ok], y[j, ok]])
+        yj = boundary_y(y, j)
+        ok = ~np.isnan(yj)
+        lines[name] = np.column_stack([xs[ok], yj[ok]])
     return LaneDetection.from_lines(
         **lines, source="ground_truth", lane_width=road.lane_width, path_range=path_range
     )
@@ -100,7 +121,7 @@ def score_line(
     line: FloatArray,
     road: HighwayRoad,
     frame: SensorFrame,
-    marking: int | None,
+    marking: Boundary | None,
     tol: float = 0.3,
     start_max: float = 25.0,
     preview_min: float = 60.0,
