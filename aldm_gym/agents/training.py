@@ -303,6 +303,27 @@ def _signals_deferred() -> Iterator[None]:
         signal.pthread_sigmask(signal.SIG_SETMASK, previous)
 
 
+def _close_envs(venv: Any, interrupted: bool) -> None:
+    """Close the vectorised envs; after an interruption, end subprocess workers outright.
+
+    An interruption may have cut a worker's reply short (a step, or a large
+    ``env_method`` result still in the pipe): a polite ``close`` would then wait for a
+    worker blocked on sending, so the workers are terminated instead.
+    """
+    processes = getattr(venv.unwrapped, "processes", None)
+    if interrupted and processes:
+        for process in processes:
+            process.terminate()
+        for process in processes:
+            process.join(timeout=10)
+        venv.unwrapped.closed = True
+        return
+    try:
+        venv.close()
+    except (EOFError, BrokenPipeError, ConnectionResetError):  # workers died with Ctrl-C
+        pass
+
+
 RUN_SETTINGS = (
     "timesteps",
     "n_envs",
@@ -583,10 +604,7 @@ def _train_locked(
             # Before closing the envs: a second signal must not cut the save short.
             with _signals_deferred():
                 path = checkpoints.save_last_snapshot()
-        try:
-            venv.close()
-        except (EOFError, BrokenPipeError, ConnectionResetError):  # workers died with Ctrl-C
-            pass
+        _close_envs(venv, interrupted)
     if interrupted:
         where = (
             f"saved {path} ({checkpoints.snapshot_steps} steps)"
