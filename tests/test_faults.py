@@ -390,3 +390,55 @@ def test_resume_restores_the_run_settings_unless_given(
     assert _steps_of(out) == [64, 128, 192]
     meta = json.loads((out / "training.json").read_text())
     assert (meta["checkpoint_freq"], meta["seed"], meta["timesteps"]) == (64, 3, 192)
+
+
+# --- numba's cache -------------------------------------------------------------------
+
+_KERNEL = """
+import numpy as np
+import aldm_gym._numba  # the guards (aldm_gym/__init__.py imports it first)
+from aldm_gym.sensor.trajectory import _cubic_ok
+print(bool(_cubic_ok(np.zeros((5, 2)))))
+"""
+
+
+def _run_kernel(env: dict[str, str], cwd: Path | None = None) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-c", _KERNEL], capture_output=True, text=True, env=env, cwd=cwd
+    )
+
+
+def test_a_corrupt_numba_cache_entry_is_recompiled_with_a_warning(tmp_path: Path) -> None:
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path)}
+    env.pop("NUMBA_DISABLE_JIT", None)
+    first = _run_kernel(env)
+    assert first.returncode == 0, first.stderr
+    (index,) = tmp_path.rglob("trajectory._cubic_ok_py-*.nbi")
+    (data,) = tmp_path.rglob("trajectory._cubic_ok_py-*.nbc")
+    for broken in (data, index):
+        broken.write_bytes(broken.read_bytes()[:7])  # truncated, as by a full disk
+        run = _run_kernel(env)
+        assert run.returncode == 0 and run.stdout.strip() == "False", run.stderr
+        lines = [line for line in run.stderr.splitlines() if "NumbaCacheWarning" in line]
+        assert len(lines) == 1 and lines[0].startswith(f"{broken}:0: "), run.stderr
+        # The entry was written again: the next run loads it silently.
+        again = _run_kernel(env)
+        assert again.returncode == 0 and "Warning" not in again.stderr, again.stderr
+
+
+def test_without_a_writable_numba_cache_the_kernels_compile_in_memory(tmp_path: Path) -> None:
+    """A copy of the package whose __pycache__ folders cannot be created, no user cache
+    folder and no NUMBA_CACHE_DIR: numba used to refuse to decorate the kernels."""
+    package = Path(__file__).resolve().parents[1] / "aldm_gym"
+    copy = tmp_path / "aldm_gym"
+    shutil.copytree(package, copy, ignore=shutil.ignore_patterns("__pycache__"))
+    for folder in [copy, *[p for p in copy.rglob("*") if p.is_dir()]]:
+        (folder / "__pycache__").write_text("a file where numba wants a folder")
+    env = {**os.environ, "PYTHONPATH": str(tmp_path), "XDG_CACHE_HOME": "/dev/null/cache"}
+    env["PYTHONDONTWRITEBYTECODE"] = "1"
+    for name in ("NUMBA_CACHE_DIR", "NUMBA_DISABLE_JIT"):
+        env.pop(name, None)
+    run = _run_kernel(env, cwd=tmp_path)
+    assert run.returncode == 0 and run.stdout.strip() == "False", run.stderr
+    lines = [line for line in run.stderr.splitlines() if "NumbaCacheWarning" in line]
+    assert len(lines) == 1 and "compiling aldm_gym's kernels in memory" in lines[0]

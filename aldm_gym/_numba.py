@@ -1,0 +1,149 @@
+"""Guards around numba's on-disk cache of the package's kernels.
+
+The kernels are compiled with ``numba.njit(cache=True)``, which stores machine code in
+a ``__pycache__`` folder next to each module (or the user's cache folder, or
+``NUMBA_CACHE_DIR``). Two faults of that cache used to stop the package:
+
+* a corrupt entry (a truncated ``*.nbi`` index or ``*.nbc`` data file, e.g. after a
+  full disk) made every later run fail in ``pickle`` (``UnpicklingError``,
+  ``EOFError``) until deleted by hand: now the entry is removed and the kernel
+  recompiled (and cached again), with a one-line :class:`NumbaCacheWarning` naming the
+  file;
+* with no writable cache location (read-only package folder and user cache folder,
+  no ``NUMBA_CACHE_DIR``), numba refuses to decorate a kernel (``cannot cache function
+  ...: no locator available``), so importing the env failed: now the kernels compile
+  in memory (each run) with a one-line warning saying how to cache them.
+
+:func:`install` wraps numba's ``Cache.load_overload`` and
+``Dispatcher.enable_caching`` for functions of this package only (another package's
+cache errors still raise); it runs when this module is imported, which
+``aldm_gym/__init__.py`` does before any kernel module, and is idempotent. The kernel
+modules keep their plain ``numba.njit(cache=True)``.
+"""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+from typing import Any
+
+PACKAGE = "aldm_gym"
+"""Functions of modules under this package are guarded."""
+
+_installed = False
+_warned_no_cache = False
+
+
+class NumbaCacheWarning(UserWarning):
+    """numba's cache of a kernel was unusable; the kernel was (re)compiled."""
+
+
+def _ours(py_func: Any) -> bool:
+    """``py_func`` is defined in this package."""
+    module = getattr(py_func, "__module__", None) or ""
+    return module == PACKAGE or module.startswith(PACKAGE + ".")
+
+
+def _warn(message: str, filename: str) -> None:
+    """A one-line warning located at ``filename`` (no source line is printed)."""
+    warnings.warn_explicit(message, NumbaCacheWarning, filename, 0)
+
+
+def _corrupt_files(cache: Any, sig: Any, target_context: Any) -> list[Path]:
+    """The files of ``cache``'s entry for ``sig`` that cannot be read, best effort:
+    the index if it does not load, else the data file it names for ``sig``."""
+    cache_file = cache._cache_file
+    index = Path(cache_file._index_path)
+    try:
+        overloads = cache_file._load_index()
+    except Exception:
+        return [index]
+    try:
+        name = overloads.get(cache._index_key(sig, target_context.codegen()))
+    except Exception:
+        name = None
+    if name is None:
+        return [index]
+    return [Path(cache_file._data_path(name)), index]
+
+
+def _guarded_load_overload(original: Any) -> Any:
+    def load_overload(self: Any, sig: Any, target_context: Any) -> Any:
+        try:
+            return original(self, sig, target_context)
+        except Exception as exc:
+            if not _ours(getattr(self, "_py_func", None)):
+                raise
+            try:
+                files = _corrupt_files(self, sig, target_context)
+            except Exception:  # numba internals changed: still recompile
+                files = []
+            for path in files:
+                path.unlink(missing_ok=True)  # the recompiled kernel is saved afresh
+            where = str(files[0]) if files else f"numba cache of {self._name}"
+            _warn(
+                f"unreadable numba cache entry ({type(exc).__name__}: {exc}) removed; "
+                f"recompiling {getattr(self._py_func, '__qualname__', '?')}",
+                where,
+            )
+            return None  # a cache miss: numba compiles, then saves the entry again
+
+    load_overload.__wrapped__ = original  # type: ignore[attr-defined]
+    return load_overload
+
+
+def _guarded_enable_caching(original: Any, null_cache: Any) -> Any:
+    def enable_caching(self: Any) -> None:
+        global _warned_no_cache
+        try:
+            original(self)
+        except RuntimeError as exc:
+            if "no locator available" not in str(exc) or not _ours(self.py_func):
+                raise
+            self._cache = null_cache()
+            if not _warned_no_cache:
+                _warned_no_cache = True
+                _warn(
+                    "no writable numba cache location (the package folder, the user "
+                    "cache folder and NUMBA_CACHE_DIR are not writable): compiling "
+                    "aldm_gym's kernels in memory, every run; set NUMBA_CACHE_DIR to a "
+                    "writable folder to cache them",
+                    str(Path(__file__).parent),
+                )
+
+    enable_caching.__wrapped__ = original  # type: ignore[attr-defined]
+    return enable_caching
+
+
+def install() -> bool:
+    """Guard numba's cache for this package's kernels (idempotent).
+
+    :return: whether the guards are in place (False if numba is missing or its
+        caching internals are not the expected ones; then numba behaves as before).
+    """
+    global _installed
+    if _installed:
+        return True
+    try:
+        from numba.core import caching, dispatcher
+    except ImportError:
+        return False
+    cache_cls = getattr(caching, "Cache", None)
+    null_cache = getattr(caching, "NullCache", None)
+    dispatcher_cls = getattr(dispatcher, "Dispatcher", None)
+    if not (
+        cache_cls is not None
+        and null_cache is not None
+        and hasattr(cache_cls, "load_overload")
+        and hasattr(dispatcher_cls, "enable_caching")
+    ):
+        return False
+    cache_cls.load_overload = _guarded_load_overload(cache_cls.load_overload)
+    dispatcher_cls.enable_caching = _guarded_enable_caching(
+        dispatcher_cls.enable_caching, null_cache
+    )
+    _installed = True
+    return True
+
+
+install()
