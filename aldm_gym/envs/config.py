@@ -13,7 +13,8 @@ top level              :class:`EnvConfig` (below)
 ``observation``        :class:`aldm_gym.envs.observation.ObservationConfig`
 ``lka``                :class:`aldm_gym.envs.control.LKAConfig`
 ``sensor``             :class:`aldm_gym.sensor.line_sensor.LineSensorConfig`
-``road``               :class:`aldm_gym.roads.highway.RoadConfig`
+``road``               :class:`aldm_gym.roads.highway.RoadConfig`, or :class:`MapConfig`
+                       with ``road.xodr`` (an OpenDRIVE map)
 ``detector_params``    the detector's own parameters (:mod:`aldm_gym.sensor.detectors`)
 =====================  =============================================================
 
@@ -36,11 +37,13 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from aldm_gym.config import build_config, setting, validate
+from aldm_gym.config import build_config, rules, setting, validate
 from aldm_gym.envs.actions import ACTION_TYPES, ActionConfig
 from aldm_gym.envs.control import LKAConfig
 from aldm_gym.envs.observation import ObservationConfig
 from aldm_gym.roads.highway import MARKING_MODELS, RoadConfig
+from aldm_gym.roads.map_road import OpenDriveRoad
+from aldm_gym.roads.opendrive import DEFAULT_BROKEN_PATTERN, DEFAULT_SAMPLE_STEP
 from aldm_gym.sensor.detectors import DETECTORS, make_detector
 from aldm_gym.sensor.line_sensor import LineSensorConfig
 
@@ -51,7 +54,10 @@ __all__ = [
     "MARKING_MODELS",
     "SECTIONS",
     "EnvConfig",
+    "MapConfig",
     "default_config",
+    "map_config",
+    "map_road",
     "merge_config",
     "road_config",
     "validate_config",
@@ -159,6 +165,37 @@ class EnvConfig:
             )
 
 
+@dataclass(frozen=True)
+class MapConfig:
+    """The ``road`` section when the env drives on an OpenDRIVE map (``road.xodr`` set).
+
+    :ivar xodr: path of the ``.xodr`` file.
+    :ivar broken_pattern: (dash, gap) [m] of ``broken`` marks without an explicit
+        pattern (the reader's default: the paper's 6 m / 12 m).
+    :ivar sample_step: sampling step along the map's reference lines [m].
+
+    The generator's keys (:class:`~aldm_gym.roads.highway.RoadConfig`) do not apply;
+    ``marking_model`` is the top-level key, ``lanes_count`` comes from the map.
+    """
+
+    xodr: str = setting("", kind="str")
+    broken_pattern: list[float] = setting(list(DEFAULT_BROKEN_PATTERN), lo=0.0, lo_open=True)
+    sample_step: float = setting(DEFAULT_SAMPLE_STEP, lo=0.0, lo_open=True, hi=10.0)
+
+    def __post_init__(self) -> None:
+        validate(self, "road")
+        if not self.xodr:
+            raise ValueError("road.xodr must be the path of an OpenDRIVE file, got ''")
+        if len(self.broken_pattern) != 2:
+            raise ValueError(
+                f"road.broken_pattern must be (dash, gap) [m], got {self.broken_pattern!r}"
+            )
+
+
+MAP_KEYS: tuple[str, ...] = tuple(f.name for f in dataclasses.fields(MapConfig))
+"""The ``road`` keys of a map."""
+
+
 SECTIONS: dict[str, Any] = {
     "observation": ObservationConfig,
     "action": ActionConfig,
@@ -243,7 +280,8 @@ def validate_config(config: Mapping[str, Any]) -> dict[str, Any]:
         section = cfg[name]
         if not isinstance(section, Mapping):
             raise ValueError(f"config[{name!r}] must be a mapping, got {type(section).__name__}")
-        _unknown(name, list(section), tuple(f.name for f in dataclasses.fields(cls)))
+        allowed = tuple(f.name for f in dataclasses.fields(cls))
+        _unknown(name, list(section), allowed + MAP_KEYS if name == "road" else allowed)
         if name in _FULL_SECTIONS:
             out[name] = dataclasses.asdict(build_config(cls, section, where=name))
         else:
@@ -254,7 +292,13 @@ def validate_config(config: Mapping[str, Any]) -> dict[str, Any]:
                 f"config['road'][{key!r}] ({out['road'][key]!r}) contradicts config[{key!r}] "
                 f"({out[key]!r}); set the top-level key only"
             )
-    road_config(out, 0)
+    road = map_road(out)
+    if road is None:
+        road_config(out, 0)
+    else:
+        # The lane count comes from the map: the most lanes side by side in one direction.
+        most = max(len(road.siblings(k)) for k in road.lanes)
+        out["lanes_count"] = min(most, int(rules(EnvConfig)["lanes_count"].hi))
     LineSensorConfig(**out["sensor"])
     params = cfg["detector_params"]
     if not isinstance(params, Mapping):
@@ -306,3 +350,44 @@ def road_config(cfg: Mapping[str, Any], seed: int) -> RoadConfig:
     if road.get("seed", 0) is None:
         road["seed"] = seed
     return RoadConfig(**road)
+
+
+def map_config(cfg: Mapping[str, Any]) -> MapConfig | None:
+    """The :class:`MapConfig` of a config whose ``road.xodr`` is set, else ``None``.
+
+    :raises ValueError: naming a generator key given with ``road.xodr`` (it does not
+        apply to maps), or a map key given without it.
+    """
+    road = dict(cfg["road"])
+    if road.get("xodr") is None:
+        road.pop("xodr", None)
+        stray = sorted(k for k in road if k in MAP_KEYS)
+        if stray:
+            raise ValueError(f"road key(s) {stray} apply only to maps: set road.xodr too")
+        return None
+    road.pop("marking_model", None)  # the top-level key's value (checked to agree)
+    generator = sorted(k for k in road if k not in MAP_KEYS)
+    if generator:
+        raise ValueError(
+            f"road key(s) {generator} do not apply to maps (road.xodr is set); "
+            f"a map takes only {list(MAP_KEYS)} (and the top-level marking_model)"
+        )
+    return MapConfig(**road)
+
+
+def map_road(cfg: Mapping[str, Any]) -> OpenDriveRoad | None:
+    """The map road of a config with ``road.xodr`` (cached per file content), else ``None``.
+
+    :raises FileNotFoundError: naming the file.
+    :raises ValueError: as :func:`map_config`, or the reader's error naming file, road
+        and element.
+    """
+    mc = map_config(cfg)
+    if mc is None:
+        return None
+    return OpenDriveRoad.from_file(
+        mc.xodr,
+        marking_model=cfg["marking_model"],
+        broken_pattern=tuple(mc.broken_pattern),
+        sample_step=mc.sample_step,
+    )

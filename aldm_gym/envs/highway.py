@@ -5,7 +5,9 @@ See :class:`ALDMHighwayEnv`'s docstring (spaces, reward, episode end) and ``docs
 
 from __future__ import annotations
 
+import dataclasses
 import math
+import warnings
 from collections.abc import Mapping
 from typing import Any
 
@@ -15,13 +17,14 @@ from highway_env.envs.common.abstract import AbstractEnv
 from highway_env.vehicle.kinematics import Vehicle
 
 from aldm_gym.envs.actions import ALDMAction
-from aldm_gym.envs.config import default_config, merge_config, road_config
+from aldm_gym.envs.config import EnvConfig, default_config, map_road, merge_config, road_config
 from aldm_gym.envs.control import LKAController
 from aldm_gym.envs.observation import ALDMObservation
 from aldm_gym.envs.traffic import FastRoad
-from aldm_gym.envs.vehicle import SensorVehicle
+from aldm_gym.envs.vehicle import MapIDMVehicle, SensorVehicle
 from aldm_gym.roads.cache import cached_road
 from aldm_gym.roads.highway import HighwayRoad
+from aldm_gym.roads.map_road import OpenDriveRoad
 from aldm_gym.roads.position import LanePosition
 from aldm_gym.sensor.detection import LaneDetection
 from aldm_gym.sensor.detectors import Detector, make_detector
@@ -31,6 +34,13 @@ from aldm_gym.sensor.line_sensor import LineSensor, LineSensorConfig
 
 ROAD_END_MARGIN = 250.0
 """The episode is truncated when the ego is this close to the end of the road [m]."""
+
+MAP_MIN_AHEAD = 500.0
+"""On a map the ego starts with at least ``max(this, initial_speed · duration)`` of its
+lane chain ahead, plus :data:`ROAD_END_MARGIN` [m]."""
+
+MAP_TRAFFIC_ROOM = 200.0
+"""Traffic is not placed on a lane whose chain ends within this distance [m]."""
 
 
 class ALDMHighwayEnv(AbstractEnv):
@@ -126,7 +136,9 @@ class ALDMHighwayEnv(AbstractEnv):
                 f"render_mode must be one of {self.metadata['render_modes']} or None, "
                 f"got {render_mode!r}"
             )
-        self.highway: HighwayRoad | None = None
+        self.highway: HighwayRoad | OpenDriveRoad | None = None
+        """The road the ego drives on: a generated highway, or a map (``road.xodr``)."""
+        self._off_map = False
         self.sensor: LineSensor | None = None
         self.frame: SensorFrame | None = None
         self.detection: LaneDetection | None = None
@@ -193,10 +205,16 @@ class ALDMHighwayEnv(AbstractEnv):
     # ------------------------------------------------------------------ scene
     def _reset(self) -> None:
         cfg = self.config
-        seed = (
-            int(self.np_random.integers(0, 2**31 - 1)) if cfg["road"].get("seed", 0) is None else 0
-        )
-        self.highway = cached_road(road_config(cfg, seed))
+        on_map = map_road(cfg)
+        if on_map is None:
+            seed = (
+                int(self.np_random.integers(0, 2**31 - 1))
+                if cfg["road"].get("seed", 0) is None
+                else 0
+            )
+            self.highway = cached_road(road_config(cfg, seed))
+        else:
+            self.highway = on_map
         self.sensor = LineSensor(cfg["sensor"])
         self._detector = make_detector(
             cfg["detector"], cfg["detector_params"], path_range=self.path_range
@@ -205,9 +223,16 @@ class ALDMHighwayEnv(AbstractEnv):
             network=self.highway.network,
             np_random=self.np_random,
             record_history=cfg["show_trajectories"],
-            neighbour_vehicles_connected_lanes=cfg["neighbour_vehicles_connected_lanes"],
+            # A map's lanes end at every lane section: look across to see the leader.
+            neighbour_vehicles_connected_lanes=(
+                cfg["neighbour_vehicles_connected_lanes"] or on_map is not None
+            ),
         )
-        self._create_vehicles()
+        self._off_map = False
+        if on_map is None:
+            self._create_vehicles()
+        else:
+            self._create_map_vehicles(on_map)
         self._departures = 0
         self._departed_step = False
         self._perceive()
@@ -223,12 +248,23 @@ class ALDMHighwayEnv(AbstractEnv):
             lane_id=cfg["initial_lane_id"],
             spacing=float(cfg["ego_spacing"]),
         )
+        ego = self._make_ego(seed_vehicle.position, seed_vehicle.heading, seed_vehicle.speed)
+        self.controlled_vehicles = [ego]
+        self.road.vehicles.append(ego)
+        for _ in range(int(cfg["vehicles_count"])):
+            v = other_type.create_random(self.road, spacing=1.0 / float(cfg["vehicles_density"]))
+            v.randomize_behavior()
+            self.road.vehicles.append(v)
+
+    def _make_ego(self, position: Any, heading: float, speed: float) -> SensorVehicle:
+        cfg = self.config
         act = cfg["action"]
+        assert self.highway is not None
         ego = SensorVehicle(
             self.road,
-            seed_vehicle.position,
-            seed_vehicle.heading,
-            seed_vehicle.speed,
+            position,
+            heading,
+            speed,
             lka=self.lka,
             target_speeds=tuple(act["target_speeds"]),
             continuous=act["type"] == "ContinuousAction",
@@ -238,10 +274,86 @@ class ALDMHighwayEnv(AbstractEnv):
             path_range=self.path_range,
         )
         ego.sim_frequency = float(cfg["simulation_frequency"])
+        return ego
+
+    def _create_map_vehicles(self, road: OpenDriveRoad) -> None:
+        """Ego on a seeded lane and position of the map, then IDM/MOBIL traffic ahead.
+
+        The ego starts on a driving lane (of index ``initial_lane_id`` from the left, if
+        set) at a position drawn uniformly among those with at least
+        ``max(MAP_MIN_AHEAD, initial_speed · duration) + ROAD_END_MARGIN`` of lane chain
+        ahead (the longest available, with a warning, on a short map). Traffic is placed
+        ahead of it along its lane chain, highway-env's way (gaps shrinking with the
+        lane count and ``vehicles_density``), each vehicle on a random lane of the
+        ego's direction there, never on a lane that ends within ``MAP_TRAFFIC_ROOM``.
+        """
+        cfg = self.config
+        rng = self.np_random
+        net = road.network
+        speed = float(cfg["initial_speed"])
+        need = max(MAP_MIN_AHEAD, speed * float(cfg["duration"])) + ROAD_END_MARGIN
+        lanes = list(road.lanes)
+        if cfg["initial_lane_id"] is not None:
+            lanes = [k for k in lanes if road.siblings(k).index(k) == cfg["initial_lane_id"]]
+            if not lanes:
+                raise ValueError(
+                    f"config.initial_lane_id {cfg['initial_lane_id']} : the map "
+                    f"{road.map.path!r} has no driving lane with that index from the left"
+                )
+        # Start u along lane k such that chain_end - (chain_start + u) >= need.
+        room = np.array(
+            [
+                min(road.lane_length(k), road.chain_end(k) - road.chain_start(k) - need)
+                for k in lanes
+            ]
+        )
+        weights = np.maximum(room, 0.0)
+        if weights.sum() > 0.0:
+            cum = np.cumsum(weights)
+            i = min(
+                int(np.searchsorted(cum, rng.uniform(0.0, cum[-1]), side="right")), len(lanes) - 1
+            )
+            u = float(rng.uniform(0.0, weights[i]))
+        else:
+            ahead = [road.chain_end(k) - road.chain_start(k) for k in lanes]
+            i = int(np.argmax(ahead))
+            u = 0.0
+            warnings.warn(
+                f"{road.map.path}: no driving lane has {need:.0f} m ahead; the ego starts "
+                f"with the longest ({ahead[i]:.0f} m) and the episode may end early",
+                stacklevel=2,
+            )
+        key = lanes[i]
+        lane = net.get_lane(net.index_of[key])
+        ego = self._make_ego(lane.position(u, 0.0), lane.heading_at(u), speed)
         self.controlled_vehicles = [ego]
         self.road.vehicles.append(ego)
+        other_type = utils.class_from_path(cfg["other_vehicles_type"])
+        if other_type.__name__ == "FastIDMVehicle" and cfg["other_vehicles_type"] == (
+            EnvConfig.other_vehicles_type
+        ):
+            other_type = MapIDMVehicle  # the default traffic, with the mandatory merge
+        spacing = 1.0 / float(cfg["vehicles_density"])
+        cur, cur_u = key, u
         for _ in range(int(cfg["vehicles_count"])):
-            v = other_type.create_random(self.road, spacing=1.0 / float(cfg["vehicles_density"]))
+            siblings = road.siblings(cur)
+            v_speed = float(rng.uniform(0.7 * lane.speed_limit, 0.8 * lane.speed_limit))
+            offset = spacing * (12.0 + v_speed) * math.exp(-5.0 / 40.0 * len(siblings))
+            cur_u += offset * float(rng.uniform(0.9, 1.1))
+            while cur is not None and cur_u > road.lane_length(cur):
+                cur_u -= road.lane_length(cur)
+                cur = road.successor(cur)
+            if cur is None:
+                break  # the ego's lane chain ends: no more room ahead
+            siblings = road.siblings(cur)
+            target = siblings[int(rng.integers(len(siblings)))]
+            point = net.get_lane(net.index_of[cur]).position(cur_u, 0.0)
+            other = net.get_lane(net.index_of[target])
+            s, _ = other.local_coordinates(point)
+            left = road.chain_end(target) - road.chain_start(target) - s
+            if not (0.0 <= s <= other.length) or left < MAP_TRAFFIC_ROOM:
+                continue
+            v = other_type(self.road, other.position(s, 0.0), other.heading_at(s), v_speed)
             v.randomize_behavior()
             self.road.vehicles.append(v)
 
@@ -251,7 +363,18 @@ class ALDMHighwayEnv(AbstractEnv):
         ego = self.vehicle
         hw = self.highway
         assert hw is not None and self.sensor is not None and self._detector is not None
-        self.lane_position = pos = hw.lane_position(ego.position)
+        try:
+            self.lane_position = pos = hw.lane_position(ego.position)
+        except ValueError:
+            if not isinstance(hw, OpenDriveRoad):
+                raise
+            # Off the map (no driving lane within reach): keep the last lane, an
+            # infinite offset counts a departure, and the episode terminates.
+            self._off_map = True
+            last = self.lane_position
+            self.lane_position = pos = dataclasses.replace(
+                last, offset=math.copysign(math.inf, last.offset)
+            )
         mount_x = self.sensor.config.mount_x
         rng = self.np_random if self.sensor.config.noisy else None
         t = self.steps / self.config["simulation_frequency"]
@@ -327,15 +450,20 @@ class ALDMHighwayEnv(AbstractEnv):
         offroad = pos.edge_lane and abs(pos.offset) > 0.5 * pos.width
         return bool(
             self.vehicle.crashed
+            or self._off_map
             or (cfg["offroad_terminal"] and offroad)
             or (cfg["departure_terminal"] and self._departed_step)
         )
 
     def _is_truncated(self) -> bool:
-        return bool(
-            self.time >= self.config["duration"]
-            or self.lane_position.s > self.lane_position.end - ROAD_END_MARGIN
-        )
+        pos = self.lane_position
+        if isinstance(self.highway, OpenDriveRoad):
+            # On a map the road ends where the farthest-reaching lane beside the ego
+            # ends (its own lane may end sooner: it can merge out).
+            road_end = self.highway.road_left(pos) < ROAD_END_MARGIN
+        else:
+            road_end = pos.s > pos.end - ROAD_END_MARGIN
+        return bool(self.time >= self.config["duration"] or road_end)
 
     def _info(self, obs: Any, action: Any = None) -> dict:
         info = super()._info(obs, action)
@@ -355,6 +483,9 @@ class ALDMHighwayEnv(AbstractEnv):
                 "detection": self._score(),
             }
         )
+        if isinstance(self.highway, OpenDriveRoad):
+            # Map only (a generated road's lanes never end; its info stays as it was).
+            info["lane_ends_in"] = self.highway.lane_ends_in(pos)
         return info
 
     def _score(self) -> dict[str, dict[str, float]]:

@@ -1,4 +1,5 @@
-"""The ego vehicle of ``ALDMHighway-v0``: steered only from the detected lanes.
+"""The vehicles of ``ALDMHighway-v0``: the ego, steered only from the detected lanes,
+and the traffic of a map (:class:`MapIDMVehicle`, IDM/MOBIL with a mandatory merge).
 
 :class:`SensorVehicle` is highway-env's kinematic bicycle whose lateral control (the
 :class:`~aldm_gym.envs.control.LKAController`) sees nothing but the detection the
@@ -15,11 +16,12 @@ import math
 from typing import Any
 
 import numpy as np
+from highway_env import utils
 from highway_env.vehicle.kinematics import Vehicle
 
 from aldm_gym.envs.actions import ActionConfig, MetaAction
 from aldm_gym.envs.control import LKAConfig, LKAController
-from aldm_gym.envs.traffic import BatchedLaneUpdate, FastBicycleStep, clip_scalar
+from aldm_gym.envs.traffic import BatchedLaneUpdate, FastBicycleStep, FastIDMVehicle, clip_scalar
 from aldm_gym.roads.highway import RoadConfig
 from aldm_gym.sensor.detection import LaneDetection, driving_trajectory
 from aldm_gym.types import FloatArray
@@ -180,3 +182,90 @@ class SensorVehicle(FastBicycleStep, BatchedLaneUpdate, Vehicle):
         """Yaw rate [rad/s], ISO sign (> 0 turning left)."""
         beta = math.atan(0.5 * math.tan(float(self.action["steering"])))
         return -self.speed * math.sin(beta) / (0.5 * self.LENGTH)
+
+
+MERGE_ZONE = 300.0
+"""A map vehicle whose lane ends within this distance merges out (mandatory merge) [m]."""
+
+MERGE_MAX_BRAKING = 4.0
+"""Braking [m/s²] a mandatory merge may impose on the new follower (and on itself);
+MOBIL's discretionary limit is ``LANE_CHANGE_MAX_BRAKING_IMPOSED`` (2 m/s²)."""
+
+
+class MapIDMVehicle(FastIDMVehicle):
+    """Traffic on an OpenDRIVE map: IDM/MOBIL plus a mandatory merge out of ending lanes.
+
+    On a :class:`~aldm_gym.roads.map_network.MapNetwork` (elsewhere it is
+    :class:`~aldm_gym.envs.traffic.FastIDMVehicle` unchanged):
+
+    * a vehicle whose lane chain ends within :data:`MERGE_ZONE` merges into a side lane
+      that reaches farther: every step (not every ``LANE_CHANGE_DELAY``), at any speed,
+      without MOBIL's incentive test (politeness 0), as soon as neither it nor the new
+      follower must brake harder than :data:`MERGE_MAX_BRAKING`;
+    * until then it brakes for the lane's end as for a standing car (IDM), so that it
+      stops at the end rather than driving off it (and never reverses);
+    * discretionary MOBIL changes never enter a lane that ends within :data:`MERGE_ZONE`.
+    """
+
+    def _lane_left(self, lane_index: Any) -> float:
+        left = getattr(self.road.network, "lane_left", None)
+        return math.inf if left is None else float(left(lane_index, self.position))
+
+    def change_lane_policy(self) -> None:
+        """MOBIL, or the mandatory merge near the end of the lane (class docstring)."""
+        network = self.road.network
+        if self.lane_index != self.target_lane_index or not hasattr(network, "lane_left"):
+            super().change_lane_policy()
+            return
+        own = self._lane_left(self.lane_index)
+        if own < MERGE_ZONE:
+            for lane_index in network.side_lanes(self.lane_index):
+                if self._lane_left(lane_index) <= own + 1.0:
+                    continue  # ends as soon: no better
+                if not network.get_lane(lane_index).is_reachable_from(self.position):
+                    continue
+                if self._merge_is_safe(lane_index):
+                    self.target_lane_index = lane_index
+                    return
+            return
+        if not utils.do_every(self.LANE_CHANGE_DELAY, self.timer):
+            return
+        self.timer = 0
+        for lane_index in network.side_lanes(self.lane_index):
+            if not network.get_lane(lane_index).is_reachable_from(self.position):
+                continue
+            if abs(self.speed) < 1 or self._lane_left(lane_index) < MERGE_ZONE:
+                continue
+            if self.mobil(lane_index):
+                self.target_lane_index = lane_index
+
+    def _merge_is_safe(self, lane_index: Any) -> bool:
+        """Neither the new follower nor this vehicle brakes harder than the merge limit."""
+        front, rear = self.road.neighbour_vehicles(self, lane_index)
+        if rear is not None and self.acceleration(rear, self) < -MERGE_MAX_BRAKING:
+            return False
+        return not (front is not None and self.acceleration(self, front) < -MERGE_MAX_BRAKING)
+
+    def act(self, action: dict[str, float] | str | None = None) -> None:
+        """IDM/MOBIL, then brake for the end of the followed lane if it ends ahead."""
+        super().act(action)
+        if self.crashed:
+            return
+        gap = self._lane_left(self.target_lane_index) - 0.5 * self.LENGTH
+        if gap >= MERGE_ZONE:
+            return
+        # IDM towards a standing obstacle at the lane's end (dv = own speed).
+        v = max(self.speed, 0.0)
+        ab = -self.COMFORT_ACC_MAX * self.COMFORT_ACC_MIN
+        wanted = self.DISTANCE_WANTED - self.LENGTH + v * self.TIME_WANTED
+        wanted += v * v / (2 * math.sqrt(ab))
+        ratio = wanted / max(gap, 1e-3)
+        stop = self.COMFORT_ACC_MAX * (1 - ratio * ratio)
+        if stop < self.action["acceleration"]:
+            self.action["acceleration"] = float(clip_scalar(stop, -self.ACC_MAX, self.ACC_MAX))
+
+    def step(self, dt: float) -> None:
+        """IDM's step; a vehicle stopped for a lane's end stays stopped (no reversing)."""
+        super().step(dt)
+        if self.speed < 0.0:
+            self.speed = 0.0

@@ -1,0 +1,345 @@
+"""highway-env's lane network of an OpenDRIVE map, for traffic, the ego's lane and rendering.
+
+highway-env's vehicles (IDM/MOBIL), its neighbour queries and its renderer work on a
+:class:`~highway_env.road.road.RoadNetwork`: a graph of nodes and edges, each edge a
+list of lanes ordered from the driver's left (``LANE_LEFT`` lowers the lane id, MOBIL
+looks at ids ``± 1``). :class:`MapNetwork` builds one from the driving lanes of an
+:class:`~aldm_gym.roads.map_road.OpenDriveRoad`:
+
+* one edge per (road, lane section, driving direction), its lanes ordered from the
+  driver's left, as :meth:`OpenDriveRoad.lane_position
+  <aldm_gym.roads.map_road.OpenDriveRoad.lane_position>` numbers them;
+* edges linked along the map's lane links (:meth:`OpenDriveRoad.successor`): the end
+  node of an edge is the start node of the edges its lanes continue into (nodes are
+  merged with a union-find, so splits and merges give nodes with several edges);
+* every lane a :class:`MapLane`: highway-env's lane interface on the lane's centre
+  line, resampled at a constant step into a :class:`CentreLine` (a
+  :class:`~aldm_gym.roads.geometry.ReferenceLine` built from points), so lane
+  coordinates come from its compiled, spatially hashed projection (highway-env's
+  ``PolyLane`` searches the whole polyline in Python at every call).
+
+Lane coordinates follow highway-env's: ``s`` is the arc length along the lane's own
+centre line from the start of its section [m] (in the driving direction), ``r`` the
+lateral offset, positive to the driver's right [m]. ``next_lane`` follows the map's
+lane links (not highway-env's "same id or closest lane" guess); a lane without
+successor keeps its vehicles (they must merge out before its end, see
+:class:`~aldm_gym.envs.vehicle.MapIDMVehicle`).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+import numba
+import numpy as np
+from highway_env.road.lane import LineType
+from highway_env.road.road import LaneIndex, RoadNetwork
+
+from aldm_gym.roads.geometry import ReferenceLine, left_normal
+from aldm_gym.roads.lane import ReferenceLane
+from aldm_gym.types import FloatArray
+
+if TYPE_CHECKING:
+    from aldm_gym.roads.map_road import OpenDriveRoad
+    from aldm_gym.roads.opendrive.map import LaneKey
+
+CENTRE_STEP = 0.5
+"""Tabulation step of a map lane's centre line [m]."""
+
+CENTRE_REACH = 15.0
+"""Largest lateral distance [m] at which a lane projection uses the spatial hash."""
+
+HEADING_WEIGHT = 1.0
+"""Cost of a heading mismatch in the closest-lane look-up [m/rad] (highway-env's)."""
+
+
+class CentreLine(ReferenceLine):
+    """A :class:`ReferenceLine` tabulated from a polyline instead of a curvature profile.
+
+    The polyline is resampled at a constant arc-length step (the table layout
+    :class:`ReferenceLine`'s evaluation and projection rely on); headings come from
+    the resampled chords (unwrapped, so they interpolate), curvature from their
+    differences. Everything else (``pose_at``, ``position``, ``project``,
+    ``project_many``) is the reference line's.
+
+    :param xy: ``(N >= 2, 2)`` world vertices [m] in the driving direction.
+    :param step: tabulation step [m] (the actual one is ``<= step``).
+    :param max_offset: lateral reach of the fast projection [m].
+    """
+
+    def __init__(
+        self, xy: FloatArray, step: float = CENTRE_STEP, max_offset: float = CENTRE_REACH
+    ) -> None:
+        # ReferenceLine.__init__ integrates a curvature profile; here the table comes
+        # from points, then the same attributes and spatial hash are set up.
+        pts = np.asarray(xy, dtype=np.float64)
+        u = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))])
+        length = float(u[-1])
+        if not length > 0.0:
+            raise ValueError("a centre line needs a positive length")
+        n = max(int(np.ceil(length / step)) + 1, 2)
+        s = np.linspace(0.0, length, n)
+        table = np.column_stack([np.interp(s, u, pts[:, 0]), np.interp(s, u, pts[:, 1])])
+        chord = np.diff(table, axis=0)
+        seg_heading = np.unwrap(np.arctan2(chord[:, 1], chord[:, 0]))
+        # Vertex headings: the mean of the two chords around a vertex (ends: their chord).
+        heading = np.empty(n)
+        heading[0], heading[-1] = seg_heading[0], seg_heading[-1]
+        heading[1:-1] = 0.5 * (seg_heading[1:] + seg_heading[:-1])
+        self.segments = ()
+        self.step = float(s[1] - s[0])
+        self.length = length
+        self.s = s
+        self.xy = table
+        self.heading = heading
+        self.kappa = -np.gradient(heading, s)  # dh/ds = -kappa in highway-env's world
+        self.normal = left_normal(heading)
+        self.max_offset = float(max_offset)
+        self._memo = None
+        self._point_memo = {}
+        self._s_list = s.tolist()
+        self._x_list = table[:, 0].tolist()
+        self._y_list = table[:, 1].tolist()
+        self._h_list = heading.tolist()
+        self._build_hash()
+
+
+class MapLane(ReferenceLane):
+    """A driving lane of a map: highway-env's lane interface on its :class:`CentreLine`.
+
+    :param centre: the lane's centre line (driving direction).
+    :param u: ``(N,)`` arc length of the width samples along the centre [m].
+    :param width: ``(N,)`` lane width there [m].
+    :param key: the map's lane key ``(road id, section, lane id)``.
+    :param line_types: highway-env line types (left, right), for rendering.
+    :param speed_limit: [m/s].
+    """
+
+    def __init__(
+        self,
+        centre: CentreLine,
+        u: FloatArray,
+        width: FloatArray,
+        key: LaneKey,
+        line_types: tuple[int, int] | None = None,
+        speed_limit: float = 36.0,
+    ) -> None:
+        w = np.asarray(width, dtype=np.float64)
+        super().__init__(centre, 0.0, float(np.median(w)), line_types, speed_limit)
+        self.key = key
+        # Most lanes keep one width: then width_at is a constant, not an interpolation.
+        self._u = np.asarray(u, dtype=np.float64)
+        self._w = w
+        self._constant = bool(np.ptp(w) < 1e-9)
+        self.width = float(w[0]) if self._constant else self.width
+
+    def width_at(self, longitudinal: float) -> float:
+        """Lane width at ``s`` [m] (the map's, interpolated along the centre)."""
+        if self._constant:
+            return self.width
+        return float(np.interp(longitudinal, self._u, self._w))
+
+    def to_config(self) -> dict:
+        """A description of the lane (the centre line itself is not serialised)."""
+        return {
+            "class_path": f"{type(self).__module__}.{type(self).__name__}",
+            "config": {"key": list(self.key), "length": self.length},
+        }
+
+
+class MapNetwork(RoadNetwork):
+    """highway-env's network of an :class:`OpenDriveRoad`'s driving lanes (module docstring).
+
+    :ivar road: the map road.
+    :ivar index_of: lane key -> highway-env lane index ``(from, to, id)``.
+    :ivar key_of: highway-env lane index -> lane key.
+    """
+
+    def __init__(self, road: OpenDriveRoad, speed_limit: float = 36.0) -> None:
+        super().__init__()
+        self.road = road
+        odr = road.map
+        centres = road._centres
+        groups: dict[tuple[str, int, int], list[LaneKey]] = {}
+        for key in road.lanes:
+            rec = odr.lanes[key]
+            groups.setdefault((rec.road_id, rec.section, rec.direction), []).append(key)
+        # Union-find over the (group, "in"/"out") nodes, merged along lane links.
+        parent: dict[tuple, tuple] = {}
+
+        def find(a: tuple) -> tuple:
+            parent.setdefault(a, a)
+            while parent[a] != a:
+                parent[a] = parent[parent[a]]
+                a = parent[a]
+            return a
+
+        group_of = {k: g for g, keys in groups.items() for k in keys}
+        for g in groups:
+            find((g, "in"))
+            find((g, "out"))
+        for key in road.lanes:
+            nxt = road.successor(key)
+            if nxt is not None:
+                a, b = find((group_of[key], "out")), find((group_of[nxt], "in"))
+                if a != b:
+                    parent[b] = a
+        names: dict[tuple, str] = {}
+
+        def node(a: tuple) -> str:
+            root = find(a)
+            if root not in names:
+                names[root] = f"n{len(names)}"
+            return names[root]
+
+        self.index_of: dict[LaneKey, LaneIndex] = {}
+        self.key_of: dict[LaneIndex, LaneKey] = {}
+        self.lane_row: dict[LaneIndex, int] = {}
+        rows = road._key_index
+        for g, keys in groups.items():
+            ordered = road._siblings[keys[0]]
+            _from, _to = node((g, "in")), node((g, "out"))
+            if _from == _to:  # a lane linked to itself (a ring): keep the edge apart
+                _to = f"{_to}'"
+            last = len(ordered) - 1
+            for i, key in enumerate(ordered):
+                row = rows[key]
+                a, b = int(centres.start[row]), int(centres.start[row + 1])
+                left = LineType.CONTINUOUS_LINE if i == 0 else LineType.NONE
+                right = LineType.CONTINUOUS_LINE if i == last else LineType.STRIPED
+                lane = MapLane(
+                    CentreLine(centres.xy[a:b]),
+                    centres.u[a:b],
+                    road.lane_widths(key),
+                    key,
+                    (left, right),
+                    speed_limit,
+                )
+                index = (_from, _to, len(self.graph.get(_from, {}).get(_to, [])))
+                self.add_lane(_from, _to, lane)
+                self.index_of[key] = index
+                self.key_of[index] = key
+                self.lane_row[index] = row
+        self._row_index = [self.index_of[k] for k in road.lanes]
+        xy = centres.xy
+        seg = np.diff(xy, axis=0)
+        self._seg_heading = np.append(np.arctan2(seg[:, 1], seg[:, 0]), 0.0)
+
+    # ------------------------------------------------------------------ look-ups
+    def get_closest_lane_index(
+        self, position: np.ndarray, heading: float | None = None
+    ) -> LaneIndex:
+        """The lane whose centre is nearest to ``position`` [m] (plus a heading cost).
+
+        The cost is highway-env's ``distance_with_heading``: distance to the lane [m]
+        plus :data:`HEADING_WEIGHT` times the heading difference [rad] when
+        ``heading`` is given; only lanes within reach of the position are examined
+        (all lanes when none is near).
+        """
+        c = self.road._centres
+        px, py = float(position[0]), float(position[1])
+        rows, lo, hi = c.near(np.array([px, py]), CENTRE_REACH)
+        if len(rows) == 0:
+            rows = np.arange(len(c.start) - 1, dtype=np.int64)
+            lo, hi = c.start[:-1].copy(), c.start[1:].copy()
+        use_heading = heading is not None and math.isfinite(float(heading))
+        row = _closest_lane(
+            c.xy,
+            self._seg_heading,
+            rows,
+            lo,
+            hi,
+            px,
+            py,
+            float(heading) if use_heading else 0.0,
+            HEADING_WEIGHT if use_heading else 0.0,
+        )
+        return self._row_index[row if row >= 0 else 0]
+
+    def next_lane(
+        self,
+        current_index: LaneIndex,
+        route: list | None = None,
+        position: np.ndarray | None = None,
+        np_random: np.random.RandomState | np.random.Generator = np.random,  # type: ignore[assignment]
+    ) -> LaneIndex:
+        """The lane that continues ``current_index`` along the map's lane links.
+
+        Several successors (a split): one is drawn with ``np_random``. No successor
+        (the lane ends): ``current_index`` itself (its vehicles merge out before).
+        A ``route`` is not supported on maps and is ignored.
+        """
+        key = self.key_of.get(current_index)
+        if key is None:
+            return current_index
+        nxt = [n for n in self.road.map.successors(key[0], key[2], key[1]) if n in self.index_of]
+        if not nxt:
+            return current_index
+        pick = nxt[0] if len(nxt) == 1 else nxt[int(np_random.integers(len(nxt)))]
+        return self.index_of[pick]
+
+    def lane_left(self, lane_index: LaneIndex, position: FloatArray) -> float:
+        """Distance from ``position`` to the end of the lane's chain of successors [m].
+
+        Measured along the lane (its section) and then along the chain (the road's
+        arc lengths); ``inf`` for an unknown lane.
+        """
+        key = self.key_of.get(lane_index)
+        if key is None:
+            return math.inf
+        lane = self.get_lane(lane_index)
+        s, _ = lane.local_coordinates(position)
+        road = self.road
+        return road.chain_end(key) - road.chain_start(key) - float(s)
+
+
+def _closest_lane_py(
+    xy: FloatArray,
+    seg_heading: FloatArray,
+    rows: np.ndarray,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    px: float,
+    py: float,
+    heading: float,
+    weight: float,
+) -> int:
+    """Row of the polyline in ``rows`` with the least distance + ``weight`` · heading error.
+
+    Each polyline's distance is to its nearest segment (clamped at the ends); the
+    heading error is to that segment's heading, wrapped to ``[0, pi]``. Ties keep the
+    first row. ``-1`` when there is no segment.
+    """
+    best_row = -1
+    best_cost = math.inf
+    for r in range(len(rows)):
+        best_d2 = math.inf
+        best_i = -1
+        for i in range(lo[r], hi[r] - 1):
+            ax = xy[i, 0]
+            ay = xy[i, 1]
+            dx = xy[i + 1, 0] - ax
+            dy = xy[i + 1, 1] - ay
+            ll = dx * dx + dy * dy
+            t = ((px - ax) * dx + (py - ay) * dy) / ll if ll > 0.0 else 0.0
+            t = min(max(t, 0.0), 1.0)
+            qx = ax + t * dx - px
+            qy = ay + t * dy - py
+            d2 = qx * qx + qy * qy
+            if d2 < best_d2:
+                best_d2 = d2
+                best_i = i
+        if best_i < 0:
+            continue
+        cost = math.sqrt(best_d2)
+        if weight != 0.0:
+            err = (heading - seg_heading[best_i] + math.pi) % (2.0 * math.pi) - math.pi
+            cost += weight * abs(err)
+        if cost < best_cost:
+            best_cost = cost
+            best_row = rows[r]
+    return best_row
+
+
+_closest_lane = numba.njit(cache=True)(_closest_lane_py)

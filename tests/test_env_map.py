@@ -1,0 +1,245 @@
+"""``ALDMHighway-v0`` on OpenDRIVE maps: config, start, ground truth, traffic, truncation."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+import aldm_gym  # noqa: F401 (registers the env)
+from aldm_gym.envs.vehicle import MapIDMVehicle
+from aldm_gym.roads import OpenDriveRoad
+from aldm_gym.roads.map_network import CentreLine, _closest_lane, _closest_lane_py
+
+xodr = pytest.importorskip("scenariogeneration.xodr")
+
+
+def _write(odr: object, path: Path) -> Path:
+    odr.adjust_roads_and_lanes()  # type: ignore[attr-defined]
+    odr.write_xml(str(path))  # type: ignore[attr-defined]
+    return path
+
+
+@pytest.fixture(scope="module")
+def curved(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A 2.4 km one-way 3-lane road: straight, clothoid, R = 600 m arc, clothoid, straight."""
+    road = xodr.create_road(
+        [
+            xodr.Line(500),
+            xodr.Spiral(0.0, -1 / 600, 100),
+            xodr.Arc(-1 / 600, 700),
+            xodr.Spiral(-1 / 600, 0.0, 100),
+            xodr.Line(1000),
+        ],
+        id=0,
+        left_lanes=0,
+        right_lanes=3,
+        lane_width=3.75,
+    )
+    odr = xodr.OpenDrive("curved")
+    odr.add_road(road)
+    return _write(odr, tmp_path_factory.mktemp("maps") / "curved.xodr")
+
+
+@pytest.fixture(scope="module")
+def lane_end(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A 1.6 km one-way road whose rightmost of 3 lanes tapers out between 600 and 700 m."""
+    road = xodr.create_road(
+        [xodr.Line(300), xodr.Arc(1 / 800, 400), xodr.Line(900)],
+        id=0,
+        left_lanes=0,
+        right_lanes=[xodr.LaneDef(600, 700, 3, 2, -3)],
+        lane_width=3.75,
+    )
+    odr = xodr.OpenDrive("lane_end")
+    odr.add_road(road)
+    return _write(odr, tmp_path_factory.mktemp("maps") / "lane_end.xodr")
+
+
+def _make(path: Path, **config: object) -> gym.Env:
+    cfg = {"road": {"xodr": str(path)}, "vehicles_count": 0, "duration": 30.0}
+    cfg.update(config)
+    return gym.make("ALDMHighway-v0", config=cfg)
+
+
+def test_closest_lane_kernel_matches_its_python_reference(curved: Path) -> None:
+    road = OpenDriveRoad.from_file(curved)
+    net = road.network
+    c = road._centres
+    rows = np.arange(len(road.lanes), dtype=np.int64)
+    for p, h in (((100.0, 4.0), 0.0), ((900.0, -300.0), -0.5), ((50.0, 9.0), 3.0)):
+        args = (c.xy, net._seg_heading, rows, c.start[:-1], c.start[1:], *p, h, 1.0)
+        assert _closest_lane(*args) == _closest_lane_py(*args)
+
+
+def test_centre_line_inverts_its_positions() -> None:
+    t = np.linspace(0.0, 1.0, 400)
+    xy = np.column_stack([300.0 * np.sin(t), 300.0 * (1.0 - np.cos(t))])
+    line = CentreLine(xy)
+    for s in (0.0, 77.7, 150.0, line.length):
+        for d in (-3.0, 0.0, 2.5):
+            got = line.project(line.position(s, d))
+            assert got == pytest.approx((s, d), abs=2e-3)
+
+
+def test_reset_step_and_check_env(curved: Path) -> None:
+    env = _make(curved, vehicles_count=5)
+    check_env(env.unwrapped, skip_render_check=True)
+    obs, info = env.reset(seed=3)
+    assert env.observation_space.contains(obs)
+    assert env.unwrapped.config["lanes_count"] == 3
+    for _ in range(3):
+        obs, _reward, _terminated, _truncated, info = env.step(1)
+    assert math.isinf(info["lane_ends_in"])  # no lane ends on this map
+    assert 0 <= info["lane_index"] < 3
+
+
+def test_seeded_runs_repeat(curved: Path) -> None:
+    def run(seed: int) -> list:
+        env = _make(curved, vehicles_count=6)
+        obs, _info = env.reset(seed=seed)
+        out = [env.unwrapped.vehicle.position.copy(), obs["lines"].copy()]
+        for _ in range(3):
+            obs, *_ = env.step(1)
+            out += [v.position.copy() for v in env.unwrapped.road.vehicles]
+        return out
+
+    a, b, c = run(7), run(7), run(8)
+    assert all(np.array_equal(x, y) for x, y in zip(a, b, strict=True))
+    assert not np.array_equal(a[0], c[0])
+
+
+def test_ground_truth_comes_from_the_map(curved: Path) -> None:
+    env = _make(curved, initial_lane_id=1)
+    road = OpenDriveRoad.from_file(curved)
+    _, info = env.reset(seed=0)
+    u = env.unwrapped
+    truth = road.lane_position(u.vehicle.position)
+    assert info["lane_index"] == 1 == truth.index
+    assert info["lateral_offset"] == pytest.approx(truth.offset) and abs(truth.offset) < 0.05
+    s = [info["arc_length"]]
+    for _ in range(5):
+        _, _, _, _, info = env.step(1)
+        s.append(info["arc_length"])
+        assert info["lane_departure"] is False
+    assert np.all(np.diff(s) > 20.0)  # ~25 m/s along the lane chain
+
+
+def test_start_leaves_enough_road_ahead(curved: Path) -> None:
+    env = _make(curved, duration=20.0)
+    for seed in range(5):
+        env.reset(seed=seed)
+        pos = env.unwrapped.lane_position
+        assert pos.end - pos.s >= 500.0 + 250.0 - 1.0
+
+
+def test_short_map_warns_and_truncates_at_the_end(lane_end: Path) -> None:
+    env = _make(lane_end, duration=200.0, initial_speed=30.0)
+    with pytest.warns(UserWarning, match="no driving lane has"):
+        env.reset(seed=0)
+    truncated = False
+    for _ in range(80):
+        _, _, terminated, truncated, _info = env.step(1)
+        if terminated or truncated:
+            break
+    assert truncated and not terminated
+    road = env.unwrapped.highway
+    assert road.road_left(env.unwrapped.lane_position) < 250.0
+
+
+def test_the_ending_lane_shows_in_info(lane_end: Path) -> None:
+    road = OpenDriveRoad.from_file(lane_end)
+    net = road.network
+    ending = [k for k in road.lanes if road.chain_end(k) < 800.0]
+    assert ending and all(len(road.siblings(k)) == 3 for k in ending)
+    lane = net.get_lane(net.index_of[min(ending, key=road.chain_start)])
+    pos = road.lane_position(lane.position(100.0, 0.0))
+    assert road.lane_ends_in(pos) == pytest.approx(pos.end - pos.s)
+    assert 500.0 < road.lane_ends_in(pos) < 700.0
+    # Its neighbour continues to the road's end: nothing ends ahead of it.
+    beside = net.get_lane(net.index_of[road.siblings(lane.key)[0]])
+    assert math.isinf(road.lane_ends_in(road.lane_position(beside.position(100.0, 0.0))))
+    # In the env, the key shows on maps only.
+    env = _make(lane_end, initial_lane_id=2, duration=5.0)
+    with pytest.warns(UserWarning):
+        _, _info = env.reset(seed=0)
+    env.step(1)
+    assert "lane_ends_in" in env.step(1)[4]
+
+
+@pytest.mark.parametrize(("detector", "departs"), [("aldm", False), ("naive", True)])
+def test_closed_loop_on_the_map(curved: Path, detector: str, departs: bool) -> None:
+    """The paper's contrast on a map with per-dash objects, driving IDLE for ~30 s."""
+    env = _make(curved, detector=detector, duration=30.0, initial_lane_id=1)
+    env.reset(seed=1)
+    departures = 0
+    for _ in range(30):
+        _, _, terminated, truncated, info = env.step(1)
+        departures = info["departures"]
+        if terminated or truncated:
+            break
+    assert (departures > 0) is departs
+
+
+def test_config_errors_name_the_key_or_file(curved: Path, tmp_path: Path) -> None:
+    with pytest.raises(ValueError, match=r"\['seed'\] do not apply to maps"):
+        gym.make("ALDMHighway-v0", config={"road": {"xodr": str(curved), "seed": 3}})
+    with pytest.raises(ValueError, match="curved"):
+        gym.make("ALDMHighway-v0", config={"road": {"xodr": str(curved), "curved": False}})
+    missing = tmp_path / "nowhere.xodr"
+    with pytest.raises(FileNotFoundError, match=r"nowhere\.xodr"):
+        gym.make("ALDMHighway-v0", config={"road": {"xodr": str(missing)}})
+    with pytest.raises(ValueError, match="apply only to maps"):
+        gym.make("ALDMHighway-v0", config={"road": {"sample_step": 1.0}})
+    with pytest.raises(ValueError, match="sample_step"):
+        gym.make("ALDMHighway-v0", config={"road": {"xodr": str(curved), "sample_step": -1}})
+
+
+def test_traffic_merges_out_of_an_ending_lane(lane_end: Path) -> None:
+    """Vehicles on the lane that ends merge left before its end; none drives past it."""
+    env = _make(lane_end, duration=60.0)
+    with pytest.warns(UserWarning):
+        env.reset(seed=0)
+    u = env.unwrapped
+    road, net = u.highway, u.highway.network
+    u.road.vehicles.remove(u.vehicle)  # traffic alone
+    ending = [k for k in road.lanes if road.successor(k) is None and road.chain_end(k) < 800]
+    first = min(ending, key=road.chain_start)
+    lane = net.get_lane(net.index_of[first])
+    merging = []
+    for s in np.arange(20.0, 500.0, 60.0):
+        v = MapIDMVehicle(u.road, lane.position(s, 0.0), lane.heading_at(s), 25.0)
+        u.road.vehicles.append(v)
+        merging.append(v)
+    # Slow traffic beside them: the merge must find gaps.
+    beside = net.get_lane(net.index_of[road.siblings(first)[-2]])
+    for s in np.arange(0.0, 600.0, 45.0):
+        u.road.vehicles.append(
+            MapIDMVehicle(u.road, beside.position(s, 0.0), beside.heading_at(s), 20.0)
+        )
+    worst = math.inf
+    for _ in range(400):  # 40 s
+        u.road.act()
+        u.road.step(0.1)
+        for v in u.road.vehicles:
+            if road.successor(net.key_of[v.lane_index]) is None:
+                worst = min(worst, net.lane_left(v.lane_index, v.position))
+    assert not any(v.crashed for v in u.road.vehicles)
+    assert worst > -0.5 * MapIDMVehicle.LENGTH
+    assert all(road.chain_end(net.key_of[v.lane_index]) > 800.0 for v in merging)
+
+
+def test_render_rgb_array_on_a_map(curved: Path) -> None:
+    env = gym.make(
+        "ALDMHighway-v0",
+        config={"road": {"xodr": str(curved)}, "vehicles_count": 4},
+        render_mode="rgb_array",
+    )
+    env.reset(seed=0)
+    env.step(1)
+    frame = env.render()
+    assert frame is not None and frame.ndim == 3 and frame.std() > 0
