@@ -86,3 +86,50 @@ def test_plot_rejects_a_lane_outside_the_road(tmp_path: Path) -> None:
 def test_unknown_detector() -> None:
     with pytest.raises(ValueError, match=r"allowed: \['naive', 'aldm', 'ground_truth'\]"):
         make_detector("perfect")
+
+
+MAP = Path(__file__).resolve().parent.parent / "aldm_gym" / "roads" / "maps" / "motorway.xodr"
+
+
+@pytest.mark.skipif(not MAP.exists(), reason="shipped maps not built")
+def test_compare_frames_on_a_map(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    argv = ["compare", "--xodr", str(MAP), "--quick", "--roads", "1", "--frames", "12"]
+    rc = main([*argv, "--no-closed-loop", "--out", str(tmp_path), "--no-progress"])
+    assert rc == 0
+    with open(tmp_path / "compare_frames.csv") as fh:
+        frames = {(r["marking_model"], r["detector"]): r for r in csv.DictReader(fh)}
+    assert float(frames[("per_dash", "ground_truth")]["both_correct"]) > 0.9
+    assert float(frames[("per_dash", "naive")]["both_correct"]) < 0.5
+    assert "motorway.xodr" in capsys.readouterr().out
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not MAP.exists(), reason="shipped maps not built")
+def test_compare_closed_loop_on_a_map(tmp_path: Path) -> None:
+    argv = ["compare", "--xodr", str(MAP), "--quick", "--roads", "1", "--frames", "4"]
+    assert main([*argv, "--episodes", "1", "--out", str(tmp_path), "--no-progress"]) == 0
+    with open(tmp_path / "compare.csv") as fh:
+        loop = {(r["marking_model"], r["detector"]): r for r in csv.DictReader(fh)}
+    assert float(loop[("per_dash", "aldm")]["departures_per_km"]) == 0.0
+
+
+@pytest.mark.skipif(not MAP.exists(), reason="shipped maps not built")
+def test_plot_on_a_map(tmp_path: Path) -> None:
+    out = tmp_path / "m.png"
+    assert main(["plot", "--xodr", str(MAP), "--out", str(out)]) == 0
+    assert out.stat().st_size > 10_000
+    out2 = tmp_path / "m2.png"
+    argv = ["plot", "--xodr", str(MAP), "--road-id", "3", "--lane-id", "-2", "--s", "100"]
+    assert main([*argv, "--out", str(out2)]) == 0
+
+
+def test_map_arguments_name_the_problem(tmp_path: Path) -> None:
+    missing = str(tmp_path / "nowhere.xodr")
+    with pytest.raises(SystemExit, match=r"nowhere\.xodr"):
+        main(["compare", "--xodr", missing, "--out", str(tmp_path)])
+    with pytest.raises(SystemExit, match=r"nowhere\.xodr"):
+        main(["plot", "--xodr", missing, "--out", str(tmp_path / "x.png")])
+    if MAP.exists():
+        with pytest.raises(SystemExit, match="no lane -7"):
+            argv = ["plot", "--xodr", str(MAP), "--road-id", "3", "--lane-id", "-7", "--s", "9"]
+            main([*argv, "--out", str(tmp_path / "x.png")])

@@ -9,6 +9,7 @@ episode's lateral-offset trace of each (for
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable, Iterable, Sequence
 from typing import Any
 
@@ -49,6 +50,7 @@ def compare_closed_loop(
     detectors: Iterable[str] = DETECTORS,
     sensor: dict[str, Any] | None = None,
     min_radius: float | None = None,
+    xodr: str | os.PathLike[str] | None = None,
     progress: Callable[[int], None] | None = None,
 ) -> tuple[list[dict[str, Any]], dict[tuple[str, str], Trace]]:
     """IDLE (LKA only) and the rule-based LCA on the same seeded episodes, per detector.
@@ -58,12 +60,16 @@ def compare_closed_loop(
         ``dropout``); None: the env's defaults.
     :param min_radius: smallest curve radius of the generated roads [m] (None: the
         env's default).
+    :param xodr: drive on this OpenDRIVE map (the env's ``road.xodr``) instead of the
+        generated roads (``min_radius`` must then be None).
     :param progress: called with 1 after each episode.
     :return: rows with the keys of :data:`CLOSED_LOOP_COLUMNS` (the
         :func:`~aldm_gym.agents.evaluation.summarize` metrics of both policies'
         episodes together), and the first IDLE episode's trace per
         ``(marking model, detector)``.
     """
+    if xodr is not None and min_radius is not None:
+        raise ValueError("min_radius applies to generated roads, not to a map (xodr)")
     detectors = list(detectors)
     rows: list[dict[str, Any]] = []
     traces: dict[tuple[str, str], Trace] = {}
@@ -74,6 +80,8 @@ def compare_closed_loop(
                 config["sensor"] = dict(sensor)
             if min_radius is not None:
                 config["road"] = {"min_radius": min_radius}
+            if xodr is not None:
+                config["road"] = {"xodr": os.fspath(xodr)}
             env = gym.make(ENV_ID, config=config)
             try:
                 idle = run_episodes(env, IdlePolicy(), seeds, progress=progress)

@@ -6,7 +6,9 @@ written to ``compare_frames.csv`` with the figures ``compare_frames.png``,
 ``frame_per_dash.png`` and ``frame_editor.png``. Closed loop: the LKA (IDLE) and the
 rule-based LCA on the same seeded episodes
 (:func:`~aldm_gym.agents.comparison.compare_closed_loop`), written to ``compare.csv``
-and ``offset.png``.
+and ``offset.png``. With ``--xodr PATH`` both halves run on that OpenDRIVE map instead
+of seeded generated roads (frames on its driving lanes, episodes with
+``road.xodr``).
 """
 
 from __future__ import annotations
@@ -32,6 +34,9 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     parser.add_argument("--seed", type=int, default=0, help="seed of roads and poses")
     parser.add_argument("--out", type=Path, default=Path("out/compare"), help="output folder")
     parser.add_argument("--roads", type=positive_int, help="number of seeded roads")
+    parser.add_argument(
+        "--xodr", type=Path, help="an OpenDRIVE map to compare on (instead of generated roads)"
+    )
     parser.add_argument("--frames", type=positive_int, help="frames per road and model")
     parser.add_argument("--noise", type=non_negative_float, default=0.0, help="lateral noise σ [m]")
     parser.add_argument("--dropout", type=fraction, default=0.0, help="point dropout share")
@@ -53,6 +58,13 @@ def run(args: argparse.Namespace) -> int:
     """``aldm-gym compare``: frame-level comparison, then closed-loop episodes."""
     if args.min_radius < MIN_RADIUS:
         raise SystemExit(f"aldm-gym compare: --min-radius must be >= {MIN_RADIUS:.0f} m")
+    if args.xodr is not None:
+        from aldm_gym.roads import OpenDriveRoad
+
+        try:
+            OpenDriveRoad.from_file(args.xodr)
+        except (OSError, ValueError) as exc:
+            raise SystemExit(f"aldm-gym compare: --xodr: {exc}") from None
     out: Path = args.out
     out.mkdir(parents=True, exist_ok=True)
     written = _compare_frames(args, out)
@@ -66,7 +78,7 @@ def _compare_frames(args: argparse.Namespace, out: Path) -> list[Path]:
     """Open loop: the same seeded frames through every detector; table, CSV, figures."""
     from tqdm import tqdm
 
-    from aldm_gym.roads import MARKING_MODELS, HighwayRoad
+    from aldm_gym.roads import MARKING_MODELS, HighwayRoad, OpenDriveRoad
     from aldm_gym.sensor import LineSensor
     from aldm_gym.sensor.evaluation import COLUMNS, compare_detectors
     from aldm_gym.sensor.plot import plot_detector_bars
@@ -74,9 +86,14 @@ def _compare_frames(args: argparse.Namespace, out: Path) -> list[Path]:
     n_roads = args.roads or (2 if args.quick else 5)
     n_frames = args.frames or (100 if args.quick else 400)
     sensor = LineSensor({"lateral_noise": args.noise, "dropout": args.dropout})
-    base = [
-        HighwayRoad({"seed": args.seed + i, "min_radius": args.min_radius}) for i in range(n_roads)
-    ]
+    if args.xodr is not None:
+        n_frames *= n_roads  # one map: as many frames as the generated roads would give
+        base: list[Any] = [OpenDriveRoad.from_file(args.xodr)]
+    else:
+        base = [
+            HighwayRoad({"seed": args.seed + i, "min_radius": args.min_radius})
+            for i in range(n_roads)
+        ]
     roads = [r.with_marking_model(m) for m in MARKING_MODELS for r in base]
     t0 = time.perf_counter()
     with tqdm(
@@ -89,6 +106,7 @@ def _compare_frames(args: argparse.Namespace, out: Path) -> list[Path]:
     print("Frame by frame (open loop):")
     print(format_table(rows, COLUMNS))
     print(
+        f"{'map ' + str(args.xodr) + ', ' if args.xodr else ''}"
         f"{len(roads)} roads x {n_frames} frames, noise {args.noise} m, dropout "
         f"{args.dropout:.0%}, {time.perf_counter() - t0:.1f} s. both_correct: both ego lines "
         "within 0.3 m of the true markings, starting <= 25 m and reaching >= 60 m.\n"
@@ -113,7 +131,7 @@ def _plot_naive_failure(road: Any, seed: int, out: Path) -> list[Path]:
     titles = {"naive": "naive", "aldm": "ALDM", "ground_truth": "ground truth"}
     detectors = {name: make_detector(name) for name in titles}
 
-    def naive_fails(frame: Any, lane_id: int) -> bool:
+    def naive_fails(frame: Any, lane_id: Any) -> bool:
         detection = detectors["naive"](frame, road, lane_id)
         sc = score_detection(detection, road, frame, lane_id)
         return not sc["ego_right"].correct and frame.right.n_lines > 3
@@ -132,7 +150,7 @@ def _plot_naive_failure(road: Any, seed: int, out: Path) -> list[Path]:
                 for name, title in titles.items()
             },
             out / f"frame_{model}.png",
-            suptitle=f"{model} road, seed {seed}: points labelled side,index",
+            suptitle=f"{model} road, seed {seed}, lane {lane}: points labelled side,index",
         )
         written.append(out / f"frame_{model}.png")
     return written
@@ -155,7 +173,8 @@ def _compare_closed_loop(args: argparse.Namespace, out: Path) -> list[Path]:
         rows, traces = compare_closed_loop(
             seeds,
             sensor={"lateral_noise": args.noise, "dropout": args.dropout},
-            min_radius=args.min_radius,
+            min_radius=None if args.xodr else args.min_radius,
+            xodr=args.xodr,
             progress=bar.update,
         )
     write_csv(out / "compare.csv", rows, CLOSED_LOOP_COLUMNS)
