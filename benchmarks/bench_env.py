@@ -4,9 +4,11 @@ Both envs run in one process, alternating round by round (so machine load hits b
 alike), with ``vehicles_count=20, lanes_count=4, simulation_frequency=10,
 policy_frequency=1`` and IDLE actions. ``ALDMHighway-v0`` runs the line sensor and
 the ALDM at every simulation step. A third env measures the cost ratio of 40 vs 20
-vehicles. Usage::
+vehicles. With ``--xodr PATH`` a fourth env drives the same settings on that OpenDRIVE
+map (``road.xodr``; 40 s episodes, resets not timed) and the map / generated-road
+ratio is printed. Usage::
 
-    .venv/bin/python benchmarks/bench_env.py [--rounds 5] [--steps 20] [--profile]
+    .venv/bin/python benchmarks/bench_env.py [--rounds 5] [--steps 20] [--xodr PATH] [--profile]
 """
 
 from __future__ import annotations
@@ -24,11 +26,14 @@ import aldm_gym  # noqa: F401  (registers ALDMHighway-v0)
 COMMON = {"lanes_count": 4, "simulation_frequency": 10, "policy_frequency": 1, "duration": 1e4}
 
 
-def make_envs() -> dict[str, gym.Env]:
-    """The three envs of the comparison, built once."""
+MAP_ENV = "ALDMHighway-v0 map (20 veh)"
+
+
+def make_envs(xodr: str | None = None) -> dict[str, gym.Env]:
+    """The envs of the comparison (the map's with ``xodr``), built once."""
     import highway_env  # noqa: F401  (registers highway-fast-v0)
 
-    return {
+    envs = {
         "highway-fast-v0 (20 veh)": gym.make(
             "highway-fast-v0", config={**COMMON, "vehicles_count": 20}
         ),
@@ -39,6 +44,10 @@ def make_envs() -> dict[str, gym.Env]:
             "ALDMHighway-v0", config={**COMMON, "vehicles_count": 40}
         ),
     }
+    if xodr is not None:
+        config = {**COMMON, "vehicles_count": 20, "duration": 40.0, "road": {"xodr": xodr}}
+        envs[MAP_ENV] = gym.make("ALDMHighway-v0", config=config)
+    return envs
 
 
 def steps_per_second(env: gym.Env, steps: int, seed: int) -> float:
@@ -59,9 +68,10 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--rounds", type=int, default=5)
     parser.add_argument("--steps", type=int, default=20)
+    parser.add_argument("--xodr", help="also time the env on this OpenDRIVE map")
     parser.add_argument("--profile", action="store_true", help="cProfile one ALDM round")
     args = parser.parse_args()
-    envs = make_envs()
+    envs = make_envs(args.xodr)
     for env in envs.values():  # warm-up: numba caches, imports
         steps_per_second(env, 2, 0)
     rates: dict[str, list[float]] = {name: [] for name in envs}
@@ -83,6 +93,8 @@ def main() -> None:
     a40 = med["ALDMHighway-v0 (40 veh)"]
     print(f"\nspeed-up ALDMHighway-v0 / highway-fast-v0 (20 veh): {a20 / hf:.2f}x (target >= 5x)")
     print(f"cost ratio ALDMHighway-v0 40 / 20 vehicles: {a20 / a40:.2f}x (target <= 2.1x)")
+    if MAP_ENV in med:
+        print(f"map / generated road (20 veh): {med[MAP_ENV] / a20:.2f}x (target >= 0.7x)")
     if args.profile:
         import cProfile
         import pstats

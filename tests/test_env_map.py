@@ -70,10 +70,20 @@ def test_closest_lane_kernel_matches_its_python_reference(curved: Path) -> None:
     road = OpenDriveRoad.from_file(curved)
     net = road.network
     c = road._centres
-    rows = np.arange(len(road.lanes), dtype=np.int64)
-    for p, h in (((100.0, 4.0), 0.0), ((900.0, -300.0), -0.5), ((50.0, 9.0), 3.0)):
-        args = (c.xy, net._seg_heading, rows, c.start[:-1], c.start[1:], *p, h, 1.0)
+    chunks = (c.chunk_mark, c.chunk_i0, c.chunk_i1, c.chunk_centre, c.chunk_radius)
+    for p, h, reach in (
+        ((100.0, 4.0), 0.0, 15.0),
+        ((900.0, -300.0), -0.5, 15.0),
+        ((50.0, 9.0), 3.0, 15.0),
+        ((5e3, 5e3), 0.0, 15.0),
+        ((5e3, 5e3), 0.0, math.inf),
+    ):
+        args = (*chunks, len(road.lanes), c.xy, net._seg_heading, *p, h, 1.0, reach)
         assert _closest_lane(*args) == _closest_lane_py(*args)
+    assert (
+        _closest_lane(*chunks, len(road.lanes), c.xy, net._seg_heading, 5e3, 5e3, 0.0, 1.0, 15.0)
+        == -1
+    )
 
 
 def test_centre_line_inverts_its_positions() -> None:

@@ -120,7 +120,15 @@ class ALDMHighwayEnv(AbstractEnv):
     ``arc_length`` (true position along the road [m]), ``detection``
     (``{"ego_left"|"ego_right": {"mean_abs_error" [m] up to 60 m, "preview" [m],
     "correct" (1/0)}}``, NaN error and preview when the line is missing),
-    ``departures`` (count this episode). See ``docs/env.md``.
+    ``departures`` (count this episode); on a map also ``lane_ends_in`` (distance to
+    the end of the ego's lane chain when it ends before the road [m], else inf). See
+    ``docs/env.md``.
+
+    ## Maps
+
+    ``config={"road": {"xodr": path}}`` drives on an OpenDRIVE map (seeded start with
+    enough lane chain ahead, IDM/MOBIL traffic with a mandatory merge out of ending
+    lanes, truncation where the road ahead ends); see ``docs/env.md``.
 
     ## Version History
 

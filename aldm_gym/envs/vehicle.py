@@ -207,9 +207,9 @@ class MapIDMVehicle(FastIDMVehicle):
     * discretionary MOBIL changes never enter a lane that ends within :data:`MERGE_ZONE`.
     """
 
-    def _lane_left(self, lane_index: Any) -> float:
+    def _lane_left(self, lane_index: Any, at_least: float = math.inf) -> float:
         left = getattr(self.road.network, "lane_left", None)
-        return math.inf if left is None else float(left(lane_index, self.position))
+        return math.inf if left is None else float(left(lane_index, self.position, at_least))
 
     def change_lane_policy(self) -> None:
         """MOBIL, or the mandatory merge near the end of the lane (class docstring)."""
@@ -217,7 +217,7 @@ class MapIDMVehicle(FastIDMVehicle):
         if self.lane_index != self.target_lane_index or not hasattr(network, "lane_left"):
             super().change_lane_policy()
             return
-        own = self._lane_left(self.lane_index)
+        own = self._lane_left(self.lane_index, MERGE_ZONE)
         if own < MERGE_ZONE:
             for lane_index in network.side_lanes(self.lane_index):
                 if self._lane_left(lane_index) <= own + 1.0:
@@ -234,7 +234,7 @@ class MapIDMVehicle(FastIDMVehicle):
         for lane_index in network.side_lanes(self.lane_index):
             if not network.get_lane(lane_index).is_reachable_from(self.position):
                 continue
-            if abs(self.speed) < 1 or self._lane_left(lane_index) < MERGE_ZONE:
+            if abs(self.speed) < 1 or self._lane_left(lane_index, MERGE_ZONE) < MERGE_ZONE:
                 continue
             if self.mobil(lane_index):
                 self.target_lane_index = lane_index
@@ -251,7 +251,7 @@ class MapIDMVehicle(FastIDMVehicle):
         super().act(action)
         if self.crashed:
             return
-        gap = self._lane_left(self.target_lane_index) - 0.5 * self.LENGTH
+        gap = self._lane_left(self.target_lane_index, 2 * MERGE_ZONE) - 0.5 * self.LENGTH
         if gap >= MERGE_ZONE:
             return
         # IDM towards a standing obstacle at the lane's end (dv = own speed).

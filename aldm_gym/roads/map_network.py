@@ -239,22 +239,24 @@ class MapNetwork(RoadNetwork):
         """
         c = self.road._centres
         px, py = float(position[0]), float(position[1])
-        rows, lo, hi = c.near(np.array([px, py]), CENTRE_REACH)
-        if len(rows) == 0:
-            rows = np.arange(len(c.start) - 1, dtype=np.int64)
-            lo, hi = c.start[:-1].copy(), c.start[1:].copy()
         use_heading = heading is not None and math.isfinite(float(heading))
-        row = _closest_lane(
+        args = (
+            c.chunk_mark,
+            c.chunk_i0,
+            c.chunk_i1,
+            c.chunk_centre,
+            c.chunk_radius,
+            len(c.start) - 1,
             c.xy,
             self._seg_heading,
-            rows,
-            lo,
-            hi,
             px,
             py,
             float(heading) if use_heading else 0.0,
             HEADING_WEIGHT if use_heading else 0.0,
         )
+        row = _closest_lane(*args, CENTRE_REACH)
+        if row < 0:  # nothing within reach: every lane
+            row = _closest_lane(*args, math.inf)
         return self._row_index[row if row >= 0 else 0]
 
     def next_lane(
@@ -279,66 +281,88 @@ class MapNetwork(RoadNetwork):
         pick = nxt[0] if len(nxt) == 1 else nxt[int(np_random.integers(len(nxt)))]
         return self.index_of[pick]
 
-    def lane_left(self, lane_index: LaneIndex, position: FloatArray) -> float:
+    def lane_left(
+        self, lane_index: LaneIndex, position: FloatArray, at_least: float = math.inf
+    ) -> float:
         """Distance from ``position`` to the end of the lane's chain of successors [m].
 
         Measured along the lane (its section) and then along the chain (the road's
-        arc lengths); ``inf`` for an unknown lane.
+        arc lengths); ``inf`` for an unknown lane. When the chain reaches
+        ``at_least`` beyond the lane's own end, that reach is returned without
+        projecting ``position`` (a lower bound, enough to know the end is far).
         """
         key = self.key_of.get(lane_index)
         if key is None:
             return math.inf
-        lane = self.get_lane(lane_index)
-        s, _ = lane.local_coordinates(position)
         road = self.road
-        return road.chain_end(key) - road.chain_start(key) - float(s)
+        chain = road.chain_end(key) - road.chain_start(key)
+        lane = self.get_lane(lane_index)
+        beyond = chain - lane.length
+        if beyond >= at_least:
+            return beyond
+        s, _ = lane.local_coordinates(position)
+        return chain - float(s)
 
 
 def _closest_lane_py(
+    chunk_mark: np.ndarray,
+    chunk_i0: np.ndarray,
+    chunk_i1: np.ndarray,
+    centre: FloatArray,
+    radius: FloatArray,
+    n_rows: int,
     xy: FloatArray,
     seg_heading: FloatArray,
-    rows: np.ndarray,
-    lo: np.ndarray,
-    hi: np.ndarray,
     px: float,
     py: float,
     heading: float,
     weight: float,
+    reach: float,
 ) -> int:
-    """Row of the polyline in ``rows`` with the least distance + ``weight`` · heading error.
+    """Row of the lane centre with the least distance + ``weight`` · heading error.
 
-    Each polyline's distance is to its nearest segment (clamped at the ends); the
-    heading error is to that segment's heading, wrapped to ``[0, pi]``. Ties keep the
-    first row. ``-1`` when there is no segment.
+    Only chunks of centre vertices (:class:`~aldm_gym.roads.polyline.PolylineMarkings`'
+    spatial index) within ``reach`` of ``(px, py)`` are searched. A lane's distance is
+    to its nearest segment among those (clamped at the ends); its heading error is to
+    that segment's heading, wrapped to ``[0, pi]``. Ties keep the lower row; ``-1``
+    when no chunk is within reach.
     """
-    best_row = -1
-    best_cost = math.inf
-    for r in range(len(rows)):
-        best_d2 = math.inf
-        best_i = -1
-        for i in range(lo[r], hi[r] - 1):
+    best_d2 = np.full(n_rows, np.inf)
+    best_i = np.full(n_rows, -1, dtype=np.int64)
+    for c in range(len(chunk_mark)):
+        dx = centre[c, 0] - px
+        dy = centre[c, 1] - py
+        r = reach + radius[c]
+        if dx * dx + dy * dy > r * r:
+            continue
+        row = chunk_mark[c]
+        for i in range(chunk_i0[c], chunk_i1[c] - 1):
             ax = xy[i, 0]
             ay = xy[i, 1]
-            dx = xy[i + 1, 0] - ax
-            dy = xy[i + 1, 1] - ay
-            ll = dx * dx + dy * dy
-            t = ((px - ax) * dx + (py - ay) * dy) / ll if ll > 0.0 else 0.0
+            sx = xy[i + 1, 0] - ax
+            sy = xy[i + 1, 1] - ay
+            ll = sx * sx + sy * sy
+            t = ((px - ax) * sx + (py - ay) * sy) / ll if ll > 0.0 else 0.0
             t = min(max(t, 0.0), 1.0)
-            qx = ax + t * dx - px
-            qy = ay + t * dy - py
+            qx = ax + t * sx - px
+            qy = ay + t * sy - py
             d2 = qx * qx + qy * qy
-            if d2 < best_d2:
-                best_d2 = d2
-                best_i = i
-        if best_i < 0:
+            if d2 < best_d2[row]:
+                best_d2[row] = d2
+                best_i[row] = i
+    best_row = -1
+    best_cost = math.inf
+    for row in range(n_rows):
+        i = best_i[row]
+        if i < 0:
             continue
-        cost = math.sqrt(best_d2)
+        cost = math.sqrt(best_d2[row])
         if weight != 0.0:
-            err = (heading - seg_heading[best_i] + math.pi) % (2.0 * math.pi) - math.pi
+            err = (heading - seg_heading[i] + math.pi) % (2.0 * math.pi) - math.pi
             cost += weight * abs(err)
         if cost < best_cost:
             best_cost = cost
-            best_row = rows[r]
+            best_row = row
     return best_row
 
 
