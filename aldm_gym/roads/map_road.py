@@ -355,6 +355,22 @@ class OpenDriveRoad(PolylineRoad):
             ),
         }
 
+    def _border_marks(self, row: int, side: str) -> np.ndarray:
+        """Per centre vertex of lane ``row`` (travel order), the index of the road's
+        marking on its ``side`` (-1 where unpainted); computed once per lane and side."""
+        cache = self.__dict__.setdefault("_border_cache", {})
+        got = cache.get((row, side))
+        if got is None:
+            rev, keep = self._lane_rev[row]
+            marks = np.asarray(getattr(self.map.lanes[self.lanes[row]], side))
+            marks = (marks[::-1] if rev else marks)[keep]
+            lookup = np.full(max(len(self.map.markings), 1), -1, dtype=np.int64)
+            for theirs, ours in self._marking_of.items():
+                lookup[theirs] = ours
+            got = np.where(marks >= 0, lookup[np.maximum(marks, 0)], -1)
+            cache[(row, side)] = got
+        return got
+
     def _border(
         self, lane: LaneKey, side: str, position: FloatArray | None
     ) -> int | tuple[int, ...] | None:
@@ -368,13 +384,14 @@ class OpenDriveRoad(PolylineRoad):
         while key is not None and key not in seen and covered < BOUNDARY_REACH:
             seen.add(key)
             row = self._key_index[key]
-            rev, keep = self._lane_rev[row]
-            marks = getattr(self.map.lanes[key], side)
-            marks = (marks[::-1] if rev else marks)[keep][seg:]
-            for j in marks:
-                k = self._marking_of.get(int(j)) if j >= 0 else None
-                if k is not None and (not chain or chain[-1] != k):
-                    chain.append(k)
+            marks = self._border_marks(row, side)[seg:]
+            marks = marks[marks >= 0]
+            if len(marks):
+                # consecutive repeats collapse: the markings in the order they follow
+                firsts = marks[np.concatenate(([True], marks[1:] != marks[:-1]))]
+                for k in firsts.tolist():
+                    if not chain or chain[-1] != k:
+                        chain.append(k)
             a, b = self._centres.start[row], self._centres.start[row + 1]
             covered += float(self._centres.u[b - 1] - self._centres.u[a + min(seg, b - a - 1)])
             key, seg = self._succ.get(key), 0
