@@ -26,15 +26,22 @@ $(VENV)/.stamp-dev: pyproject.toml | $(BIN)/python
 	$(PIP) install --quiet -e ".[rl,dev]"
 	touch $@ $(VENV)/.stamp-base
 
+# Compile the numba kernels once, before any progress bar or test worker needs them
+# (numba caches them on disk; later runs load them in well under a second).
+KERNEL_SOURCES := $(shell find aldm_gym -name '*.py')
+$(VENV)/.stamp-kernels: $(KERNEL_SOURCES) | $(VENV)/.stamp-base
+	MPLBACKEND=Agg SDL_VIDEODRIVER=dummy $(BIN)/python -m aldm_gym.warmup
+	touch $@
+
 setup: $(VENV)/.stamp-base
 setup-dev: $(VENV)/.stamp-dev
 
 ## Main job: the naive-vs-ALDM comparison (quick default, a few minutes on 2 cores).
-demo: $(VENV)/.stamp-base
+demo: $(VENV)/.stamp-base $(VENV)/.stamp-kernels
 	MPLBACKEND=Agg $(BIN)/aldm-gym compare --quick --out out/demo
 
 ## Test suite (lint, then pytest on both cores).
-test: $(VENV)/.stamp-dev
+test: $(VENV)/.stamp-dev $(VENV)/.stamp-kernels
 	$(BIN)/ruff check aldm_gym tests benchmarks
 	MPLBACKEND=Agg SDL_VIDEODRIVER=dummy $(BIN)/python -m pytest -n 2 -q
 
