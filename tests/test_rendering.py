@@ -150,3 +150,50 @@ def test_frame_has_a_legend_and_is_drawn_at_a_range_view() -> None:
         assert surface.is_visible(ahead, margin=0)
     finally:
         env.close()
+
+
+# ----------------------------------------------------------------- figures
+
+
+def test_bar_labels_are_percentages_and_zero_reads_zero() -> None:
+    from aldm_gym.sensor.plot import percent
+
+    assert [percent(v) for v in (0.0, 0.004, 0.145, 1.0)] == ["0 %", "<1 %", "14 %", "100 %"]
+
+
+def test_demo_frame_is_where_naive_errs_most() -> None:
+    from aldm_gym.cli.compare import worst_naive_frame
+    from aldm_gym.sensor import LineSensor, score_detection
+    from aldm_gym.sensor.detectors import make_detector
+
+    road = HighwayRoad({"seed": 0})
+    frame, lane, error = worst_naive_frame(road, LineSensor(), 40, seed=0)
+    assert error > 3.0  # at least a lane width: naive follows another marking
+    per_dash = road.with_marking_model("per_dash")
+    sc = score_detection(make_detector("naive")(frame, per_dash, lane), per_dash, frame, lane)
+    assert not (sc["ego_left"].correct and sc["ego_right"].correct)
+
+
+def test_offset_figure_marks_a_collision(tmp_path: Path) -> None:
+    from argparse import Namespace
+
+    from aldm_gym.agents.plot import plot_offsets
+    from aldm_gym.cli.compare import _crashed
+
+    full = [(25.0 * k, 0.01 * k) for k in range(40)]
+    traces = {
+        ("per_dash", "naive"): full[:12],
+        ("per_dash", "aldm"): full,
+        ("editor", "naive"): full,
+        ("editor", "aldm"): full,
+    }
+    crashed = _crashed(traces, Namespace(xodr=None))
+    assert crashed == {
+        ("per_dash", "naive"): True,
+        ("per_dash", "aldm"): False,
+        ("editor", "naive"): False,
+        ("editor", "aldm"): False,
+    }
+    assert _crashed(traces, Namespace(xodr="map.xodr")) == {}
+    plot_offsets(traces, tmp_path / "offset.png", crashed=crashed)
+    assert (tmp_path / "offset.png").stat().st_size > 10_000

@@ -5,16 +5,20 @@ matplotlib is imported only here, and only when a function is called.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-_TRACE_STYLE = {
-    "naive": ("tab:red", "-", 1.4),
-    "aldm": ("tab:blue", "-", 2.6),
-    "ground_truth": ("black", "--", 1.0),
+_TRACES = {
+    # Drawn in this order: the wide translucent ALDM line first, so identical traces
+    # (every detector on an editor road) show as black on blue with red dashes on top.
+    "aldm": {"color": "tab:blue", "lw": 5.0, "alpha": 0.45, "label": "ALDM", "zorder": 2},
+    "ground_truth": {"color": "black", "lw": 1.2, "label": "ground truth", "zorder": 3},
+    "naive": {"color": "tab:red", "lw": 1.8, "ls": (0, (5, 3)), "label": "naive", "zorder": 4},
 }
+"""matplotlib style of each detector's offset trace (others: grey)."""
 
 
 def plot_validation(record: dict[str, Any], path: Path) -> None:
@@ -53,33 +57,64 @@ def plot_validation(record: dict[str, Any], path: Path) -> None:
     plt.close(fig)
 
 
-def plot_offsets(traces: dict[tuple[str, str], list[tuple[float, float]]], path: Path) -> None:
+def plot_offsets(
+    traces: dict[tuple[str, str], list[tuple[float, float]]],
+    path: Path,
+    crashed: Mapping[tuple[str, str], bool] | None = None,
+) -> None:
     """Lateral offset over distance, one panel per marking model, one line per detector.
 
     :param traces: ``(marking model, detector) -> [(distance [m], lateral offset [m])]``
         (:attr:`~aldm_gym.agents.evaluation.EpisodeStats.trace`).
+    :param crashed: ``(marking model, detector) -> True`` where that episode ended in a
+        collision: its trace ends in a cross.
     """
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    crashed = crashed or {}
     models = sorted({m for m, _ in traces}, reverse=True)
-    fig, axes = plt.subplots(len(models), 1, figsize=(8, 2.6 * len(models)), squeeze=False)
+    order = list(_TRACES)
+    fig, axes = plt.subplots(len(models), 1, figsize=(8, 3.0 * len(models)), squeeze=False)
     for ax, model in zip(axes[:, 0], models, strict=True):
-        for (m, det), trace in traces.items():
-            if m != model or not trace:
-                continue
-            arr = np.asarray(trace)
-            colour, style, width = _TRACE_STYLE.get(det, ("tab:gray", "-", 1.2))
-            ax.plot(arr[:, 0], arr[:, 1], style, color=colour, lw=width, label=det)
+        dets = sorted(
+            (d for m, d in traces if m == model and traces[(m, d)]),
+            key=lambda d: order.index(d) if d in order else len(order),
+        )
+        for det in dets:
+            arr = np.asarray(traces[(model, det)])
+            style = _TRACES.get(det, {"color": "tab:gray", "lw": 1.2, "label": det})
+            ax.plot(arr[:, 0], arr[:, 1], **style)
+            if crashed.get((model, det), False):
+                ax.plot(
+                    arr[-1, 0],
+                    arr[-1, 1],
+                    "X",
+                    color=style["color"],
+                    mec="black",
+                    ms=12,
+                    zorder=5,
+                    label=f"{style['label']}: collision",
+                )
+                ax.annotate(
+                    "collision",
+                    (arr[-1, 0], arr[-1, 1]),
+                    xytext=(8, 6),
+                    textcoords="offset points",
+                    fontsize=10,
+                    color=style["color"],
+                    fontweight="bold",
+                )
         for y in (-1.875, 1.875):  # lane edges of the default 3.75 m lane
-            ax.axhline(y, color="0.6", lw=0.8, ls=":")
-        ax.set_title(f"{model} road: LKA (IDLE), first episode", fontsize=9)
-        ax.set_ylabel("lateral offset [m]")
+            ax.axhline(y, color="0.55", lw=0.9, ls=":", zorder=1)
+        ax.set_title(f"{model} road: LKA (IDLE), first episode", fontsize=11)
+        ax.set_ylabel("lateral offset [m]", fontsize=10)
+        ax.tick_params(labelsize=9)
         ax.grid(alpha=0.3)
-        ax.legend(fontsize=8, loc="upper right")
-    axes[-1, 0].set_xlabel("distance along the road [m]")
+        ax.legend(fontsize=9, loc="center left", bbox_to_anchor=(1.01, 0.5), frameon=False)
+    axes[-1, 0].set_xlabel("distance along the road [m] (dotted: lane edges)", fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=130)
     plt.close(fig)

@@ -112,45 +112,78 @@ def _compare_frames(args: argparse.Namespace, out: Path) -> list[Path]:
         "within 0.3 m of the true markings, starting <= 25 m and reaching >= 60 m.\n"
     )
     written = [out / "compare_frames.csv"]
-    written += _plot_naive_failure(base[0], args.seed, out)
+    written += _plot_naive_failure(base[0], sensor, n_frames, args.seed, out)
     plot_detector_bars(rows, out / "compare_frames.png")
     written.append(out / "compare_frames.png")
     return written
 
 
-def _plot_naive_failure(road: Any, seed: int, out: Path) -> list[Path]:
-    """Figures ``frame_<model>.png``: a per-dash frame where CarMaker's default picks
-    wrong objects, and the same sensor pose on the editor road, each with every
-    detector; the paths written (none if no such frame is found)."""
-    from aldm_gym.roads import MARKING_MODELS
-    from aldm_gym.sensor import LineSensor, score_detection
+def worst_naive_frame(
+    road: Any, sensor: Any, n_frames: int, seed: int
+) -> tuple[Any, Any, float] | None:
+    """The frame of the comparison's first road where the naive detection errs most.
+
+    The frames are those :func:`~aldm_gym.sensor.evaluation.compare_detectors` scores
+    for road index 0 (same poses, same noise seeds), measured on the road's
+    ``per_dash`` model. A frame's naive error is the largest |lateral error| of its ego
+    lines (:class:`~aldm_gym.sensor.ground_truth.LineScore`'s ``max_abs_error``) where
+    a line is wrong, so the pick is a frame where naive follows the wrong marking.
+
+    :return: ``(frame, lane, error [m])``, or ``None`` if naive is right everywhere.
+    """
+    from aldm_gym.sensor import score_detection
     from aldm_gym.sensor.detectors import make_detector
-    from aldm_gym.sensor.evaluation import find_frame, remeasure
+    from aldm_gym.sensor.evaluation import sample_poses
+
+    road = road.with_marking_model("per_dash")
+    naive = make_detector("naive")
+    best: tuple[Any, Any, float] | None = None
+    # The seeding of compare_detectors for road index 0.
+    rng = np.random.default_rng([seed, 0])
+    for pose in sample_poses(road, n_frames, rng):
+        noise_rng = np.random.default_rng([seed, 0, int(pose.s * 1000)])
+        frame = sensor.measure(road, pose.pose, rng=noise_rng)
+        sc = score_detection(naive(frame, road, pose.lane_id), road, frame, pose.lane_id)
+        errors = [
+            sc[name].max_abs_error
+            for name in ("ego_left", "ego_right")
+            if not sc[name].correct and np.isfinite(sc[name].max_abs_error)
+        ]
+        if errors and (best is None or max(errors) > best[2]):
+            best = (frame, pose.lane_id, float(max(errors)))
+    return best
+
+
+def _plot_naive_failure(road: Any, sensor: Any, n_frames: int, seed: int, out: Path) -> list[Path]:
+    """Figures ``frame_<model>.png``: the per-dash frame of the comparison where the
+    naive detection errs most (:func:`worst_naive_frame`), and the same sensor pose on
+    the editor road, each with every detector; the paths written (none if naive never
+    errs)."""
+    from aldm_gym.roads import MARKING_MODELS
+    from aldm_gym.sensor.detectors import make_detector
+    from aldm_gym.sensor.evaluation import remeasure
     from aldm_gym.sensor.plot import plot_frames
 
     titles = {"naive": "naive", "aldm": "ALDM", "ground_truth": "ground truth"}
     detectors = {name: make_detector(name) for name in titles}
-
-    def naive_fails(frame: Any, lane_id: Any) -> bool:
-        detection = detectors["naive"](frame, road, lane_id)
-        sc = score_detection(detection, road, frame, lane_id)
-        return not sc["ego_right"].correct and frame.right.n_lines > 3
-
-    found = find_frame(road, LineSensor(), naive_fails, np.random.default_rng(seed))
+    found = worst_naive_frame(road, sensor, n_frames, seed)
     if found is None:
         return []
-    frame, lane = found
+    frame, lane, error = found
     written = []
     for model in MARKING_MODELS:
         r = road.with_marking_model(model)
-        f = remeasure(r, frame)
+        f = frame if model == "per_dash" else remeasure(r, frame)
         plot_frames(
             {
                 f"{title} ({model})": (f, detectors[name](f, r, lane))
                 for name, title in titles.items()
             },
             out / f"frame_{model}.png",
-            suptitle=f"{model} road, seed {seed}, lane {lane}: points labelled side,index",
+            suptitle=(
+                f"{model} road, seed {seed}, lane {lane}: the comparison's frame where naive "
+                f"errs most on per_dash ({error:.1f} m); points labelled side,index"
+            ),
         )
         written.append(out / f"frame_{model}.png")
     return written
@@ -184,5 +217,17 @@ def _compare_closed_loop(args: argparse.Namespace, out: Path) -> list[Path]:
         f"{n_ep} episodes per policy and row, {time.perf_counter() - t0:.1f} s. Offsets exclude "
         "lane changes; a departure is a wheel over a marking without a lane change.\n"
     )
-    plot_offsets(traces, out / "offset.png")
+    plot_offsets(traces, out / "offset.png", crashed=_crashed(traces, args))
     return [out / "compare.csv", out / "offset.png"]
+
+
+def _crashed(traces: dict[tuple[str, str], list[Any]], args: argparse.Namespace) -> dict:
+    """Which traces end in a collision: with the comparison's env config (no
+    ``offroad_terminal``/``departure_terminal``, 40 s episodes ending far before the
+    road does), a generated-road episode that has fewer steps than the longest of the
+    same seed was terminated, and only a collision terminates it. On a map an episode
+    also ends where the ego leaves the map, so no trace is marked there."""
+    if args.xodr is not None or not traces:
+        return {}
+    longest = max(len(t) for t in traces.values())
+    return {key: 0 < len(t) < longest for key, t in traces.items()}

@@ -38,6 +38,7 @@ def draw_frame(
     title: str | None = None,
     label_objects: bool = True,
     x_max: float | None = None,
+    legend: bool = True,
 ) -> None:
     """Draw every point of a frame, labelled by side and line index, and a detection on top.
 
@@ -48,6 +49,8 @@ def draw_frame(
     :param label_objects: write ``left,n`` / ``right,n`` (CarMaker's side and index) at each
         object's first point, as in the paper's Fig. 7.
     :param x_max: longitudinal extent to show [m] (default: the sensor range).
+    :param legend: draw a legend in the axes (:func:`plot_frames` draws one for the
+        figure instead, below the panels, off the data).
     """
     for side, lo, hi, colour in (
         ("left", 0, frame.n_left, "tab:green"),
@@ -60,7 +63,7 @@ def draw_frame(
                 ax.annotate(
                     f"{side},{n - lo}",
                     (pts[0, 1], pts[0, 0]),
-                    fontsize=5,
+                    fontsize=6.5,
                     color=colour,
                     xytext=(2, 0),
                     textcoords="offset points",
@@ -78,15 +81,17 @@ def draw_frame(
         if len(detection.trajectory):
             traj = detection.trajectory
             ax.plot(traj[:, 1], traj[:, 0], ":", color="tab:green", lw=2.5, label="trajectory")
-        ax.legend(loc="upper left", fontsize=7, framealpha=0.8)
+        if legend:
+            ax.legend(loc="upper left", fontsize=8.5, framealpha=0.85)
     ax.plot([0.0], [0.0], "kx", ms=8)
-    ax.set_xlabel("lateral distance y [m] (left positive, drawn on the left)")
-    ax.set_ylabel("longitudinal distance x [m]")
+    ax.set_xlabel("lateral distance y [m] (left on the left)", fontsize=10)
+    ax.set_ylabel("longitudinal distance x [m]", fontsize=10)
+    ax.tick_params(labelsize=9)
     ax.set_ylim(0.0, x_max if x_max is not None else frame.range)
     ax.set_xlim(15.0, -15.0)
     ax.grid(alpha=0.3)
     if title:
-        ax.set_title(title, fontsize=9)
+        ax.set_title(title, fontsize=11)
 
 
 def plot_frames(
@@ -109,12 +114,28 @@ def plot_frames(
     n = len(panels)
     if n == 0:
         raise ValueError("plot_frames needs at least one panel")
-    fig, axes = plt.subplots(1, n, figsize=(4.2 * n, 7.0), squeeze=False)
+    fig, axes = plt.subplots(1, n, figsize=(4.2 * n, 7.4), squeeze=False)
     for ax, (title, (frame, det)) in zip(axes[0], panels.items(), strict=True):
-        draw_frame(ax, frame, det, title=title, x_max=x_max)
+        draw_frame(ax, frame, det, title=title, x_max=x_max, legend=False)
+    # One legend for the figure, below the panels: every line kind any panel drew.
+    handles: dict[str, Any] = {}
+    for ax in axes[0]:
+        for handle, label in zip(*ax.get_legend_handles_labels(), strict=True):
+            handles.setdefault(label, handle)
+    order = [*LINE_NAMES, "trajectory"]
+    labels = sorted(handles, key=lambda k: order.index(k) if k in order else len(order))
+    if labels:
+        fig.legend(
+            [handles[k] for k in labels],
+            labels,
+            loc="lower center",
+            ncol=len(labels),
+            fontsize=10,
+            frameon=False,
+        )
     if suptitle:
-        fig.suptitle(suptitle, fontsize=10)
-    fig.tight_layout()
+        fig.suptitle(suptitle, fontsize=11)
+    fig.tight_layout(rect=(0.0, 0.04 if labels else 0.0, 1.0, 1.0))
     if path is not None:
         Path(path).parent.mkdir(parents=True, exist_ok=True)
         fig.savefig(path, dpi=130)
@@ -122,9 +143,29 @@ def plot_frames(
     return fig
 
 
+DETECTOR_STYLE = {
+    "naive": ("naive", "tab:red"),
+    "aldm": ("ALDM", "tab:blue"),
+    "ground_truth": ("ground truth", "0.45"),
+}
+"""Legend name and colour of each detector in the comparison figures."""
+
+
+def percent(share: float) -> str:
+    """A share in [0, 1] as a bar label: ``"0 %"``, ``"<1 %"``, ``"14 %"``, ``"100 %"``."""
+    if share == 0.0:
+        return "0 %"
+    if share < 0.01:
+        return "<1 %"
+    return f"{100.0 * share:.0f} %"
+
+
 def plot_detector_bars(rows: Sequence[Mapping[str, Any]], path: str | Path) -> None:
-    """Bars of the share of frames with both ego lines correct, per marking model and
-    detector (rows of :func:`~aldm_gym.sensor.evaluation.compare_detectors`); a PNG."""
+    """Bars of the share of frames with both ego lines correct [%], per marking model and
+    detector (rows of :func:`~aldm_gym.sensor.evaluation.compare_detectors`); a PNG.
+
+    Every bar carries its value, so a bar of zero height reads "0 %", not as missing.
+    """
     import matplotlib
 
     matplotlib.use("Agg")
@@ -132,7 +173,7 @@ def plot_detector_bars(rows: Sequence[Mapping[str, Any]], path: str | Path) -> N
 
     models = sorted({r["marking_model"] for r in rows}, reverse=True)
     dets = [d for d in DETECTORS if any(r["detector"] == d for r in rows)]
-    fig, ax = plt.subplots(figsize=(6, 3.5))
+    fig, ax = plt.subplots(figsize=(6.4, 4.0))
     width = 0.8 / len(dets)
     for i, d in enumerate(dets):
         vals = [
@@ -142,11 +183,25 @@ def plot_detector_bars(rows: Sequence[Mapping[str, Any]], path: str | Path) -> N
             )
             for m in models
         ]
-        ax.bar(np.arange(len(models)) + i * width, vals, width, label=d)
-    ax.set_xticks(np.arange(len(models)) + 0.4 - width / 2, models)
-    ax.set_ylabel("frames with both ego lines correct")
-    ax.set_ylim(0, 1.05)
-    ax.legend()
+        name, colour = DETECTOR_STYLE.get(d, (d, None))
+        bars = ax.bar(
+            np.arange(len(models)) + i * width,
+            100.0 * np.asarray(vals),
+            width,
+            label=name,
+            color=colour,
+        )
+        labels = ax.bar_label(bars, [percent(v) for v in vals], padding=2, fontsize=10)
+        for text, v in zip(labels, vals, strict=True):
+            if v == 0.0:
+                text.set_color(colour or "black")
+                text.set_fontweight("bold")
+    ax.set_xticks(np.arange(len(models)) + 0.4 - width / 2, models, fontsize=11)
+    ax.set_xlabel("marking model (per_dash: every dash its own object; editor: one per line)")
+    ax.set_ylabel("frames with both ego lines correct [%]")
+    ax.set_ylim(0, 112)
+    ax.set_yticks(range(0, 101, 20))
+    ax.legend(ncol=len(dets), loc="lower center", bbox_to_anchor=(0.5, 1.0), frameon=False)
     ax.grid(axis="y", alpha=0.3)
     fig.tight_layout()
     fig.savefig(path, dpi=130)
