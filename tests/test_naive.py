@@ -93,3 +93,30 @@ def test_naive_path_range_fits_the_near_part_of_the_lines(curvy_road: HighwayRoa
     want = driving_trajectory(near.ego_left, near.ego_right, road.lane_width, path_range=80.0)
     assert near.trajectory.tobytes() == want.tobytes()
     assert near.trajectory[-1, 0] <= 80.0 + 2.0 < whole.trajectory[-1, 0]
+
+
+def test_naive_judges_sides_on_the_cars_middle_axis(straight_road: HighwayRoad) -> None:
+    """A sensor 2 m left of the car's middle axis sees the car's left line 0.125 m to
+    its right; CarMaker's rule is the car's middle axis, so it is still the ego left
+    line, and the adjacent lines are counted outward from the car's axis too."""
+    ed = straight_road.with_marking_model("editor")
+    pose = pose_on_lane(ed, 400.0, 1)
+    centred = naive_detect(LineSensor().measure(ed, pose))
+    off = naive_detect(LineSensor({"mount_y": 2.0}).measure(ed, pose))
+    for name in ("ego_left", "ego_right", "left_adjacent", "right_adjacent"):
+        assert off.found(name), name
+        np.testing.assert_allclose(off.line(name)[:, 1], centred.line(name)[:, 1] - 2.0)
+
+
+def test_naive_lines_starting_on_the_axis_count_left(straight_road: HighwayRoad) -> None:
+    """y = 0 exactly (the sensor right above the car's left line): the paper's
+    "otherwise to the left" makes that line the naive ego left line."""
+    ed = straight_road.with_marking_model("editor")
+    sensor = LineSensor({"mount_y": 0.0})
+    frame = sensor.measure(ed, pose_on_lane(ed, 400.0, 1, 1.875))
+    first_y = frame.side_offsets()
+    j = int(np.flatnonzero(frame.line_marking == 1)[0])
+    assert first_y[j] == 0.0  # exactly on the axis
+    det = naive_detect(frame)
+    np.testing.assert_array_equal(det.ego_left[:, 1], frame.line_points(j)[:, 1])
+    assert j < frame.n_left

@@ -73,13 +73,93 @@ def test_per_dash_objects_are_dashes_and_editor_objects_are_markings(
 
 def test_side_assignment_by_first_point(straight_road: HighwayRoad) -> None:
     f = _frame(straight_road, lane=1)
-    assert all(ln.ds[0, 1] > 0 for ln in f.left.lines)
-    assert all(ln.ds[0, 1] <= 0 for ln in f.right.lines)
+    assert all(ln.ds[0, 1] >= 0 for ln in f.left.lines)
+    assert all(ln.ds[0, 1] < 0 for ln in f.right.lines)
     # Lane 1 has markings 0, 1 on its left and 2, 3, 4 on its right.
     assert {ln.marking for ln in f.left.lines} == {0, 1}
     assert {ln.marking for ln in f.right.lines} == {2, 3, 4}
     assert f.left.relevant_line is not None and f.left.relevant_line.marking == 1
     assert f.right.relevant_line is not None and f.right.relevant_line.marking == 2
+
+
+def test_a_line_starting_on_the_middle_axis_goes_left() -> None:
+    """Paper §"Line Sensor Model": "Is the beginning of the line on right side of the
+    middle axis it is assigned to the right side, otherwise to the left" — y = 0 is
+    left (and, nearest to the axis, the left side's relevant line)."""
+    from aldm_gym.sensor.line_sensor import _assemble, _assemble_py
+
+    xs = np.array([5.52, 7.52, 9.52])
+    ys = np.array([[0.0, 0.1, 0.2], [-1.5, -1.5, -1.5], [2.0, 2.0, 2.0], [-0.0, 0.3, 0.6]])
+    m = len(ys)
+    zeros = np.zeros(m)
+    for kernel in (_assemble, _assemble_py):
+        for axis_y in (0.0, -0.0):
+            got = kernel(
+                xs, ys, np.zeros_like(ys), zeros, zeros, np.ones(m), zeros,
+                np.zeros(m, dtype=np.bool_), np.zeros((0, 2)), np.zeros(m + 1, dtype=np.int64),
+                np.arange(m), False, np.inf, np.inf, axis_y, np.zeros((3, 0, 0)),
+                np.zeros((0, 0)), np.zeros(3), 0.0, 100,
+            )  # fmt: skip
+            _points, _starts, marking, _piece, n_left, rel_left, rel_right = got
+            assert n_left == 3
+            assert marking[:n_left].tolist() == [0, 3, 2]  # by x, then |y - axis|
+            assert marking[rel_left] == 0 and marking[n_left + rel_right] == 1
+
+
+def test_sides_are_judged_on_the_cars_middle_axis(straight_road: HighwayRoad) -> None:
+    """A sensor mounted 2 m left of the car's middle axis, car centred in lane 1: its
+    left line (1.875 m left of the car) is 0.125 m right of the *sensor*, yet left of
+    the car's middle axis, so it is the left side's relevant line."""
+    f = _frame(straight_road, lane=1, mount_y=2.0)
+    assert f.axis_y == -2.0
+    left = f.left.relevant_line
+    assert left is not None and left.marking == 1
+    assert left.ds[0, 1] == pytest.approx(-0.125)
+    assert f.right.relevant_line is not None and f.right.relevant_line.marking == 2
+    assert np.all(f.side_offsets()[: f.n_left] >= 0) and np.all(f.side_offsets()[f.n_left :] < 0)
+    # Looking backwards from the same mount the car's left is the sensor's right.
+    back = _frame(straight_road, lane=1, mount_y=2.0, mount_yaw=np.pi, sensor_index=1)
+    assert back.axis_y == pytest.approx(2.0)
+    assert back.right.relevant_line.marking == 1 and back.left.relevant_line.marking == 2
+    # External travel moves the sensor, not the car's axis.
+    moved = LineSensor({"mount_y": 2.0}).measure(
+        straight_road, pose_on_lane(straight_road, 300.0, 1), ext_travel=(0.0, -1.0, 0.0)
+    )
+    assert moved.axis_y == -1.0 and moved.left.relevant_line.marking == 1
+
+
+def test_angle_of_view_limits_the_lateral_reach(straight_road: HighwayRoad) -> None:
+    """A point is seen when |y| <= x tan(fov_half_angle) (paper Fig. 1)."""
+    narrow = _frame(straight_road, lane=0, fov_half_angle=np.radians(20.0))
+    pts = narrow.points()
+    assert np.all(np.abs(pts[:, 1]) <= pts[:, 0] * np.tan(np.radians(20.0)) + 1e-12)
+    wide = _frame(straight_road, lane=0)
+    hidden = np.abs(wide.points()[:, 1]) > wide.points()[:, 0] * np.tan(np.radians(20.0))
+    assert hidden.any() and len(pts) == len(wide.points()) - hidden.sum()
+    assert narrow.fov_half_angle == np.radians(20.0) and wide.max_lateral == np.inf
+
+
+def test_default_field_of_view_sees_a_500m_curve_to_the_full_range() -> None:
+    """The default angle of view (80°) keeps every marking of a 4-lane road in a
+    R = 500 m curve in view to x ~ 200 m; the old 30 m band cut the right ones off."""
+    road = HighwayRoad(
+        {"segments": ((100.0, 0.0, 0.0), (900.0, -1 / 500, -1 / 500)), "length": 1000.0}
+    )
+    pose = pose_on_lane(road, 100.0, 3)
+    f = LineSensor().measure(road, pose)
+    reach = {j: f.points()[np.repeat(f.line_marking, np.diff(f.line_start)) == j][:, 0].max()
+             for j in range(road.lanes_count + 1)}  # fmt: skip
+    assert min(reach.values()) > 198.0
+    band = LineSensor({"fov_half_angle": np.pi / 2, "max_lateral": 30.0}).measure(road, pose)
+    assert np.abs(band.points()[:, 1]).max() <= 30.0
+    assert np.abs(f.points()[:, 1]).max() > 40.0
+
+
+def test_p_runs_to_the_last_grid_point_within_range() -> None:
+    """p = 0 … ⌊(range − fov_start) / dx⌋: 97 for the defaults (x = 199.52 m)."""
+    xs = LineSensor().config.x_grid
+    assert len(xs) == 98 and xs[0] == 5.52 and xs[-1] == pytest.approx(199.52)
+    assert len(LineSensor({"fov_start": 0.0}).config.x_grid) == 101  # the paper's 0 … 100
 
 
 def test_relevant_point_list_has_30_points(straight_road: HighwayRoad) -> None:
@@ -191,6 +271,9 @@ def test_curved_road_points_follow_the_marking(curvy_road: HighwayRoad) -> None:
         ({"max_points_per_line": 201}, "max_points_per_line"),
         ({"dropout": 1.0}, "dropout"),
         ({"lateral_noise": float("inf")}, "lateral_noise"),
+        ({"fov_half_angle": 0.0}, "fov_half_angle"),
+        ({"fov_half_angle": 1.6}, "fov_half_angle"),
+        ({"max_lateral": -1.0}, "max_lateral"),
         ({"rangee": 100.0}, r"rangee.*allowed keys"),
     ],
 )
@@ -260,7 +343,10 @@ def _numpy_measure(
         on = ~tab["broken"][:, None] | (
             (rel_u - piece) * tab["period"][:, None] < tab["dash"][:, None]
         )
-        visible = on & (np.abs(ys) <= c.max_lateral)
+        max_lateral = np.inf if c.max_lateral is None else c.max_lateral
+        tan_half = c.tan_half_angle
+        in_angle = np.abs(ys) <= xs[None, :] * tan_half if tan_half < np.inf else True
+        visible = on & (np.abs(ys) <= max_lateral) & in_angle
     px = np.broadcast_to(xs, (m, k)).copy()
     pz = np.broadcast_to(tab["height"][:, None], (m, k)).copy()
     if c.noisy:
@@ -286,8 +372,13 @@ def _numpy_measure(
     obj_j = j_of[starts]
     pts = np.column_stack([px.ravel()[flat], py.ravel()[flat], pz.ravel()[flat]])
     first = pts[starts] if len(starts) else np.zeros((0, 3))
-    is_left = first[:, 1] > 0.0
-    order = np.lexsort((np.abs(first[:, 1]), first[:, 0], ~is_left))
+    # Sides against the car's middle axis, a point on it counting left (paper).
+    lateral = c.mount_y + (np.sin(c.mount_yaw) * travel[0] + np.cos(c.mount_yaw) * travel[1])
+    yaw_cos = np.cos(c.mount_yaw) if rot[2] == 0.0 else np.cos(c.mount_yaw + rot[2])
+    axis_y = float(-lateral * yaw_cos)
+    offset = first[:, 1] - axis_y
+    is_left = offset >= 0.0
+    order = np.lexsort((np.abs(offset), first[:, 0], ~is_left))
     n_left_all = int(is_left.sum())
     cap = c.max_lines_per_side
     keep_o = np.concatenate([order[: min(n_left_all, cap)], order[n_left_all:][:cap]])
@@ -299,7 +390,7 @@ def _numpy_measure(
     rel = [-1, -1]
     for side, (lo, hi) in enumerate(((0, n_left), (n_left, len(keep_o)))):
         if hi > lo:
-            rel[side] = int(np.argmin(np.abs(first_k[lo:hi, 1])))
+            rel[side] = int(np.argmin(np.abs(first_k[lo:hi, 1] - axis_y)))
     mk_j = obj_j[keep_o]
     return SensorFrame(
         timestamp=t,
@@ -324,6 +415,9 @@ def _numpy_measure(
         yaw=yaw,
         range=c.range,
         fov_start=c.fov_start,
+        fov_half_angle=c.fov_half_angle,
+        max_lateral=float(max_lateral),
+        axis_y=axis_y,
     )
 
 
@@ -347,6 +441,9 @@ _KERNEL_CASES = [
     ({"dropout": 0.6, "max_lines_per_side": 2}, {}),
     ({"max_lines_per_side": 3, "dx": 0.5, "max_points_per_line": 50}, {}),
     ({"max_lateral": 4.0, "range": 120.0, "fov_start": 0.0}, {}),
+    ({"fov_half_angle": 0.3, "fov_start": 0.0, "mount_y": -0.4}, {}),
+    ({"fov_half_angle": np.pi / 2, "max_lateral": 30.0}, {}),
+    ({"mount_y": 0.5, "mount_yaw": np.pi, "sensor_index": 1, "lateral_noise": 0.02}, {}),
     ({"sensor_index": 1, "mount_x": -2.0, "mount_yaw": np.pi, "lateral_noise": 0.1}, {}),
     ({"mount_y": 0.7, "mount_yaw": 0.2}, {"guard_rail": True}),
     ({"lateral_noise": 1.0, "dropout": 0.3}, {"guard_rail": True, "lanes_count": 2}),
@@ -408,7 +505,9 @@ def test_assemble_kernel_matches_its_python_reference(curvy_road: HighwayRoad) -
                     tab["broken"],
                     *paint,
                     per_dash,
+                    np.tan(np.radians(30.0)),
                     30.0,
+                    0.4,
                     nz,
                     dr,
                     np.array([0.1, 0.2, 0.0]),

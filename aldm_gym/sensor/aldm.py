@@ -16,8 +16,10 @@ and object ids, and re-traces every marking:
 
 Two modes:
 
-* ``mode="paper"`` is the paper's algorithm literally (exact 3-point parabola, no
-  gate, lowest-|y| start points).
+* ``mode="paper"`` is the paper's algorithm as published (exact 3-point parabola, no
+  gate, lowest-|y| start points), with the few interpretations its text needs
+  (stop rule, 13-point interpolation, adjacent-line start, Lagrange evaluation;
+  listed in ``docs/aldm.md``).
 * ``mode="robust"`` (default) keeps the structure but replaces the fragile parts:
   the start condition places chains of nearby points by their offset at the
   sensor under a common lane shape (so a marking crossing the car's axis in a
@@ -50,7 +52,7 @@ from aldm_gym.sensor.trajectory import DEFAULT_LANE_WIDTH, PATH_STEP, driving_tr
 from aldm_gym.types import FloatArray, IntArray
 
 MODES = ("robust", "paper")
-"""Detector variants: the default robust ALDM, or the paper's literal algorithm."""
+"""Detector variants: the default robust ALDM, or the paper's algorithm as published."""
 
 OUTPUTS = ("auto", "measured", "smoothed")
 """What a returned line holds (see :class:`ALDMParams`)."""
@@ -62,7 +64,8 @@ class ALDMParams:
 
     Paper parameters (§ALDM), used by both modes:
 
-    :ivar mode: ``"robust"`` (default) or ``"paper"`` (the paper's algorithm verbatim).
+    :ivar mode: ``"robust"`` (default) or ``"paper"`` (the paper's algorithm as
+        published; its interpretations are listed in ``docs/aldm.md``).
     :ivar start_x_max: start points lie at x <= this: 18 m + the 5.52 m field-of-view
         offset = 23.52 m.
     :ivar start_points: paper mode: start points per line (3; the trace needs 3).

@@ -16,6 +16,10 @@ from aldm_gym.types import FloatArray
 LINE_NAMES: tuple[str, str, str, str] = ("left_adjacent", "ego_left", "ego_right", "right_adjacent")
 """The four lines, left to right. Observation arrays use this order."""
 
+MIN_PREVIEW = 60.0
+"""Preview a line must reach for target selection [m] (paper §ALDM: "The preview
+distance must be at least 60 m"); see :meth:`LaneDetection.preview_ok`."""
+
 _EMPTY = np.zeros((0, 2))
 
 
@@ -142,6 +146,19 @@ class LaneDetection:
         line = self.line(name)
         return float(line[-1, 0]) if len(line) else 0.0
 
+    def preview_ok(self, name: str, minimum: float = MIN_PREVIEW) -> bool:
+        """Whether line ``name`` reaches at least ``minimum`` ahead of the sensor.
+
+        The paper lists "the preview distance must be at least 60 m" among the
+        conditions the data has to fulfil (§ALDM), for target selection at long range;
+        it gives no rule for a shorter line. No detector drops or shortens a line
+        for it: a line with less preview is returned as traced, and this flag says
+        that it does not meet the paper's condition (a missing line never does).
+
+        :param minimum: required preview [m] (default :data:`MIN_PREVIEW`, 60 m).
+        """
+        return self.found(name) and self.preview(name) >= minimum
+
     def extent(self, name: str) -> float:
         """Length in x covered by line ``name`` (last x - first x) [m]; 0 when missing."""
         line = self.line(name)
@@ -174,6 +191,7 @@ class LaneDetection:
 __all__ = [
     "DEFAULT_LANE_WIDTH",
     "LINE_NAMES",
+    "MIN_PREVIEW",
     "LaneDetection",
     "driving_trajectory",
     "fit_cubic",

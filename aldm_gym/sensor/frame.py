@@ -59,13 +59,17 @@ class LineObject:
 class SideLines:
     """The line objects CarMaker assigns to one side (``LLines`` or ``RLines``).
 
-    An object belongs to the left side when its first visible point has y > 0
-    (paper §"Line Sensor Model": "Is the beginning of the line on the right side
-    of the middle axis it is assigned to the right side, otherwise to the left").
+    An object belongs to the right side when its first visible point lies right of
+    the car's middle axis (``y < axis_y``, see :attr:`SensorFrame.axis_y`), otherwise
+    to the left, a point on the axis included (paper §"Line Sensor Model": "Is the
+    beginning of the line on the right side of the middle axis it is assigned to
+    the right side, otherwise to the left").
 
-    :ivar lines: the objects, ordered by the x of their first point.
+    :ivar lines: the objects, ordered by the x of their first point, then by its
+        distance to the middle axis.
     :ivar relevant: index in ``lines`` of the relevant line, the one whose first
-        point is nearest to the vehicle's middle axis (smallest |y|); -1 if none.
+        point is nearest to the vehicle's middle axis (smallest ``|y - axis_y|``);
+        -1 if none.
     :ivar relevant_points: ``(<= 30, 3)`` first points of the relevant line [m].
     """
 
@@ -115,6 +119,11 @@ class SensorFrame:
     :ivar yaw: *ground truth*: world heading of the sensor's x axis [rad].
     :ivar range: range of view [m].
     :ivar fov_start: x of the nearest detectable point [m].
+    :ivar fov_half_angle: half the horizontal angle of view [rad]: points were seen
+        where ``|y| <= x tan(fov_half_angle)``.
+    :ivar max_lateral: the sensor's extra lateral limit [m] (``inf``: none).
+    :ivar axis_y: y of the car's middle axis in the sensor frame [m] (``-mount_y`` for
+        a forward sensor); sides and relevant lines are judged against it.
     """
 
     timestamp: float
@@ -139,6 +148,9 @@ class SensorFrame:
     yaw: float
     range: float
     fov_start: float
+    fov_half_angle: float = 0.5 * np.pi
+    max_lateral: float = np.inf
+    axis_y: float = 0.0
 
     @property
     def n_lines(self) -> int:
@@ -191,6 +203,13 @@ class SensorFrame:
         if name not in ("left", "right"):
             raise ValueError(f"side must be 'left' or 'right', got {name!r}")
         return self.left if name == "left" else self.right
+
+    def side_offsets(self) -> FloatArray:
+        """``(L,)`` signed distance of each object's first point from the middle axis [m].
+
+        Positive (or zero) on the left side, negative on the right: ``y - axis_y``.
+        """
+        return self.all_points[self.line_start[:-1], 1] - self.axis_y
 
     def relevant_line_points(self, name: str) -> FloatArray:
         """All points of the relevant line of side ``name`` (``(K, 3)``, empty if none)."""

@@ -4,9 +4,12 @@ The sensor samples every painted marking (and barrier) at fixed x positions of i
 own frame, from the field-of-view start (5.52 m) every ``dx`` (2 m) up to the range
 of view (200 m): point ``p`` lies at ``x = fov_start + p * dx`` (paper §"Line Sensor
 Model": "every increment of p means an increment of approximately 2 m in
-x-direction"). Points are grouped into line objects according to the road's
+x-direction"). A sampled point is seen when it lies inside the horizontal angle of
+view, ``|y| <= x tan(fov_half_angle)`` (paper Fig. 1: "position, orientation and
+angle of view"). Points are grouped into line objects according to the road's
 marking model: one object per marking (``"editor"``) or one per dash
-(``"per_dash"``), then assigned to a side by their first point, as CarMaker does.
+(``"per_dash"``), then assigned to a side by their first point, as CarMaker does:
+right when it lies right of the car's middle axis, otherwise left.
 
 Sampling the markings is a numba kernel of the road (``HighwayRoad.sample_markings``);
 everything after it (paint pattern, noise, objects, sides, order, caps) is one numba
@@ -40,10 +43,34 @@ _NO_DRAW = np.zeros((0, 0))
 class LineSensorConfig:
     """Line-sensor settings (defaults: the paper's CarMaker sensor).
 
-    :ivar range: range of view ahead of the sensor [m] (``ld_range``, 200 m).
+    The field of view is the part of the road plane with ``fov_start <= x <= range``
+    (x along the sensor's axis, the paper's "range of view in driving direction")
+    and ``|y| <= x tan(fov_half_angle)`` (the horizontal angle of view of the paper's
+    Fig. 1), optionally also ``|y| <= max_lateral``. The paper gives no value for the
+    angle. The default half angle, 80°, sees 31 m to either side already at the
+    field-of-view start (so it hides no point the earlier 30 m band showed) and
+    widens from there, so the markings of a curve stay in view out to the full
+    range: in the paper's worst case (R = 500 m right curve) the ego lines are ~42 m
+    to the right at x = 200 m. The 30 m lateral band it replaces cut those lines off
+    at x ~ 170 m, where paper mode, having no gate, jumped to other markings;
+    ``{"fov_half_angle": math.pi / 2, "max_lateral": 30.0}`` restores the band (bit
+    for bit the frames of before). Visibility is decided on the noiseless position.
+
+    Point ``p`` of a line lies at ``x = fov_start + p dx``, so ``p`` runs
+    ``0 … ⌊(range − fov_start) / dx⌋`` (97 for the defaults; at most
+    ``max_points_per_line − 1``). The paper writes ``0 … ⌊ld_range / 2⌋`` (100), counting
+    x from the sensor; its ``p = 0`` is "the start of the sensor's field of view", so
+    the grid here starts at ``fov_start`` = 5.52 m and the last point that still lies
+    within the 200 m range is ``p = 97`` (x = 199.52 m).
+
+    :ivar range: range of view ahead of the sensor, along its x axis [m] (``ld_range``,
+        200 m).
     :ivar fov_start: x of the nearest detectable point [m] (5.52 m).
     :ivar dx: x spacing of the points of a line [m] (about 2 m).
-    :ivar max_lateral: largest |y| at which a point is seen [m].
+    :ivar fov_half_angle: half the horizontal angle of view [rad] (default 80°); a point
+        is seen when ``|y| <= x tan(fov_half_angle)``; pi/2 sets no angular limit.
+    :ivar max_lateral: optional extra limit: largest |y| at which a point is seen [m];
+        ``None`` (default): no lateral limit beyond the angle of view.
     :ivar max_lines_per_side: cap on objects per side (CarMaker: 100).
     :ivar max_points_per_line: cap on points per object (CarMaker: 200).
     :ivar relevant_points: length of the relevant-line point list (CarMaker: 30).
@@ -63,7 +90,8 @@ class LineSensorConfig:
     range: float = setting(200.0, lo=0.0, lo_open=True, hi=1000.0)
     fov_start: float = setting(5.52, lo=0.0, hi="range")
     dx: float = setting(2.0, lo=0.1, hi=50.0)
-    max_lateral: float = setting(30.0, lo=0.0, lo_open=True, hi=200.0)
+    fov_half_angle: float = setting(math.radians(80.0), lo=0.0, lo_open=True, hi=math.pi / 2)
+    max_lateral: float | None = setting(None, lo=0.0, lo_open=True, hi=1000.0, optional=True)
     max_lines_per_side: int = setting(100, lo=1, hi=100, integer=True)
     max_points_per_line: int = setting(200, lo=1, hi=200, integer=True)
     relevant_points: int = setting(30, lo=1, hi=200, integer=True)
@@ -92,6 +120,13 @@ class LineSensorConfig:
         k = int(np.floor((self.range - self.fov_start) / self.dx + 1e-9)) + 1
         k = min(k, self.max_points_per_line)
         return np.asarray(self.fov_start + self.dx * np.arange(k), dtype=np.float64)
+
+    @property
+    def tan_half_angle(self) -> float:
+        """``tan(fov_half_angle)``, ``inf`` for pi/2 (no angular limit) [-]."""
+        if self.fov_half_angle >= 0.5 * math.pi:
+            return math.inf
+        return math.tan(self.fov_half_angle)
 
     @property
     def noisy(self) -> bool:
@@ -150,6 +185,9 @@ class LineSensor:
         self._noise_std = np.array([c.lateral_noise, c.longitudinal_noise, c.height_noise])
         self._mount_cos = float(np.cos(c.mount_yaw))
         self._mount_sin = float(np.sin(c.mount_yaw))
+        self._tan_half = c.tan_half_angle
+        self._max_lateral = math.inf if c.max_lateral is None else float(c.max_lateral)
+        self._axis_y = self.middle_axis_y()
 
     def seed(self, seed: int | None) -> None:
         """Reseed the sensor's own random generator."""
@@ -173,6 +211,29 @@ class LineSensor:
         # (sin h, -cos h). Scalar form of `(x, y) + a * fwd + b * left`, same operations.
         origin = np.array([(x + a * ch) + b * sh, (y + a * sh) + b * -ch])
         return origin, h - (c.mount_yaw + ext_yaw)
+
+    def middle_axis_y(self, ext_travel: FloatArray | None = None, ext_yaw: float = 0.0) -> float:
+        """y of the car's middle axis in the sensor frame, at the sensor [m].
+
+        CarMaker judges sides against "the middle axis of the car" (paper §"Line Sensor
+        Model"), not the sensor's own axis: a point's side offset is ``y - axis_y``.
+        The sensor sits ``mount_y`` (plus any external travel) left of that axis, so
+        ``axis_y = -mount_y`` for a forward sensor and ``+mount_y`` for a backward one
+        (``mount_yaw = pi``: its y axis points to the car's right). For other yaw
+        angles the axis is taken parallel to the sensor's x axis, at the sensor's
+        lateral offset projected on its y axis (``-lateral cos(yaw)``).
+
+        :param ext_travel: additional external travel (x, y, z) in the mount frame [m].
+        :param ext_yaw: additional external yaw [rad].
+        """
+        c = self.config
+        lateral = c.mount_y
+        if ext_travel is not None:
+            lateral = lateral + (
+                self._mount_sin * float(ext_travel[0]) + self._mount_cos * float(ext_travel[1])
+            )
+        cos_yaw = self._mount_cos if ext_yaw == 0.0 else float(np.cos(c.mount_yaw + ext_yaw))
+        return -lateral * cos_yaw
 
     def measure(
         self,
@@ -206,6 +267,10 @@ class LineSensor:
         rot = np.zeros(3) if ext_rotation is _NO_TURN else _vec3(ext_rotation, "ext_rotation")
         travel = np.zeros(3) if ext_travel is _NO_TURN else _vec3(ext_travel, "ext_travel")
         origin, yaw = self.world_pose(pose, travel, float(rot[2]))
+        if ext_travel is _NO_TURN and ext_rotation is _NO_TURN:
+            axis_y = self._axis_y
+        else:
+            axis_y = self.middle_axis_y(travel, float(rot[2]))
         xs = self._xs
         rows, ys, us = road.sample_visible(origin, yaw, xs, s_hint)
         if c.noisy:
@@ -229,7 +294,9 @@ class LineSensor:
             tab["paint_start"],
             rows,
             road.marking_model == "per_dash",
-            c.max_lateral,
+            self._tan_half,
+            self._max_lateral,
+            axis_y,
             noise,
             draw,
             self._noise_std,
@@ -259,6 +326,9 @@ class LineSensor:
             yaw=float(yaw),
             range=c.range,
             fov_start=c.fov_start,
+            fov_half_angle=c.fov_half_angle,
+            max_lateral=self._max_lateral,
+            axis_y=axis_y,
         )
 
 
@@ -275,7 +345,9 @@ def _assemble_py(
     paint_start: np.ndarray,
     rows: np.ndarray,
     per_dash: bool,
+    tan_half: float,
     max_lateral: float,
+    axis_y: float,
     noise: FloatArray,
     draw: FloatArray,
     noise_std: FloatArray,
@@ -299,7 +371,12 @@ def _assemble_py(
     :param rows: ``(R,)`` the marking index of each row of ``ys``/``us``.
     :param per_dash: one object per painted piece of a broken marking, or of a
         marking with explicit intervals (else one per marking).
-    :param max_lateral: largest noiseless |y| seen [m].
+    :param tan_half: tangent of the half angle of view; a point is seen where the
+        noiseless ``|y| <= x tan_half`` (``inf``: no angular limit).
+    :param max_lateral: largest noiseless |y| seen [m] (``inf``: no limit).
+    :param axis_y: y of the car's middle axis [m]: an object is left when its first
+        point has ``y - axis_y >= 0`` ("right of the middle axis ... right side,
+        otherwise left"), and the relevant line is the one nearest to that axis.
     :param noise: ``(3, M, K)`` standard normal draws for (y, x, z), or ``(3, 0, 0)``
         for a noiseless sensor.
     :param draw: ``(M, K)`` uniform draws, a point is kept when ``draw >= dropout``; or
@@ -358,6 +435,9 @@ def _assemble_py(
             if not (abs(y) <= max_lateral):  # NaN: the marking does not reach xs[p]
                 continue
             x = xs[p]
+            # Angle of view (paper Fig. 1); inf * 0 would be NaN at x = 0, so no test.
+            if tan_half < np.inf and not (abs(y) <= x * tan_half):
+                continue
             z = height[j]
             if noisy:
                 if not (draw[r, p] >= dropout):
@@ -378,23 +458,25 @@ def _assemble_py(
             pz[n] = z
             n += 1
     obj_first[n_obj] = n
-    # Order: left side (first point y > 0) first; within a side by first x, then by
-    # |first y|; ties keep the pass-1 order (a stable insertion sort; tens of objects).
+    # Order: left side first (first point on or left of the middle axis: the paper's
+    # "right of the middle axis ... right side, otherwise to the left"); within a
+    # side by first x, then by the first point's distance to the axis; ties keep the
+    # pass-1 order (a stable insertion sort; tens of objects).
     order = np.arange(n_obj)
     for i in range(1, n_obj):
         b = order[i]
         fb = obj_first[b]
-        left_b = py[fb] > 0.0
+        left_b = py[fb] - axis_y >= 0.0
         q = i - 1
         while q >= 0:
             fa = obj_first[order[q]]
-            left_a = py[fa] > 0.0
+            left_a = py[fa] - axis_y >= 0.0
             if left_a != left_b:
                 after = left_b
             elif px[fa] != px[fb]:
                 after = px[fa] > px[fb]
             else:
-                after = abs(py[fa]) > abs(py[fb])
+                after = abs(py[fa] - axis_y) > abs(py[fb] - axis_y)
             if not after:
                 break
             order[q + 1] = order[q]
@@ -402,7 +484,7 @@ def _assemble_py(
         order[q + 1] = b
     n_left_all = 0
     for i in range(n_obj):
-        if py[obj_first[i]] > 0.0:
+        if py[obj_first[i]] - axis_y >= 0.0:
             n_left_all += 1
     # Caps: the first max_lines objects of each side.
     n_left = min(n_left_all, max_lines)
@@ -429,15 +511,16 @@ def _assemble_py(
             points[dst, 1] = py[src]
             points[dst, 2] = pz[src]
             dst += 1
-    # Relevant line of a side: smallest |first y| (the first one on ties).
+    # Relevant line of a side: its first point nearest to the middle axis (the first
+    # one on ties).
     rel_left = -1
     rel_right = -1
     for i in range(n_keep):
-        ay = abs(points[line_start[i], 1])
+        ay = abs(points[line_start[i], 1] - axis_y)
         if i < n_left:
-            if rel_left < 0 or ay < abs(points[line_start[rel_left], 1]):
+            if rel_left < 0 or ay < abs(points[line_start[rel_left], 1] - axis_y):
                 rel_left = i
-        elif rel_right < 0 or ay < abs(points[line_start[n_left + rel_right], 1]):
+        elif rel_right < 0 or ay < abs(points[line_start[n_left + rel_right], 1] - axis_y):
             rel_right = i - n_left
     return points, line_start, marking, pieces, n_left, rel_left, rel_right
 

@@ -25,19 +25,21 @@ def _adjacent(frame: SensorFrame, left: bool) -> FloatArray:
     """The object nearest to the axis on a side that starts >= 2 m outside the relevant one.
 
     CarMaker itself reports only the relevant lines; this is the same naive rule
-    applied once more outward, so that lane changes can be tried with it.
+    applied once more outward, so that lane changes can be tried with it. Distances
+    are to the car's middle axis (:meth:`SensorFrame.side_offsets`), as the sensor's
+    own side assignment and relevant line.
     """
     lo, hi = (0, frame.n_left) if left else (frame.n_left, frame.n_lines)
     rel = frame.relevant_left if left else frame.relevant_right
     if rel < 0 or hi <= lo:
         return np.zeros((0, 2))
-    first_y = frame.all_points[frame.line_start[lo:hi], 1]
+    offset = frame.side_offsets()[lo:hi]
     sign = 1.0 if left else -1.0
-    outward = sign * first_y >= sign * first_y[rel] + ADJACENT_MIN_GAP
+    outward = sign * offset >= sign * offset[rel] + ADJACENT_MIN_GAP
     if not outward.any():
         return np.zeros((0, 2))
     cand = np.flatnonzero(outward)
-    best = int(cand[np.argmin(np.abs(first_y[cand]))])
+    best = int(cand[np.argmin(np.abs(offset[cand]))])
     return frame.line_points(lo + best)[:, :2]
 
 
@@ -47,7 +49,8 @@ def naive_detect(
     """CarMaker's default lane detection on a line-sensor frame.
 
     ``ego_left``/``ego_right`` are all points of the relevant object of the left/right
-    side (the object whose first point is nearest to the middle axis).
+    side (the object whose first point is nearest to the car's middle axis; an
+    object starting on the axis is on the left side, as the paper's rule says).
     ``left_adjacent``/``right_adjacent`` apply the same rule to the objects starting
     at least :data:`ADJACENT_MIN_GAP` further out. The trajectory is computed as for
     every detector (:func:`~aldm_gym.sensor.trajectory.driving_trajectory`).

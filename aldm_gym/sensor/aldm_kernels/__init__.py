@@ -5,7 +5,7 @@ Data flow of one frame (:func:`output._detect`, the single entry point called fr
 
 * :mod:`.sort` — drop invalid points, sort the rest by ``(x, y)`` (the one bucket
   sort, also used for the start region's y order);
-* :mod:`.paper` — paper mode, the §ALDM algorithm verbatim; or
+* :mod:`.paper` — paper mode, the §ALDM algorithm as published; or
 * :mod:`.robust` — robust mode: seeds from the start region, gated traces, using
   :mod:`.grid` (the search grid) and :mod:`.fit` (ridge quadratics and their running
   sums, shared with the output's smoothing);

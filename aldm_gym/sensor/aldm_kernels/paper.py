@@ -1,8 +1,10 @@
-"""Paper mode: the ALDM of §ALDM verbatim (start condition, exact parabola, trace).
+"""Paper mode: the ALDM of §ALDM as published (start condition, exact parabola, trace).
 
-The paper's algorithm as published, kept as the reference the robust mode is
-measured against: three lowest-|y| start points per side, the exact parabola through
-the last three points, the nearest residual within the next 18 m, no gate.
+The paper's algorithm, kept as the reference the robust mode is measured against:
+three lowest-|y| start points per side, the exact parabola through the last three
+points, the nearest residual within the next 18 m, no gate. Where the text leaves a
+choice (stop rule, adjacent-line start, Lagrange evaluation) the choice is marked
+in the docstrings below and listed in ``docs/aldm.md``.
 """
 
 from __future__ import annotations
