@@ -62,7 +62,11 @@ def true_line(
     if len(xs) == 0:
         return np.zeros(0)
     order = np.argsort(xs, kind="stable")
-    y, _ = road.sample_markings(frame.origin, frame.yaw, xs[order])
+    # Sample out to the sensor's range too: how far a road follows a marking depends on
+    # the last x asked for, and a detected point may lie far to the side in a curve.
+    grid = np.append(xs[order], max(float(frame.range), float(xs[order][-1])))
+    y, _ = road.sample_markings(frame.origin, frame.yaw, grid)
+    y = y[:, :-1]
     out = np.empty(len(xs))
     out[order] = boundary_y(y, marking)
     return out
