@@ -133,8 +133,14 @@ def test_checkpoints_without_manifest_are_checked_by_structure(tmp_path: Path) -
     with pytest.warns(TrainingWarning, match="model_64_steps.zip"):
         assert newest_intact_checkpoint(tmp_path).steps == 32  # type: ignore[union-attr]
     _corrupt(checkpoint_paths(tmp_path, 32)[1], "truncate")
-    with pytest.warns(TrainingWarning, match="vecnormalize_32_steps.pkl"):
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
         assert newest_intact_checkpoint(tmp_path) is None
+    assert [str(w.message).split(":")[0] for w in caught] == [
+        "skipping checkpoint 64",
+        "skipping checkpoint 32",
+    ]
+    assert "vecnormalize_32_steps.pkl" in str(caught[1].message)
 
 
 def test_atomic_saves_use_unique_temporary_files(tmp_path: Path) -> None:
@@ -158,6 +164,17 @@ def test_atomic_saves_use_unique_temporary_files(tmp_path: Path) -> None:
         save_atomic(fail, tmp_path / "model.zip")
     assert (tmp_path / "model.zip").read_bytes() == b"new"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["model.zip"]
+
+
+def test_evaluating_a_corrupt_model_names_the_file(tmp_path: Path) -> None:
+    pytest.importorskip("stable_baselines3")
+    model = tmp_path / "model.zip"
+    with zipfile.ZipFile(model, "w") as archive:
+        archive.writestr("data", "{}")
+    model.write_bytes(model.read_bytes()[:20])
+    (tmp_path / "training.json").write_text(json.dumps({"env_config": {}}))
+    with pytest.raises(SystemExit, match=f"{model}: not a readable model"):
+        main(["evaluate", "--model", str(model), "--no-progress"])
 
 
 _HOLD_LOCK = """

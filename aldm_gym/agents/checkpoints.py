@@ -447,6 +447,7 @@ def load_policy(model_path: Path) -> tuple[NormalizedModel, dict[str, Any]]:
     :return: the policy (with its observation normalisation) and the training metadata.
     :raises FileNotFoundError: no model, or no ``training.json`` next to it or in its
         parent folder.
+    :raises ValueError: the model or its normalisation file is corrupt (naming it).
     :raises MissingRLDependencies: stable-baselines3 / torch missing.
     """
     import pickle
@@ -466,11 +467,21 @@ def load_policy(model_path: Path) -> tuple[NormalizedModel, dict[str, Any]]:
             f"no {TRAINING_FILE} next to {model_path} (written by aldm-gym train)"
         )
     meta = json.loads(meta_path.read_text())
-    model = PPO.load(model_path, device="cpu")
+    try:
+        model = PPO.load(model_path, device="cpu")
+    except Exception as exc:  # a corrupt zip fails in zipfile, pickle or torch
+        raise ValueError(
+            f"{model_path}: not a readable model ({type(exc).__name__}: {exc})"
+        ) from exc
     vecnorm = None
     vecnorm_path = vecnormalize_for(model_path)
     if vecnorm_path is not None:
-        with open(vecnorm_path, "rb") as fh:
-            vecnorm = pickle.load(fh)  # VecNormalize without its venv: stats only
+        try:
+            with open(vecnorm_path, "rb") as fh:
+                vecnorm = pickle.load(fh)  # VecNormalize without its venv: stats only
+        except Exception as exc:  # unpickling corrupt bytes raises nearly anything
+            raise ValueError(
+                f"{vecnorm_path}: not a readable normalisation ({type(exc).__name__}: {exc})"
+            ) from exc
         vecnorm.training = False
     return NormalizedModel(model, vecnorm), meta

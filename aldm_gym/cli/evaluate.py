@@ -88,7 +88,7 @@ def run(args: argparse.Namespace) -> int:
             marking_model=args.marking_model,
             progress=not args.no_progress,
         )
-    except MissingRLDependencies as exc:
+    except (MissingRLDependencies, ValueError) as exc:  # ValueError: a corrupt model file
         raise SystemExit(f"aldm-gym evaluate: {exc}") from None
     out: Path = args.out or args.model.parent
     out.mkdir(parents=True, exist_ok=True)
