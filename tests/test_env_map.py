@@ -3,17 +3,31 @@
 from __future__ import annotations
 
 import math
+import warnings
 from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
+from highway_env.road.road import Road
 
-import aldm_gym  # noqa: F401 (registers the env)
+import aldm_gym  # also registers the env
+from aldm_gym.envs.traffic.vehicles import STEPS_ENDING_WITH_UPDATE
 from aldm_gym.envs.vehicle import MapIDMVehicle
 from aldm_gym.roads import OpenDriveRoad
-from aldm_gym.roads.map_network import CentreLine, _closest_lane, _closest_lane_py
+from aldm_gym.roads.geometry import _project_near, _project_near_py
+from aldm_gym.roads.map_network import (
+    CentreLine,
+    MapLane,
+    MapNetwork,
+    _closest_lane,
+    _closest_lane_py,
+    _closest_lanes,
+    _closest_lanes_py,
+    _neighbour_table,
+    _neighbour_table_py,
+)
 
 xodr = pytest.importorskip("scenariogeneration.xodr")
 
@@ -253,3 +267,234 @@ def test_render_rgb_array_on_a_map(curved: Path) -> None:
     env.step(1)
     frame = env.render()
     assert frame is not None and frame.ndim == 3 and frame.std() > 0
+
+
+# ---------------------------------------------------------------- speed paths
+MAPS = Path(aldm_gym.__file__).parent / "roads" / "maps"
+SHIPPED = ("motorway", "two_plus_one", "features")
+
+
+def _lane_table_args(lane: MapLane, points: np.ndarray) -> tuple:
+    c = lane.reference
+    return (
+        c.xy,
+        c.heading,
+        c.step,
+        c._CELL,
+        c._hash_keys,
+        c._hash_ptr,
+        c._hash_idx,
+        2 * c._STRIDE,
+        lane._u,
+        lane._w,
+        lane._constant,
+        1.0,
+        -lane.VEHICLE_LENGTH,
+        lane.length + lane.VEHICLE_LENGTH,
+        points,
+    )
+
+
+@pytest.mark.parametrize("name", SHIPPED)
+def test_lane_neighbour_table_matches_local_coordinates_and_on_lane(name: str) -> None:
+    """The compiled table gives ``local_coordinates``' s and ``on_lane``'s mask."""
+    road = OpenDriveRoad.from_file(MAPS / f"{name}.xodr")
+    net = road.network
+    rng = np.random.default_rng(0)
+    varying = 0
+    for index in net.key_of:
+        lane = net.get_lane(index)
+        varying += not lane._constant
+        s = rng.uniform(-10.0, lane.length + 10.0, 40)
+        r = rng.normal(0.0, 3.0, 40)
+        near = np.array([lane.position(float(a), float(b)) for a, b in zip(s, r, strict=True)])
+        points = np.vstack([near, rng.uniform(-3000.0, 3000.0, (10, 2)), [[np.nan, 0.0]]])
+        s_ref = np.array([lane.local_coordinates(p)[0] for p in points[:-1]])
+        r_ref = np.array([lane.local_coordinates(p)[1] for p in points[:-1]])
+        on_ref = np.array(
+            [
+                lane.on_lane(p, a, b, margin=1.0)
+                for p, a, b in zip(points[:-1], s_ref, r_ref, strict=True)
+            ]
+            + [False]
+        )
+        order_ref = np.flatnonzero(on_ref)[np.argsort(s_ref[on_ref[:-1]], kind="stable")]
+        s_fast, on, order = lane.neighbour_table(points, 1.0)
+        projected = ~np.isnan(s_fast)
+        assert np.array_equal(s_fast[:-1][projected[:-1]], s_ref[projected[:-1]])
+        assert not projected[-1] and projected[:40].all()
+        assert np.array_equal(on, on_ref)
+        assert np.array_equal(order, order_ref)
+        # The on-lane projections are remembered: project returns the very floats.
+        for k in order.tolist():
+            assert (
+                lane.reference.project(points[k]) == lane.reference._point_memo[points[k].tobytes()]
+            )
+        args = _lane_table_args(lane, np.ascontiguousarray(points))
+        for got, want in zip(_neighbour_table(*args), _neighbour_table_py(*args), strict=True):
+            assert np.array_equal(got, want, equal_nan=True)
+    assert name != "features" or varying > 0  # a width change is covered
+
+
+def test_project_near_projects_only_within_reach() -> None:
+    line = CentreLine(np.column_stack([np.linspace(0.0, 800.0, 50), np.zeros(50)]))
+    points = np.array([[10.0, 2.0], [400.0, -9.0], [500.0, 300.0], [np.inf, 0.0], [790.0, 0.5]])
+    s, d, near = line.project_near(points)
+    assert near.tolist() == [True, True, False, False, True]
+    for k in np.flatnonzero(near):
+        assert (s[k], d[k]) == line.project(points[k])
+    assert np.isnan(s[~near]).all() and np.isnan(d[~near]).all()
+    args = (
+        line.xy,
+        line.heading,
+        line.step,
+        line._CELL,
+        line._hash_keys,
+        line._hash_ptr,
+        line._hash_idx,
+        2 * line._STRIDE,
+        points,
+    )
+    for got, want in zip(_project_near(*args), _project_near_py(*args), strict=True):
+        assert np.array_equal(got, want, equal_nan=True)
+
+
+@pytest.mark.parametrize("name", SHIPPED)
+def test_prepared_closest_lanes_are_the_looked_up_ones(name: str) -> None:
+    road = OpenDriveRoad.from_file(MAPS / f"{name}.xodr")
+    net = MapNetwork(road)  # a fresh network: nothing prepared yet
+    rng = np.random.default_rng(1)
+    lanes = [net.get_lane(i) for i in net.key_of]
+    poses = []
+    for lane in lanes:
+        for s in rng.uniform(0.0, lane.length, 3):
+            x, y = lane.position(float(s), float(rng.normal(0.0, 2.0)))
+            poses.append((x, y, float(lane.heading_at(float(s))) + float(rng.normal(0.0, 0.5))))
+    poses.append((1e4, -1e4, 0.0))  # nothing within reach: every lane
+    positions = np.array([p[:2] for p in poses])
+    headings = np.array([p[2] for p in poses])
+    fresh = [net.get_closest_lane_index(p, h) for p, h in zip(positions, headings, strict=True)]
+    net.prepare_closest_lane_poses(positions, np.append(headings[:-1], np.nan))
+    assert len(net._prepared) == len(poses) - 1  # the NaN heading is not remembered
+    assert [
+        net.get_closest_lane_index(p, h) for p, h in zip(positions, headings, strict=True)
+    ] == fresh
+    c = road._centres
+    args = (
+        c.chunk_mark,
+        c.chunk_i0,
+        c.chunk_i1,
+        c.chunk_centre,
+        c.chunk_radius,
+        len(c.start) - 1,
+        c.xy,
+        net._seg_heading,
+        positions,
+        headings,
+        1.0,
+        15.0,
+    )
+    assert np.array_equal(_closest_lanes(*args), _closest_lanes_py(*args))
+
+
+@pytest.mark.parametrize("connected", [False, True])
+@pytest.mark.parametrize("name", ["motorway", "two_plus_one"])
+def test_map_neighbours_match_highway_env(name: str, connected: bool) -> None:
+    """FastRoad's neighbours on a map are highway-env's ``Road.neighbour_vehicles``."""
+    env = gym.make(
+        "ALDMHighway-v0",
+        config={"road": {"xodr": str(MAPS / f"{name}.xodr")}, "vehicles_count": 25},
+    )
+    env.reset(seed=5)
+    road = env.unwrapped.road
+    checked = 0
+    for _ in range(6):
+        road.neighbour_vehicles_connected_lanes = connected
+        road.invalidate()
+        for v in road.vehicles:
+            for index in [v.lane_index, *road.network.side_lanes(v.lane_index)]:
+                fast = road.neighbour_vehicles(v, index)
+                base = Road.neighbour_vehicles(road, v, index)
+                assert fast[0] is base[0] and fast[1] is base[1]
+                checked += 1
+        env.step(1)
+    assert checked > 100
+
+
+def test_map_traffic_lane_updates_are_batched_and_never_reverse(curved: Path) -> None:
+    """MapIDMVehicle's step is the base one (its lane look-up is batched by FastRoad)."""
+    assert MapIDMVehicle.step in STEPS_ENDING_WITH_UPDATE
+    env = _make(curved, vehicles_count=0)
+    env.reset(seed=0)
+    u = env.unwrapped
+    lane = u.vehicle.lane
+    v = MapIDMVehicle(u.road, lane.position(300.0, 0.0), lane.heading_at(300.0), 0.2)
+    u.road.vehicles.append(v)
+    v.action = {"steering": 0.0, "acceleration": -5.0}  # would reverse within the step
+    u.road.step(0.1)
+    assert v.speed == 0.0 and v.lane_index == u.road.network.get_closest_lane_index(
+        v.position, v.heading
+    )
+
+
+# ------------------------------------------------------ closed loop, shipped maps
+def _closed_loop(name: str, detector: str, seed: int, steps: int = 30) -> tuple[int, int]:
+    """IDLE for ``steps`` policy steps (1 s each) without traffic: (departures, steps run)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)  # features.xodr: shorter than asked
+        env = _make(
+            MAPS / f"{name}.xodr",
+            detector=detector,
+            marking_model="per_dash",
+            duration=float(steps) + 5.0,
+        )
+        env.reset(seed=seed)
+    info: dict = {"departures": 0}
+    run = 0
+    while run < steps:
+        _, _, terminated, truncated, info = env.step(1)
+        run += 1
+        if terminated or truncated:
+            break
+    return int(info["departures"]), run
+
+
+@pytest.mark.parametrize(
+    ("name", "seed"),
+    [("motorway", 0), ("motorway", 1), ("motorway", 2), ("two_plus_one", 0), ("two_plus_one", 1)],
+)
+def test_aldm_keeps_its_lane_on_the_shipped_maps(name: str, seed: int) -> None:
+    """ALDM, IDLE, per-dash objects: 30 s without a lane departure.
+
+    Measured (seeds 0-7, no traffic, 35 s): no departure on two_plus_one in 8 of 8 and on
+    motorway in 7 of 8; the miss (motorway seed 4) is pinned below.
+    """
+    assert _closed_loop(name, "aldm", seed) == (0, 30)
+
+
+@pytest.mark.parametrize(("name", "seed"), [("motorway", 1), ("two_plus_one", 0)])
+def test_naive_departs_on_the_shipped_maps(name: str, seed: int) -> None:
+    """The naive detector on per-dash objects leaves its lane (6 of 8 seeds on both maps)."""
+    departures, _ = _closed_loop(name, "naive", seed)
+    assert departures >= 1
+
+
+def test_features_map_aldm_keeps_its_lane_naive_departs() -> None:
+    """features.xodr is 640 m long: an episode is truncated after ~16 s (the road ahead
+    ends within 250 m), so the 30 s criterion cannot apply. Over those 16 s the ALDM
+    keeps its lane (seeds 0-4), despite its known weak spots here (a broken edge line
+    0.6 m inside a solid shoulder line, a double centre line); the naive detector
+    steers across the centre line within the first second (then the oncoming lane's
+    road ends ahead and the episode is truncated)."""
+    departures, run = _closed_loop("features", "aldm", 0)
+    assert departures == 0 and run >= 15
+    departures, _ = _closed_loop("features", "naive", 0)
+    assert departures >= 1
+
+
+@pytest.mark.xfail(strict=True, reason="ALDM miss at the motorway's off-ramp gore (seed 4)")
+def test_aldm_at_the_motorway_exit() -> None:
+    """Seed 4 starts in the middle of four lanes ~125 m before the exit split: the ALDM
+    follows the off-ramp's lines to the right and leaves the carriageway (24 departures
+    in 35 s, measured). Strict: a detector fix turns this into a failure to update."""
+    assert _closed_loop("motorway", "aldm", 4)[0] == 0

@@ -264,8 +264,14 @@ class MapIDMVehicle(FastIDMVehicle):
         if stop < self.action["acceleration"]:
             self.action["acceleration"] = float(clip_scalar(stop, -self.ACC_MAX, self.ACC_MAX))
 
-    def step(self, dt: float) -> None:
-        """IDM's step; a vehicle stopped for a lane's end stays stopped (no reversing)."""
-        super().step(dt)
+    def on_state_update(self) -> None:
+        """The end of a step: a vehicle stopped for a lane's end stays stopped (no
+        reversing), then the lane update (deferred inside ``FastRoad.step``).
+
+        Clamping here rather than after ``step`` keeps ``step`` the base one, whose
+        closest-lane look-up :class:`~aldm_gym.envs.traffic.FastRoad` batches; the
+        look-up reads only the position and heading, so the order does not matter.
+        """
         if self.speed < 0.0:
             self.speed = 0.0
+        super().on_state_update()

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from aldm_gym.types import FloatArray
+from aldm_gym.types import BoolArray, FloatArray
 
 _F64 = np.dtype(np.float64)
 
@@ -291,6 +291,27 @@ class ReferenceLine:
         memo.update(batch)
         return batch
 
+    def remember(
+        self, points: FloatArray, s: FloatArray, d: FloatArray, rows: np.ndarray | None = None
+    ) -> None:
+        """Memoise for :meth:`project` the projections ``(s, d)`` of ``(N, 2)`` points.
+
+        For callers that ran this line's projection kernel themselves (e.g. inside a
+        larger compiled pass): the values must be :meth:`project`'s, bit for bit.
+
+        :param rows: remember only these rows (default: every row whose ``s`` is not
+            NaN, i.e. was projected).
+        """
+        pts = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 2)
+        raw = pts.tobytes()  # row k is raw[16 k : 16 (k + 1)], as point.tobytes() in project
+        s_list, d_list = s.tolist(), d.tolist()
+        keep = np.flatnonzero(~np.isnan(s)) if rows is None else rows
+        batch = {raw[16 * k : 16 * k + 16]: (s_list[k], d_list[k]) for k in keep.tolist()}
+        memo = self._point_memo
+        if len(memo) + len(batch) > _POINT_MEMO_SIZE:
+            memo.clear()
+        memo.update(batch)
+
     def _batch_project(self, pts: FloatArray) -> tuple[FloatArray, FloatArray]:
         """One compiled call projecting finite ``(N, 2)`` points (see :meth:`project`)."""
         return _project_many(
@@ -325,6 +346,31 @@ class ReferenceLine:
             s, d = out[:, 0].copy(), out[:, 1].copy()
         self._memo = (key, s, d)
         return s.copy(), d.copy()
+
+    def project_near(self, points: FloatArray) -> tuple[FloatArray, FloatArray, BoolArray]:
+        """:meth:`project_many` for the points within the line's fast reach only.
+
+        A point whose spatial-hash cell holds no candidate (farther than about
+        ``max_offset`` from the line) or with a non-finite coordinate is not projected:
+        its ``s`` and ``d`` are NaN and its ``near`` flag False. The others get
+        :meth:`project`'s results bit for bit. For traffic on a long map, where most
+        vehicles are far from any one lane, this skips their full search.
+
+        :param points: ``(N, 2)`` world points [m].
+        :return: ``(s (N,) [m], d (N,) [m], near (N,))``.
+        """
+        pts = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 2)
+        return _project_near(
+            self.xy,
+            self.heading,
+            self.step,
+            self._CELL,
+            self._hash_keys,
+            self._hash_ptr,
+            self._hash_idx,
+            2 * self._STRIDE,
+            pts,
+        )
 
 
 def _project_py(
@@ -431,3 +477,44 @@ def _project_many_py(
 
 
 _project_many = numba.njit(cache=True)(_project_many_py)
+
+
+def _project_near_py(
+    xy: FloatArray,
+    heading: FloatArray,
+    step: float,
+    cell: float,
+    hash_keys: np.ndarray,
+    hash_ptr: np.ndarray,
+    hash_idx: np.ndarray,
+    window: int,
+    points: FloatArray,
+) -> tuple[FloatArray, FloatArray, BoolArray]:
+    """:func:`_project_many_py` restricted to points whose hash cell has candidates.
+
+    Other points (and points with a coordinate not finite or beyond
+    :data:`_BATCH_COORD_LIMIT`) get ``s = d = NaN`` and ``near = False``.
+    """
+    n = points.shape[0]
+    s_out = np.full(n, np.nan)
+    d_out = np.full(n, np.nan)
+    near = np.zeros(n, dtype=np.bool_)
+    for k in range(n):
+        px = points[k, 0]
+        py = points[k, 1]
+        # The comparisons fail for NaN.
+        if not (abs(px) < _BATCH_COORD_LIMIT and abs(py) < _BATCH_COORD_LIMIT):
+            continue
+        key = np.int64(math.floor(px / cell)) * 1_000_003 + np.int64(math.floor(py / cell))
+        i = np.searchsorted(hash_keys, key)
+        if i < hash_keys.shape[0] and hash_keys[i] == key:
+            s, d = _project(
+                xy, heading, step, hash_idx[hash_ptr[i] : hash_ptr[i + 1]], window, px, py
+            )
+            s_out[k] = s
+            d_out[k] = d
+            near[k] = True
+    return s_out, d_out, near
+
+
+_project_near = numba.njit(cache=True)(_project_near_py)

@@ -36,9 +36,9 @@ import numpy as np
 from highway_env.road.lane import LineType
 from highway_env.road.road import LaneIndex, RoadNetwork
 
-from aldm_gym.roads.geometry import ReferenceLine, left_normal
+from aldm_gym.roads.geometry import ReferenceLine, _project_near, left_normal
 from aldm_gym.roads.lane import ReferenceLane
-from aldm_gym.types import FloatArray
+from aldm_gym.types import BoolArray, FloatArray
 
 if TYPE_CHECKING:
     from aldm_gym.roads.map_road import OpenDriveRoad
@@ -132,6 +132,7 @@ class MapLane(ReferenceLane):
         self._u = np.asarray(u, dtype=np.float64)
         self._w = w
         self._constant = bool(np.ptp(w) < 1e-9)
+        self._w_max = float(w.max())
         self.width = float(w[0]) if self._constant else self.width
 
     def width_at(self, longitudinal: float) -> float:
@@ -146,6 +147,52 @@ class MapLane(ReferenceLane):
             "class_path": f"{type(self).__module__}.{type(self).__name__}",
             "config": {"key": list(self.key), "length": self.length},
         }
+
+    def neighbour_table(
+        self, positions: FloatArray, margin: float
+    ) -> tuple[FloatArray, BoolArray, np.ndarray] | None:
+        """Which positions are on this lane, and in which order along it, in one compiled pass.
+
+        For the traffic's neighbour queries: ``s`` is every position's
+        ``local_coordinates`` ``s`` [m], except NaN for a position beyond the centre
+        line's fast reach (see :meth:`ReferenceLine.project_near
+        <aldm_gym.roads.geometry.ReferenceLine.project_near>`; such a position is not
+        on the lane); ``on`` the ``on_lane(margin=margin)`` mask; ``order`` the indices
+        of the on-lane positions sorted by ``s`` (stable: ties in index order). The
+        answers are those of ``local_coordinates`` and ``AbstractLane.on_lane``.
+
+        The projections of the on-lane positions are remembered by the centre line,
+        so the traffic's next ``local_coordinates`` of them on this lane (steering,
+        gaps) are memo hits.
+
+        :param positions: ``(N, 2)`` world positions [m].
+        :param margin: the on-lane test's lateral margin [m].
+        :return: ``(s (N,), on (N,), order (M,))``, or None when a position on the
+            lane could lie beyond the fast reach (a lane wider than the reach).
+        """
+        c = self.reference
+        if not self._w_max / 2 + margin + self.VEHICLE_LENGTH < c.max_offset:
+            return None
+        pts = np.ascontiguousarray(positions, dtype=np.float64).reshape(-1, 2)
+        s, d, on, order = _neighbour_table(
+            c.xy,
+            c.heading,
+            c.step,
+            c._CELL,
+            c._hash_keys,
+            c._hash_ptr,
+            c._hash_idx,
+            2 * c._STRIDE,
+            self._u,
+            self._w,
+            self._constant,
+            margin,
+            -self.VEHICLE_LENGTH,
+            self.length + self.VEHICLE_LENGTH,
+            pts,
+        )
+        c.remember(pts, s, d, order)
+        return s, on, order
 
 
 class MapNetwork(RoadNetwork):
@@ -225,6 +272,12 @@ class MapNetwork(RoadNetwork):
         xy = centres.xy
         seg = np.diff(xy, axis=0)
         self._seg_heading = np.append(np.arctan2(seg[:, 1], seg[:, 0]), 0.0)
+        # lane_left's constants per lane: the chain's length and its reach beyond the lane.
+        self._chain: dict[LaneIndex, tuple[float, float]] = {}
+        for index, key in self.key_of.items():
+            chain = road.chain_end(key) - road.chain_start(key)
+            self._chain[index] = (chain, chain - self.get_lane(index).length)
+        self._prepared: dict[tuple[bytes, float], LaneIndex] = {}
 
     # ------------------------------------------------------------------ look-ups
     def get_closest_lane_index(
@@ -237,6 +290,16 @@ class MapNetwork(RoadNetwork):
         ``heading`` is given; only lanes within reach of the position are examined
         (all lanes when none is near).
         """
+        if (
+            type(position) is np.ndarray
+            and position.dtype == np.float64
+            and position.shape == (2,)
+            and isinstance(heading, float)
+            and self._prepared
+        ):
+            prepared = self._prepared.get((position.tobytes(), heading))
+            if prepared is not None:
+                return prepared
         c = self.road._centres
         px, py = float(position[0]), float(position[1])
         use_heading = heading is not None and math.isfinite(float(heading))
@@ -258,6 +321,44 @@ class MapNetwork(RoadNetwork):
         if row < 0:  # nothing within reach: every lane
             row = _closest_lane(*args, math.inf)
         return self._row_index[row if row >= 0 else 0]
+
+    def prepare_closest_lane_poses(self, positions: FloatArray, headings: FloatArray) -> None:
+        """Look up the closest lanes of ``(N, 2)`` positions [m], ``(N,)`` headings [rad].
+
+        One compiled call for the poses :meth:`get_closest_lane_index` is about to be
+        asked for (every vehicle's, after a simulation step): the same search with
+        the same arguments per pose, so the remembered lanes are the ones it would
+        return. Only the latest batch is kept; poses with a coordinate or heading not
+        finite are not remembered.
+        """
+        pts = np.ascontiguousarray(positions, dtype=np.float64).reshape(-1, 2)
+        hs = np.asarray(headings, dtype=np.float64).reshape(-1)
+        self._prepared = {}
+        finite = np.isfinite(hs) & np.isfinite(pts).all(axis=1)
+        keep = np.flatnonzero(finite)
+        if len(keep) == 0:
+            return
+        c = self.road._centres
+        rows = _closest_lanes(
+            c.chunk_mark,
+            c.chunk_i0,
+            c.chunk_i1,
+            c.chunk_centre,
+            c.chunk_radius,
+            len(c.start) - 1,
+            c.xy,
+            self._seg_heading,
+            np.ascontiguousarray(pts[keep]),
+            hs[keep],
+            HEADING_WEIGHT,
+            CENTRE_REACH,
+        )
+        raw = pts.tobytes()  # row k is raw[16 k : 16 (k + 1)], as position.tobytes()
+        row_index = self._row_index
+        heading_list = hs.tolist()
+        for k, row in zip(keep.tolist(), rows.tolist(), strict=True):
+            key = (raw[16 * k : 16 * k + 16], heading_list[k])
+            self._prepared[key] = row_index[row if row >= 0 else 0]
 
     def next_lane(
         self,
@@ -291,20 +392,18 @@ class MapNetwork(RoadNetwork):
         ``at_least`` beyond the lane's own end, that reach is returned without
         projecting ``position`` (a lower bound, enough to know the end is far).
         """
-        key = self.key_of.get(lane_index)
-        if key is None:
+        constants = self._chain.get(lane_index)
+        if constants is None:
             return math.inf
-        road = self.road
-        chain = road.chain_end(key) - road.chain_start(key)
-        lane = self.get_lane(lane_index)
-        beyond = chain - lane.length
+        chain, beyond = constants
         if beyond >= at_least:
             return beyond
-        s, _ = lane.local_coordinates(position)
+        s, _ = self.get_lane(lane_index).local_coordinates(position)
         return chain - float(s)
 
 
-def _closest_lane_py(
+def _closest_lane_among_py(
+    chunks: np.ndarray,
     chunk_mark: np.ndarray,
     chunk_i0: np.ndarray,
     chunk_i1: np.ndarray,
@@ -319,7 +418,7 @@ def _closest_lane_py(
     weight: float,
     reach: float,
 ) -> int:
-    """Row of the lane centre with the least distance + ``weight`` · heading error.
+    """:func:`_closest_lane_py` over the chunks listed in ``chunks`` (ascending).
 
     Only chunks of centre vertices (:class:`~aldm_gym.roads.polyline.PolylineMarkings`'
     spatial index) within ``reach`` of ``(px, py)`` are searched. A lane's distance is
@@ -329,7 +428,7 @@ def _closest_lane_py(
     """
     best_d2 = np.full(n_rows, np.inf)
     best_i = np.full(n_rows, -1, dtype=np.int64)
-    for c in range(len(chunk_mark)):
+    for c in chunks:
         dx = centre[c, 0] - px
         dy = centre[c, 1] - py
         r = reach + radius[c]
@@ -366,4 +465,186 @@ def _closest_lane_py(
     return best_row
 
 
+_closest_lane_among = numba.njit(cache=True)(_closest_lane_among_py)
+
+
+def _closest_lane_py(
+    chunk_mark: np.ndarray,
+    chunk_i0: np.ndarray,
+    chunk_i1: np.ndarray,
+    centre: FloatArray,
+    radius: FloatArray,
+    n_rows: int,
+    xy: FloatArray,
+    seg_heading: FloatArray,
+    px: float,
+    py: float,
+    heading: float,
+    weight: float,
+    reach: float,
+) -> int:
+    """Row of the lane centre with the least distance + ``weight`` · heading error.
+
+    Only chunks of centre vertices (:class:`~aldm_gym.roads.polyline.PolylineMarkings`'
+    spatial index) within ``reach`` of ``(px, py)`` are searched. A lane's distance is
+    to its nearest segment among those (clamped at the ends); its heading error is to
+    that segment's heading, wrapped to ``[0, pi]``. Ties keep the lower row; ``-1``
+    when no chunk is within reach.
+    """
+    return _closest_lane_among(
+        np.arange(chunk_mark.shape[0]),
+        chunk_mark,
+        chunk_i0,
+        chunk_i1,
+        centre,
+        radius,
+        n_rows,
+        xy,
+        seg_heading,
+        px,
+        py,
+        heading,
+        weight,
+        reach,
+    )
+
+
 _closest_lane = numba.njit(cache=True)(_closest_lane_py)
+
+
+def _closest_lanes_py(
+    chunk_mark: np.ndarray,
+    chunk_i0: np.ndarray,
+    chunk_i1: np.ndarray,
+    centre: FloatArray,
+    radius: FloatArray,
+    n_rows: int,
+    xy: FloatArray,
+    seg_heading: FloatArray,
+    points: FloatArray,
+    headings: FloatArray,
+    weight: float,
+    reach: float,
+) -> np.ndarray:
+    """:func:`_closest_lane_py` for every pose: ``(N,)`` rows (``-1``: no lane at all).
+
+    Per pose as :meth:`MapNetwork.get_closest_lane_index`: the lanes within ``reach``,
+    else every lane. Positions must be finite.
+    """
+    n = points.shape[0]
+    rows = np.empty(n, dtype=np.int64)
+    if n == 0:
+        return rows
+    # A chunk beyond reach of the poses' bounding box is beyond reach of every pose:
+    # searching only the others (in the same order) gives the same rows.
+    x0 = points[:, 0].min()
+    x1 = points[:, 0].max()
+    y0 = points[:, 1].min()
+    y1 = points[:, 1].max()
+    near = np.empty(chunk_mark.shape[0], dtype=np.int64)
+    count = 0
+    for c in range(chunk_mark.shape[0]):
+        r = reach + radius[c]
+        cx = centre[c, 0]
+        cy = centre[c, 1]
+        if x0 - r <= cx and cx <= x1 + r and y0 - r <= cy and cy <= y1 + r:
+            near[count] = c
+            count += 1
+    near = near[:count]
+    every = np.arange(chunk_mark.shape[0])
+    for k in range(n):
+        px = points[k, 0]
+        py = points[k, 1]
+        h = headings[k]
+        row = _closest_lane_among(
+            near,
+            chunk_mark,
+            chunk_i0,
+            chunk_i1,
+            centre,
+            radius,
+            n_rows,
+            xy,
+            seg_heading,
+            px,
+            py,
+            h,
+            weight,
+            reach,
+        )
+        if row < 0:
+            row = _closest_lane_among(
+                every,
+                chunk_mark,
+                chunk_i0,
+                chunk_i1,
+                centre,
+                radius,
+                n_rows,
+                xy,
+                seg_heading,
+                px,
+                py,
+                h,
+                weight,
+                math.inf,
+            )
+        rows[k] = row
+    return rows
+
+
+_closest_lanes = numba.njit(cache=True)(_closest_lanes_py)
+
+
+def _neighbour_table_py(
+    xy: FloatArray,
+    heading: FloatArray,
+    step: float,
+    cell: float,
+    hash_keys: np.ndarray,
+    hash_ptr: np.ndarray,
+    hash_idx: np.ndarray,
+    window: int,
+    u: FloatArray,
+    w: FloatArray,
+    constant: bool,
+    margin: float,
+    low: float,
+    high: float,
+    points: FloatArray,
+) -> tuple[FloatArray, FloatArray, BoolArray, np.ndarray]:
+    """``(s, d, on, order)`` for :meth:`MapLane.neighbour_table` (plain-Python reference).
+
+    ``s`` from :func:`~aldm_gym.roads.geometry._project_near_py` (NaN off reach), the
+    lateral coordinate ``r = 0 - d`` (``ReferenceLane.local_coordinates`` at offset
+    0), the width ``w[0]`` or interpolated at ``s`` (``MapLane.width_at``), then
+    ``AbstractLane.on_lane``'s comparisons; ``order`` sorts the on-lane indices by
+    ``s`` with a stable sort. ``s``, ``d`` (left offset [m]), ``on`` have shape
+    ``(N,)``, ``order`` ``(M,)``.
+    """
+    s, d, near = _project_near(
+        xy, heading, step, cell, hash_keys, hash_ptr, hash_idx, window, points
+    )
+    n = points.shape[0]
+    on = np.zeros(n, dtype=np.bool_)
+    count = 0
+    for k in range(n):
+        if not near[k]:
+            continue
+        sk = s[k]
+        r = 0.0 - d[k]
+        width = w[0] if constant else np.interp(sk, u, w)
+        if abs(r) <= width / 2 + margin and low <= sk and sk < high:
+            on[k] = True
+            count += 1
+    idx = np.empty(count, dtype=np.int64)
+    j = 0
+    for k in range(n):
+        if on[k]:
+            idx[j] = k
+            j += 1
+    order = idx[np.argsort(s[idx], kind="mergesort")]
+    return s, d, on, order
+
+
+_neighbour_table = numba.njit(cache=True)(_neighbour_table_py)

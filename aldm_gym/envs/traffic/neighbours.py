@@ -6,8 +6,10 @@ Python-level lane projections (highway-env issues #36, #121, #223). Here, once p
 cache epoch (lazily, per queried lane), every road object is projected onto the lane
 in one vectorised pass (``lane.local_coordinates_many`` when the lane offers it; one
 pass for a whole edge of plain ``StraightLane`` lanes or of
-:class:`~aldm_gym.roads.lane.ReferenceLane` lanes sharing a reference line), the
-on-lane objects are sorted by longitudinal coordinate, and each query is a bisection.
+:class:`~aldm_gym.roads.lane.ReferenceLane` lanes sharing a reference line; one
+compiled pass of ``lane.neighbour_table`` for a lane that sorts its objects itself, as
+a map's lanes do), the on-lane objects are sorted by longitudinal coordinate, and each
+query is a bisection.
 Ties are broken as in the base loop (front: the *last* object in
 ``vehicles + objects`` order among equal ``s``; rear: the *first*).
 
@@ -45,16 +47,17 @@ def _uses_default_on_lane(lane: AbstractLane) -> bool:
 class _LaneTable:
     """Longitudinal coordinates of every road object on one lane, for one epoch.
 
-    ``s`` / ``r`` have shape ``(N,)`` [m] and follow the cache's object order;
-    ``on_lane`` is the ``on_lane(..., margin=1)`` mask.
+    ``s`` has shape ``(N,)`` [m] and follows the cache's object order; ``on_lane`` is
+    the ``on_lane(..., margin=1)`` mask. With ``lazy``, a NaN in ``s`` means "not
+    computed" (the object is off the lane, too far to be projected).
     """
 
-    __slots__ = ("on_lane", "r", "s")
+    __slots__ = ("lazy", "on_lane", "s")
 
-    def __init__(self, s: FloatArray, r: FloatArray, on_lane: BoolArray) -> None:
+    def __init__(self, s: FloatArray, on_lane: BoolArray, lazy: bool = False) -> None:
         self.s = s
-        self.r = r
         self.on_lane = on_lane
+        self.lazy = lazy
 
 
 class _SortedNeighbours:
@@ -62,15 +65,23 @@ class _SortedNeighbours:
 
     ``keys`` [m] ascending; ties keep object order (stable sort), which the bisection
     queries rely on for the base loop's tie-breaking. ``query_s`` [m] is every cached
-    object's coordinate on the query lane.
+    object's coordinate on the query lane; with ``lazy``, a NaN there means "not
+    computed" (the object is far from the lane) and the query projects it itself.
     """
 
-    __slots__ = ("keys", "objects", "query_s")
+    __slots__ = ("keys", "lazy", "objects", "query_s")
 
-    def __init__(self, keys: list[float], objects: list[RoadObject], query_s: list[float]) -> None:
+    def __init__(
+        self,
+        keys: list[float],
+        objects: list[RoadObject],
+        query_s: list[float],
+        lazy: bool = False,
+    ) -> None:
         self.keys = keys
         self.objects = objects
         self.query_s = query_s
+        self.lazy = lazy
 
 
 class NeighbourCache:
@@ -142,6 +153,8 @@ class NeighbourCache:
         i = self._index.get(id(vehicle))
         if i is not None and self._items[i] is vehicle:
             s = entry.query_s[i]
+            if s != s and entry.lazy:
+                s = float(road.network.get_lane(lane_index).local_coordinates(vehicle.position)[0])
         else:
             s = float(road.network.get_lane(lane_index).local_coordinates(vehicle.position)[0])
         if s != s:  # NaN: no comparison holds in the base loop
@@ -180,7 +193,7 @@ class NeighbourCache:
         n = len(self._items)
         if n == 0:
             empty = np.zeros(0)
-            table = _LaneTable(empty, empty, np.zeros(0, dtype=bool))
+            table = _LaneTable(empty, np.zeros(0, dtype=bool))
         elif is_plain_straight(lane):
             assert isinstance(lane, StraightLane)
             # StraightLane.local_coordinates, vectorised with the same operations.
@@ -193,7 +206,9 @@ class NeighbourCache:
                 & (-lane.VEHICLE_LENGTH <= s)
                 & (s < lane.length + lane.VEHICLE_LENGTH)
             )
-            table = _LaneTable(s, r, on)
+            table = _LaneTable(s, on)
+        elif (fast := self._compiled_table(lane)) is not None:
+            table = _LaneTable(fast[0], fast[1], lazy=True)
         else:
             many: Callable[[FloatArray], tuple[Any, Any]] | None = getattr(
                 lane, "local_coordinates_many", None
@@ -221,7 +236,7 @@ class NeighbourCache:
                     ],
                     dtype=bool,
                 )
-            table = _LaneTable(s, r, on)
+            table = _LaneTable(s, on)
         self._lane_tables[id(lane)] = table
         return table
 
@@ -257,7 +272,9 @@ class NeighbourCache:
         if entry is not None:
             return entry
         if not connected and (
-            self._build_straight_edge(lane_index) or self._build_reference_edge(lane_index)
+            self._build_ordered_lane(lane_index)
+            or self._build_straight_edge(lane_index)
+            or self._build_reference_edge(lane_index)
         ):
             return self._sorted[key]
         lanes_offsets = self._search_lanes(lane_index)
@@ -285,6 +302,7 @@ class NeighbourCache:
             keys=keys[order].tolist(),
             objects=[items[i] for i in candidates[order].tolist()],
             query_s=primary.s.tolist(),
+            lazy=primary.lazy,
         )
         self._sorted[key] = entry
         return entry
@@ -353,7 +371,7 @@ class NeighbourCache:
         sorted_s = s[np.arange(n_lanes)[:, None], order]
         for i, lane in enumerate(lanes):
             count = counts[i]
-            self._lane_tables[id(lane)] = _LaneTable(s[i], r[i], on[i])
+            self._lane_tables[id(lane)] = _LaneTable(s[i], on[i])
             self._sorted[((_from, _to, i), False)] = _SortedNeighbours(
                 keys=sorted_s[i, :count].tolist(),
                 objects=[items[k] for k in order[i, :count].tolist()],
@@ -407,4 +425,44 @@ class NeighbourCache:
                     keys.append(sk)
                     objects.append(items[k])
             self._sorted[((_from, _to, i), False)] = _SortedNeighbours(keys, objects, query_s)
+        return True
+
+    def _compiled_table(self, lane: AbstractLane) -> tuple[Any, ...] | None:
+        """``lane.neighbour_table(positions, margin)`` if the lane offers and accepts it.
+
+        Lanes with their own centre line (a map's
+        :class:`~aldm_gym.roads.map_network.MapLane`) share nothing with their
+        siblings, but on a long map most objects are far from any one lane: the lane
+        projects only the objects within reach, applies ``on_lane(margin=1)`` and
+        sorts, in one compiled pass: ``(s, on, order)``, NaN ``s`` for objects not
+        projected (off the lane; a query projects itself if it needs its own ``s``).
+        """
+        table_of: Callable[[FloatArray, float], Any] | None = getattr(lane, "neighbour_table", None)
+        if table_of is None or not self._items:
+            return None
+        result: tuple[Any, ...] | None = table_of(self._positions, _NEIGHBOUR_MARGIN)
+        return result
+
+    def _build_ordered_lane(self, lane_index: LaneIndex) -> bool:
+        """Sorted neighbours of a lane with a compiled table (:meth:`_compiled_table`).
+
+        Only when searched without connected lanes; the order comes with the table.
+        The answers are those of the generic path (``lazy``: a query projects itself
+        when its ``s`` was not computed).
+
+        :return: False (nothing built) if the lane has no compiled table.
+        """
+        lane = self.road.network.get_lane(lane_index)
+        table = self._compiled_table(lane)
+        if table is None:
+            return False
+        s, on, order = table
+        self._lane_tables[id(lane)] = _LaneTable(s, on, lazy=True)
+        items = self._items
+        self._sorted[(lane_index, False)] = _SortedNeighbours(
+            keys=s[order].tolist(),
+            objects=[items[k] for k in order.tolist()],
+            query_s=s.tolist(),
+            lazy=True,
+        )
         return True

@@ -203,7 +203,8 @@ class FastRoad(Road):
         closest-lane look-up deferred until all have moved: the look-up depends only on
         the vehicle's own pose, so the order does not matter, and the network may then
         prepare every position in one batch (``prepare_closest_lanes``, e.g. one
-        compiled projection of all vehicles).
+        compiled projection of all vehicles; ``prepare_closest_lane_poses`` with the
+        headings too, for a network whose look-up weighs them).
 
         :param dt: timestep [s].
         """
@@ -217,14 +218,25 @@ class FastRoad(Road):
         finally:
             self._deferred_updates = None
         if deferred:
+            prepare_poses: Callable[[FloatArray, FloatArray], None] | None = getattr(
+                self.network, "prepare_closest_lane_poses", None
+            )
             prepare: Callable[[FloatArray], None] | None = getattr(
                 self.network, "prepare_closest_lanes", None
             )
-            if prepare is not None:
+            if prepare_poses is not None:
+                # A network whose look-up weighs the heading (a map's) needs the poses.
+                prepare_poses(
+                    np.array([v.position for v in deferred], dtype=np.float64).reshape(-1, 2),
+                    np.array([v.heading for v in deferred], dtype=np.float64),
+                )
+            elif prepare is not None:
                 # Built like NeighbourCache's position array: when every object is a
                 # deferred vehicle (a highway), the next act's batch projection is a memo hit.
                 prepare(np.array([v.position for v in deferred], dtype=np.float64).reshape(-1, 2))
             for vehicle in deferred:
-                Vehicle.on_state_update(vehicle)
+                # The vehicle's own on_state_update (its class may extend the end of a
+                # step, e.g. MapIDMVehicle); no longer deferred, it runs Vehicle's now.
+                vehicle.on_state_update()
         self.invalidate()
         resolve_collisions(self.vehicles, self.objects, dt)
