@@ -39,45 +39,9 @@ CASES = {
 }
 """Cases per group (bounded: a few seconds to half a minute each)."""
 
-_CONFIG = (
-    "envs/config.py: a one-element reward_speed_range passes the 'numbers' rule, "
-    "then the env unpacks two"
-)
-_SENSOR = (
-    "sensor/line_sensor.py: a non-numeric argument fails in float conversion without naming it"
-)
-_ROAD_INT = "roads/highway.py: a non-integer lane_id fails in int()/indexing without naming lane_id"
-_ROAD_S = "roads/highway.py: sample_markings names its s_origin argument 's_hint'"
-_POINTS = "sensor/aldm.py as_points: a bad dtype is rejected without naming 'points'"
-
-KNOWN_FAILURES: dict[str, str] = {
-    "config:config reward_speed_range=[13.41731521315348]": _CONFIG,
-    "sensor:measure pose='abc'": _SENSOR,
-    "sensor:measure pose=(100.0, 1.8, 0.0) ext_rotation='abc'": _SENSOR,
-    "sensor:measure pose=(100.0, 1.8, 0.0) ext_travel='abc'": _SENSOR,
-    "sensor:measure pose=(100.0, 1.8, 0.0) s_hint='x'": _SENSOR,
-    "road:road.lane_offset(nan)": _ROAD_INT,
-    "road:road.lane_boundaries(nan)": _ROAD_INT,
-    "road:road.lane(nan)": _ROAD_INT,
-    "road:road.boundary_markings(nan)": _ROAD_INT,
-    "road:road.lane_offset('a')": _ROAD_INT,
-    "road:road.lane('a')": _ROAD_INT,
-    "road:road.lane_boundaries('a')": _ROAD_INT,
-    "road:road.sample_markings(s_origin=inf)": _ROAD_S,
-    "road:road.lane_boundaries(1.5)": _ROAD_INT,
-    "road:road.lane(None)": _ROAD_INT,
-    "road:road.boundary_markings(None)": _ROAD_INT,
-    "points:detect_lanes(points (32,2) complex, mode=paper)": _POINTS,
-    "points:detect_lanes(points (84,2) complex, mode=robust)": _POINTS,
-    "points:detect_lanes(points (84,2) complex, mode=paper)": _POINTS,
-    "points:detect_lanes(points (32,2) complex, mode=robust)": _POINTS,
-    "points:detect_lanes(points (1,2) str, mode=robust)": _POINTS,
-    "points:detect_lanes(points (32,2) bool, mode=robust)": _POINTS,
-    "points:detect_lanes(points (32,2) bool, mode=paper)": _POINTS,
-    "points:detect_lanes(points (84,2) bool, mode=paper)": _POINTS,
-    "points:detect_lanes(points (84,2) bool, mode=robust)": _POINTS,
-}
-"""``"<group>:<case label>"`` -> why it fails (an unnamed error or a crash), until fixed."""
+KNOWN_FAILURES: dict[str, str] = {}
+"""``"group:case label" -> reason`` of inputs that still crash or raise an unnamed error
+(each a strict xfail). Empty: the 24 found when the suite was written are fixed."""
 
 Case = tuple[str, tuple[str, ...], Callable[[], Any]]
 """A case: its label, the names an error must mention (any one), and the call."""

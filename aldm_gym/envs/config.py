@@ -125,7 +125,7 @@ class EnvConfig:
     right_lane_reward: float = _reward(0.0)
     high_speed_reward: float = _reward(0.3)
     lane_change_reward: float = _reward(0.0)
-    reward_speed_range: list[float] = setting([20.0, 30.0], lo=0.0, hi=100.0, increasing=True)
+    reward_speed_range: tuple[float, float] = setting((20.0, 30.0), kind="pair", lo=0.0, hi=100.0)
     normalize_reward: bool = setting(True)
     offroad_terminal: bool = setting(False)
     # --- aldm-gym

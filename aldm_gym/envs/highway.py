@@ -227,6 +227,12 @@ class ALDMHighwayEnv(AbstractEnv):
         self._detector = make_detector(
             cfg["detector"], cfg["detector_params"], path_range=self.path_range
         )
+        if self.road is not None:
+            # The old road and its vehicles reference each other; emptying its lists
+            # frees them at once instead of at Python's next full garbage collection
+            # (docs/reliability.md, "Soak").
+            self.road.vehicles.clear()
+            self.road.objects.clear()
         self.road = FastRoad(
             network=self.highway.network,
             np_random=self.np_random,

@@ -3,6 +3,7 @@ from an OpenDRIVE map (OpenDriveRoad)."""
 
 from __future__ import annotations
 
+import aldm_gym._numba  # noqa: F401  (numba cache guards, before any kernel is compiled)
 from aldm_gym.roads.geometry import ReferenceLine, Segment
 from aldm_gym.roads.highway import (
     EDGE,

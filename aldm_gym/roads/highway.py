@@ -350,7 +350,7 @@ class HighwayRoad:
     def _check_hint(self, origin: FloatArray, s_origin: float) -> None:
         """Reject an ``s_origin`` hint that does not belong to ``origin`` (never silent)."""
         if not math.isfinite(s_origin):
-            raise ValueError(f"s_hint must be finite, got {s_origin!r}")
+            raise ValueError(f"s_origin (s_hint) must be finite, got {s_origin!r}")
         ref = self.reference
         k = min(max(int(s_origin / ref.step + 0.5), 0), len(ref.s) - 1)
         h = float(ref.heading[k])
@@ -387,8 +387,11 @@ class HighwayRoad:
         }
 
     def _check_lane(self, lane_id: int) -> None:
-        if not 0 <= int(lane_id) < self.lanes_count:
-            raise ValueError(f"lane_id must be in [0, {self.lanes_count - 1}], got {lane_id}")
+        ok = isinstance(lane_id, int | np.integer) and not isinstance(lane_id, bool)
+        if not ok or not 0 <= int(lane_id) < self.lanes_count:
+            raise ValueError(
+                f"lane_id must be an integer in [0, {self.lanes_count - 1}], got {lane_id!r}"
+            )
 
     def _check_marking(self, j: int) -> None:
         if not 0 <= int(j) < len(self.markings):

@@ -7,6 +7,7 @@ y left, z up) [m].
 
 from __future__ import annotations
 
+import aldm_gym._numba  # noqa: F401  (numba cache guards, before any kernel is compiled)
 from aldm_gym.sensor.aldm import ALDMParams, detect_lanes
 from aldm_gym.sensor.detection import LINE_NAMES, LaneDetection, driving_trajectory
 from aldm_gym.sensor.frame import LineObject, SensorFrame, SideLines

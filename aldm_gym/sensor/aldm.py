@@ -273,7 +273,7 @@ def as_points(points: Any) -> FloatArray:
         )
     if points.dtype.kind not in "fiu":
         raise TypeError(
-            f"detect_lanes expects a float (or integer) array, got dtype {points.dtype}"
+            f"detect_lanes: points must be a float (or integer) array, got dtype {points.dtype}"
         )
     if points.ndim != 2 or points.shape[1] not in (2, 3):
         raise ValueError(

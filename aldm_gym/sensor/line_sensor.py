@@ -136,8 +136,15 @@ class LineSensorConfig:
         )
 
 
+def _is_number(value: Any) -> bool:
+    return isinstance(value, int | float | np.integer | np.floating) and not isinstance(value, bool)
+
+
 def _vec3(value: Any, name: str) -> FloatArray:
-    arr = np.asarray(value, dtype=np.float64)
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be 3 finite numbers, got {value!r}") from None
     if arr.shape != (3,) or not np.all(np.isfinite(arr)):
         raise ValueError(f"{name} must be 3 finite numbers, got {value!r}")
     return arr
@@ -145,6 +152,15 @@ def _vec3(value: Any, name: str) -> FloatArray:
 
 def _pose(pose: Any) -> tuple[float, float, float]:
     """``(x, y, heading)`` from a tuple/array or a highway-env vehicle."""
+    try:
+        return _pose_numbers(pose)
+    except (TypeError, ValueError) as exc:
+        if str(exc).startswith("pose"):
+            raise
+        raise ValueError(f"pose must be (x [m], y [m], heading [rad]), got {pose!r}") from None
+
+
+def _pose_numbers(pose: Any) -> tuple[float, float, float]:
     if type(pose) is tuple and len(pose) == 3:
         x, y, h = float(pose[0]), float(pose[1]), float(pose[2])
     elif hasattr(pose, "position") and hasattr(pose, "heading"):
@@ -261,8 +277,12 @@ class LineSensor:
         """
         if not hasattr(road, "sample_visible"):
             raise TypeError(f"road must be a HighwayRoad or a map road, got {type(road).__name__}")
-        if not math.isfinite(t):
-            raise ValueError(f"t must be finite, got {t}")
+        if not (_is_number(t) and math.isfinite(t)):
+            raise ValueError(f"t must be a finite number [s], got {t!r}")
+        if s_hint is not None and not _is_number(s_hint):
+            raise ValueError(f"s_hint must be a number [m] or None, got {s_hint!r}")
+        if rng is not None and not isinstance(rng, np.random.Generator):
+            raise TypeError(f"rng must be a numpy Generator or None, got {type(rng).__name__}")
         c = self.config
         rot = np.zeros(3) if ext_rotation is _NO_TURN else _vec3(ext_rotation, "ext_rotation")
         travel = np.zeros(3) if ext_travel is _NO_TURN else _vec3(ext_travel, "ext_travel")
