@@ -14,6 +14,9 @@ a ``__pycache__`` folder next to each module (or the user's cache folder, or
   ...: no locator available``), so importing the env failed: now the kernels compile
   in memory (each run) with a one-line warning saying how to cache them.
 
+On a cache miss of one of the package's kernels (the first run after an install or an
+edit), one line on stderr says that kernels are being compiled, once per process.
+
 :func:`install` wraps numba's ``Cache.load_overload`` and
 ``Dispatcher.enable_caching`` for functions of this package only (another package's
 cache errors still raise); it runs when this module is imported, which
@@ -23,6 +26,7 @@ modules keep their plain ``numba.njit(cache=True)``.
 
 from __future__ import annotations
 
+import sys
 import warnings
 from pathlib import Path
 from typing import Any
@@ -32,6 +36,7 @@ PACKAGE = "aldm_gym"
 
 _installed = False
 _warned_no_cache = False
+_announced = False
 
 
 class NumbaCacheWarning(UserWarning):
@@ -67,10 +72,24 @@ def _corrupt_files(cache: Any, sig: Any, target_context: Any) -> list[Path]:
     return [Path(cache_file._data_path(name)), index]
 
 
+def _announce_compile() -> None:
+    """One line on stderr, once per process, when a kernel is not in the cache: the
+    first run after an install compiles for about a minute, and should not look hung."""
+    global _announced
+    if not _announced:
+        _announced = True
+        print(
+            "aldm-gym: compiling numba kernels (first run after an install or an update; "
+            "about a minute on 2 cores, cached on disk afterwards)...",
+            file=sys.stderr,
+            flush=True,
+        )
+
+
 def _guarded_load_overload(original: Any) -> Any:
     def load_overload(self: Any, sig: Any, target_context: Any) -> Any:
         try:
-            return original(self, sig, target_context)
+            got = original(self, sig, target_context)
         except Exception as exc:
             if not _ours(getattr(self, "_py_func", None)):
                 raise
@@ -86,7 +105,11 @@ def _guarded_load_overload(original: Any) -> Any:
                 f"recompiling {getattr(self._py_func, '__qualname__', '?')}",
                 where,
             )
+            _announce_compile()
             return None  # a cache miss: numba compiles, then saves the entry again
+        if got is None and _ours(getattr(self, "_py_func", None)):
+            _announce_compile()
+        return got
 
     load_overload.__wrapped__ = original  # type: ignore[attr-defined]
     return load_overload

@@ -430,6 +430,8 @@ def test_a_corrupt_numba_cache_entry_is_recompiled_with_a_warning(tmp_path: Path
     env.pop("NUMBA_DISABLE_JIT", None)
     first = _run_kernel(env)
     assert first.returncode == 0, first.stderr
+    # A cold cache announces the compile, once.
+    assert first.stderr.count("aldm-gym: compiling numba kernels") == 1, first.stderr
     (index,) = tmp_path.rglob("trajectory._cubic_ok_py-*.nbi")
     (data,) = tmp_path.rglob("trajectory._cubic_ok_py-*.nbc")
     for broken in (data, index):
@@ -441,6 +443,7 @@ def test_a_corrupt_numba_cache_entry_is_recompiled_with_a_warning(tmp_path: Path
         # The entry was written again: the next run loads it silently.
         again = _run_kernel(env)
         assert again.returncode == 0 and "Warning" not in again.stderr, again.stderr
+        assert "compiling" not in again.stderr, again.stderr
 
 
 def test_without_a_writable_numba_cache_the_kernels_compile_in_memory(tmp_path: Path) -> None:
