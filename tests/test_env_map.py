@@ -16,7 +16,7 @@ import aldm_gym  # also registers the env
 from aldm_gym.envs.traffic.vehicles import STEPS_ENDING_WITH_UPDATE
 from aldm_gym.envs.vehicle import MapIDMVehicle
 from aldm_gym.roads import OpenDriveRoad
-from aldm_gym.roads.geometry import _project_near, _project_near_py
+from aldm_gym.roads.geometry import ReferenceLine, _project_near, _project_near_py
 from aldm_gym.roads.map_network import (
     CentreLine,
     MapLane,
@@ -334,6 +334,18 @@ def test_lane_neighbour_table_matches_local_coordinates_and_on_lane(name: str) -
         for got, want in zip(_neighbour_table(*args), _neighbour_table_py(*args), strict=True):
             assert np.array_equal(got, want, equal_nan=True)
     assert name != "features" or varying > 0  # a width change is covered
+
+
+def test_reference_line_from_points_is_the_centre_line() -> None:
+    xy = np.column_stack([np.linspace(0.0, 300.0, 40), 20.0 * np.sin(np.linspace(0.0, 2.0, 40))])
+    line = ReferenceLine.from_points(xy, 0.5, 15.0)
+    centre = CentreLine(xy)
+    assert type(line) is ReferenceLine and line.segments == ()
+    for name in ("s", "xy", "heading", "kappa", "normal"):
+        assert np.array_equal(getattr(line, name), getattr(centre, name))
+    assert line.project(np.array([150.0, 3.0])) == centre.project(np.array([150.0, 3.0]))
+    with pytest.raises(ValueError, match="positive length"):
+        ReferenceLine.from_points(np.zeros((3, 2)))
 
 
 def test_project_near_projects_only_within_reach() -> None:

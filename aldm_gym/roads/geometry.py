@@ -128,6 +128,57 @@ class ReferenceLine:
         self._h_list: list[float] = h.tolist()
         self._build_hash()
 
+    @classmethod
+    def from_points(
+        cls, xy: FloatArray, step: float = 0.5, max_offset: float = 40.0
+    ) -> ReferenceLine:
+        """A line tabulated from a polyline instead of a curvature profile.
+
+        The polyline is resampled at a constant arc-length step (the table layout the
+        evaluation and projection rely on); headings come from the resampled chords
+        (unwrapped, so they interpolate; a vertex gets the mean of its two chords, an
+        end its chord), curvature from their differences. ``segments`` is empty.
+
+        :param xy: ``(N >= 2, 2)`` world vertices [m] in the driving direction.
+        :param step: tabulation step [m] (the actual one is ``<= step``).
+        :param max_offset: lateral reach of the fast projection [m].
+        """
+        line = cls.__new__(cls)
+        line._tabulate_points(xy, step, max_offset)
+        return line
+
+    def _tabulate_points(self, xy: FloatArray, step: float, max_offset: float) -> None:
+        """Fill the tables from a polyline (see :meth:`from_points`)."""
+        pts = np.asarray(xy, dtype=np.float64)
+        u = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))])
+        length = float(u[-1])
+        if not length > 0.0:
+            raise ValueError("a line from points needs a positive length")
+        n = max(int(np.ceil(length / step)) + 1, 2)
+        s = np.linspace(0.0, length, n)
+        table = np.column_stack([np.interp(s, u, pts[:, 0]), np.interp(s, u, pts[:, 1])])
+        chord = np.diff(table, axis=0)
+        seg_heading = np.unwrap(np.arctan2(chord[:, 1], chord[:, 0]))
+        heading = np.empty(n)
+        heading[0], heading[-1] = seg_heading[0], seg_heading[-1]
+        heading[1:-1] = 0.5 * (seg_heading[1:] + seg_heading[:-1])
+        self.segments = ()
+        self.step = float(s[1] - s[0])
+        self.length = length
+        self.s = s
+        self.xy = table
+        self.heading = heading
+        self.kappa = -np.gradient(heading, s)  # dh/ds = -kappa in highway-env's world
+        self.normal = left_normal(heading)
+        self.max_offset = float(max_offset)
+        self._memo = None
+        self._point_memo = {}
+        self._s_list = s.tolist()
+        self._x_list = table[:, 0].tolist()
+        self._y_list = table[:, 1].tolist()
+        self._h_list = heading.tolist()
+        self._build_hash()
+
     # ------------------------------------------------------------------ tables
     _STRIDE = 10  # coarse samples: every 10th tabulated point
 

@@ -36,7 +36,7 @@ import numpy as np
 from highway_env.road.lane import LineType
 from highway_env.road.road import LaneIndex, RoadNetwork
 
-from aldm_gym.roads.geometry import ReferenceLine, _project_near, left_normal
+from aldm_gym.roads.geometry import ReferenceLine, _project_near
 from aldm_gym.roads.lane import ReferenceLane
 from aldm_gym.types import BoolArray, FloatArray
 
@@ -55,13 +55,11 @@ HEADING_WEIGHT = 1.0
 
 
 class CentreLine(ReferenceLine):
-    """A :class:`ReferenceLine` tabulated from a polyline instead of a curvature profile.
+    """A lane's centre: a :class:`ReferenceLine` tabulated from a polyline.
 
-    The polyline is resampled at a constant arc-length step (the table layout
-    :class:`ReferenceLine`'s evaluation and projection rely on); headings come from
-    the resampled chords (unwrapped, so they interpolate), curvature from their
-    differences. Everything else (``pose_at``, ``position``, ``project``,
-    ``project_many``) is the reference line's.
+    :meth:`ReferenceLine.from_points <aldm_gym.roads.geometry.ReferenceLine.from_points>`
+    with the map lanes' step and reach; everything else (``pose_at``, ``position``,
+    ``project``, ``project_many``, ``project_near``) is the reference line's.
 
     :param xy: ``(N >= 2, 2)`` world vertices [m] in the driving direction.
     :param step: tabulation step [m] (the actual one is ``<= step``).
@@ -71,38 +69,7 @@ class CentreLine(ReferenceLine):
     def __init__(
         self, xy: FloatArray, step: float = CENTRE_STEP, max_offset: float = CENTRE_REACH
     ) -> None:
-        # ReferenceLine.__init__ integrates a curvature profile; here the table comes
-        # from points, then the same attributes and spatial hash are set up.
-        pts = np.asarray(xy, dtype=np.float64)
-        u = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))])
-        length = float(u[-1])
-        if not length > 0.0:
-            raise ValueError("a centre line needs a positive length")
-        n = max(int(np.ceil(length / step)) + 1, 2)
-        s = np.linspace(0.0, length, n)
-        table = np.column_stack([np.interp(s, u, pts[:, 0]), np.interp(s, u, pts[:, 1])])
-        chord = np.diff(table, axis=0)
-        seg_heading = np.unwrap(np.arctan2(chord[:, 1], chord[:, 0]))
-        # Vertex headings: the mean of the two chords around a vertex (ends: their chord).
-        heading = np.empty(n)
-        heading[0], heading[-1] = seg_heading[0], seg_heading[-1]
-        heading[1:-1] = 0.5 * (seg_heading[1:] + seg_heading[:-1])
-        self.segments = ()
-        self.step = float(s[1] - s[0])
-        self.length = length
-        self.s = s
-        self.xy = table
-        self.heading = heading
-        self.kappa = -np.gradient(heading, s)  # dh/ds = -kappa in highway-env's world
-        self.normal = left_normal(heading)
-        self.max_offset = float(max_offset)
-        self._memo = None
-        self._point_memo = {}
-        self._s_list = s.tolist()
-        self._x_list = table[:, 0].tolist()
-        self._y_list = table[:, 1].tolist()
-        self._h_list = heading.tolist()
-        self._build_hash()
+        self._tabulate_points(xy, step, max_offset)
 
 
 class MapLane(ReferenceLane):
