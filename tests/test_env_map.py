@@ -325,11 +325,6 @@ def test_lane_neighbour_table_matches_local_coordinates_and_on_lane(name: str) -
         assert not projected[-1] and projected[:40].all()
         assert np.array_equal(on, on_ref)
         assert np.array_equal(order, order_ref)
-        # The on-lane projections are remembered: project returns the very floats.
-        for k in order.tolist():
-            assert (
-                lane.reference.project(points[k]) == lane.reference._point_memo[points[k].tobytes()]
-            )
         args = _lane_table_args(lane, np.ascontiguousarray(points))
         for got, want in zip(_neighbour_table(*args), _neighbour_table_py(*args), strict=True):
             assert np.array_equal(got, want, equal_nan=True)

@@ -342,27 +342,6 @@ class ReferenceLine:
         memo.update(batch)
         return batch
 
-    def remember(
-        self, points: FloatArray, s: FloatArray, d: FloatArray, rows: np.ndarray | None = None
-    ) -> None:
-        """Memoise for :meth:`project` the projections ``(s, d)`` of ``(N, 2)`` points.
-
-        For callers that ran this line's projection kernel themselves (e.g. inside a
-        larger compiled pass): the values must be :meth:`project`'s, bit for bit.
-
-        :param rows: remember only these rows (default: every row whose ``s`` is not
-            NaN, i.e. was projected).
-        """
-        pts = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 2)
-        raw = pts.tobytes()  # row k is raw[16 k : 16 (k + 1)], as point.tobytes() in project
-        s_list, d_list = s.tolist(), d.tolist()
-        keep = np.flatnonzero(~np.isnan(s)) if rows is None else rows
-        batch = {raw[16 * k : 16 * k + 16]: (s_list[k], d_list[k]) for k in keep.tolist()}
-        memo = self._point_memo
-        if len(memo) + len(batch) > _POINT_MEMO_SIZE:
-            memo.clear()
-        memo.update(batch)
-
     def _batch_project(self, pts: FloatArray) -> tuple[FloatArray, FloatArray]:
         """One compiled call projecting finite ``(N, 2)`` points (see :meth:`project`)."""
         return _project_many(

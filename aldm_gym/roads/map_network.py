@@ -128,10 +128,6 @@ class MapLane(ReferenceLane):
         of the on-lane positions sorted by ``s`` (stable: ties in index order). The
         answers are those of ``local_coordinates`` and ``AbstractLane.on_lane``.
 
-        The projections of the on-lane positions are remembered by the centre line,
-        so the traffic's next ``local_coordinates`` of them on this lane (steering,
-        gaps) are memo hits.
-
         :param positions: ``(N, 2)`` world positions [m].
         :param margin: the on-lane test's lateral margin [m].
         :return: ``(s (N,), on (N,), order (M,))``, or None when a position on the
@@ -141,7 +137,7 @@ class MapLane(ReferenceLane):
         if not self._w_max / 2 + margin + self.VEHICLE_LENGTH < c.max_offset:
             return None
         pts = np.ascontiguousarray(positions, dtype=np.float64).reshape(-1, 2)
-        s, d, on, order = _neighbour_table(
+        s, _, on, order = _neighbour_table(
             c.xy,
             c.heading,
             c.step,
@@ -158,7 +154,6 @@ class MapLane(ReferenceLane):
             self.length + self.VEHICLE_LENGTH,
             pts,
         )
-        c.remember(pts, s, d, order)
         return s, on, order
 
 
@@ -399,9 +394,16 @@ def _closest_lane_among_py(
         dx = centre[c, 0] - px
         dy = centre[c, 1] - py
         r = reach + radius[c]
-        if dx * dx + dy * dy > r * r:
+        dc2 = dx * dx + dy * dy
+        if dc2 > r * r:
             continue
         row = chunk_mark[c]
+        # Every segment of the chunk lies in its bounding circle: none is nearer than
+        # this bound (less a margin far above rounding), so a chunk that cannot get
+        # strictly nearer than the row's best so far changes nothing.
+        bound = math.sqrt(dc2) - radius[c] - 1e-3
+        if bound > 0.0 and bound * bound > best_d2[row]:
+            continue
         for i in range(chunk_i0[c], chunk_i1[c] - 1):
             ax = xy[i, 0]
             ay = xy[i, 1]
