@@ -802,6 +802,6 @@ def test_preview_ok_flags_lines_short_of_60m() -> None:
     assert short.found("ego_left") and not short.preview_ok("ego_left")
     assert short.preview_ok("ego_left", minimum=50.0)
     assert not short.preview_ok("ego_right")  # a missing line never meets it
-    road, pts = frame(0)
+    _road, pts = frame(0)
     det = detect_lanes(pts, mode="paper")
     assert all(det.preview_ok(name) for name in EGO)

@@ -50,10 +50,16 @@ class LanePosition:
         return self.index in (0, self.lanes - 1)
 
 
+#: Largest world coordinate accepted [m]: far beyond any map (UTM northings stay
+#: below 1e7 m), small enough that projections stay exact in float64.
+MAX_COORDINATE = 1e9
+
+
 def world_point(name: str, value: Any) -> FloatArray:
     """``value`` as a float64 ``(2,)`` world point [m] (a 3rd coordinate is dropped).
 
-    :raises ValueError: naming ``name`` unless ``value`` holds 2 (or 3) finite numbers.
+    :raises ValueError: naming ``name`` unless ``value`` holds 2 (or 3) finite numbers
+        within :data:`MAX_COORDINATE` of the origin on each axis.
     """
     try:
         arr = np.asarray(value, dtype=np.float64)
@@ -61,4 +67,9 @@ def world_point(name: str, value: Any) -> FloatArray:
         arr = np.zeros(0)
     if arr.shape not in ((2,), (3,)) or not (math.isfinite(arr[0]) and math.isfinite(arr[1])):
         raise ValueError(f"{name} must be 2 finite numbers (x, y) [m], got {value!r}")
+    if abs(arr[0]) > MAX_COORDINATE or abs(arr[1]) > MAX_COORDINATE:
+        raise ValueError(
+            f"{name} must lie within ±{MAX_COORDINATE:g} m of the origin on each axis, "
+            f"got {value!r}"
+        )
     return arr[:2]

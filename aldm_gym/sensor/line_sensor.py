@@ -30,6 +30,7 @@ import numpy as np
 
 from aldm_gym.config import build_config, setting, validate
 from aldm_gym.roads.highway import HighwayRoad
+from aldm_gym.roads.position import MAX_COORDINATE
 from aldm_gym.sensor.frame import SensorFrame
 from aldm_gym.types import FloatArray
 
@@ -173,6 +174,11 @@ def _pose_numbers(pose: Any) -> tuple[float, float, float]:
         x, y, h = arr
     if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(h)):
         raise ValueError(f"pose must be finite, got {(x, y, h)}")
+    if abs(x) > MAX_COORDINATE or abs(y) > MAX_COORDINATE:
+        raise ValueError(
+            f"pose must lie within ±{MAX_COORDINATE:g} m of the origin on each axis, "
+            f"got {(x, y, h)}"
+        )
     return float(x), float(y), float(h)
 
 
