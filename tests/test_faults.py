@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from _cli import usage_error
 
 from aldm_gym.agents.checkpoints import (
     LOCK_FILE,
@@ -166,15 +167,17 @@ def test_atomic_saves_use_unique_temporary_files(tmp_path: Path) -> None:
     assert sorted(p.name for p in tmp_path.iterdir()) == ["model.zip"]
 
 
-def test_evaluating_a_corrupt_model_names_the_file(tmp_path: Path) -> None:
+def test_evaluating_a_corrupt_model_names_the_file(
+    tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
     pytest.importorskip("stable_baselines3")
     model = tmp_path / "model.zip"
     with zipfile.ZipFile(model, "w") as archive:
         archive.writestr("data", "{}")
     model.write_bytes(model.read_bytes()[:20])
     (tmp_path / "training.json").write_text(json.dumps({"env_config": {}}))
-    with pytest.raises(SystemExit, match=f"{model}: not a readable model"):
-        main(["evaluate", "--model", str(model), "--no-progress"])
+    line = usage_error(["evaluate", "--model", str(model), "--no-progress"], capsys)
+    assert f"argument --model: {model}: not a readable model" in line
 
 
 _HOLD_LOCK = """
@@ -186,7 +189,9 @@ with output_lock(sys.argv[1]):
 """
 
 
-def test_a_second_writer_is_refused_naming_the_holder(tmp_path: Path) -> None:
+def test_a_second_writer_is_refused_naming_the_holder(
+    tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
     holder = subprocess.Popen(
         [sys.executable, "-c", _HOLD_LOCK, str(tmp_path)], stdout=subprocess.PIPE, text=True
     )
@@ -195,10 +200,11 @@ def test_a_second_writer_is_refused_naming_the_holder(tmp_path: Path) -> None:
         with pytest.raises(OutputLocked, match=f"pid {holder.pid}"):
             with output_lock(tmp_path):
                 pass
-        with pytest.raises(SystemExit, match=f"another training \\(pid {holder.pid}"):
-            main(["train", "--out", str(tmp_path), "--no-progress"])
-        with pytest.raises(SystemExit, match=f"pid {holder.pid}"):
-            main(["train", "--resume", "--out", str(tmp_path), "--no-progress"])
+        line = usage_error(["train", "--out", str(tmp_path), "--no-progress"], capsys)
+        assert f"argument --out: {tmp_path} is being written by another training " in line
+        assert f"(pid {holder.pid}," in line
+        argv = ["train", "--resume", "--out", str(tmp_path), "--no-progress"]
+        assert f"(pid {holder.pid}," in usage_error(argv, capsys)
     finally:
         holder.kill()
         holder.wait()

@@ -14,6 +14,7 @@ import pytest
 
 pytest.importorskip("stable_baselines3")
 
+from _cli import usage_error
 from stable_baselines3 import PPO
 from stable_baselines3.common.callbacks import BaseCallback
 
@@ -120,11 +121,13 @@ def test_checkpoint_store_finds_the_newest_complete_checkpoint(tmp_path: Path) -
     assert find_training_file(tmp_path / "elsewhere" / "deeper" / "m.zip") is None
 
 
-def test_a_final_model_alone_also_holds_a_training(tmp_path: Path) -> None:
+def test_a_final_model_alone_also_holds_a_training(
+    tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
     _touch(tmp_path / "model.zip")
     assert holds_training(tmp_path) and not can_resume(tmp_path)
-    with pytest.raises(SystemExit, match="already holds a training"):
-        main(["train", "--out", str(tmp_path), "--no-progress"])
+    line = usage_error(["train", "--out", str(tmp_path), "--no-progress"], capsys)
+    assert "argument --out: " in line and "already holds a training" in line
 
 
 def test_linear_learning_rate_decays_to_zero_over_the_budget() -> None:
@@ -136,14 +139,16 @@ def test_linear_learning_rate_decays_to_zero_over_the_budget() -> None:
         PPOParams(lr_schedule="cosine")
 
 
-def test_clear_errors_for_missing_model_and_resume(tmp_path: Path) -> None:
-    with pytest.raises(SystemExit, match="is not a file"):
-        main(["evaluate", "--model", str(tmp_path / "nope.zip")])
+def test_clear_errors_for_missing_model_and_resume(
+    tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    line = usage_error(["evaluate", "--model", str(tmp_path / "nope.zip")], capsys)
+    assert "argument --model: " in line and "does not exist" in line
     (tmp_path / "stray.zip").write_bytes(b"PK")
-    with pytest.raises(SystemExit, match=r"no training\.json"):
-        main(["evaluate", "--model", str(tmp_path / "stray.zip")])
-    with pytest.raises(SystemExit, match="nothing to resume"):
-        main(["train", "--resume", "--out", str(tmp_path / "empty")])
+    line = usage_error(["evaluate", "--model", str(tmp_path / "stray.zip")], capsys)
+    assert "argument --model: no training.json" in line
+    line = usage_error(["train", "--resume", "--out", str(tmp_path / "empty")], capsys)
+    assert "argument --resume: nothing to resume" in line
 
 
 @pytest.mark.slow
@@ -170,9 +175,8 @@ def test_train_writes_loadable_model_and_evaluate_prints_table(
     assert policy.vecnormalize is not None
 
     # Writing into an existing training without --resume is refused.
-    with pytest.raises(SystemExit, match="already holds a training"):
-        _tiny_train(out, 64)
-    capsys.readouterr()
+    argv = ["train", "--timesteps", "64", "--out", str(out), *TINY]
+    assert "already holds a training" in usage_error(argv, capsys)
 
     # Evaluate on another detector than trained on: one episode per policy.
     args = ["--model", str(out / "model.zip"), "--episodes", "1", "--detector", "naive"]
@@ -239,7 +243,9 @@ class _InterruptAt(BaseCallback):
 
 
 @pytest.mark.slow
-def test_resume_after_interruption_continues_step_count(tmp_path: Path) -> None:
+def test_resume_after_interruption_continues_step_count(
+    tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
     kwargs = dict(
         detector="naive",
         n_envs=1,
@@ -290,8 +296,8 @@ def test_resume_after_interruption_continues_step_count(tmp_path: Path) -> None:
         == 0
     )
     assert PPO.load(tmp_path / "model.zip", device="cpu").num_timesteps == 128
-    with pytest.raises(SystemExit, match="contradicts"):
-        main(["train", "--resume", "--detector", "aldm", "--out", str(tmp_path)])
+    line = usage_error(["train", "--resume", "--detector", "aldm", "--out", str(tmp_path)], capsys)
+    assert "argument --detector: aldm contradicts the training being resumed" in line
 
 
 @pytest.mark.slow

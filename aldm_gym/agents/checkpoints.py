@@ -447,7 +447,8 @@ def load_policy(model_path: Path) -> tuple[NormalizedModel, dict[str, Any]]:
     :return: the policy (with its observation normalisation) and the training metadata.
     :raises FileNotFoundError: no model, or no ``training.json`` next to it or in its
         parent folder.
-    :raises ValueError: the model or its normalisation file is corrupt (naming it).
+    :raises ValueError: the model, its normalisation or its ``training.json`` is corrupt
+        (naming the file).
     :raises MissingRLDependencies: stable-baselines3 / torch missing.
     """
     import pickle
@@ -466,7 +467,12 @@ def load_policy(model_path: Path) -> tuple[NormalizedModel, dict[str, Any]]:
         raise FileNotFoundError(
             f"no {TRAINING_FILE} next to {model_path} (written by aldm-gym train)"
         )
-    meta = json.loads(meta_path.read_text())
+    try:
+        meta = json.loads(meta_path.read_text())
+        if not isinstance(meta.get("env_config"), dict):
+            raise ValueError("no env_config")
+    except (ValueError, AttributeError) as exc:  # AttributeError: JSON but not an object
+        raise ValueError(f"{meta_path}: not a training record ({exc})") from exc
     try:
         model = PPO.load(model_path, device="cpu")
     except Exception as exc:  # a corrupt zip fails in zipfile, pickle or torch

@@ -9,8 +9,11 @@
 
 Each subcommand module has ``add_parser(subparsers)``, which declares its arguments
 and sets ``func`` (its ``run(args) -> exit code``) as the parser default;
-:func:`main` calls it. Building the parser imports neither stable-baselines3, torch
-nor matplotlib.
+:func:`main` calls it. A bad argument ends, whether argparse finds it (the types of
+:mod:`aldm_gym.cli.argtypes`) or the command does
+(:class:`~aldm_gym.cli.argtypes.BadArgument`), in the subcommand's usage, one line
+naming the argument and exit code 2. Building the parser imports neither
+stable-baselines3, torch nor matplotlib.
 """
 
 from __future__ import annotations
@@ -20,6 +23,7 @@ from collections.abc import Sequence
 
 from aldm_gym import __version__
 from aldm_gym.cli import compare, evaluate, plot, train
+from aldm_gym.cli.argtypes import BadArgument
 
 SUBCOMMANDS = (compare, plot, train, evaluate)
 """The subcommand modules, in the order of ``aldm-gym --help``."""
@@ -52,11 +56,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``aldm-gym``: parse ``argv`` and run the subcommand; its exit code.
 
     An unknown argument is reported with the usage of the subcommand it was given to
-    (argparse would print the top-level usage), and exits with code 2.
+    (argparse would print the top-level usage), and exits with code 2; so is a
+    :class:`~aldm_gym.cli.argtypes.BadArgument` raised while the subcommand runs.
     """
     parser = build_parser()
     args, extra = parser.parse_known_args(argv)
+    sub = parser._subparsers._group_actions[0].choices[args.command]  # type: ignore[union-attr]
     if extra:
-        sub = parser._subparsers._group_actions[0].choices[args.command]  # type: ignore[union-attr]
         sub.error(f"unrecognized arguments: {' '.join(extra)}")
-    return int(args.func(args))
+    try:
+        return int(args.func(args))
+    except BadArgument as exc:
+        sub.error(str(exc))

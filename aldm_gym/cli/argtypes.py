@@ -1,9 +1,46 @@
-"""``argparse`` argument types of the ``aldm-gym`` command line (clear errors on bad values)."""
+"""``argparse`` argument types of the ``aldm-gym`` command line (clear errors on bad values).
+
+Every type raises ``argparse.ArgumentTypeError``, so a bad value ends in the
+subcommand's usage, one line ``aldm-gym <command>: error: argument --x: ...`` and
+exit code 2. What only shows when the command runs (an OpenDRIVE file that does not
+parse, a corrupt model, an output folder that cannot be created) is raised as
+:class:`BadArgument`, which :func:`aldm_gym.cli.main` reports the same way.
+
+Path types check what can be checked without side effects (no folder is created while
+parsing): :func:`output_dir` and :func:`image_file` refuse an existing path of the
+wrong kind and a parent that is a file or not writable; :func:`make_output_dir`
+creates the folder when the command runs.
+"""
 
 from __future__ import annotations
 
 import argparse
+import importlib
 import math
+import os
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+MAX_SEED = 2**31 - 1
+"""Largest seed accepted (envs are seeded ``seed + i``; SB3 needs seeds below 2**32)."""
+
+IMAGE_SUFFIXES = (".png", ".pdf", ".svg", ".jpg", ".jpeg", ".eps", ".ps", ".tif", ".tiff")
+"""File types :func:`image_file` accepts (formats matplotlib writes)."""
+
+
+class BadArgument(Exception):
+    """An argument that parsed but proved unusable when the command ran.
+
+    :func:`aldm_gym.cli.main` turns it into the subcommand's usage error (exit code 2).
+
+    :param argument: the option, e.g. ``"--xodr"``.
+    :param message: what is wrong with it (line breaks become spaces: one line).
+    """
+
+    def __init__(self, argument: str, message: str) -> None:
+        super().__init__(f"argument {argument}: {' '.join(message.splitlines())}")
+        self.argument = argument
 
 
 def _number(text: str, kind: type) -> float:
@@ -15,6 +52,11 @@ def _number(text: str, kind: type) -> float:
     if not math.isfinite(value):
         raise argparse.ArgumentTypeError(f"must be finite, got {text}")
     return value
+
+
+def finite_float(text: str) -> float:
+    """Any finite number."""
+    return _number(text, float)
 
 
 def positive_int(text: str) -> int:
@@ -30,6 +72,27 @@ def non_negative_int(text: str) -> int:
     value = int(_number(text, int))
     if value < 0:
         raise argparse.ArgumentTypeError(f"must be >= 0, got {value}")
+    return value
+
+
+def int_in(lo: int, hi: int) -> Callable[[str], int]:
+    """The type of an integer in ``[lo, hi]``."""
+
+    def parse(text: str) -> int:
+        value = int(_number(text, int))
+        if not lo <= value <= hi:
+            raise argparse.ArgumentTypeError(f"must be in [{lo}, {hi}], got {value}")
+        return value
+
+    parse.__name__ = f"integer in [{lo}, {hi}]"
+    return parse
+
+
+def seed(text: str) -> int:
+    """A seed: an integer in ``[0, MAX_SEED]``."""
+    value = int(_number(text, int))
+    if not 0 <= value <= MAX_SEED:
+        raise argparse.ArgumentTypeError(f"must be in [0, 2**31 - 1], got {value}")
     return value
 
 
@@ -55,3 +118,90 @@ def fraction(text: str) -> float:
     if not 0.0 <= value < 1.0:
         raise argparse.ArgumentTypeError(f"must be in [0, 1), got {value}")
     return value
+
+
+def config_setting(module: str, cls: str, name: str, kind: type = float) -> Callable[[str], Any]:
+    """The type of a value of config field ``cls.name`` (a :func:`aldm_gym.config.setting`).
+
+    The value is checked against the field's own rule, so the command line accepts what
+    the config accepts and the bound lives in one place. ``module.cls`` is imported only
+    when the argument is given (building the parser stays light).
+
+    :param kind: ``int`` or ``float``.
+    """
+
+    def parse(text: str) -> Any:
+        from aldm_gym.config import check_value, rules
+
+        value = _number(text, kind)
+        config = getattr(importlib.import_module(module), cls)
+        try:
+            return check_value("", name, value, rules(config)[name], config())
+        except ValueError as exc:
+            raise argparse.ArgumentTypeError(str(exc).removeprefix(f".{name} ")) from None
+
+    parse.__name__ = name
+    return parse
+
+
+def _check_parent(path: Path) -> None:
+    """The nearest existing ancestor of ``path`` is a writable folder."""
+    parent = path.absolute().parent
+    while not parent.exists():
+        parent = parent.parent
+    if not parent.is_dir():
+        raise argparse.ArgumentTypeError(f"{path}: {parent} is not a folder")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise argparse.ArgumentTypeError(f"{path}: {parent} is not writable")
+
+
+def output_dir(text: str) -> Path:
+    """An output folder: an existing folder, or a path where one can be created."""
+    path = Path(text)
+    if path.exists():
+        if not path.is_dir():
+            raise argparse.ArgumentTypeError(f"{path} exists and is not a folder")
+        if not os.access(path, os.W_OK | os.X_OK):
+            raise argparse.ArgumentTypeError(f"{path} is not writable")
+        return path
+    _check_parent(path)
+    return path
+
+
+def image_file(text: str) -> Path:
+    """An image to write: a file name with one of :data:`IMAGE_SUFFIXES`, not a folder."""
+    path = Path(text)
+    if path.is_dir():
+        raise argparse.ArgumentTypeError(f"{path} is a folder; give a file name such as x.png")
+    if path.suffix.lower() not in IMAGE_SUFFIXES:
+        raise argparse.ArgumentTypeError(
+            f"{path}: unknown image type {path.suffix!r}; use one of {', '.join(IMAGE_SUFFIXES)}"
+        )
+    if path.exists() and not os.access(path, os.W_OK):
+        raise argparse.ArgumentTypeError(f"{path} is not writable")
+    _check_parent(path)
+    return path
+
+
+def existing_file(text: str) -> Path:
+    """A readable file that exists."""
+    path = Path(text)
+    if not path.exists():
+        raise argparse.ArgumentTypeError(f"{path} does not exist")
+    if not path.is_file():
+        raise argparse.ArgumentTypeError(f"{path} is not a file")
+    if not os.access(path, os.R_OK):
+        raise argparse.ArgumentTypeError(f"{path} is not readable")
+    return path
+
+
+def make_output_dir(path: Path, argument: str = "--out") -> Path:
+    """Create the output folder ``path`` (and its parents) when the command runs.
+
+    :raises BadArgument: naming ``argument`` when the folder cannot be created.
+    """
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise BadArgument(argument, f"cannot create {path}: {exc.strerror or exc}") from None
+    return path

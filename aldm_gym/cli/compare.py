@@ -20,28 +20,49 @@ from typing import Any
 
 import numpy as np
 
-from aldm_gym.cli.argtypes import fraction, non_negative_float, positive_int
+from aldm_gym.cli.argtypes import (
+    BadArgument,
+    existing_file,
+    finite_float,
+    fraction,
+    make_output_dir,
+    non_negative_float,
+    output_dir,
+    positive_int,
+    seed,
+)
 from aldm_gym.cli.report import format_table, write_csv
+from aldm_gym.config import defaults, rules
+from aldm_gym.roads.highway import RoadConfig
 
-MIN_RADIUS = 100.0
-"""Smallest ``--min-radius`` accepted [m]."""
+
+def min_radius(text: str) -> float:
+    """``--min-radius`` [m]: from ``RoadConfig.min_radius``'s lower bound to the
+    generator's default ``max_radius`` (the radii are drawn between the two)."""
+    lo, hi = rules(RoadConfig)["min_radius"].lo, defaults(RoadConfig)["max_radius"]
+    value = finite_float(text)
+    if not lo <= value <= hi:
+        raise argparse.ArgumentTypeError(f"must be in [{lo:.0f}, {hi:.0f}] m, got {text}")
+    return value
 
 
 def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     """Declare ``aldm-gym compare`` and its arguments."""
     parser = subparsers.add_parser("compare", help="naive vs ALDM vs ground truth on seeded frames")
     parser.add_argument("--quick", action="store_true", help="small run (about a minute)")
-    parser.add_argument("--seed", type=int, default=0, help="seed of roads and poses")
-    parser.add_argument("--out", type=Path, default=Path("out/compare"), help="output folder")
+    parser.add_argument("--seed", type=seed, default=0, help="seed of roads and poses")
+    parser.add_argument("--out", type=output_dir, default=Path("out/compare"), help="output folder")
     parser.add_argument("--roads", type=positive_int, help="number of seeded roads")
     parser.add_argument(
-        "--xodr", type=Path, help="an OpenDRIVE map to compare on (instead of generated roads)"
+        "--xodr",
+        type=existing_file,
+        help="an OpenDRIVE map to compare on (instead of generated roads)",
     )
     parser.add_argument("--frames", type=positive_int, help="frames per road and model")
     parser.add_argument("--noise", type=non_negative_float, default=0.0, help="lateral noise σ [m]")
     parser.add_argument("--dropout", type=fraction, default=0.0, help="point dropout share")
     parser.add_argument(
-        "--min-radius", type=float, default=500.0, help="smallest curve radius [m] (>= 100)"
+        "--min-radius", type=min_radius, default=500.0, help="smallest curve radius [m]"
     )
     parser.add_argument(
         "--episodes", type=positive_int, help="closed-loop episodes per detector and policy"
@@ -56,17 +77,14 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
 
 def run(args: argparse.Namespace) -> int:
     """``aldm-gym compare``: frame-level comparison, then closed-loop episodes."""
-    if args.min_radius < MIN_RADIUS:
-        raise SystemExit(f"aldm-gym compare: --min-radius must be >= {MIN_RADIUS:.0f} m")
     if args.xodr is not None:
         from aldm_gym.roads import OpenDriveRoad
 
         try:
             OpenDriveRoad.from_file(args.xodr)
         except (OSError, ValueError) as exc:
-            raise SystemExit(f"aldm-gym compare: --xodr: {exc}") from None
-    out: Path = args.out
-    out.mkdir(parents=True, exist_ok=True)
+            raise BadArgument("--xodr", str(exc)) from None
+    out = make_output_dir(args.out)
     written = _compare_frames(args, out)
     if not args.no_closed_loop:
         written += _compare_closed_loop(args, out)

@@ -10,7 +10,6 @@ from __future__ import annotations
 import argparse
 import json
 import time
-from pathlib import Path
 from typing import Any
 
 from aldm_gym.agents.checkpoints import TRAINING_FILE, find_training_file
@@ -21,7 +20,14 @@ from aldm_gym.agents.model_evaluation import (
     summary_line,
 )
 from aldm_gym.agents.sb3 import MissingRLDependencies
-from aldm_gym.cli.argtypes import positive_int
+from aldm_gym.cli.argtypes import (
+    BadArgument,
+    existing_file,
+    make_output_dir,
+    output_dir,
+    positive_int,
+    seed,
+)
 from aldm_gym.cli.report import format_table
 from aldm_gym.roads.highway import MARKING_MODELS
 from aldm_gym.sensor.detectors import DETECTORS
@@ -38,7 +44,9 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     parser = subparsers.add_parser(
         "evaluate", help="evaluate a trained policy against rule-based ones"
     )
-    parser.add_argument("--model", type=Path, required=True, help="model .zip (or checkpoint)")
+    parser.add_argument(
+        "--model", type=existing_file, required=True, help="model .zip (or checkpoint)"
+    )
     parser.add_argument(
         "--episodes",
         type=positive_int,
@@ -53,12 +61,12 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     )
     parser.add_argument(
         "--seed",
-        type=int,
+        type=seed,
         default=EVALUATION_SEED,
         help=f"first episode seed ({EVALUATION_SEED}; training uses 0..)",
     )
     parser.add_argument(
-        "--out", type=Path, default=None, help="folder for evaluation JSON (the model's)"
+        "--out", type=output_dir, default=None, help="folder for evaluation JSON (the model's)"
     )
     parser.add_argument(
         "--quick", action="store_true", help=f"{QUICK_EPISODES} episodes per policy"
@@ -71,12 +79,11 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
 def run(args: argparse.Namespace) -> int:
     """``aldm-gym evaluate``."""
     episodes = args.episodes or (QUICK_EPISODES if args.quick else EPISODES)
-    if not args.model.is_file():
-        raise SystemExit(f"aldm-gym evaluate: --model {args.model} is not a file")
     if find_training_file(args.model) is None:
-        raise SystemExit(
-            f"aldm-gym evaluate: no {TRAINING_FILE} next to {args.model} "
-            "(models are read from an aldm-gym train output folder)"
+        raise BadArgument(
+            "--model",
+            f"no {TRAINING_FILE} next to {args.model} "
+            "(models are read from an aldm-gym train output folder)",
         )
     t0 = time.perf_counter()
     try:
@@ -88,10 +95,11 @@ def run(args: argparse.Namespace) -> int:
             marking_model=args.marking_model,
             progress=not args.no_progress,
         )
-    except (MissingRLDependencies, ValueError) as exc:  # ValueError: a corrupt model file
+    except MissingRLDependencies as exc:
         raise SystemExit(f"aldm-gym evaluate: {exc}") from None
-    out: Path = args.out or args.model.parent
-    out.mkdir(parents=True, exist_ok=True)
+    except ValueError as exc:  # a corrupt model, normalisation or training.json
+        raise BadArgument("--model", str(exc)) from None
+    out = make_output_dir(args.out or args.model.parent)
     cfg = info["env_config"]
     path = out / f"evaluate_{args.model.stem}_{cfg['detector']}_{cfg['marking_model']}.json"
     path.write_text(json.dumps({"rows": rows, **info}, indent=2) + "\n")

@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from aldm_gym.cli.argtypes import BadArgument, existing_file, finite_float, image_file, seed
 from aldm_gym.roads.highway import MARKING_MODELS
 
 CURVE_AHEAD = 80.0
@@ -25,21 +26,27 @@ CURVE_AHEAD = 80.0
 def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     """Declare ``aldm-gym plot`` and its arguments."""
     parser = subparsers.add_parser("plot", help="draw one frame with naive and ALDM detections")
-    parser.add_argument("--seed", type=int, default=0, help="road seed")
+    parser.add_argument("--seed", type=seed, default=0, help="road seed")
     parser.add_argument(
-        "--s", type=float, default=None, help="arc length of the car [m] (default 1000)"
+        "--s", type=finite_float, default=None, help="arc length of the car [m] (default 1000)"
     )
     parser.add_argument("--lane", type=int, default=1, help="lane id (0 = leftmost)")
-    parser.add_argument("--shift", type=float, default=0.0, help="left shift in the lane [m]")
+    parser.add_argument(
+        "--shift", type=finite_float, default=0.0, help="left shift in the lane [m]"
+    )
     parser.add_argument(
         "--marking-model", choices=MARKING_MODELS, default="per_dash", help="road model"
     )
-    parser.add_argument("--xodr", type=Path, help="an OpenDRIVE map instead of a generated road")
+    parser.add_argument(
+        "--xodr", type=existing_file, help="an OpenDRIVE map instead of a generated road"
+    )
     parser.add_argument("--road-id", help="map: the OpenDRIVE road id of the car's lane")
     parser.add_argument(
         "--lane-id", type=int, default=-1, help="map: the OpenDRIVE lane id (default -1)"
     )
-    parser.add_argument("--out", type=Path, default=Path("out/frame.png"), help="PNG path")
+    parser.add_argument(
+        "--out", type=image_file, default=Path("out/frame.png"), help="image path (.png, .pdf, ...)"
+    )
     parser.set_defaults(func=run)
     return parser
 
@@ -59,11 +66,14 @@ def run(args: argparse.Namespace) -> int:
         title = f"{args.marking_model} road {args.seed}, s = {s:.0f} m, lane {args.lane}"
     frame = LineSensor().measure(road, pose)
     naive, aldm = make_detector("naive"), make_detector("aldm")
-    plot_frames(
-        {"naive": (frame, naive(frame, road, lane)), "ALDM": (frame, aldm(frame, road, lane))},
-        args.out,
-        suptitle=title,
-    )
+    try:
+        plot_frames(
+            {"naive": (frame, naive(frame, road, lane)), "ALDM": (frame, aldm(frame, road, lane))},
+            args.out,
+            suptitle=title,
+        )
+    except OSError as exc:
+        raise BadArgument("--out", f"cannot write {args.out}: {exc.strerror or exc}") from None
     print(f"wrote {args.out}")
     return 0
 
@@ -74,9 +84,13 @@ def _generated_pose(args: argparse.Namespace) -> tuple[Any, tuple[float, float, 
     road = HighwayRoad({"seed": args.seed, "marking_model": args.marking_model})
     s = 1000.0 if args.s is None else args.s
     if not 0 <= args.lane < road.lanes_count:
-        raise SystemExit(f"aldm-gym plot: --lane must be in [0, {road.lanes_count - 1}]")
+        raise BadArgument("--lane", f"must be in [0, {road.lanes_count - 1}], got {args.lane}")
     if not 0.0 <= s <= road.length:
-        raise SystemExit(f"aldm-gym plot: --s must be in [0, {road.length:.0f}] m")
+        raise BadArgument("--s", f"must be in [0, {road.length:.0f}] m, got {s:g}")
+    if abs(args.shift) > road.lane_width:
+        raise BadArgument(
+            "--shift", f"must be within ±{road.lane_width:g} m (a lane width), got {args.shift:g}"
+        )
     p = road.reference.position(s, road.lane_offset(args.lane) + args.shift)
     return road, (float(p[0]), float(p[1]), float(road.reference.heading_at(s))), args.lane
 
@@ -88,14 +102,14 @@ def _map_pose(args: argparse.Namespace) -> tuple[Any, tuple[float, float, float]
     try:
         road = OpenDriveRoad.from_file(args.xodr, marking_model=args.marking_model)
     except (OSError, ValueError) as exc:
-        raise SystemExit(f"aldm-gym plot: --xodr: {exc}") from None
+        raise BadArgument("--xodr", str(exc)) from None
     if args.road_id is not None:
         if args.s is None:
-            raise SystemExit("aldm-gym plot: --road-id needs --s (reference arc length [m])")
+            raise BadArgument("--road-id", "needs --s (reference arc length [m])")
         try:
             x, y, h = road.lane_pose(args.road_id, args.lane_id, args.s)
         except ValueError as exc:
-            raise SystemExit(f"aldm-gym plot: {exc}") from None
+            raise BadArgument("--road-id/--lane-id/--s", str(exc)) from None
         where = f"road {args.road_id} lane {args.lane_id}, s = {args.s:.0f} m"
     else:
         x, y, h, where = _most_curved(road)
@@ -103,8 +117,8 @@ def _map_pose(args: argparse.Namespace) -> tuple[Any, tuple[float, float, float]
     x, y = x + args.shift * math.sin(h), y - args.shift * math.cos(h)
     try:
         lane = road.lane_position((x, y)).lane
-    except ValueError as exc:
-        raise SystemExit(f"aldm-gym plot: {exc}") from None
+    except ValueError as exc:  # shifted off the map
+        raise BadArgument("--shift", str(exc)) from None
     return road, (x, y, h), lane, where
 
 
@@ -136,5 +150,5 @@ def _most_curved(road: Any) -> tuple[float, float, float, str]:
             radius = 1.0 / kappa[i] if kappa[i] > 0 else math.inf
             best = (float(kappa[i]), x, y, h, f"lane {key}, R ≈ {radius:.0f} m")
     if best is None:
-        raise SystemExit(f"aldm-gym plot: no driving lane of {road.map.path} has room for a frame")
+        raise BadArgument("--xodr", f"no driving lane of {road.map.path} has room for a frame")
     return best[1], best[2], best[3], best[4]

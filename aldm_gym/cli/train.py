@@ -43,10 +43,15 @@ from aldm_gym.agents.training import (
     train,
 )
 from aldm_gym.cli.argtypes import (
+    BadArgument,
+    config_setting,
     fraction,
+    int_in,
+    make_output_dir,
     non_negative_int,
-    positive_float,
+    output_dir,
     positive_int,
+    seed,
 )
 from aldm_gym.roads.highway import MARKING_MODELS
 from aldm_gym.sensor.detectors import DETECTORS
@@ -59,6 +64,13 @@ QUICK_N_STEPS = 64
 
 QUICK_DURATION = 10.0
 """``train --quick``: episode length [s]."""
+
+MAX_N_ENVS = 64
+"""Most ``--n-envs`` accepted (each is a subprocess)."""
+
+_ENV_CONFIG = ("aldm_gym.envs.config", "EnvConfig")
+"""Where the env's config rules live (``--duration``, ``--vehicles``, ``--collision-reward``
+are checked against them)."""
 
 
 def add_parser(subparsers: Any) -> argparse.ArgumentParser:
@@ -79,13 +91,13 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     )
     parser.add_argument(
         "--n-envs",
-        type=positive_int,
+        type=int_in(1, MAX_N_ENVS),
         default=None,
         help="parallel envs (1; more run in subprocesses, but change the results)",
     )
     parser.add_argument(
         "--n-steps",
-        type=positive_int,
+        type=int_in(2, 1_000_000),
         default=None,
         help=f"PPO rollout length per env ({PPOParams.n_steps})",
     )
@@ -122,20 +134,26 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         help=f"episodes per validation, seeds {VALIDATION_SEED}.. ({DEFAULT_VALIDATION_EPISODES})",
     )
     parser.add_argument(
-        "--duration", type=positive_float, default=None, help="episode length [s] (env: 40)"
+        "--duration",
+        type=config_setting(*_ENV_CONFIG, "duration"),
+        default=None,
+        help="episode length [s] (env: 40)",
     )
     parser.add_argument(
-        "--vehicles", type=non_negative_int, default=None, help="other vehicles (env: 20)"
+        "--vehicles",
+        type=config_setting(*_ENV_CONFIG, "vehicles_count", int),
+        default=None,
+        help="other vehicles (env: 20)",
     )
     parser.add_argument(
         "--collision-reward",
-        type=float,
+        type=config_setting(*_ENV_CONFIG, "collision_reward"),
         default=None,
         help=f"weight of the collision penalty in the reward ({DEFAULT_COLLISION_REWARD}; "
         "the env's default is -1)",
     )
-    parser.add_argument("--seed", type=int, default=None, help="seed of envs and network (0)")
-    parser.add_argument("--out", type=Path, default=Path("out/train"), help="output folder")
+    parser.add_argument("--seed", type=seed, default=None, help="seed of envs and network (0)")
+    parser.add_argument("--out", type=output_dir, default=Path("out/train"), help="output folder")
     parser.add_argument(
         "--resume",
         action="store_true",
@@ -148,7 +166,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
 
 
 def _check_resume(args: argparse.Namespace, meta: dict[str, Any]) -> None:
-    """Refuse flags that contradict the training being resumed (``SystemExit``)."""
+    """Refuse flags that contradict the training being resumed (:class:`BadArgument`)."""
     cfg = meta["env_config"]
     for name, value, saved in (
         ("--detector", args.detector, cfg["detector"]),
@@ -161,9 +179,9 @@ def _check_resume(args: argparse.Namespace, meta: dict[str, Any]) -> None:
         ("--gamma", args.gamma, meta["ppo"]["gamma"]),
     ):
         if value is not None and value != saved:
-            raise SystemExit(
-                f"aldm-gym train: {name} {value} contradicts the training being resumed "
-                f"({saved}); omit it with --resume"
+            raise BadArgument(
+                name,
+                f"{value} contradicts the training being resumed ({saved}); omit it with --resume",
             )
 
 
@@ -186,16 +204,22 @@ def run(args: argparse.Namespace) -> int:
     try:
         check_unlocked(out)
     except OutputLocked as exc:
-        raise SystemExit(f"aldm-gym train: {exc}") from None
+        raise BadArgument("--out", str(exc)) from None
     if args.resume:
         if not (out / TRAINING_FILE).exists():
-            raise SystemExit(f"aldm-gym train: nothing to resume in {out} (no {TRAINING_FILE})")
-        _check_resume(args, read_training(out))
+            raise BadArgument("--resume", f"nothing to resume in {out} (no {TRAINING_FILE})")
+        try:
+            _check_resume(args, read_training(out))
+        except (ValueError, KeyError, TypeError) as exc:
+            raise BadArgument(
+                "--resume", f"{out / TRAINING_FILE} is not a training record ({exc!r})"
+            ) from None
     elif holds_training(out):
-        raise SystemExit(
-            f"aldm-gym train: {out} already holds a training; pass --resume to continue it "
-            "or choose another --out"
+        raise BadArgument(
+            "--out",
+            f"{out} already holds a training; pass --resume to continue it or choose another --out",
         )
+    make_output_dir(out)
     validation_freq = args.validation_freq
     if validation_freq is None and quick:
         validation_freq = 0
@@ -229,8 +253,10 @@ def run(args: argparse.Namespace) -> int:
                 resume=args.resume,
                 progress=not args.no_progress,
             )
-    except (MissingRLDependencies, OutputLocked, FileExistsError, FileNotFoundError) as exc:
+    except MissingRLDependencies as exc:
         raise SystemExit(f"aldm-gym train: {exc}") from None
+    except (OutputLocked, FileExistsError, FileNotFoundError) as exc:  # a race on --out
+        raise BadArgument("--out", str(exc)) from None
     except KeyboardInterrupt:
         return 130
     tb = out / TENSORBOARD_DIR

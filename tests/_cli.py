@@ -1,0 +1,24 @@
+"""Test helper: run ``aldm-gym`` expecting a usage error."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import pytest
+
+from aldm_gym.cli import main
+
+
+def usage_error(argv: Sequence[str], capsys: pytest.CaptureFixture[str]) -> str:
+    """Run ``aldm-gym argv``; assert it exits with code 2 after the subcommand's usage
+    and no traceback; return the one error line (``aldm-gym <cmd>: error: ...``)."""
+    capsys.readouterr()
+    with pytest.raises(SystemExit) as exc:
+        main(list(argv))
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    lines = err.strip().splitlines()
+    assert lines[0].startswith("usage: aldm-gym"), err
+    assert lines[-1].startswith(f"aldm-gym {argv[0]}: error: "), err
+    return lines[-1]

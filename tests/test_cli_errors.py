@@ -1,0 +1,146 @@
+"""Every bad argument or path of ``aldm-gym`` ends in the subcommand's usage, one error
+line naming the argument, and exit code 2: never a traceback."""
+
+from __future__ import annotations
+
+import json
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from _cli import usage_error
+
+MAP = Path(__file__).resolve().parent.parent / "aldm_gym" / "roads" / "maps" / "motorway.xodr"
+
+
+@pytest.fixture()
+def paths(tmp_path: Path) -> dict[str, str]:
+    """A plain file, a path below it, a folder, a missing file, and XML that is not
+    OpenDRIVE."""
+    afile = tmp_path / "afile"
+    afile.write_text("hello")
+    not_opendrive = tmp_path / "not_opendrive.xodr"
+    not_opendrive.write_text("<xml/>")
+    return {
+        "FILE": str(afile),
+        "BELOW_FILE": str(afile / "sub"),
+        "DIR": str(tmp_path),
+        "MISSING": str(tmp_path / "missing.xodr"),
+        "NOT_OPENDRIVE": str(not_opendrive),
+        "NOT_XML": str(afile),
+    }
+
+
+CASES = [
+    # compare
+    (["compare", "--out", "FILE"], "--out", "exists and is not a folder"),
+    (["compare", "--out", "BELOW_FILE"], "--out", "is not a folder"),
+    (["compare", "--seed", "-1"], "--seed", "must be in [0, 2**31 - 1]"),
+    (["compare", "--seed", "1.5"], "--seed", "must be an integer"),
+    (["compare", "--episodes", "0"], "--episodes", "must be >= 1"),
+    (["compare", "--min-radius", "50"], "--min-radius", "must be in [100, 3000] m"),
+    (["compare", "--min-radius", "nan"], "--min-radius", "must be finite"),
+    (["compare", "--min-radius", "5000"], "--min-radius", "must be in [100, 3000] m"),
+    (["compare", "--noise", "nan"], "--noise", "must be finite"),
+    (["compare", "--dropout", "-0.1"], "--dropout", "must be in [0, 1)"),
+    (["compare", "--xodr", "MISSING"], "--xodr", "does not exist"),
+    (["compare", "--xodr", "DIR"], "--xodr", "is not a file"),
+    (["compare", "--xodr", "NOT_OPENDRIVE", "--out", "DIR"], "--xodr", "not <OpenDRIVE>"),
+    (["compare", "--xodr", "NOT_XML", "--out", "DIR"], "--xodr", "malformed XML"),
+    # plot
+    (["plot", "--out", "DIR"], "--out", "is a folder"),
+    (["plot", "--out", "FILE"], "--out", "unknown image type"),
+    (["plot", "--out", "BELOW_FILE/x.png"], "--out", "is not a folder"),
+    (["plot", "--seed", "-1"], "--seed", "must be in [0, 2**31 - 1]"),
+    (["plot", "--s", "nan"], "--s", "must be finite"),
+    (["plot", "--s", "-5", "--out", "DIR/p.png"], "--s", "must be in [0, "),
+    (["plot", "--lane", "-1", "--out", "DIR/p.png"], "--lane", "must be in [0, 3]"),
+    (["plot", "--shift", "inf"], "--shift", "must be finite"),
+    (["plot", "--shift", "100", "--out", "DIR/p.png"], "--shift", "a lane width"),
+    (["plot", "--xodr", "MISSING"], "--xodr", "does not exist"),
+    (["plot", "--xodr", "NOT_OPENDRIVE", "--out", "DIR/p.png"], "--xodr", "not <OpenDRIVE>"),
+    # train (all found before stable-baselines3 is imported)
+    (["train", "--out", "FILE"], "--out", "exists and is not a folder"),
+    (["train", "--seed", "-1"], "--seed", "must be in [0, 2**31 - 1]"),
+    (["train", "--seed", "99999999999"], "--seed", "must be in [0, 2**31 - 1]"),
+    (["train", "--collision-reward", "nan"], "--collision-reward", "must be finite"),
+    (["train", "--collision-reward", "1000"], "--collision-reward", "must be <= 100"),
+    (["train", "--duration", "1e300"], "--duration", "must be <= 10000"),
+    (["train", "--duration", "0"], "--duration", "must be > 0"),
+    (["train", "--vehicles", "2.5"], "--vehicles", "must be an integer"),
+    (["train", "--vehicles", "100000"], "--vehicles", "must be <= 500"),
+    (["train", "--n-envs", "1000"], "--n-envs", "must be in [1, 64]"),
+    (["train", "--n-steps", "1"], "--n-steps", "must be in [2, "),
+    (["train", "--resume", "--out", "DIR/nothing"], "--resume", "nothing to resume"),
+    # evaluate
+    (["evaluate", "--model", "MISSING"], "--model", "does not exist"),
+    (["evaluate", "--model", "DIR"], "--model", "is not a file"),
+    (["evaluate", "--model", "FILE"], "--model", "no training.json next to"),
+    (["evaluate", "--model", "FILE", "--seed", "-1"], "--seed", "must be in [0, 2**31 - 1]"),
+    (["evaluate", "--model", "FILE", "--out", "FILE"], "--out", "exists and is not a folder"),
+]
+
+
+@pytest.mark.parametrize(("argv", "argument", "message"), CASES)
+def test_bad_argument_names_it_in_one_line(
+    argv: list[str],
+    argument: str,
+    message: str,
+    paths: dict[str, str],
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    placeholder = re.compile(r"\b(" + "|".join(paths) + r")\b")
+    argv = [placeholder.sub(lambda m: paths[m.group(1)], a) for a in argv]
+    line = usage_error(argv, capsys)
+    assert f"error: argument {argument}: " in line
+    assert message in line
+
+
+@pytest.mark.skipif(not MAP.exists(), reason="shipped maps not built")
+def test_a_place_off_the_map_names_the_arguments(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    base = ["plot", "--xodr", str(MAP), "--out", str(tmp_path / "p.png")]
+    line = usage_error([*base, "--road-id", "999", "--s", "5"], capsys)
+    assert "argument --road-id/--lane-id/--s: " in line and "no lane -1 on road '999'" in line
+    line = usage_error([*base, "--road-id", "3"], capsys)
+    assert "argument --road-id: needs --s" in line
+    line = usage_error([*base, "--shift", "50"], capsys)
+    assert "argument --shift: " in line and "from any driving lane" in line
+
+
+@pytest.mark.skipif(not Path("/proc").is_dir(), reason="needs /proc (not writable)")
+def test_an_output_that_cannot_be_created(capsys: pytest.CaptureFixture[str]) -> None:
+    line = usage_error(["compare", "--out", "/proc/aldm-gym-out", "--no-progress"], capsys)
+    assert "argument --out: cannot create /proc/aldm-gym-out" in line
+    line = usage_error(["plot", "--out", "/proc/aldm-gym.png"], capsys)
+    assert "argument --out: cannot write /proc/aldm-gym.png" in line
+
+
+def test_a_corrupt_training_record_names_the_file(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    pytest.importorskip("stable_baselines3")
+    model = tmp_path / "model.zip"
+    model.write_bytes(b"PK")
+    for record in ("{", "[1]", json.dumps({"steps": 3})):
+        (tmp_path / "training.json").write_text(record)
+        line = usage_error(["evaluate", "--model", str(model), "--no-progress"], capsys)
+        assert f"argument --model: {tmp_path / 'training.json'}: not a training record" in line
+
+
+def test_the_installed_command_exits_2_without_traceback(tmp_path: Path) -> None:
+    afile = tmp_path / "afile"
+    afile.write_text("x")
+    run = subprocess.run(
+        [sys.executable, "-m", "aldm_gym", "compare", "--out", str(afile)],
+        capture_output=True,
+        text=True,
+    )
+    assert run.returncode == 2
+    assert "Traceback" not in run.stderr
+    assert run.stderr.strip().splitlines()[-1] == (
+        f"aldm-gym compare: error: argument --out: {afile} exists and is not a folder"
+    )
