@@ -364,3 +364,24 @@ def test_reset_seeds_the_action_space_and_keeps_a_users_seed() -> None:
     space.seed(123)
     space.sample()  # highway-env's reset draws info["action"] from the space
     assert draws == [space.sample() for _ in range(5)]
+
+
+def test_reset_frees_the_previous_episode_without_a_garbage_collection() -> None:
+    """The old road and its vehicles reference each other; reset breaks the cycle so
+    reference counting frees them at once (not at Python's next full collection)."""
+    import gc
+    import weakref
+
+    env = make().unwrapped
+    env.reset(seed=0)
+    env.step(1)
+    others = [weakref.ref(v) for v in env.road.vehicles if v is not env.vehicle]
+    ego = weakref.ref(env.vehicle)
+    assert others
+    gc.disable()
+    try:
+        env.reset(seed=1)
+        assert all(ref() is None for ref in others)
+        assert ego() is None
+    finally:
+        gc.enable()

@@ -228,11 +228,10 @@ class ALDMHighwayEnv(AbstractEnv):
             cfg["detector"], cfg["detector_params"], path_range=self.path_range
         )
         if self.road is not None:
-            # The old road and its vehicles reference each other; emptying its lists
-            # frees them at once instead of at Python's next full garbage collection
-            # (docs/reliability.md, "Soak").
-            self.road.vehicles.clear()
-            self.road.objects.clear()
+            # The old road and its vehicles reference each other; releasing them frees
+            # them at once instead of at Python's next full garbage collection
+            # (docs/reliability.md, "Memory over a long run").
+            self.road.release()
         self.road = FastRoad(
             network=self.highway.network,
             np_random=self.np_random,

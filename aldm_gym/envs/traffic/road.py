@@ -104,6 +104,18 @@ class FastRoad(Road):
                 obj.road = fast
         return fast
 
+    def release(self) -> None:
+        """Forget every vehicle and object, and the neighbour tables built from them.
+
+        Vehicles hold their road and the road holds them (in its lists and its
+        neighbour cache): a road dropped without this call is freed only by Python's
+        next full garbage collection, with all its vehicles (docs/reliability.md).
+        """
+        self.vehicles.clear()
+        self.objects.clear()
+        self._neighbours._reset()
+        self._deferred_updates = None
+
     @property
     def record_history(self) -> bool:
         """Whether vehicles record their trajectories (display only).
