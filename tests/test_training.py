@@ -300,11 +300,55 @@ def test_resume_after_interruption_continues_step_count(
     assert "argument --detector: aldm contradicts the training being resumed" in line
 
 
+FULL_RUN_FILES = {
+    *("training.json", "train.lock", "model.zip", "vecnormalize.pkl", "checkpoints", "tb"),
+    *("best_model.zip", "best_vecnormalize.pkl", "validation.json", "validation.png"),
+}
+"""What a training with validation leaves in its output folder."""
+
+
 @pytest.mark.slow
 def test_quick_cli_with_subprocess_envs(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
-    """``train --quick`` (2 subprocess envs) and ``evaluate --quick`` end to end."""
+    """``train --quick`` (2 subprocess envs) and ``evaluate --quick`` end to end: the
+    files of a full run, episode return and length on the bar, each validation said
+    before it runs and printed beside the baselines; a verdict that says it cannot
+    decide on 5 episodes."""
     out = tmp_path / "quick"
-    assert main(["train", "--quick", "--n-envs", "2", "--out", str(out), "--no-progress"]) == 0
+    assert main(["train", "--quick", "--n-envs", "2", "--out", str(out)]) == 0
     assert PPO.load(out / "model.zip", device="cpu").num_timesteps == 1024
-    assert main(["evaluate", "--quick", "--model", str(out / "model.zip"), "--no-progress"]) == 0
-    assert capsys.readouterr().out.strip().splitlines()[-1].startswith("model (1024 steps")
+    assert {p.name for p in out.iterdir()} == FULL_RUN_FILES
+    captured = capsys.readouterr()
+    assert "ep_rew=" in captured.err and "ep_len=" in captured.err  # the bar's postfix
+    lines = captured.out.splitlines()
+    assert lines[0].startswith("validating the baselines")
+    # Validations after the rollouts ending at or past 512 steps, and at the end.
+    for steps in (512, 1024):
+        said = lines.index(f"validating at {steps} steps on seeds 20000..20002 (3 episodes)…")
+        result = lines[said + 1]
+        assert result.startswith(f"validation at {steps} steps: return ")
+        assert " | rule-based: return " in result and " | IDLE: return " in result
+    policy, _ = load_policy(out / "best_model.zip")
+    record = json.loads((out / "validation.json").read_text())
+    assert policy.model.num_timesteps == record["best_steps"]
+    assert (
+        main(["evaluate", "--quick", "--model", str(out / "best_model.zip"), "--no-progress"]) == 0
+    )
+    last = capsys.readouterr().out.strip().splitlines()[-1]
+    assert last.startswith("model (")
+    assert "inconclusive: 5 episodes are too few for a verdict" in last
+
+
+def test_progress_postfix_and_validation_line() -> None:
+    from aldm_gym.agents.callbacks import episode_postfix, format_validation
+
+    assert episode_postfix([]) == {"ep_rew": "-", "ep_len": "-"}
+    infos = [{"r": 1.0, "l": 10, "t": 0.1}, {"r": 2.0, "l": 20, "t": 0.2}]
+    assert episode_postfix(infos) == {"ep_rew": "1.50", "ep_len": "15.0"}
+    row = {"mean_return": 9.5, "success_rate": 0.9, "mean_speed": 24.25, "collisions": 1}
+    base = {"rule_based": {**row, "collisions": 2}, "idle": {**row, "mean_speed": 22.0}}
+    line = format_validation({"steps": 4096, **row}, base, 20, best=True)
+    assert line == (
+        "validation at 4096 steps: return 9.50, success 90%, 24.2 m/s, 1/20 collided "
+        "(best so far) | rule-based: return 9.50, success 90%, 24.2 m/s, 2/20 collided "
+        "| IDLE: return 9.50, success 90%, 22.0 m/s, 1/20 collided"
+    )

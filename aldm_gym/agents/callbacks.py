@@ -3,8 +3,12 @@
 * :class:`RolloutCheckpointCallback`: SB3's ``CheckpointCallback`` snapshotting the
   training between rollouts and saving a snapshot periodically and on an interruption.
 * :class:`ValidationCallback`: plays fixed validation seeds every ``validation_freq``
-  steps and keeps the best model (see :mod:`aldm_gym.agents.training`).
-* :class:`ProgressCallback`: a tqdm bar over the whole (possibly resumed) training.
+  steps and keeps the best model (see :mod:`aldm_gym.agents.training`); prints a line
+  before each validation and one with its result beside the rule-based LCA's and
+  IDLE's on the same seeds (:func:`format_validation`).
+* :class:`ProgressCallback`: a tqdm bar over the whole (possibly resumed) training,
+  showing the mean return and length of the recent training episodes (SB3's
+  ``ep_info_buffer``, filled by the ``Monitor`` wrapper).
 
 This module imports stable-baselines3 at import time (the classes subclass its
 callbacks); :func:`~aldm_gym.agents.training.train` imports it only when it runs.
@@ -13,6 +17,7 @@ callbacks); :func:`~aldm_gym.agents.training.train` imports it only when it runs
 from __future__ import annotations
 
 import json
+import math
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -20,6 +25,8 @@ from typing import Any
 
 import gymnasium as gym
 from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback
+from stable_baselines3.common.utils import safe_mean
+from tqdm import tqdm
 
 from aldm_gym import ENV_ID
 from aldm_gym.agents.checkpoints import (
@@ -139,6 +146,31 @@ def validation_row(episodes: list[EpisodeStats]) -> dict[str, Any]:
     }
 
 
+def _row_text(row: dict[str, Any], episodes: int) -> str:
+    return (
+        f"return {row['mean_return']:.2f}, success {row['success_rate']:.0%}, "
+        f"{row['mean_speed']:.1f} m/s, {row['collisions']}/{episodes} collided"
+    )
+
+
+def format_validation(
+    row: dict[str, Any], baselines: dict[str, Any], episodes: int, best: bool
+) -> str:
+    """One console line: a validation's result with the baselines' on the same seeds.
+
+    :param row: the validation (:func:`validation_row` and ``steps``).
+    :param baselines: ``{"rule_based": row, "idle": row}`` (:func:`validation_row`).
+    :param episodes: episodes per validation.
+    :param best: the validation is the best so far (its model is ``best_model.zip``).
+    """
+    text = f"validation at {row['steps']} steps: {_row_text(row, episodes)}"
+    text += " (best so far)" if best else ""
+    for name, title in (("rule_based", "rule-based"), ("idle", "IDLE")):
+        if name in baselines:
+            text += f" | {title}: {_row_text(baselines[name], episodes)}"
+    return text
+
+
 class ValidationCallback(BaseCallback):
     """Validate on fixed seeds every ``validation_freq`` steps; keep the best model.
 
@@ -159,12 +191,21 @@ class ValidationCallback(BaseCallback):
     :param env_config: ``ALDMHighway-v0`` config of the training.
     :param validation_freq: policy steps between validations [policy steps].
     :param n_episodes: episodes per validation.
+    :param progress: show a bar over each validation's episodes (the training's bar
+        stands still meanwhile). The lines before and after each validation are
+        printed either way.
     """
 
     def __init__(
-        self, out: Path, env_config: dict[str, Any], validation_freq: int, n_episodes: int
+        self,
+        out: Path,
+        env_config: dict[str, Any],
+        validation_freq: int,
+        n_episodes: int,
+        progress: bool = False,
     ) -> None:
         super().__init__()
+        self.progress = progress
         self.out = Path(out)
         self.env_config = env_config
         self.validation_freq = validation_freq
@@ -193,11 +234,27 @@ class ValidationCallback(BaseCallback):
             self.history = [h for h in saved["history"] if h["steps"] <= self.model.num_timesteps]
             best = [h for h in self.history if h["steps"] == saved.get("best_steps")]
             self.best = best[0] if best else None
-        with _rng_preserved():
-            self.baselines = saved.get("baselines") or {
-                name: validation_row(run_episodes(self.env, policy, self.seeds))
-                for name, policy in (("idle", IdlePolicy()), ("rule_based", RuleBasedLCA()))
-            }
+        self.baselines = saved.get("baselines") or {}
+        if not self.baselines:
+            tqdm.write(f"validating the baselines (IDLE, rule-based) on seeds {self._seed_text}…")
+            with _rng_preserved():
+                for name, policy in (("idle", IdlePolicy()), ("rule_based", RuleBasedLCA())):
+                    self.baselines[name] = validation_row(self._play(policy, name))
+
+    @property
+    def _seed_text(self) -> str:
+        return f"{self.seeds[0]}..{self.seeds[-1]} ({self.n_episodes} episodes)"
+
+    def _play(self, policy: Any, name: str) -> list[EpisodeStats]:
+        """The validation episodes with ``policy``, under a bar if :attr:`progress`."""
+        with tqdm(
+            total=self.n_episodes,
+            desc=f"validating {name}",
+            unit="ep",
+            leave=False,
+            disable=not self.progress,
+        ) as bar:
+            return run_episodes(self.env, policy, self.seeds, bar.update)
 
     def _on_rollout_start(self) -> None:
         if self.model.num_timesteps - self.last >= self.validation_freq:
@@ -218,8 +275,9 @@ class ValidationCallback(BaseCallback):
         steps = self.model.num_timesteps
         self.last = steps
         policy = NormalizedModel(self.model, self.model.get_vec_normalize_env())
+        tqdm.write(f"validating at {steps} steps on seeds {self._seed_text}…")
         with _rng_preserved():
-            episodes = run_episodes(self.env, policy, self.seeds)
+            episodes = self._play(policy, "model")
         row = {"steps": int(steps), **validation_row(episodes)}
         for key in ("mean_return", "success_rate", "mean_speed", "collisions"):
             self.logger.record(f"validation/{key}", row[key])
@@ -235,10 +293,17 @@ class ValidationCallback(BaseCallback):
         }
         write_json(self.out / VALIDATION_FILE, record)
         plot_validation(record, self.out / VALIDATION_PLOT)
+        tqdm.write(format_validation(row, self.baselines, self.n_episodes, self.best is row))
 
 
 class ProgressCallback(BaseCallback):
     """tqdm bar over the policy steps of the whole (possibly resumed) training.
+
+    After every rollout its postfix shows the mean return (``ep_rew``) and length
+    (``ep_len`` [policy steps]) of the last training episodes, from SB3's
+    ``ep_info_buffer`` (the last episodes the ``Monitor`` wrapper reported, at most
+    SB3's ``stats_window_size``, 100), the numbers SB3 logs as ``rollout/ep_rew_mean``
+    and ``rollout/ep_len_mean`` (``-`` before the first episode ends).
 
     Not SB3's ``ProgressBarCallback``: that one needs ``rich`` and counts only the
     steps of the current ``learn`` call.
@@ -262,5 +327,22 @@ class ProgressCallback(BaseCallback):
         self.bar.update(self.training_env.num_envs)
         return True
 
+    def _on_rollout_end(self) -> None:
+        self.bar.set_postfix(episode_postfix(self.model.ep_info_buffer), refresh=True)
+
     def _on_training_end(self) -> None:
         self.bar.close()
+
+
+def episode_postfix(ep_info_buffer: Any) -> dict[str, str]:
+    """The bar's postfix: mean return and length of the episodes in SB3's
+    ``ep_info_buffer`` (Monitor's ``{"r": return, "l": length, ...}`` per episode)."""
+    infos = list(ep_info_buffer or ())
+    if not infos:
+        return {"ep_rew": "-", "ep_len": "-"}
+    rew = float(safe_mean([info["r"] for info in infos]))
+    length = float(safe_mean([info["l"] for info in infos]))
+    return {
+        "ep_rew": f"{rew:.2f}" if math.isfinite(rew) else "-",
+        "ep_len": f"{length:.1f}" if math.isfinite(length) else "-",
+    }

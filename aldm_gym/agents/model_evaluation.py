@@ -3,12 +3,25 @@
 :func:`evaluate` plays a trained model, :class:`~aldm_gym.agents.policies.RuleBasedLCA`
 and :class:`~aldm_gym.agents.policies.IdlePolicy` on the same seeds with
 :func:`~aldm_gym.agents.evaluation.run_episodes`; :func:`summary_line` says in one
-sentence how the model compares. The environment and the policies are imported when
-:func:`evaluate` runs: the command line reads :data:`EVALUATION_SEED` to build its parser.
+sentence how the model compares, with its uncertainty.
+
+The verdict is paired on the seeds (every policy drives the same episodes):
+
+* speed: the mean of the per-episode differences of mean speed (model − IDLE) with a
+  95 % confidence interval from Student's t (:func:`paired_difference`); the model is
+  called faster or slower only when the interval excludes 0;
+* collisions: the episodes where only one of the two collided decide (McNemar's exact
+  test, :func:`collision_test`); "fewer" or "more" only when p < 0.05;
+* under :data:`MIN_EPISODES` episodes the verdict is "inconclusive" whatever the
+  numbers (collisions are rare events: 3 episodes cannot tell 10 % from 30 %).
+
+The environment and the policies are imported when :func:`evaluate` runs: the command
+line reads :data:`EVALUATION_SEED` to build its parser.
 """
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Any
 
@@ -18,6 +31,15 @@ from aldm_gym.agents.training import env_config
 
 EVALUATION_SEED = 10_000
 """First seed of the evaluation episodes (training envs use ``0 ..``, validation 20000..)."""
+
+MIN_EPISODES = 20
+"""Fewest episodes for which :func:`summary_line` gives a verdict (else "inconclusive")."""
+
+CONFIDENCE = 0.95
+"""Confidence level of the interval on the speed difference."""
+
+SIGNIFICANCE = 0.05
+"""Largest p-value of :func:`collision_test` for which collisions are called fewer/more."""
 
 EVAL_COLUMNS = (
     "policy",
@@ -46,7 +68,8 @@ def evaluate(
     :param detector, marking_model: override the training env's (None: as trained).
     :return: rows (``idle``, ``rule_based``, ``model``) with the
         :func:`~aldm_gym.agents.evaluation.summarize` metrics and ``policy``; and the
-        evaluation's env config and model metadata.
+        evaluation's env config, model metadata and, per policy, each episode's mean
+        speed [m/s] and whether it collided (``per_episode``, in seed order).
     :raises MissingRLDependencies: stable-baselines3 / torch missing.
     """
     import gymnasium as gym
@@ -64,15 +87,17 @@ def evaluate(
     env = gym.make(ENV_ID, config=config)
     seeds = range(seed, seed + episodes)
     rows = []
+    per_episode: dict[str, dict[str, list[Any]]] = {}
+    policies = (("idle", IdlePolicy()), ("rule_based", RuleBasedLCA()), ("model", policy))
     try:
         with tqdm(total=3 * episodes, desc="evaluate", unit="ep", disable=not progress) as bar:
-            for name, pol in (("idle", IdlePolicy()), ("rule_based", RuleBasedLCA())):
-                rows.append(
-                    {"policy": name, **summarize(run_episodes(env, pol, seeds, bar.update))}
-                )
-            rows.append(
-                {"policy": "model", **summarize(run_episodes(env, policy, seeds, bar.update))}
-            )
+            for name, pol in policies:
+                played = run_episodes(env, pol, seeds, bar.update)
+                rows.append({"policy": name, **summarize(played)})
+                per_episode[name] = {
+                    "mean_speed": [_mean(e.speeds) for e in played],
+                    "collided": [bool(e.collided) for e in played],
+                }
     finally:
         env.close()
     info = {
@@ -80,34 +105,100 @@ def evaluate(
         "trained_on": meta["env_config"],
         "timesteps": int(policy.model.num_timesteps),
         "seeds": [seed, seed + episodes - 1],
+        "per_episode": per_episode,
     }
     return rows, info
 
 
+def _mean(values: list[float]) -> float:
+    return float(sum(values) / len(values)) if values else float("nan")
+
+
+def paired_difference(
+    a: list[float], b: list[float], confidence: float = CONFIDENCE
+) -> tuple[float, float, float]:
+    """Mean of ``a[i] - b[i]`` and its confidence interval (Student's t, paired).
+
+    :return: ``(mean, low, high)``; the interval is infinite for fewer than two pairs.
+    """
+    from scipy import stats
+
+    if len(a) != len(b) or not a:
+        raise ValueError(f"paired_difference needs equally many values, got {len(a)}, {len(b)}")
+    d = [x - y for x, y in zip(a, b, strict=True)]
+    mean = _mean(d)
+    if len(d) < 2:
+        return mean, -math.inf, math.inf
+    sd = math.sqrt(sum((x - mean) ** 2 for x in d) / (len(d) - 1))
+    half = float(stats.t.ppf(0.5 + confidence / 2, len(d) - 1)) * sd / math.sqrt(len(d))
+    return mean, mean - half, mean + half
+
+
+def collision_test(a: list[bool], b: list[bool]) -> float:
+    """p-value (two-sided) that ``a`` and ``b`` collide equally often, paired by episode.
+
+    McNemar's exact test: only episodes where exactly one of the two collided count;
+    under the hypothesis each such episode is ``a``'s with probability 1/2.
+    """
+    from scipy import stats
+
+    only_a = sum(x and not y for x, y in zip(a, b, strict=True))
+    only_b = sum(y and not x for x, y in zip(a, b, strict=True))
+    if only_a + only_b == 0:
+        return 1.0
+    return float(stats.binomtest(only_a, only_a + only_b, 0.5).pvalue)
+
+
+def verdict(info: dict[str, Any]) -> str:
+    """How the model compares with IDLE, stating the uncertainty (see the module).
+
+    :param info: what :func:`evaluate` returns (its ``per_episode``).
+    """
+    model, idle = info["per_episode"]["model"], info["per_episode"]["idle"]
+    n = len(model["mean_speed"])
+    dv, lo, hi = paired_difference(model["mean_speed"], idle["mean_speed"])
+    p = collision_test(model["collided"], idle["collided"])
+    cm, ci = sum(model["collided"]), sum(idle["collided"])
+    speed = (
+        f"speed {dv:+.2f} m/s vs IDLE ({CONFIDENCE:.0%} CI {lo:+.2f} to {hi:+.2f}, "
+        "per-episode means on the same seeds)"
+    )
+    crashes = f"collisions in {cm} vs {ci} of {n} episodes (paired exact test p = {p:.2f})"
+    if n < MIN_EPISODES:
+        return (
+            f"inconclusive: {n} episodes are too few for a verdict (at least {MIN_EPISODES}); "
+            f"{speed}; {crashes}"
+        )
+    if lo > 0:
+        pace = "is faster than IDLE"
+    elif hi < 0:
+        pace = "is slower than IDLE"
+    else:
+        pace = "is not measurably faster or slower than IDLE"
+    if p < SIGNIFICANCE:
+        safety = "with fewer collisions" if cm < ci else "with more collisions"
+    else:
+        safety = "with no significant difference in collisions"
+    return f"{pace} {safety}: {speed}; {crashes}"
+
+
 def summary_line(rows: list[dict[str, Any]], info: dict[str, Any]) -> str:
-    """One sentence on the model against IDLE and the rule-based LCA.
+    """One sentence on the model against IDLE and the rule-based LCA, with the
+    :func:`verdict` and its uncertainty.
 
     :param rows, info: what :func:`evaluate` returns.
     """
     by = {r["policy"]: r for r in rows}
     m, idle, rule = by["model"], by["idle"], by["rule_based"]
-    dv = m["mean_speed"] - idle["mean_speed"]
-    if dv > 0 and m["collisions"] <= idle["collisions"]:
-        verdict = "beats IDLE on speed without more collisions"
-    elif dv > 0:
-        verdict = "is faster than IDLE but collides more"
-    else:
-        verdict = "is not faster than IDLE"
     trained = info["trained_on"]
     cfg = info["env_config"]
     return (
         f"model ({info['timesteps']} steps, trained on {trained['detector']}/"
         f"{trained['marking_model']}, evaluated on {cfg['detector']}/{cfg['marking_model']}, "
-        f"{m['episodes']} episodes) {verdict}: success {m['success_rate']:.0%} "
+        f"{m['episodes']} episodes) {verdict(info)}. Success {m['success_rate']:.0%} "
         f"(IDLE {idle['success_rate']:.0%}, rule-based {rule['success_rate']:.0%}), "
-        f"mean speed {m['mean_speed']:.1f} m/s ({dv:+.1f} vs IDLE, "
-        f"{m['mean_speed'] - rule['mean_speed']:+.1f} vs rule-based), "
-        f"collisions {m['collisions']} (IDLE {idle['collisions']}, rule-based "
-        f"{rule['collisions']}), lane changes {m['lane_changes_ok']} ok / "
+        f"mean speed {m['mean_speed']:.1f} m/s (IDLE {idle['mean_speed']:.1f}, rule-based "
+        f"{rule['mean_speed']:.1f}), collisions {m['collisions']} (IDLE {idle['collisions']}, "
+        f"rule-based {rule['collisions']}), lane changes {m['lane_changes_ok']} ok / "
         f"{m['lane_changes_failed']} failed"
     )

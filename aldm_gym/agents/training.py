@@ -424,6 +424,9 @@ def train(
         (default :data:`DEFAULT_VALIDATION_FREQ`).
     :param validation_episodes: episodes per validation (seeds ``VALIDATION_SEED ..``;
         default :data:`DEFAULT_VALIDATION_EPISODES`).
+    :param progress: a tqdm bar over the steps, showing the recent training episodes'
+        mean return and length, and one over each validation's episodes (the lines
+        announcing and reporting each validation print either way).
     :param callback: extra SB3 callback(s) (a list or one).
     :param resume: continue from the newest intact checkpoint of ``out``; the env
         config and hyperparameters are those saved in ``<out>/training.json``, and so
@@ -577,7 +580,13 @@ def _train_locked(
     callbacks: list[Any] = [checkpoints]
     if run["validation_freq"] > 0 and run["validation_episodes"] > 0:
         callbacks.append(
-            ValidationCallback(out, config, run["validation_freq"], run["validation_episodes"])
+            ValidationCallback(
+                out,
+                config,
+                run["validation_freq"],
+                run["validation_episodes"],
+                progress=progress,
+            )
         )
     if progress:
         callbacks.append(ProgressCallback(timesteps))

@@ -65,6 +65,12 @@ QUICK_N_STEPS = 64
 QUICK_DURATION = 10.0
 """``train --quick``: episode length [s]."""
 
+QUICK_VALIDATION_FREQ = 512
+"""``train --quick``: validation period [policy steps] (twice in the quick budget)."""
+
+QUICK_VALIDATION_EPISODES = 3
+"""``train --quick``: episodes per validation."""
+
 MAX_N_ENVS = 64
 """Most ``--n-envs`` accepted (each is a subprocess)."""
 
@@ -124,14 +130,15 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         "--validation-freq",
         type=non_negative_int,
         default=None,
-        help="validate (and keep best_model.zip) every this many steps, 0 = never "
-        f"({DEFAULT_VALIDATION_FREQ}; --quick 0)",
+        help="validate (and keep best_model.zip) every this many steps and at the end, "
+        f"0 = never ({DEFAULT_VALIDATION_FREQ}; --quick {QUICK_VALIDATION_FREQ})",
     )
     parser.add_argument(
         "--validation-episodes",
         type=positive_int,
         default=None,
-        help=f"episodes per validation, seeds {VALIDATION_SEED}.. ({DEFAULT_VALIDATION_EPISODES})",
+        help=f"episodes per validation, seeds {VALIDATION_SEED}.. ({DEFAULT_VALIDATION_EPISODES}; "
+        f"--quick {QUICK_VALIDATION_EPISODES})",
     )
     parser.add_argument(
         "--duration",
@@ -221,8 +228,10 @@ def run(args: argparse.Namespace) -> int:
         )
     make_output_dir(out)
     validation_freq = args.validation_freq
-    if validation_freq is None and quick:
-        validation_freq = 0
+    validation_episodes = args.validation_episodes
+    if quick:
+        validation_freq = QUICK_VALIDATION_FREQ if validation_freq is None else validation_freq
+        validation_episodes = validation_episodes or QUICK_VALIDATION_EPISODES
     n_steps = args.n_steps or (QUICK_N_STEPS if quick else PPOParams.n_steps)
     try:
         t0 = time.perf_counter()
@@ -249,7 +258,7 @@ def run(args: argparse.Namespace) -> int:
                     lr_schedule=args.lr_schedule or PPOParams.lr_schedule,
                 ),
                 validation_freq=validation_freq,
-                validation_episodes=args.validation_episodes,
+                validation_episodes=validation_episodes,
                 resume=args.resume,
                 progress=not args.no_progress,
             )
