@@ -4,10 +4,13 @@ Both envs run in one process, alternating round by round (so machine load hits b
 alike), with ``vehicles_count=20, lanes_count=4, simulation_frequency=10,
 policy_frequency=1`` and IDLE actions. ``ALDMHighway-v0`` runs the line sensor and
 the ALDM at every simulation step. A third env measures the cost ratio of 40 vs 20
-vehicles. With ``--xodr PATH`` a fourth env drives the same settings on that OpenDRIVE
-map (``road.xodr``; 40 s episodes, resets not timed) and the map / generated-road
-ratio is printed (the ratio of the medians, and the median of the per-round ratios:
-both envs ran the same seed in a round). ``--clock cpu`` times with the process's CPU
+vehicles. A fourth runs with ``acc.enabled=False`` (no target selection, ACC or AEB:
+v0's constant-speed IDLE) and the ACC + AEB overhead of a step is printed as the
+ratio of the medians and the median of per-round ratios. With ``--xodr PATH`` a fifth
+env drives the same settings on that OpenDRIVE map (``road.xodr``; 40 s episodes,
+resets not timed) and the map / generated-road ratio is printed (the ratio of the
+medians, and the median of the per-round ratios: both envs ran the same seed in a
+round). ``--clock cpu`` times with the process's CPU
 time instead of the wall clock: on a shared machine other processes then slow the
 figures much less. Usage::
 
@@ -32,6 +35,7 @@ COMMON = {"lanes_count": 4, "simulation_frequency": 10, "policy_frequency": 1, "
 
 
 MAP_ENV = "ALDMHighway-v0 map (20 veh)"
+ACC_OFF_ENV = "ALDMHighway-v0 ACC off (20 veh)"
 
 
 def make_envs(xodr: str | None = None) -> dict[str, gym.Env]:
@@ -47,6 +51,10 @@ def make_envs(xodr: str | None = None) -> dict[str, gym.Env]:
         ),
         "ALDMHighway-v0 (40 veh)": gym.make(
             "ALDMHighway-v0", config={**COMMON, "vehicles_count": 40}
+        ),
+        ACC_OFF_ENV: gym.make(
+            "ALDMHighway-v0",
+            config={**COMMON, "vehicles_count": 20, "acc": {"enabled": False}},
         ),
     }
     if xodr is not None:
@@ -104,6 +112,14 @@ def main() -> None:
     a40 = med["ALDMHighway-v0 (40 veh)"]
     print(f"\nspeed-up ALDMHighway-v0 / highway-fast-v0 (20 veh): {a20 / hf:.2f}x (target >= 5x)")
     print(f"cost ratio ALDMHighway-v0 40 / 20 vehicles: {a20 / a40:.2f}x (target <= 2.1x)")
+    off = rates[ACC_OFF_ENV]
+    paired_acc = statistics.median(
+        o / a for o, a in zip(off, rates["ALDMHighway-v0 (20 veh)"], strict=True)
+    )
+    print(
+        f"ACC + AEB step cost (ACC on / off, 20 veh): {med[ACC_OFF_ENV] / a20:.3f}x, "
+        f"median of per-round ratios {paired_acc:.3f}x (target <= 1.10x)"
+    )
     if MAP_ENV in med:
         paired = statistics.median(
             m / g for m, g in zip(rates[MAP_ENV], rates["ALDMHighway-v0 (20 veh)"], strict=True)

@@ -36,8 +36,17 @@ CLOSED_LOOP_COLUMNS: tuple[str, ...] = (
     "lane_changes_failed",
     "mean_speed",
     "success_rate",
+    "target_accuracy",
+    "missed_rate",
+    "false_rate",
+    "phantom_braking",
+    "aeb_activations",
+    "rear_end_collisions",
+    "min_time_gap",
 )
-"""Columns of ``compare.csv`` (closed loop, one row per marking model × detector)."""
+"""Columns of ``compare.csv`` (closed loop, one row per marking model × detector); the
+last seven score the ACC's target selection (``info["target"]``, see
+:func:`~aldm_gym.agents.evaluation.summarize`)."""
 
 Trace = list[tuple[float, float]]
 """``(distance from the start [m], signed lateral offset [m])`` per policy step."""

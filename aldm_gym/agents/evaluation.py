@@ -54,6 +54,16 @@ class EpisodeStats:
     :ivar speeds: ego speed at each step [m/s].
     :ivar reward: sum of rewards.
     :ivar trace: ``(distance from the start [m], signed lateral offset [m])`` per step.
+    :ivar collision: where the other vehicle was in a collision (``info["collision"]``:
+        ``"front"``, ``"rear"``, ``"side"``), ``""`` without one.
+    :ivar target_correct: steps whose ACC target was the true in-lane leader (or
+        neither exists), per ``info["target"]``.
+    :ivar target_missed: steps with a true leader within range not selected.
+    :ivar target_false: steps with a selected target not in the true ego lane.
+    :ivar phantom_braking: phantom-braking events (braking for a false target; a run
+        of consecutive steps counts once).
+    :ivar aeb_activations: AEB activations.
+    :ivar min_time_gap: smallest time gap to the true leader [s] (``inf``: never one).
     """
 
     seed: int
@@ -70,6 +80,13 @@ class EpisodeStats:
     speeds: list[float] = field(default_factory=list)
     reward: float = 0.0
     trace: list[tuple[float, float]] = field(default_factory=list)
+    collision: str = ""
+    target_correct: int = 0
+    target_missed: int = 0
+    target_false: int = 0
+    phantom_braking: int = 0
+    aeb_activations: int = 0
+    min_time_gap: float = float("inf")
 
     @property
     def success(self) -> bool:
@@ -97,6 +114,7 @@ def run_episode(env: Any, policy: Policy, seed: int, max_steps: int | None = Non
     s_start = float(info["arc_length"])
     pending: tuple[int, int, int] | None = None  # (direction, start lane, completed count)
     aborted = int(info.get("lane_changes_aborted", 0))
+    phantom_before = False
     done = False
     while not done and (max_steps is None or stats.steps < max_steps):
         action, _ = policy.predict(obs, deterministic=True)
@@ -112,6 +130,17 @@ def run_episode(env: Any, policy: Policy, seed: int, max_steps: int | None = Non
         stats.trace.append((float(info["arc_length"]) - s_start, float(info["lateral_offset"])))
         stats.departures += int(bool(info["lane_departure"]))
         stats.collided |= bool(info["crashed"])
+        if info.get("collision"):
+            stats.collision = str(info["collision"])
+        tgt = info.get("target")
+        if tgt is not None:
+            stats.target_correct += int(bool(tgt["correct"]))
+            stats.target_missed += int(bool(tgt["missed"]))
+            stats.target_false += int(bool(tgt["false"]))
+            stats.phantom_braking += int(bool(tgt["phantom_braking"]) and not phantom_before)
+            phantom_before = bool(tgt["phantom_braking"])
+            stats.aeb_activations = int(tgt["aeb_activations"])
+            stats.min_time_gap = min(stats.min_time_gap, float(tgt["time_gap"]))
         det = info["detection"]
         stats.both_correct += int(det["ego_left"]["correct"] and det["ego_right"]["correct"])
         stats.previews += [det["ego_left"]["preview"], det["ego_right"]["preview"]]
@@ -167,11 +196,16 @@ def summarize(episodes: list[EpisodeStats]) -> dict[str, float]:
         steps with both ego lines correct), ``mean_preview_m`` (missing lines count 0),
         ``collisions`` (episodes), ``lane_changes_ok``, ``lane_changes_failed``,
         ``mean_speed`` [m/s], ``success_rate`` (episodes without collision or departure),
-        ``episodes``.
+        ``episodes``; ACC target selection (``info["target"]``): ``target_accuracy``,
+        ``missed_rate`` and ``false_rate`` (shares of steps), ``phantom_braking``
+        (events), ``aeb_activations``, ``rear_end_collisions`` (the ego ran into the
+        vehicle ahead: ``info["collision"] == "front"``), ``min_time_gap`` [s] (the
+        smallest over all episodes).
     """
     if not episodes:
         raise ValueError("summarize needs at least one episode")
     km = sum(e.distance for e in episodes) / 1000.0
+    nan = float("nan")
     offsets = np.concatenate([np.asarray(e.offsets, dtype=float) for e in episodes])
     previews = np.nan_to_num(np.concatenate([np.asarray(e.previews) for e in episodes]), nan=0.0)
     steps = sum(e.steps for e in episodes)
@@ -189,4 +223,11 @@ def summarize(episodes: list[EpisodeStats]) -> dict[str, float]:
         "lane_changes_failed": sum(e.lane_changes_failed for e in episodes),
         "mean_speed": float(speeds.mean()) if len(speeds) else float("nan"),
         "success_rate": sum(int(e.success) for e in episodes) / len(episodes),
+        "target_accuracy": sum(e.target_correct for e in episodes) / steps if steps else nan,
+        "missed_rate": sum(e.target_missed for e in episodes) / steps if steps else nan,
+        "false_rate": sum(e.target_false for e in episodes) / steps if steps else nan,
+        "phantom_braking": sum(e.phantom_braking for e in episodes),
+        "aeb_activations": sum(e.aeb_activations for e in episodes),
+        "rear_end_collisions": sum(int(e.collision == "front") for e in episodes),
+        "min_time_gap": min(e.min_time_gap for e in episodes),
     }

@@ -118,3 +118,40 @@ def plot_offsets(
     fig.tight_layout()
     fig.savefig(path, dpi=130)
     plt.close(fig)
+
+
+def plot_target_selection(
+    curves: Mapping[tuple[str, str], list[float]], edges: tuple[float, ...], path: Path
+) -> None:
+    """Target-selection accuracy over the vehicle's distance, per marking model × detector.
+
+    :param curves: ``(marking model, detector) ->`` share of correct scenes per bin (%
+        of 1) (:func:`~aldm_gym.agents.target_comparison.compare_target_selection`).
+    :param edges: the bins' edges [m].
+    """
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    centres = 0.5 * (np.asarray(edges[:-1]) + np.asarray(edges[1:]))
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4), sharey=True)
+    models = sorted({m for m, _ in curves}, key=lambda m: m != "per_dash")
+    for ax, model in zip(axes, models, strict=False):
+        for (m, det), acc in curves.items():
+            if m != model:
+                continue
+            style = dict(_TRACES.get(det, {"color": "grey", "label": det}))
+            style.pop("alpha", None)
+            ax.plot(centres, 100.0 * np.asarray(acc), marker="o", **style)
+        ax.set_title(f"{model} road")
+        ax.set_xlabel("distance of the vehicle ahead [m]")
+        ax.set_ylim(-5, 105)
+        ax.grid(alpha=0.3)
+    axes[0].set_ylabel("target selection correct [%]")
+    axes[0].legend(loc="lower left")
+    fig.suptitle("ACC target selection on the detected lanes (curves R 500-1500 m)")
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

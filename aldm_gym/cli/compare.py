@@ -6,9 +6,12 @@ written to ``compare_frames.csv`` with the figures ``compare_frames.png``,
 ``frame_per_dash.png`` and ``frame_editor.png``. Closed loop: the LKA (IDLE) and the
 rule-based LCA on the same seeded episodes
 (:func:`~aldm_gym.agents.comparison.compare_closed_loop`), written to ``compare.csv``
-and ``offset.png``. With ``--xodr PATH`` both halves run on that OpenDRIVE map instead
-of seeded generated roads (frames on its driving lanes, episodes with
-``road.xodr``).
+and ``offset.png`` (with the ACC's target-selection metrics). Target selection where
+it is hard (:mod:`~aldm_gym.agents.target_comparison`: curves of R 500–1500 m,
+vehicles 60–150 m ahead in the ego and adjacent lanes, cut-ins), generated roads
+only: ``compare_targets.csv`` and ``compare_targets.png``. With ``--xodr PATH`` both
+halves run on that OpenDRIVE map instead of seeded generated roads (frames on its
+driving lanes, episodes with ``road.xodr``).
 """
 
 from __future__ import annotations
@@ -70,6 +73,9 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     parser.add_argument(
         "--no-closed-loop", action="store_true", help="only the frame-level comparison"
     )
+    parser.add_argument(
+        "--scenes", type=positive_int, help="target-selection scenes per road (generated roads)"
+    )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.set_defaults(func=run)
     return parser
@@ -86,6 +92,8 @@ def run(args: argparse.Namespace) -> int:
             raise BadArgument("--xodr", str(exc)) from None
     out = make_output_dir(args.out)
     written = _compare_frames(args, out)
+    if args.xodr is None:
+        written += _compare_targets(args, out)
     if not args.no_closed_loop:
         written += _compare_closed_loop(args, out)
     print("wrote " + ", ".join(str(p) for p in written))
@@ -249,3 +257,34 @@ def _crashed(traces: dict[tuple[str, str], list[Any]], args: argparse.Namespace)
         return {}
     longest = max(len(t) for t in traces.values())
     return {key: 0 < len(t) < longest for key, t in traces.items()}
+
+
+def _compare_targets(args: argparse.Namespace, out: Path) -> list[Path]:
+    """Target selection in hard scenes (curves, vehicles in adjacent lanes, cut-ins)."""
+    from tqdm import tqdm
+
+    from aldm_gym.agents.plot import plot_target_selection
+    from aldm_gym.agents.target_comparison import (
+        DISTANCE_BINS,
+        TARGET_COLUMNS,
+        compare_target_selection,
+    )
+    from aldm_gym.roads import MARKING_MODELS
+    from aldm_gym.sensor.detectors import DETECTORS
+
+    n_roads = args.roads or (2 if args.quick else 5)
+    per_road = args.scenes or (50 if args.quick else 200)
+    seeds = [args.seed + i for i in range(n_roads)]
+    t0 = time.perf_counter()
+    total = n_roads * per_road * len(MARKING_MODELS) * len(DETECTORS)
+    with tqdm(total=total, desc="target scenes", unit="scene", disable=args.no_progress) as bar:
+        rows, curves = compare_target_selection(seeds, per_road, progress=bar.update)
+    write_csv(out / "compare_targets.csv", rows, TARGET_COLUMNS)
+    print("ACC target selection (curves R 500-1500 m, one vehicle ahead per scene):")
+    print(format_table(rows, TARGET_COLUMNS))
+    print(
+        f"{n_roads} roads x {per_road} scenes, {time.perf_counter() - t0:.1f} s. A scene is "
+        "correct when the vehicle is selected exactly when it is in the ego lane.\n"
+    )
+    plot_target_selection(curves, DISTANCE_BINS, out / "compare_targets.png")
+    return [out / "compare_targets.csv", out / "compare_targets.png"]

@@ -12,6 +12,7 @@ top level              :class:`EnvConfig` (below)
 ``action``             :class:`aldm_gym.envs.actions.ActionConfig`
 ``observation``        :class:`aldm_gym.envs.observation.ObservationConfig`
 ``lka``                :class:`aldm_gym.envs.control.LKAConfig`
+``acc``                :class:`aldm_gym.envs.longitudinal.ACCConfig`
 ``sensor``             :class:`aldm_gym.sensor.line_sensor.LineSensorConfig`
 ``road``               :class:`aldm_gym.roads.highway.RoadConfig`, or :class:`MapConfig`
                        with ``road.xodr`` (an OpenDRIVE map)
@@ -40,6 +41,7 @@ from typing import Any
 from aldm_gym.config import build_config, rules, setting, validate
 from aldm_gym.envs.actions import ACTION_TYPES, ActionConfig
 from aldm_gym.envs.control import LKAConfig
+from aldm_gym.envs.longitudinal import ACCConfig
 from aldm_gym.envs.observation import ObservationConfig
 from aldm_gym.roads.highway import MARKING_MODELS, RoadConfig
 from aldm_gym.roads.map_road import OpenDriveRoad
@@ -136,6 +138,7 @@ class EnvConfig:
     sensor: Any = setting(None, kind="any")
     road: Any = setting(None, kind="any")
     lka: Any = setting(None, kind="any")
+    acc: Any = setting(None, kind="any")
     progress_reward: float = _reward(0.2)
     lane_keeping_reward: float = _reward(0.3)
     departure_reward: float = _reward(-0.5)
@@ -200,12 +203,13 @@ SECTIONS: dict[str, Any] = {
     "observation": ObservationConfig,
     "action": ActionConfig,
     "lka": LKAConfig,
+    "acc": ACCConfig,
     "sensor": LineSensorConfig,
     "road": RoadConfig,
 }
 """The config sections declared by a dataclass (``detector_params`` is the detector's)."""
 
-_FULL_SECTIONS = ("observation", "action", "lka")
+_FULL_SECTIONS = ("observation", "action", "lka", "acc")
 """Sections held complete (defaults filled in); ``sensor`` and ``road`` hold only what
 the user set, since ``road`` takes ``lanes_count``/``marking_model`` from the top level."""
 

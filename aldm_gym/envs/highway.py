@@ -19,7 +19,19 @@ from highway_env.vehicle.kinematics import Vehicle
 from aldm_gym.envs.actions import ALDMAction
 from aldm_gym.envs.config import EnvConfig, default_config, map_road, merge_config, road_config
 from aldm_gym.envs.control import LKAController
+from aldm_gym.envs.longitudinal import (
+    ACCConfig,
+    LongitudinalCommand,
+    LongitudinalController,
+)
 from aldm_gym.envs.observation import ALDMObservation
+from aldm_gym.envs.targets import (
+    NO_TARGET,
+    Objects,
+    TargetSelector,
+    lane_overlap,
+    objects_from_world,
+)
 from aldm_gym.envs.traffic import FastRoad
 from aldm_gym.envs.vehicle import MapIDMVehicle, SensorVehicle
 from aldm_gym.roads.cache import cached_road
@@ -60,13 +72,18 @@ class ALDMHighwayEnv(AbstractEnv):
       | Num | Action     | Effect                                                              |
       |-----|------------|---------------------------------------------------------------------|
       | 0   | LANE_LEFT  | steer onto the detected left lane (no-op if its line is not found)  |
-      | 1   | IDLE       | keep the lane: pure pursuit on the detected trajectory              |
+      | 1   | IDLE       | keep the lane (pure pursuit on the detected trajectory), ACC + AEB  |
       | 2   | LANE_RIGHT | steer onto the detected right lane (no-op if its line is not found) |
-      | 3   | FASTER     | next higher target speed of ``action.target_speeds``                |
+      | 3   | FASTER     | next higher set speed of ``action.target_speeds``                   |
       | 4   | SLOWER     | next lower target speed                                             |
 
     * ``"ContinuousAction"``: ``Box((2,), float32)``: steering [rad] (ISO: > 0 turns
-      left, within ±``lka.max_steering``) and acceleration [m/s²] (±``max_acceleration``).
+      left, within ±``lka.max_steering``) and acceleration [m/s²] (±``max_acceleration``),
+      raw: no ACC or AEB acts on it.
+
+    The speed under meta actions: ACC (constant time gap behind the target selected on
+    the *detected* lanes, else the set speed) and AEB, ``acc`` section
+    (:mod:`aldm_gym.envs.longitudinal`, ``docs/acc.md``).
       :class:`~aldm_gym.envs.control.LKAController` ``.predict(obs)`` produces such actions.
 
     ## Observation Space
@@ -83,6 +100,7 @@ class ALDMHighwayEnv(AbstractEnv):
     | `vehicles`         | (N,6)    | present, x, y, rel. vx, vy, lane by detected lines  |
     | `lanes`            | (3,4)    | left/ego/right detected lane: gap, rel. vx of the   |
     |                    |          | nearest vehicle ahead, then of the nearest behind   |
+    | `target`           | (3,)     | ACC target: present, gap [m], relative speed [m/s]  |
 
     Lane codes of `vehicles` (:class:`~aldm_gym.envs.observation.LaneCode`): 1 ego
     lane, 2 left, 3 right, 0 other / unknown. Built by
@@ -120,7 +138,10 @@ class ALDMHighwayEnv(AbstractEnv):
     ``arc_length`` (true position along the road [m]), ``detection``
     (``{"ego_left"|"ego_right": {"mean_abs_error" [m] up to 60 m, "preview" [m],
     "correct" (1/0)}}``, NaN error and preview when the line is missing),
-    ``departures`` (count this episode); on a map also ``lane_ends_in`` (distance to
+    ``departures`` (count this episode), ``target`` (the ACC's target against ground
+    truth: ``target``, ``leader``, ``correct``, ``missed``, ``false``, ``aeb``,
+    ``aeb_activations``, ``phantom_braking``, ``gap``, ``time_gap``), ``collision``
+    (``""``, ``"front"``, ``"rear"``, ``"side"``); on a map also ``lane_ends_in`` (distance to
     the end of the ego's lane chain when it ends before the road [m], else inf). See
     ``docs/env.md``.
 
@@ -132,7 +153,8 @@ class ALDMHighwayEnv(AbstractEnv):
 
     ## Version History
 
-    * v0: initial version.
+    * v0: initial version; ACC + AEB under meta actions (``acc``), observation key
+      ``target``, ``info["target"]`` and ``info["collision"]``.
     """
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 10}  # noqa: RUF012
@@ -158,6 +180,16 @@ class ALDMHighwayEnv(AbstractEnv):
         """The ego's ground-truth position on the road, updated every simulation step."""
         self._s_before = 0.0
         self._space_seed: int | None = None
+        self.longitudinal: LongitudinalController | None = None
+        """Target selection, ACC and AEB (``acc.enabled``): :mod:`aldm_gym.envs.longitudinal`."""
+        self.acc_command: LongitudinalCommand | None = None
+        """The longitudinal controller's output at the last simulation step."""
+        self._truth = TargetSelector()
+        self._objects = Objects()
+        self._objects_xy = np.zeros((0, 2))
+        self._acc_step: dict[str, Any] = {}
+        self._lc_target_index: int | None = None
+        self._collision = ""
         super().__init__(dict(config) if config else None, render_mode)
 
     # ------------------------------------------------------------------ config
@@ -248,8 +280,33 @@ class ALDMHighwayEnv(AbstractEnv):
             self._create_map_vehicles(on_map)
         self._departures = 0
         self._departed_step = False
+        self._collision = ""
+        self._reset_longitudinal()
         self._perceive()
         self._s_before = self.lane_position.s
+
+    def _reset_longitudinal(self) -> None:
+        """A fresh ACC/AEB (``acc.enabled``) and its ground-truth twin for ``info["target"]``."""
+        acc = ACCConfig(**self.config["acc"])
+        assert self.sensor is not None and self.highway is not None
+        ego_x = -float(self.sensor.config.mount_x)
+        lane_width = float(self.highway.lane_width)
+        self.acc_command = None
+        self._objects = Objects()
+        self._acc_step = {"aeb": False, "phantom_braking": False}
+        self._lc_target_index = None
+        self.vehicle.acc_braking_limit = acc.aeb_deceleration
+        if not acc.enabled:
+            self.longitudinal = None
+            return
+        self.longitudinal = LongitudinalController(acc, ego_x=ego_x, lane_width=lane_width)
+        self._truth = TargetSelector(
+            max_range=acc.range,
+            enter_overlap=acc.enter_overlap,
+            exit_overlap=acc.exit_overlap,
+            lane_width=lane_width,
+            ego_x=ego_x,
+        )
 
     def _create_vehicles(self) -> None:
         """Ego then ``vehicles_count`` IDM vehicles ahead of it, as in ``highway-v0``."""
@@ -401,6 +458,11 @@ class ALDMHighwayEnv(AbstractEnv):
         self.detection = det = self._detector(self.frame, hw, pos.lane)
         ego.detection = det
         ego.trajectory = det.trajectory  # fitted up to lka.path_range by the detector
+        if self.longitudinal is not None:
+            self._longitudinal_step(pos)
+        if ego.crashed and not self._collision:
+            # Classified at the step of the impact: the crashed ego slides on.
+            self._collision = self._collision_kind()
         # A wheel over a marking: |offset| + half the vehicle width beyond half the lane.
         over = abs(pos.offset) + 0.5 * ego.WIDTH > 0.5 * pos.width
         if over and ego.lane_change == 0:
@@ -408,12 +470,128 @@ class ALDMHighwayEnv(AbstractEnv):
                 self._departures += 1
             self._departed_step = True
 
+    def _sense_objects(self) -> Objects:
+        """The other vehicles in the sensor frame (ids: their index in ``road.vehicles``).
+
+        Positions and velocities are exact (an ideal object sensor): the comparison is
+        about the lanes, not about object detection.
+        """
+        ego = self.vehicle
+        frame = self.frame
+        assert frame is not None
+        vehicles = self.road.vehicles
+        rows = [i for i, v in enumerate(vehicles) if v is not ego]
+        if not rows:
+            return Objects()
+        others = [vehicles[i] for i in rows]
+        xy = self._objects_xy = np.array([v.position for v in others], dtype=np.float64)
+        return objects_from_world(
+            np.array(rows, dtype=np.int64),
+            xy,
+            np.array([v.speed for v in others], dtype=np.float64),
+            np.array([v.heading for v in others], dtype=np.float64),
+            np.array([v.WIDTH for v in others], dtype=np.float64),
+            np.array([v.LENGTH for v in others], dtype=np.float64),
+            frame.origin,
+            frame.yaw,
+            ego.velocity,
+        )
+
+    def _longitudinal_step(self, pos: LanePosition) -> None:
+        """Target selection, ACC and AEB on this step's detection; its ground truth."""
+        ego = self.vehicle
+        ctrl = self.longitudinal
+        assert ctrl is not None
+        objects = self._objects = self._sense_objects()
+        speed = float(ego.speed)
+        curvature = ego.yaw_rate / speed if abs(speed) > 0.1 else 0.0
+        path = ego.planned_path if len(ego.planned_path) >= 2 else ego.trajectory
+        cmd = self.acc_command = ctrl.update(
+            self.detection,
+            objects,
+            speed,
+            float(ego.target_speed),
+            path=path,
+            side=int(ego.lane_change_side),
+            curvature=curvature,
+        )
+        # The continuous action stays raw: the selection runs (info), nothing acts on it.
+        ego.acc_command = None if ego.continuous else cmd.acceleration
+        if ego.continuous:
+            return
+        self._acc_step["aeb"] |= cmd.aeb
+        braking = (cmd.following or cmd.aeb) and (
+            cmd.acceleration < -ctrl.config.phantom_deceleration
+        )
+        if braking and cmd.target != NO_TARGET and not self._acc_step["phantom_braking"]:
+            # Braking hard for the target: is it truly in the ego's corridor?
+            row = np.array([objects.index_of(cmd.target)])
+            overlap = self._true_overlap(objects, row, pos)[0]
+            self._acc_step["phantom_braking"] = bool(overlap < ctrl.config.exit_overlap)
+
+    def _true_overlap(self, objects: Objects, rows: np.ndarray, pos: LanePosition) -> np.ndarray:
+        """Ground truth: overlap [m] of ``objects`` ``rows`` with the ego's true corridor.
+
+        Each vehicle is placed by the road's ground truth relative to the ego's true
+        lane centre (:meth:`_true_lateral`); the true corridor is the ego's lane, plus
+        the lane it changes into while a lane change is under way.
+        """
+        ego = self.vehicle
+        if ego.lane_change == 0:
+            self._lc_target_index = None
+        elif self._lc_target_index is None:
+            self._lc_target_index = pos.index - int(ego.lane_change)  # ids grow rightwards
+        target = pos.index if self._lc_target_index is None else self._lc_target_index
+        lo, hi = min(pos.index, target), max(pos.index, target)
+        w = pos.width
+        left, right = (pos.index - lo) * w + 0.5 * w, (pos.index - hi) * w - 0.5 * w
+        y = self._true_lateral(self._objects_xy[rows], pos)
+        overlap = lane_overlap(y, objects.width[rows], left, right)
+        overlap[~np.isfinite(y)] = -math.inf
+        return overlap
+
+    def _true_leader(self) -> int:
+        """The in-lane leader by ground truth: the target selector's rule and
+        hysteresis (:class:`~aldm_gym.envs.targets.TargetSelector`) on the true
+        corridor (:meth:`_true_overlap`). Evaluated once per policy step, for ``info``.
+        """
+        truth = self._truth
+        objects = self._objects
+        x = objects.x - truth.ego_x
+        near = np.flatnonzero((x > 0.0) & (x <= truth.max_range))
+        overlap = self._true_overlap(objects, near, self.lane_position)
+        return truth.select_overlaps(objects.ids[near], objects.x[near], overlap)
+
+    def _true_lateral(self, xy: np.ndarray, pos: LanePosition) -> np.ndarray:
+        """Ground truth: lateral position [m] (> 0 left) of world points ``xy`` (N, 2)
+        relative to the centre of the ego's lane; ``inf`` off a map's lanes.
+
+        A generated road measures it along its one reference line (one compiled batch
+        projection); a map as ``(ego lane index - its index) · width + its offset``.
+        """
+        hw = self.highway
+        if len(xy) == 0:
+            return np.zeros(0)
+        if isinstance(hw, HighwayRoad):
+            _, d = hw.reference.project_many(xy)
+            return d - hw.lane_offset(pos.lane)
+        assert hw is not None
+        y = np.full(len(xy), math.inf)
+        for k in range(len(xy)):
+            try:
+                p = hw.lane_position(xy[k])
+            except ValueError:
+                continue  # off a map's lanes: in no lane
+            y[k] = (pos.index - p.index) * pos.width + p.offset
+        return y
+
     def _simulate(self, action: Any = None) -> None:
         """``simulation_frequency / policy_frequency`` steps; sensor + detector at each."""
         frames = int(self.config["simulation_frequency"] // self.config["policy_frequency"])
         dt = 1.0 / self.config["simulation_frequency"]
         self._s_before = self.lane_position.s
         self._departed_step = False
+        self._acc_step = {"aeb": False, "phantom_braking": False}
         if not self.config["manual_control"]:
             self.action_type.act(action)  # raises ValueError on a bad action (None too)
         for frame in range(frames):
@@ -494,12 +672,68 @@ class ALDMHighwayEnv(AbstractEnv):
                 "arc_length": pos.s,
                 "departures": self._departures,
                 "detection": self._score(),
+                "target": self._target_info(),
+                "collision": self._collision,
             }
         )
         if isinstance(self.highway, OpenDriveRoad):
             # Map only (a generated road's lanes never end; its info stays as it was).
             info["lane_ends_in"] = self.highway.lane_ends_in(pos)
         return info
+
+    def _target_info(self) -> dict[str, Any]:
+        """``info["target"]``: the ACC's target against ground truth (``docs/acc.md``)."""
+        cmd = self.acc_command
+        ctrl = self.longitudinal
+        if cmd is None or ctrl is None:
+            return {
+                "target": NO_TARGET,
+                "leader": NO_TARGET,
+                "correct": True,
+                "missed": False,
+                "false": False,
+                "aeb": False,
+                "aeb_activations": 0,
+                "phantom_braking": False,
+                "gap": math.inf,
+                "time_gap": math.inf,
+            }
+        leader = self._true_leader()
+        target = cmd.target
+        time_gap = math.inf
+        if leader != NO_TARGET:
+            row = self._objects.index_of(leader)
+            gap = float(ctrl.gaps(self._objects)[row])
+            time_gap = max(gap, 0.0) / max(float(self.vehicle.speed), 0.1)
+        return {
+            "target": int(target),
+            "leader": int(leader),
+            "correct": target == leader,
+            "missed": leader != NO_TARGET and target != leader,
+            "false": target != NO_TARGET and target not in self._truth.inside,
+            "aeb": bool(self._acc_step["aeb"]),
+            "aeb_activations": int(ctrl.aeb.activations),
+            "phantom_braking": bool(self._acc_step["phantom_braking"]),
+            "gap": float(cmd.gap),
+            "time_gap": time_gap,
+        }
+
+    def _collision_kind(self) -> str:
+        """Where the other vehicle of the ego's collision was at the impact: ``"front"``
+        (the ego ran into it: its centre more than half a car length ahead along the
+        ego's axis), ``"rear"`` (it ran into the ego), else ``"side"``."""
+        ego = self.vehicle
+        others = [v for v in self.road.vehicles if v is not ego and v.crashed]
+        if not others:
+            return "side"
+        other = min(others, key=lambda v: float(np.hypot(*(v.position - ego.position))))
+        d = other.position - ego.position
+        ahead = float(d[0] * math.cos(ego.heading) + d[1] * math.sin(ego.heading))
+        if ahead > 0.5 * ego.LENGTH:
+            return "front"
+        if ahead < -0.5 * ego.LENGTH:
+            return "rear"
+        return "side"
 
     def _score(self) -> dict[str, dict[str, float]]:
         """Per ego line: mean |error| vs truth up to 60 m [m], preview [m], correct (1/0).

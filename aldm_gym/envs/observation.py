@@ -21,6 +21,8 @@ key                    shape        content
 ``lanes``              (3, 4)       per detected lane (left, ego, right): gap to the nearest
                                     vehicle ahead [m], its relative vx [m/s], gap to the
                                     nearest vehicle behind [m], its relative vx [m/s]
+``target``             (3,)         the ACC's target (:mod:`aldm_gym.envs.targets`): present
+                                    (0/1), bumper-to-bumper gap [m], relative speed [m/s]
 =====================  ===========  ==========================================================
 
 ``lanes`` summarises every vehicle within ``perception_distance`` (not only the N
@@ -57,6 +59,10 @@ LINE_BOUND = 250.0
 
 SPEED_BOUND = 80.0
 """Bound of speeds and relative speeds [m/s]."""
+
+TARGET_GAP_BOUND = 250.0
+"""Bound of the ``target`` gap [m] (``acc.range`` is at most 250 m); no target reads
+``acc.range`` (the ACC sees nothing nearer)."""
 
 
 class LaneCode(IntEnum):
@@ -127,6 +133,12 @@ def observation_space(vehicles_count: int, perception_distance: float) -> spaces
                 np.tile(np.array([0.0, -SPEED_BOUND] * 2, dtype=f32), (3, 1)),
                 np.tile(np.array([perception_distance, SPEED_BOUND] * 2, dtype=f32), (3, 1)),
                 (3, 4),
+                f32,
+            ),
+            "target": spaces.Box(
+                np.array([0.0, 0.0, -SPEED_BOUND], dtype=f32),
+                np.array([1.0, TARGET_GAP_BOUND, SPEED_BOUND], dtype=f32),
+                (3,),
                 f32,
             ),
         }
@@ -221,6 +233,7 @@ def build_observation(
     vehicles_count: int,
     perception_distance: float,
     ego_x: float = 0.0,
+    target: FloatArray | None = None,
 ) -> dict[str, np.ndarray]:
     """Assemble the observation dict.
 
@@ -231,6 +244,8 @@ def build_observation(
         (velocities relative to the ego) [m, m/s].
     :param ego_x: x of the ego's centre in the sensor frame [m] (``-mount_x``); the
         ``lanes`` gaps are measured from it.
+    :param target: ``(3,)`` the ACC's target: present (0/1), gap [m], relative speed
+        [m/s]; ``None``: none, gap :data:`TARGET_GAP_BOUND`.
     """
     lines = np.zeros((4, N_POINTS, 2))
     valid = np.zeros(4)
@@ -278,6 +293,11 @@ def build_observation(
         "ego": ego.astype(np.float32),
         "vehicles": veh.astype(np.float32),
         "lanes": np.clip(lanes, [0.0, -SPEED_BOUND] * 2, [pd, SPEED_BOUND] * 2).astype(np.float32),
+        "target": np.clip(
+            np.array([0.0, TARGET_GAP_BOUND, 0.0]) if target is None else target,
+            [0.0, 0.0, -SPEED_BOUND],
+            [1.0, TARGET_GAP_BOUND, SPEED_BOUND],
+        ).astype(np.float32),
     }
     return out
 
@@ -353,4 +373,14 @@ class ALDMObservation:
             self.config.vehicles_count,
             float(self.config.perception_distance),
             ego_x,
+            self._target(),
         )
+
+    def _target(self) -> FloatArray | None:
+        """``(present, gap, relative speed)`` of the ACC's target; ``None`` without ACC."""
+        cmd, ctrl = self.env.acc_command, self.env.longitudinal
+        if cmd is None or ctrl is None:
+            return None
+        if cmd.target < 0:
+            return np.array([0.0, ctrl.config.range, 0.0])
+        return np.array([1.0, max(cmd.gap, 0.0), cmd.relative_speed])

@@ -37,6 +37,10 @@ class SensorVehicle(FastBicycleStep, BatchedLaneUpdate, Vehicle):
     :class:`~aldm_gym.envs.control.LKAController` on ``self.detection`` (set by the
     environment after every simulation step), never on the true lane.
 
+    The speed: ``acc_command`` (the ACC/AEB of :mod:`aldm_gym.envs.longitudinal`, set by
+    the environment after every simulation step on the same detection) under meta
+    actions, or v0's proportional control towards ``target_speed`` when it is ``None``.
+
     Meta actions: IDLE follows the detected trajectory; LANE_LEFT/RIGHT steer onto
     the centre of the detected adjacent lane (midway between the ego line and the
     adjacent line, cubic fits as for the trajectory) and are refused when that
@@ -83,6 +87,9 @@ class SensorVehicle(FastBicycleStep, BatchedLaneUpdate, Vehicle):
         self.lane_changes_completed = 0
         self.lane_changes_aborted = 0  # lost the target lane or timed out
         self.planned_path: FloatArray = np.zeros((0, 2))
+        self.lane_change_side = 0  # +1/-1: the target is still the adjacent lane on that side
+        self.acc_command: float | None = None  # ACC/AEB [m/s²] (set by the env), None: v0's
+        self.acc_braking_limit = max_acceleration  # braking the ACC/AEB command may reach
 
     # ------------------------------------------------------------------ actions
     def set_meta_action(self, action: int) -> None:
@@ -99,6 +106,7 @@ class SensorVehicle(FastBicycleStep, BatchedLaneUpdate, Vehicle):
                 self.lane_change_refused = True
             else:
                 self.lane_change = direction
+                self.lane_change_side = direction
                 self.lane_change_elapsed = 0.0
                 self.lane_change_target_y = float(path[0, 1])
         self.target_speed = float(self.target_speeds[self.speed_index])
@@ -134,17 +142,19 @@ class SensorVehicle(FastBicycleStep, BatchedLaneUpdate, Vehicle):
         cands = [(0, self.trajectory), (1, self._adjacent_path(1)), (-1, self._adjacent_path(-1))]
         cands = [(k, p) for k, p in cands if len(p) >= 2]
         if not cands:
-            self.lane_change = 0
+            self.lane_change = self.lane_change_side = 0
             self.lane_changes_aborted += 1
             return np.zeros((0, 2))
         k, path = min(cands, key=lambda kp: abs(float(kp[1][0, 1]) - self.lane_change_target_y))
         jump = abs(float(path[0, 1]) - self.lane_change_target_y)
         timed_out = self.lane_change_elapsed > self.lane_change_timeout
         if jump > 0.5 * self.lane_width or timed_out:
-            self.lane_change = 0  # lost the target lane or took too long: keep the lane
+            # Lost the target lane or took too long: keep the lane.
+            self.lane_change = self.lane_change_side = 0
             self.lane_changes_aborted += 1
             return self.trajectory
         self.lane_change_target_y = float(path[0, 1])
+        self.lane_change_side = k
         if k == 0 and abs(self.lane_change_target_y) < self.LC_DONE_OFFSET:
             self.lane_change = 0
             self.lane_changes_completed += 1
@@ -167,12 +177,20 @@ class SensorVehicle(FastBicycleStep, BatchedLaneUpdate, Vehicle):
             steer = self.lka.steering(path, self.speed)
             # No path: hold the last steering (a curve continues), like a driver briefly blind.
             steer_iso = self.steering_iso if steer is None else steer
-            accel = self.lka.speed_gain * (self.target_speed - self.speed)
+            if self.acc_command is None:
+                accel = self.lka.speed_gain * (self.target_speed - self.speed)
+            else:
+                # ACC/AEB (aldm_gym.envs.longitudinal), computed by the env on the same
+                # detection; braking never reverses the car.
+                accel = max(self.acc_command, -max(self.speed, 0.0) * self.sim_frequency)
         # np.clip's result for scalars with non-NaN bounds, without its ~4 µs dispatch.
         max_steering = float(self.lka.max_steering)
         max_acceleration = float(self.max_acceleration)
+        max_braking = max_acceleration
+        if self.acc_command is not None and not self.continuous:
+            max_braking = max(max_acceleration, float(self.acc_braking_limit))
         steer_iso = float(clip_scalar(float(steer_iso), -max_steering, max_steering))
-        accel = float(clip_scalar(float(accel), -max_acceleration, max_acceleration))
+        accel = float(clip_scalar(float(accel), -max_braking, max_acceleration))
         self.steering_iso = steer_iso
         # highway-env's world: a positive steering angle turns towards the driver's right.
         self.action = {"steering": -steer_iso, "acceleration": accel}
