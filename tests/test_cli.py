@@ -20,8 +20,12 @@ def test_compare_quick_writes_csvs_and_figures(
     tmp_path: Path, capsys: pytest.CaptureFixture
 ) -> None:
     argv = ["compare", "--quick", "--roads", "1", "--frames", "12", "--episodes", "1"]
-    rc = main([*argv, "--out", str(tmp_path), "--no-progress"])
+    rc = main([*argv, "--scenes", "12", "--out", str(tmp_path), "--no-progress"])
     assert rc == 0
+    with open(tmp_path / "compare_targets.csv") as fh:
+        targets = {(r["marking_model"], r["detector"]): r for r in csv.DictReader(fh)}
+    assert float(targets[("per_dash", "aldm")]["accuracy"]) == 1.0
+    assert (tmp_path / "compare_targets.png").stat().st_size > 10_000
     pairs = {(m, d) for m in ("per_dash", "editor") for d in ("naive", "aldm", "ground_truth")}
     with open(tmp_path / "compare_frames.csv") as fh:
         frames = list(csv.DictReader(fh))

@@ -1,5 +1,9 @@
 """Rule-based policies for ``ALDMHighway-v0``'s meta actions, SB3-style ``predict``.
 
+They decide lane changes and the set speed; the env's ACC and AEB
+(:mod:`aldm_gym.envs.longitudinal`) keep the distance to the vehicle ahead under every
+meta action, so a policy never has to brake for it.
+
 Both act only on the observation, i.e. on what the line sensor and the detector
 deliver: with the naive detector the lane assignment of other vehicles is as wrong as
 the detected lanes, which is the point of the comparison.
@@ -25,7 +29,7 @@ def _unbatch(observation: dict[str, Any], i: int) -> dict[str, Any]:
 
 
 class IdlePolicy:
-    """Always MetaAction.IDLE: lane keeping on the detected lanes at the current target speed."""
+    """Always MetaAction.IDLE: lane keeping and ACC on the detected lanes, current set speed."""
 
     def predict(
         self,
