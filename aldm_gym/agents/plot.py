@@ -149,7 +149,7 @@ def plot_target_selection(
         ax.set_ylim(-5, 105)
         ax.grid(alpha=0.3)
     axes[0].set_ylabel("target selection correct [%]")
-    axes[0].legend(loc="lower left")
+    axes[0].legend(loc="center right", bbox_to_anchor=(1.0, 0.68))
     fig.suptitle("ACC target selection on the detected lanes (curves R 500-1500 m)")
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
