@@ -14,6 +14,14 @@ a ``__pycache__`` folder next to each module (or the user's cache folder, or
   ...: no locator available``), so importing the env failed: now the kernels compile
   in memory (each run) with a one-line warning saying how to cache them.
 
+numba keys a cached kernel by its own file's modification time and size only, so a
+kernel that calls a kernel of another module kept the callee's *old* machine code
+after the callee's file changed (an edit, or a ``git pull`` that touches only that
+file): silently stale behaviour. Every kernel of this package is therefore keyed by
+one digest of the source of all the package's modules that define kernels: any change
+to any of them recompiles them all (a minute), and an unchanged checkout keeps its
+cache whatever the files' times.
+
 On a cache miss of one of the package's kernels (the first run after an install or an
 edit), one line on stderr says that kernels are being compiled, once per process.
 
@@ -26,6 +34,7 @@ modules keep their plain ``numba.njit(cache=True)``.
 
 from __future__ import annotations
 
+import hashlib
 import sys
 import warnings
 from pathlib import Path
@@ -37,6 +46,7 @@ PACKAGE = "aldm_gym"
 _installed = False
 _warned_no_cache = False
 _announced = False
+_digest: str | None = None
 
 
 class NumbaCacheWarning(UserWarning):
@@ -115,11 +125,30 @@ def _guarded_load_overload(original: Any) -> Any:
     return load_overload
 
 
+def kernel_digest() -> str:
+    """sha256 of the source of every module of the package that defines a kernel
+    (``njit`` in its text), in path order; computed once per process."""
+    global _digest
+    if _digest is None:
+        root = Path(__file__).parent
+        h = hashlib.sha256()
+        for path in sorted(root.rglob("*.py")):
+            text = path.read_bytes()
+            if b"njit" in text:
+                h.update(path.relative_to(root).as_posix().encode() + b"\0" + text + b"\0")
+        _digest = h.hexdigest()
+    return _digest
+
+
 def _guarded_enable_caching(original: Any, null_cache: Any) -> Any:
     def enable_caching(self: Any) -> None:
         global _warned_no_cache
         try:
             original(self)
+            if _ours(self.py_func):
+                cache_file = getattr(self._cache, "_cache_file", None)
+                if cache_file is not None and hasattr(cache_file, "_source_stamp"):
+                    cache_file._source_stamp = (PACKAGE, kernel_digest())
         except RuntimeError as exc:
             if "no locator available" not in str(exc) or not _ours(self.py_func):
                 raise
