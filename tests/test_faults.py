@@ -475,3 +475,38 @@ def test_without_a_writable_numba_cache_the_kernels_compile_in_memory(tmp_path: 
     assert run.returncode == 0 and run.stdout.strip() == "False", run.stderr
     lines = [line for line in run.stderr.splitlines() if "NumbaCacheWarning" in line]
     assert len(lines) == 1 and "compiling aldm_gym's kernels in memory" in lines[0]
+
+
+_CALLER = """
+import numpy as np
+import aldm_gym._numba  # the guards (aldm_gym/__init__.py imports it first)
+from aldm_gym.sensor.aldm_kernels.robust import _seed_chains
+xs = np.array([1.0, 2.0, 3.0]); ys = np.array([0.0, 0.1, 5.0])
+print(_seed_chains(xs, ys, 3, 4.5, 1.5).tolist())
+"""
+
+
+def test_a_kernel_is_recompiled_when_a_kernel_it_calls_changes(tmp_path: Path) -> None:
+    """numba keys a cached kernel by its own file's time and size: ``_seed_chains``
+    (robust.py) kept the machine code of ``_bucket_order`` (sort.py) after sort.py
+    changed. The package keys every kernel by one digest of all kernel sources."""
+    package = Path(__file__).resolve().parents[1] / "aldm_gym"
+    copy = tmp_path / "pkg" / "aldm_gym"
+    shutil.copytree(package, copy, ignore=shutil.ignore_patterns("__pycache__"))
+    env = {**os.environ, "PYTHONPATH": str(copy.parent), "NUMBA_CACHE_DIR": str(tmp_path / "c")}
+    env.pop("NUMBA_DISABLE_JIT", None)
+
+    def run() -> subprocess.CompletedProcess:
+        got = subprocess.run(
+            [sys.executable, "-c", _CALLER], capture_output=True, text=True, env=env, cwd=tmp_path
+        )
+        assert got.returncode == 0 and got.stdout.strip() == "[0, 0, 2]", got.stderr
+        return got
+
+    assert "compiling" in run().stderr
+    assert "compiling" not in run().stderr
+    callee = copy / "sensor" / "aldm_kernels" / "sort.py"
+    os.utime(callee, (1.0, 1.0))  # a new time, the same text: still cached
+    assert "compiling" not in run().stderr
+    callee.write_text(callee.read_text() + "\n# edited\n")
+    assert "compiling" in run().stderr  # robust.py did not change, its kernel did
