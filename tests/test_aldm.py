@@ -805,3 +805,52 @@ def test_preview_ok_flags_lines_short_of_60m() -> None:
     _road, pts = frame(0)
     det = detect_lanes(pts, mode="paper")
     assert all(det.preview_ok(name) for name in EGO)
+
+
+def _gore_frame() -> np.ndarray:
+    """Straight ego lane (dashed left line at 1.86 m, solid right at -1.89 m), a left
+    lane and edge, and an exit's two edges diverging to the right at slope -0.65."""
+    x = np.arange(5.52, 200.0, 2.0)
+
+    def dashes(y: float, phase: float) -> np.ndarray:
+        keep = ((x - phase) % 18.0) < 5.0
+        return np.column_stack([x[keep], np.full(int(keep.sum()), y)])
+
+    exit_x = x[x < 150.0]
+    return np.vstack(
+        [
+            dashes(1.86, 2.0),
+            dashes(5.61, 1.0),
+            np.column_stack([x, np.full(x.size, 9.36)]),
+            np.column_stack([x, np.full(x.size, -1.89)]),
+            *(np.column_stack([exit_x, y0 - 0.65 * (exit_x - 5.52)]) for y0 in (-9.76, -13.62)),
+        ]
+    )
+
+
+def test_diverging_exit_edges_do_not_tilt_the_seed_shape() -> None:
+    """The motorway map's exit gore: the off-ramp's edges crossing the start region at
+    an angle used to tilt the common shape of the seeds until the right ego line's
+    offset at x = 0 came out positive (taken for the left line; the car followed it
+    off the carriageway). Chains not parallel to the others are left out of the shape."""
+    pts = _gore_frame()
+    det = detect_lanes(pts)
+    assert det.ego_left[0, 1] == pytest.approx(1.86)
+    assert det.ego_right[0, 1] == pytest.approx(-1.89)
+    assert np.allclose(det.ego_right[:, 1], -1.89)
+    assert det.left_adjacent[0, 1] == pytest.approx(5.61)
+    # The mechanism: one shape fitted to every chain puts the right line at x = 0 > 0.
+    fp, _ = _packed(ALDMParams())
+    xs, ys = sort._gather(
+        np.column_stack([pts, np.zeros(len(pts))]), False, fp[layout.P.z_band], 200.0
+    )
+    m = int(np.searchsorted(xs, fp[layout.P.start_x_max], side="right"))
+    comp = robust._seed_chains_py(xs, ys, m, fp[layout.P.link_dx], fp[layout.P.link_dy])
+    lam = (
+        (fp[layout.P.noise_std] / fp[layout.P.a_std]) ** 2,
+        (fp[layout.P.noise_std] / fp[layout.P.b_std]) ** 2,
+    )
+    right = comp[np.flatnonzero(ys[:m] == -1.89)[0]]
+    for max_rms, sign in ((np.inf, 1.0), (0.5 * fp[layout.P.merge_dy], -1.0)):
+        _, _, c, _ = robust._joint_shape_py(xs, ys, comp, m, *lam, fp[layout.P.a_max], max_rms)
+        assert np.sign(c[right]) == sign

@@ -34,6 +34,8 @@ GUIDE_MIN_EXTENT = 30.0
 """... over at least this x extent [m]."""
 GUIDE_STEP = 2.0
 """x step of the guide's shape table [m]."""
+MAX_SHAPE_OUTLIERS = 3
+"""Start-region chains that may be left out of the common shape as not parallel."""
 
 
 def _find_py(parent, i):
@@ -98,13 +100,19 @@ def _seed_chains_py(xs, ys, m, link_dx, link_dy):
 _seed_chains = numba.njit(cache=True)(_seed_chains_py)
 
 
-def _joint_shape_py(xs, ys, comp, m, lam_a, lam_b, a_max):
-    """Common shape of all start-region chains: ``y_k = c_k + b x + a x^2``.
+def _joint_shape_py(xs, ys, comp, m, lam_a, lam_b, a_max, max_rms):
+    """Common shape of the start-region chains: ``y_k = c_k + b x + a x^2``.
 
     Lane markings are parallel, so every chain shares curvature and heading while
     each has its own offset ``c_k`` (the chain's lateral position at the sensor,
     x = 0). Offsets are eliminated by centring each chain; the 2×2 ridge system
     (priors a ~ 0, b ~ 0) gives (a, b); then ``c_k = mean(y - b x - a x^2)``.
+
+    A chain that is not parallel to the others (an exit's edge diverging at a gore, a
+    marking at an angle) would tilt the common shape and shift every offset: while
+    the worst chain's RMS residual under the shape exceeds ``max_rms`` [m], it is left
+    out of the shape (at most :data:`MAX_SHAPE_OUTLIERS` chains) and the shape refitted.
+    A chain left out gets the offset at x = 0 of its own straight-line fit.
 
     :return: ``(a, b, c, cnt)``; ``c`` and ``cnt`` (points per chain) are indexed
         by the chain root.
@@ -130,33 +138,57 @@ def _joint_shape_py(xs, ys, comp, m, lam_a, lam_b, a_max):
         sy[r] += y
         sxy[r] += x * y
         sx2y[r] += x2 * y
-    g11 = lam_a
-    g12 = 0.0
-    g22 = lam_b
-    r1 = 0.0
-    r2 = 0.0
-    for r in range(m):
-        nk = cnt[r]
-        if nk < 2.0:
-            continue
-        g11 += sx4[r] - sx2[r] * sx2[r] / nk
-        g12 += sx3[r] - sx2[r] * sx[r] / nk
-        g22 += sx2[r] - sx[r] * sx[r] / nk
-        r1 += sx2y[r] - sx2[r] * sy[r] / nk
-        r2 += sxy[r] - sx[r] * sy[r] / nk
-    det = g11 * g22 - g12 * g12
+    out = np.zeros(m, dtype=np.bool_)
+    c = np.zeros(m)
+    rss = np.zeros(m)
     a = 0.0
     b = 0.0
-    if det > 0.0:
-        a = (g22 * r1 - g12 * r2) / det
-        b = (g11 * r2 - g12 * r1) / det
-        if abs(a) > a_max:
-            a = a_max if a > 0.0 else -a_max
-            b = (r2 - a * g12) / g22
-    c = np.zeros(m)
+    for _round in range(MAX_SHAPE_OUTLIERS + 1):
+        g11 = lam_a
+        g12 = 0.0
+        g22 = lam_b
+        r1 = 0.0
+        r2 = 0.0
+        for r in range(m):
+            nk = cnt[r]
+            if nk < 2.0 or out[r]:
+                continue
+            g11 += sx4[r] - sx2[r] * sx2[r] / nk
+            g12 += sx3[r] - sx2[r] * sx[r] / nk
+            g22 += sx2[r] - sx[r] * sx[r] / nk
+            r1 += sx2y[r] - sx2[r] * sy[r] / nk
+            r2 += sxy[r] - sx[r] * sy[r] / nk
+        det = g11 * g22 - g12 * g12
+        a = 0.0
+        b = 0.0
+        if det > 0.0:
+            a = (g22 * r1 - g12 * r2) / det
+            b = (g11 * r2 - g12 * r1) / det
+            if abs(a) > a_max:
+                a = a_max if a > 0.0 else -a_max
+                b = (r2 - a * g12) / g22
+        for r in range(m):
+            if cnt[r] > 0.0:
+                c[r] = (sy[r] - b * sx[r] - a * sx2[r]) / cnt[r]
+            rss[r] = 0.0
+        for i in range(m):
+            r = comp[i]
+            e = ys[i] - c[r] - b * xs[i] - a * xs[i] * xs[i]
+            rss[r] += e * e
+        worst = -1
+        worst_ms = max_rms * max_rms
+        for r in range(m):
+            if cnt[r] >= 2.0 and not out[r] and rss[r] / cnt[r] > worst_ms:
+                worst_ms = rss[r] / cnt[r]
+                worst = r
+        if worst < 0 or _round == MAX_SHAPE_OUTLIERS:
+            break
+        out[worst] = True
     for r in range(m):
-        if cnt[r] > 0.0:
-            c[r] = (sy[r] - b * sx[r] - a * sx2[r]) / cnt[r]
+        if out[r]:
+            vx = sx2[r] - sx[r] * sx[r] / cnt[r]
+            slope = (sxy[r] - sx[r] * sy[r] / cnt[r]) / vx if vx > 0.0 else b
+            c[r] = (sy[r] - slope * sx[r]) / cnt[r]
     return a, b, c, cnt
 
 
@@ -183,7 +215,7 @@ def _robust_seeds_py(xs, ys, m, fp, ip, lam_a, lam_b, label, offsets):
     if m == 0:
         return 0.0, 0.0
     comp = _seed_chains(xs, ys, m, fp[P.link_dx], fp[P.link_dy])
-    a, b, c, cnt = _joint_shape(xs, ys, comp, m, lam_a, lam_b, fp[P.a_max])
+    a, b, c, cnt = _joint_shape(xs, ys, comp, m, lam_a, lam_b, fp[P.a_max], 0.5 * fp[P.merge_dy])
     # Chains sorted by offset (ties: root index), then merged into markings.
     nroot = 0
     roots = np.empty(m, dtype=np.int64)
