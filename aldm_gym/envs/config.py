@@ -96,7 +96,8 @@ class EnvConfig:
     ``vehicles_density``, the reward weights, ``reward_speed_range`` [m/s],
     ``normalize_reward``, ``offroad_terminal``. aldm-gym's: ``initial_speed`` [m/s],
     ``marking_model``, ``detector``, ``progress_reward``, ``lane_keeping_reward``,
-    ``departure_reward``, ``departure_terminal``. Meanings: ``docs/env.md``.
+    ``departure_reward``, ``departure_terminal``, and the sections ``detector_params``,
+    ``sensor``, ``road``, ``lka``, ``acc`` (ACC and AEB). Meanings: ``docs/env.md``.
     """
 
     # --- highway-env: AbstractEnv
