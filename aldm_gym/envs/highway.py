@@ -43,6 +43,7 @@ from aldm_gym.sensor.detectors import Detector, make_detector
 from aldm_gym.sensor.frame import SensorFrame
 from aldm_gym.sensor.ground_truth import score_detection
 from aldm_gym.sensor.line_sensor import LineSensor, LineSensorConfig
+from aldm_gym.sensor.tracking import EgoMotion
 
 ROAD_END_MARGIN = 250.0
 """The episode is truncated when the ego is this close to the end of the road [m]."""
@@ -190,6 +191,7 @@ class ALDMHighwayEnv(AbstractEnv):
         self._acc_step: dict[str, Any] = {}
         self._lc_target_index: int | None = None
         self._collision = ""
+        self._odometry: tuple[float, float, float] | None = None
         super().__init__(dict(config) if config else None, render_mode)
 
     # ------------------------------------------------------------------ config
@@ -281,6 +283,7 @@ class ALDMHighwayEnv(AbstractEnv):
         self._departures = 0
         self._departed_step = False
         self._collision = ""
+        self._odometry = None  # a new episode: the tracking ALDM starts without a prior
         self._reset_longitudinal()
         self._perceive()
         self._s_before = self.lane_position.s
@@ -455,7 +458,7 @@ class ALDMHighwayEnv(AbstractEnv):
             rng=rng,
             s_hint=pos.s + mount_x,
         )
-        self.detection = det = self._detector(self.frame, hw, pos.lane)
+        self.detection = det = self._detector(self.frame, hw, pos.lane, motion=self._ego_motion())
         ego.detection = det
         ego.trajectory = det.trajectory  # fitted up to lka.path_range by the detector
         if self.longitudinal is not None:
@@ -469,6 +472,30 @@ class ALDMHighwayEnv(AbstractEnv):
             if not self._departed_step:
                 self._departures += 1
             self._departed_step = True
+
+    def _ego_motion(self) -> EgoMotion | None:
+        """The sensor's motion since the previous frame, as odometry would give it: the
+        distance its mount point travelled and its heading change over the simulation
+        step (the tracking ALDM's input); ``None`` at the first frame of an episode or
+        after an implausible jump."""
+        ego = self.vehicle
+        assert self.sensor is not None
+        cfg = self.sensor.config
+        c, s = math.cos(ego.heading), math.sin(ego.heading)
+        pose = (
+            float(ego.position[0]) + c * cfg.mount_x - s * cfg.mount_y,
+            float(ego.position[1]) + s * cfg.mount_x + c * cfg.mount_y,
+            float(ego.heading),
+        )
+        last, self._odometry = self._odometry, pose
+        if last is None:
+            return None
+        dt = 1.0 / self.config["simulation_frequency"]
+        speed = math.hypot(pose[0] - last[0], pose[1] - last[1]) / dt
+        turn = (pose[2] - last[2] + math.pi) % (2.0 * math.pi) - math.pi
+        if speed > 200.0 or abs(turn / dt) > 10.0:
+            return None
+        return EgoMotion(speed, turn / dt, dt)
 
     def _sense_objects(self) -> Objects:
         """The other vehicles in the sensor frame (ids: their index in ``road.vehicles``).

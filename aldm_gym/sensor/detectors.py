@@ -6,10 +6,13 @@ by name — the environment's ``detector`` key, ``aldm-gym compare``/``train``
 choices, the frame-level comparison — goes through :func:`make_detector`, so adding
 a detector is one entry in :data:`REGISTRY`.
 
-One signature for all: ``detector(frame, road, lane_id) -> LaneDetection``. Only
-``ground_truth`` reads ``road`` and ``lane_id`` (the true lane); the others see the
-frame alone. Detectors are small picklable objects (no closures), so an environment
-holding one can be copied and pickled.
+One signature for all: ``detector(frame, road, lane_id, motion=None) -> LaneDetection``.
+Only ``ground_truth`` reads ``road`` and ``lane_id`` (the true lane); the others see the
+frame alone. ``motion`` (:class:`~aldm_gym.sensor.tracking.EgoMotion`, the sensor's
+motion since the previous frame) is read only by the tracking ALDM
+(``{"tracking": True}``), the one stateful detector: a fresh detector from
+:func:`make_detector` has no tracks. Detectors are small picklable objects (no
+closures), so an environment holding one can be copied and pickled.
 
 Every detector takes ``path_range``: its :attr:`LaneDetection.trajectory` fits each
 ego line on its points with x <= ``path_range`` (at least 4 points), through the one
@@ -23,18 +26,22 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
-from aldm_gym.sensor.aldm import detect_lanes, make_params
+from aldm_gym.sensor.aldm import detect_lanes
 from aldm_gym.sensor.detection import LaneDetection
 from aldm_gym.sensor.frame import SensorFrame
 from aldm_gym.sensor.ground_truth import ground_truth_detect
 from aldm_gym.sensor.naive import naive_detect
+from aldm_gym.sensor.tracking import EgoMotion, LaneTracker, split_params
 from aldm_gym.sensor.trajectory import fit_reach
 
 
 class Detector(Protocol):
-    """``(frame, road, true lane id) -> LaneDetection``; only ground truth uses the last two."""
+    """``(frame, road, true lane id, motion) -> LaneDetection``; only ground truth uses
+    ``road`` and the lane id, only the tracking ALDM ``motion``."""
 
-    def __call__(self, frame: SensorFrame, road: Any, lane_id: int) -> LaneDetection:
+    def __call__(
+        self, frame: SensorFrame, road: Any, lane_id: int, motion: EgoMotion | None = None
+    ) -> LaneDetection:
         """Detect the lanes of one frame."""
         ...
 
@@ -50,9 +57,38 @@ class ALDMDetector:
     params: Any
     path_range: float | None = None
 
-    def __call__(self, frame: SensorFrame, road: Any = None, lane_id: int = 0) -> LaneDetection:
-        """Detect the lanes of ``frame`` (``road`` and ``lane_id`` unused)."""
+    def __call__(
+        self,
+        frame: SensorFrame,
+        road: Any = None,
+        lane_id: int = 0,
+        motion: EgoMotion | None = None,
+    ) -> LaneDetection:
+        """Detect the lanes of ``frame`` (``road``, ``lane_id`` and ``motion`` unused)."""
         return detect_lanes(frame, self.params, path_range=self.path_range)
+
+
+class TrackingALDMDetector:
+    """The tracking ALDM (:class:`~aldm_gym.sensor.tracking.LaneTracker`): stateful.
+
+    :param params: validated :class:`~aldm_gym.sensor.aldm.ALDMParams`.
+    :param tracker: validated :class:`~aldm_gym.sensor.tracking.TrackerParams`.
+    :param path_range: the trajectory's fit range [m] (``None``: whole lines).
+    """
+
+    def __init__(self, params: Any, tracker: Any, path_range: float | None = None) -> None:
+        self.tracker = LaneTracker(params, tracker, path_range=path_range)
+
+    def __call__(
+        self,
+        frame: SensorFrame,
+        road: Any = None,
+        lane_id: int = 0,
+        motion: EgoMotion | None = None,
+    ) -> LaneDetection:
+        """Detect the lanes of ``frame`` with the tracks moved by ``motion`` as prior
+        (``None``: the tracks restart from this frame)."""
+        return self.tracker.update(frame, motion)
 
 
 @dataclass(frozen=True)
@@ -67,8 +103,14 @@ class NaiveDetector:
     lane_width: float | None = None
     path_range: float | None = None
 
-    def __call__(self, frame: SensorFrame, road: Any = None, lane_id: int = 0) -> LaneDetection:
-        """Detect the lanes of ``frame`` (``lane_id`` unused)."""
+    def __call__(
+        self,
+        frame: SensorFrame,
+        road: Any = None,
+        lane_id: int = 0,
+        motion: EgoMotion | None = None,
+    ) -> LaneDetection:
+        """Detect the lanes of ``frame`` (``lane_id`` and ``motion`` unused)."""
         width = self.lane_width if self.lane_width is not None else road.lane_width
         return naive_detect(frame, lane_width=width, path_range=self.path_range)
 
@@ -82,13 +124,19 @@ class GroundTruthDetector:
 
     path_range: float | None = None
 
-    def __call__(self, frame: SensorFrame, road: Any, lane_id: int) -> LaneDetection:
-        """The true lines of lane ``lane_id`` of ``road`` in ``frame``'s sensor frame."""
+    def __call__(
+        self, frame: SensorFrame, road: Any, lane_id: int, motion: EgoMotion | None = None
+    ) -> LaneDetection:
+        """The true lines of lane ``lane_id`` of ``road`` in ``frame``'s sensor frame
+        (``motion`` unused)."""
         return ground_truth_detect(road, frame, lane_id, path_range=self.path_range)
 
 
 def _make_aldm(params: Mapping[str, Any], path_range: float | None) -> Detector:
-    return ALDMDetector(make_params(None, **params), path_range)
+    tracking, tracker, aldm = split_params(dict(params))
+    if tracking:
+        return TrackingALDMDetector(aldm, tracker, path_range)
+    return ALDMDetector(aldm, path_range)
 
 
 def _make_naive(params: Mapping[str, Any], path_range: float | None) -> Detector:
@@ -134,8 +182,9 @@ def make_detector(
 ) -> Detector:
     """The detector ``name`` (:data:`DETECTORS`) with ``params``.
 
-    ``aldm`` takes :class:`~aldm_gym.sensor.aldm.ALDMParams` fields; ``naive`` takes
-    ``lane_width``; ``ground_truth`` takes none.
+    ``aldm`` takes :class:`~aldm_gym.sensor.aldm.ALDMParams` fields, and
+    ``tracking=True`` with :class:`~aldm_gym.sensor.tracking.TrackerParams` fields for
+    the tracking ALDM; ``naive`` takes ``lane_width``; ``ground_truth`` takes none.
 
     :param path_range: every detector's trajectory fits each ego line on its points
         with x <= this (at least 4 points) [m]; ``None``: the whole line. With 80 it is

@@ -1,0 +1,338 @@
+"""Kernels of the tracking ALDM (:class:`aldm_gym.sensor.tracking.LaneTracker`).
+
+The tracker carries the last frame's lines forward by odometry and tabulates them
+(:func:`_table`), turns them into a prior for the stateless ALDM (:func:`_prior`: which points
+support a track, which contradict it, and prior points along the stretches a track
+has no support in) and gives every detected line the identity of the track it
+continues (:func:`_match`). Decisions and their reasons: ``docs/aldm.md``, section
+"Tracking".
+
+A track is a polyline sorted by x (a line of the last detection); the tracks of a
+frame are concatenated into one ``(M, 2)`` array with offsets ``ls`` (track ``t`` is
+``lines[ls[t]:ls[t + 1]]``).
+Plain-Python twins ``_name_py`` as in the other kernel modules.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+
+def _interp_line_py(lx, ly, lo, hi, x):
+    """y of the polyline ``lx[lo:hi], ly[lo:hi]`` at ``x`` [m]; NaN beyond its last
+    vertex, before ``min(first vertex, 0)``, or for fewer than two vertices.
+
+    Before the first vertex the first parabola is extrapolated down to the sensor
+    (x = 0): a line whose first dash began 17 m ahead still claims, and guards, the
+    start region of the next frame.
+
+    A parabola through the segment's two vertices and the next one (the previous one
+    at the end): the ALDM returns 13 points over up to 200 m, and a chord between
+    vertices 16 m apart lies 4 cm inside a 800 m curve, a bias a tracker would add
+    up frame after frame.
+    """
+    if hi - lo < 2 or x > lx[hi - 1] or x < min(lx[lo], 0.0):
+        return math.nan
+    a = lo
+    b = hi - 1
+    if x < lx[lo]:
+        b = lo + 1
+    while b - a > 1:
+        m = (a + b) // 2
+        if lx[m] <= x:
+            a = m
+        else:
+            b = m
+    span = lx[b] - lx[a]
+    if span <= 0.0:
+        return ly[a]
+    if hi - lo == 2:
+        return ly[a] + (x - lx[a]) / span * (ly[b] - ly[a])
+    c = b + 1 if b + 1 < hi else a - 1
+    x0 = lx[a]
+    x1 = lx[b]
+    x2 = lx[c]
+    return (
+        ly[a] * (x - x1) * (x - x2) / ((x0 - x1) * (x0 - x2))
+        + ly[b] * (x - x0) * (x - x2) / ((x1 - x0) * (x1 - x2))
+        + ly[c] * (x - x0) * (x - x1) / ((x2 - x0) * (x2 - x1))
+    )
+
+
+_interp_line = numba.njit(cache=True)(_interp_line_py)
+
+
+TABLE_STEP = 2.0
+"""Spacing in x of the tracks' look-up tables [m]: linear interpolation between
+samples of the parabolas 2 m apart is off by 0.6 mm in a 800 m curve, 5 mm in a
+100 m one."""
+
+
+def _table_py(lines, ls, dx, dy, dpsi):
+    """The tracks ``lines[ls[t]:ls[t + 1]]`` (``(K, 2)`` each, sorted by x) moved into
+    the new sensor frame, tabulated.
+
+    The sensor moved by ``(dx, dy)`` [m] and turned by ``dpsi`` [rad], both in the
+    old frame. Each moved track is sampled at x = 0, 1, 2, ... m (:func:`_interp_line`,
+    walking the vertices once); NaN where the track does not reach. A track is cut at
+    its first vertex that would not be strictly ahead of the previous one.
+
+    :return: ``(T, G)`` table of y [m].
+    """
+    c = math.cos(dpsi)
+    s = math.sin(dpsi)
+    n_tracks = len(ls) - 1
+    px = np.empty(lines.shape[0])
+    py = np.empty(lines.shape[0])
+    ps = np.zeros(n_tracks + 1, dtype=np.int64)
+    k = 0
+    x_max = 0.0
+    for t in range(n_tracks):
+        ps[t] = k
+        last = -math.inf
+        for i in range(ls[t], ls[t + 1]):
+            u = lines[i, 0] - dx
+            v = lines[i, 1] - dy
+            x = c * u + s * v
+            if x <= last:
+                break
+            px[k] = x
+            py[k] = -s * u + c * v
+            last = x
+            k += 1
+        if k - ps[t] >= 2 and px[k - 1] > x_max:
+            x_max = px[k - 1]
+    ps[n_tracks] = k
+    n_grid = int(x_max / TABLE_STEP) + 2
+    table = np.full((n_tracks, n_grid), math.nan)
+    for t in range(n_tracks):
+        lo = ps[t]
+        hi = ps[t + 1]
+        if hi - lo < 2:
+            continue
+        a = lo  # the segment (a, a + 1) holding x, walked forward once (x grows)
+        for g in range(n_grid):
+            x = g * TABLE_STEP
+            if x > px[hi - 1]:
+                break
+            if x < min(px[lo], 0.0):
+                continue
+            while a + 2 < hi and px[a + 1] <= x:
+                a += 1
+            # _interp_line's parabola, without its binary search
+            table[t, g] = (
+                _interp_line(px, py, a, min(a + 3, hi), x)
+                if a + 3 <= hi
+                else (_interp_line(px, py, lo, hi, x))
+            )
+    return table
+
+
+_table = numba.njit(cache=True)(_table_py)
+
+
+def _lookup_py(table, t, x):
+    """Track ``t``'s y at ``x`` from its table [m]; NaN where it does not reach."""
+    g = int(x / TABLE_STEP)
+    if x < 0.0 or g + 1 >= table.shape[1]:
+        return math.nan
+    f = x / TABLE_STEP - g
+    return table[t, g] + f * (table[t, g + 1] - table[t, g])
+
+
+_lookup = numba.njit(cache=True)(_lookup_py)
+
+
+def _fill_py(table, t, a, b, ra, rb, step, with_a, with_b, vx, vy, n):
+    """Prior points on track ``t`` between x = a and x = b at most ``step`` apart,
+    shifted laterally by ``ra`` at a to ``rb`` at b (linearly) [m], written to
+    ``vx, vy`` from index ``n``; the ends only when asked. Returns the new count."""
+    m = int(math.ceil((b - a) / step))  # noqa: RUF046  (numba: float ceil)
+    if m < 1:
+        m = 1
+    first = 0 if with_a else 1
+    last = m if with_b else m - 1
+    for k in range(first, last + 1):
+        x = a + (b - a) * k / m
+        y = _lookup(table, t, x)
+        if not math.isnan(y):
+            vx[n] = x
+            vy[n] = y + ra + (rb - ra) * k / m
+            n += 1
+    return n
+
+
+_fill = numba.njit(cache=True)(_fill_py)
+
+
+def _prior_py(pts, table, coast_ok, gate0, gate_slope, bridge_gap, step, max_pair, z_band):
+    """The tracks (tabulated by :func:`_table`) as a prior for one frame's points.
+
+    A point *supports* the nearest track when its lateral residual to it is within
+    ``gate0 + gate_slope * x`` [m]. A point that supports no track and lies between
+    two tracks at most ``max_pair`` [m] apart (inside a tracked lane) contradicts the
+    track: it is dropped. Points outside the tracked lanes are kept (new lines, the
+    lines a lane change brings into view). Along each track, prior points (at most
+    ``step`` apart) fill every stretch without support longer than ``bridge_gap``
+    between supported points, and the stretch from the nearest measured x to the
+    first supported point, shifted by the residuals of the supported points at
+    the stretch's ends (the odometry's error, measured); a track with no support
+    at all is filled along its whole length when ``coast_ok``. Beyond a track's last
+    supported point nothing is added. Points with NaN/inf, x < 0 or (with z)
+    ``|z| > z_band`` are kept untouched (the ALDM drops them) and ignored here.
+
+    :param pts: ``(N, 2|3)`` points in the sensor frame [m].
+    :param coast_ok: ``(T,)`` whether a track without support may still be filled.
+    :return: ``(keep, vx, vy, support)``: ``(N,)`` bool, the prior points' x and y
+        [m], and the number of supporting points per track.
+    """
+    n_pts = pts.shape[0]
+    has_z = pts.shape[1] > 2
+    n_tracks = table.shape[0]
+    keep = np.ones(n_pts, dtype=np.bool_)
+    support = np.zeros(n_tracks, dtype=np.int64)
+    sup_x = np.empty((n_tracks, max(n_pts, 1)))
+    sup_r = np.empty((n_tracks, max(n_pts, 1)))
+    x_near = math.inf
+    for i in range(n_pts):
+        x = pts[i, 0]
+        y = pts[i, 1]
+        if not (math.isfinite(x) and math.isfinite(y)) or x < 0.0:
+            continue
+        if has_z:
+            z = pts[i, 2]
+            if not math.isfinite(z) or abs(z) > z_band:
+                continue
+        if x < x_near:
+            x_near = x
+        best = math.inf
+        best_r = 0.0
+        best_t = -1
+        left = math.inf  # lateral distance to the nearest track left of the point
+        right = math.inf
+        for t in range(n_tracks):
+            yt = _lookup(table, t, x)
+            if math.isnan(yt):
+                continue
+            r = y - yt
+            if abs(r) < best:
+                best = abs(r)
+                best_r = r
+                best_t = t
+            if r < 0.0 and -r < left:
+                left = -r
+            elif r >= 0.0 and r < right:
+                right = r
+        if best_t < 0:
+            continue
+        if best <= gate0 + gate_slope * x:
+            sup_x[best_t, support[best_t]] = x
+            sup_r[best_t, support[best_t]] = best_r
+            support[best_t] += 1
+        elif left + right <= max_pair:
+            keep[i] = False
+    cap = n_tracks * (int(table.shape[1] * TABLE_STEP / step) + 3)
+    vx = np.empty(cap)
+    vy = np.empty(cap)
+    n = 0
+    for t in range(n_tracks):
+        # the track's reach: the table's last sample that is not NaN
+        b = -1.0
+        for g in range(table.shape[1] - 1, -1, -1):
+            if not math.isnan(table[t, g]):
+                b = g * TABLE_STEP
+                break
+        a = x_near if math.isfinite(x_near) else 0.0
+        if b <= a:
+            continue
+        ns = support[t]
+        if ns == 0:
+            if coast_ok[t]:
+                n = _fill(table, t, a, b, 0.0, 0.0, step, True, True, vx, vy, n)
+            continue
+        order = np.argsort(sup_x[t, :ns])
+        xs = sup_x[t, :ns][order]
+        rs = sup_r[t, :ns][order]
+        prev = a
+        r_prev = 0.0
+        for j in range(ns):
+            if xs[j] - prev > bridge_gap:
+                # the odometry's error is measured at both ends of the gap: the
+                # mean residual of up to 3 supported points on each side
+                r_next = np.mean(rs[j : min(j + 3, ns)])
+                if j == 0:
+                    r_prev = r_next
+                n = _fill(table, t, prev, xs[j], r_prev, r_next, step, j == 0, False, vx, vy, n)
+            prev = xs[j]
+            r_prev = np.mean(rs[max(j - 2, 0) : j + 1])
+    return keep, vx[:n], vy[:n], support
+
+
+_prior = numba.njit(cache=True)(_prior_py)
+
+
+def _match_py(lines, ls, table, match_gate, ids, coast, support, travel, min_support, next_id):
+    """The track each detected line continues, and the lines' ids and coasting.
+
+    The cost of line ``i`` against track ``t`` is the mean lateral distance of the
+    line's points where the track reaches (at least two of them); pairs are taken
+    greedily by lowest cost below ``match_gate`` [m], each line and track once. A
+    matched line takes the track's id; its coasted distance [m] is 0 when at least
+    ``min_support`` points supported the track, else the track's plus ``travel``. A
+    found line without a track gets the id ``next_id``, ``next_id + 1``, ...
+
+    :param lines: ``(K, 2)`` the detected lines concatenated; line i is
+        ``lines[ls[i]:ls[i + 1]]``.
+    :return: ``(new_ids, new_coast, next_id)``; id -1 for a line not found.
+    """
+    n_det = len(ls) - 1
+    n_tracks = table.shape[0]
+    cost = np.full((n_det, n_tracks), math.inf)
+    for i in range(n_det):
+        for t in range(n_tracks):
+            total = 0.0
+            count = 0
+            for k in range(ls[i], ls[i + 1]):
+                yt = _lookup(table, t, lines[k, 0])
+                if not math.isnan(yt):
+                    total += abs(lines[k, 1] - yt)
+                    count += 1
+            if count >= 2:
+                cost[i, t] = total / count
+    assign = np.full(n_det, -1, dtype=np.int64)
+    used = np.zeros(n_tracks, dtype=np.bool_)
+    for _ in range(min(n_det, n_tracks)):
+        best = match_gate
+        bi = -1
+        bt = -1
+        for i in range(n_det):
+            if assign[i] >= 0:
+                continue
+            for t in range(n_tracks):
+                if not used[t] and cost[i, t] < best:
+                    best = cost[i, t]
+                    bi = i
+                    bt = t
+        if bi < 0:
+            break
+        assign[bi] = bt
+        used[bt] = True
+    new_ids = np.full(n_det, -1, dtype=np.int64)
+    new_coast = np.zeros(n_det)
+    for i in range(n_det):
+        if ls[i + 1] - ls[i] < 2:
+            continue
+        t = assign[i]
+        if t < 0:
+            new_ids[i] = next_id
+            next_id += 1
+        else:
+            new_ids[i] = ids[t]
+            new_coast[i] = 0.0 if support[t] >= min_support else coast[t] + travel
+    return new_ids, new_coast, next_id
+
+
+_match = numba.njit(cache=True)(_match_py)
