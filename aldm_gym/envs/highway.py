@@ -457,6 +457,7 @@ class ALDMHighwayEnv(AbstractEnv):
             t,
             rng=rng,
             s_hint=pos.s + mount_x,
+            occluders=self.road.vehicles if self.sensor.config.occlusion else None,
         )
         self.detection = det = self._detector(self.frame, hw, pos.lane, motion=self._ego_motion())
         ego.detection = det

@@ -34,6 +34,7 @@ from aldm_gym.config import build_config, check_choice, check_range, setting, va
 from aldm_gym.roads.geometry import ReferenceLine, Segment
 from aldm_gym.roads.lane import ReferenceLane
 from aldm_gym.roads.markings import MARKING_MODELS, Marking, MarkingRole, MarkingType
+from aldm_gym.roads.overpass import overpass_lines
 from aldm_gym.roads.position import LanePosition, world_point
 from aldm_gym.types import FloatArray
 
@@ -74,6 +75,11 @@ class RoadConfig:
     :ivar guard_rail_height: guard-rail height [m] (> 0).
     :ivar speed_limit: speed limit of every lane [m/s].
     :ivar seed: seed of the curvature profile.
+    :ivar overpasses: reference arc lengths where a bridge crosses above the road [m]
+        (``None``: none); the sensor reports the bridge's markings at ``z > 0``
+        (:mod:`aldm_gym.roads.overpass`).
+    :ivar overpass_angle: angle between a bridge's road and this one [rad].
+    :ivar overpass_height: height of a bridge's markings above the road [m].
     :ivar marking_model: how markings become line objects for the sensor:
         ``"per_dash"`` (every dash is its own object, as on roads converted from
         OpenDRIVE or measurements) or ``"editor"`` (a dashed line is one object, as
@@ -102,9 +108,14 @@ class RoadConfig:
     speed_limit: float = setting(36.0, lo=0.0, lo_open=True, hi=100.0)
     seed: int = setting(0, lo=0, hi=2**63 - 1, integer=True)
     marking_model: str = setting("per_dash", choices=MARKING_MODELS)
+    overpasses: tuple[float, ...] | None = setting(None, kind="numbers", lo=0.0, optional=True)
+    overpass_angle: float = setting(math.radians(45.0), lo=math.radians(10.0), hi=math.pi / 2)
+    overpass_height: float = setting(6.0, lo=0.5, hi=50.0)
 
     def __post_init__(self) -> None:
         validate(self, "road")
+        if self.overpasses is not None:  # hashable: roads are cached by their config
+            object.__setattr__(self, "overpasses", tuple(self.overpasses))
         if self.segments is not None:
             object.__setattr__(self, "segments", _segments(self.segments))
 
@@ -275,6 +286,25 @@ class HighwayRoad:
             "phase": np.array([m.phase for m in mk], dtype=np.float64),
             "broken": np.array([m.broken for m in mk], dtype=bool),
         }
+
+    @cached_property
+    def overpass_lines(self) -> FloatArray:
+        """``(B, 5)`` world segments ``(x0, y0, x1, y1, z)`` [m] of the markings of the
+        bridges in ``config.overpasses`` (empty without bridges)."""
+        cfg = self.config
+        rows = []
+        for s in cfg.overpasses or ():
+            if s > self.length:
+                raise ValueError(f"road.overpasses: {s} is beyond the road ({self.length:.0f} m)")
+            left = self.marking_position(0, s)
+            right = self.marking_position(len(self.markings) - 1, s)
+            half = 0.5 * float(np.hypot(*(np.asarray(left) - np.asarray(right))))
+            centre = 0.5 * (np.asarray(left) + np.asarray(right))
+            heading = float(self.reference.heading_at(s))
+            rows.append(
+                overpass_lines(centre, heading, half, cfg.overpass_angle, cfg.overpass_height)
+            )
+        return np.concatenate(rows) if rows else np.zeros((0, 5))
 
     @property
     def marking_model(self) -> str:

@@ -18,6 +18,7 @@ chunks of vertices with a bounding circle, so the cost does not grow with the ma
 
 from __future__ import annotations
 
+import copy
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -25,7 +26,9 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
+from aldm_gym.config import check_range
 from aldm_gym.roads.markings import MARKING_MODELS
+from aldm_gym.roads.overpass import overpass_lines
 from aldm_gym.roads.position import world_point
 from aldm_gym.types import FloatArray
 
@@ -341,14 +344,50 @@ class PolylineRoad:
         """``"per_dash"`` or ``"editor"``."""
         return self._marking_model
 
+    overpass_lines: FloatArray = np.zeros((0, 5))
+    """``(B, 5)`` world segments ``(x0, y0, x1, y1, z)`` [m] of bridge markings above the
+    road (:mod:`aldm_gym.roads.overpass`); none unless :meth:`with_overpasses`."""
+
+    def with_overpasses(
+        self,
+        places: Sequence[tuple[float, float, float]],
+        angle: float = math.radians(45.0),
+        height: float = 6.0,
+        half_width: float = 10.0,
+    ) -> PolylineRoad:
+        """The same road with bridges crossing above it (shares the geometry).
+
+        The OpenDRIVE reader does not read bridges from a map, so a bridge is placed
+        here, by where it crosses.
+
+        :param places: world ``(x [m], y [m], heading [rad])`` of each crossing: the
+            point on the lower road and that road's heading there.
+        :param angle: angle between a bridge's road and the lower road [rad], in
+            [10°, 90°].
+        :param height: height of the bridge's markings [m], in [0.5, 50].
+        :param half_width: half the lower road's width there [m] (its markings run 30 m
+            beyond it).
+        :raises ValueError: naming the argument out of its range.
+        """
+        check_range("overpass", "angle", angle, math.radians(10.0), math.pi / 2)
+        check_range("overpass", "height", height, 0.5, 50.0)
+        check_range("overpass", "half_width", half_width, 0.0, 1000.0)
+        rows = []
+        for place in places:
+            x, y, h = (float(v) for v in place)
+            if not all(math.isfinite(v) for v in (x, y, h)):
+                raise ValueError(f"overpass places must be finite (x, y, heading), got {place!r}")
+            rows.append(overpass_lines(np.array([x, y]), h, half_width, angle, height))
+        twin = copy.copy(self)
+        twin.overpass_lines = np.concatenate(rows) if rows else np.zeros((0, 5))
+        return twin
+
     def with_marking_model(self, marking_model: str) -> PolylineRoad:
         """The same road with another marking model (shares the geometry)."""
         if marking_model not in MARKING_MODELS:
             raise ValueError(
                 f"marking_model must be one of {list(MARKING_MODELS)}, got {marking_model!r}"
             )
-        import copy
-
         twin = copy.copy(self)
         twin._marking_model = marking_model
         return twin

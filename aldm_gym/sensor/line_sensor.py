@@ -31,6 +31,8 @@ import numpy as np
 from aldm_gym.config import build_config, setting, validate
 from aldm_gym.roads.highway import HighwayRoad
 from aldm_gym.roads.position import MAX_COORDINATE
+from aldm_gym.sensor import conditions as cond
+from aldm_gym.sensor.conditions import CELL, MAX_STRETCH
 from aldm_gym.sensor.frame import SensorFrame
 from aldm_gym.types import FloatArray
 
@@ -38,6 +40,41 @@ _NO_TURN = (0.0, 0.0, 0.0)
 """Default external rotation and travel (recognised by identity: no validation needed)."""
 _NO_NOISE = np.zeros((3, 0, 0))
 _NO_DRAW = np.zeros((0, 0))
+
+
+CONDITIONS_OFF: dict[str, Any] = {
+    "lateral_noise": 0.0,
+    "longitudinal_noise": 0.0,
+    "occlusion": False,
+    "worn_dash_rate": 0.0,
+    "worn_stretch_rate": 0.0,
+    "worn_stretch_length": (20.0, 80.0),
+    "lateral_noise_growth": 0.0,
+    "visibility": None,
+    "seam_rate": 0.0,
+    "old_marking_rate": 0.0,
+    "speck_rate": 0.0,
+}
+"""The preset-able fields of :class:`LineSensorConfig` and their values without a
+preset: CarMaker's ideal sensor."""
+
+PRESETS: dict[str, dict[str, Any]] = {
+    "camera": {
+        "occlusion": True,
+        "worn_dash_rate": 0.05,
+        "worn_stretch_rate": 1.0,
+        "worn_stretch_length": (20.0, 60.0),
+        "lateral_noise": 0.02,
+        "lateral_noise_growth": 0.0005,
+        "longitudinal_noise": 0.1,
+        "visibility": 150.0,
+        "seam_rate": 1.0,
+        "old_marking_rate": 0.3,
+        "speck_rate": 2.0,
+    },
+}
+"""Named sets of values for the preset-able fields (``sensor={"preset": "camera"}``):
+a camera-like sensor (``docs/sensor.md`` explains each value)."""
 
 
 @dataclass(frozen=True)
@@ -82,10 +119,35 @@ class LineSensorConfig:
     :ivar mount_roll: mount roll [rad] (recorded; the road is flat).
     :ivar mount_pitch: mount pitch [rad] (recorded; the road is flat).
     :ivar mount_yaw: mount yaw [rad]; pi for a backward-looking sensor.
-    :ivar lateral_noise: standard deviation of Gaussian noise on y [m].
-    :ivar longitudinal_noise: standard deviation of Gaussian noise on x [m].
+    :ivar lateral_noise: standard deviation of Gaussian noise on y [m] (σ₀ of the
+        range-dependent noise; preset-able).
+    :ivar longitudinal_noise: standard deviation of Gaussian noise on x [m]
+        (longitudinal jitter; preset-able).
     :ivar height_noise: standard deviation of Gaussian noise on z [m].
     :ivar dropout: probability that a point is missing, independently per point.
+
+    Sensor conditions beyond CarMaker (``docs/sensor.md``; all off by default). A
+    preset-able field left ``None`` takes the preset's value, or its "off" value
+    (:data:`CONDITIONS_OFF`) without a preset; a value given explicitly always wins.
+
+    :ivar preset: ``None`` or ``"camera"`` (:data:`PRESETS`): a set of values for the
+        preset-able fields.
+    :ivar occlusion: hide points behind the vehicles passed to :meth:`LineSensor.measure`.
+    :ivar worn_dash_rate: share of the dashes of broken markings that are worn away
+        [-] (fixed per road).
+    :ivar worn_stretch_rate: worn stretches per km of each painted marking [1/km]
+        (fixed per road; at most 10).
+    :ivar worn_stretch_length: (min, max) length of a worn stretch [m].
+    :ivar wear_seed: another seed wears other dashes and stretches, and places other
+        seams and old markings, on the same road.
+    :ivar lateral_noise_growth: growth of the lateral noise with range: σ_y(x) =
+        ``lateral_noise + lateral_noise_growth * x`` [m/m].
+    :ivar visibility: x beyond which nothing is seen [m] (fog, glare; ``None``:
+        the range).
+    :ivar seam_rate: tar seams per km of each painted marking [1/km] (fixed per road).
+    :ivar old_marking_rate: old markings per km of each painted marking [1/km] (fixed
+        per road).
+    :ivar speck_rate: mean number of random specks per frame [-] (Poisson).
     """
 
     range: float = setting(200.0, lo=0.0, lo_open=True, hi=1000.0)
@@ -103,12 +165,32 @@ class LineSensorConfig:
     mount_roll: float = setting(0.0, lo=-2 * np.pi, hi=2 * np.pi)
     mount_pitch: float = setting(0.0, lo=-2 * np.pi, hi=2 * np.pi)
     mount_yaw: float = setting(0.0, lo=-2 * np.pi, hi=2 * np.pi)
-    lateral_noise: float = setting(0.0, lo=0.0, hi=5.0)
-    longitudinal_noise: float = setting(0.0, lo=0.0, hi=5.0)
+    lateral_noise: float = setting(None, lo=0.0, hi=5.0, optional=True)
+    longitudinal_noise: float = setting(None, lo=0.0, hi=5.0, optional=True)
     height_noise: float = setting(0.0, lo=0.0, hi=5.0)
     dropout: float = setting(0.0, lo=0.0, hi=1.0)
+    preset: str | None = setting(None, choices=tuple(PRESETS), optional=True)
+    occlusion: bool = setting(None, kind="bool", optional=True)
+    worn_dash_rate: float = setting(None, lo=0.0, hi=1.0, optional=True)
+    worn_stretch_rate: float = setting(None, lo=0.0, hi=1000.0 / CELL, optional=True)
+    worn_stretch_length: tuple[float, float] = setting(
+        None, kind="pair", lo=0.0, lo_open=True, hi=MAX_STRETCH, optional=True
+    )
+    wear_seed: int = setting(0, lo=0, hi=2**31 - 1, integer=True)
+    lateral_noise_growth: float = setting(None, lo=0.0, hi=0.05, optional=True)
+    visibility: float | None = setting(None, lo=0.0, lo_open=True, hi=1000.0, optional=True)
+    seam_rate: float = setting(None, lo=0.0, hi=1000.0 / CELL, optional=True)
+    old_marking_rate: float = setting(None, lo=0.0, hi=1000.0 / CELL, optional=True)
+    speck_rate: float = setting(None, lo=0.0, hi=100.0, optional=True)
 
     def __post_init__(self) -> None:
+        preset = self.preset
+        if preset is not None and (not isinstance(preset, str) or preset not in PRESETS):
+            raise ValueError(f"sensor.preset must be one of {list(PRESETS)}, got {preset!r}")
+        values = PRESETS[preset] if preset is not None else {}
+        for name, off in CONDITIONS_OFF.items():
+            if getattr(self, name) is None:
+                object.__setattr__(self, name, values.get(name, off))
         validate(self, "sensor")
         if self.fov_start >= self.range:
             raise ValueError(f"sensor.fov_start ({self.fov_start}) must be < range ({self.range})")
@@ -133,7 +215,30 @@ class LineSensorConfig:
     def noisy(self) -> bool:
         """Whether measuring draws random numbers."""
         return bool(
-            self.lateral_noise or self.longitudinal_noise or self.height_noise or self.dropout
+            self.lateral_noise
+            or self.longitudinal_noise
+            or self.height_noise
+            or self.dropout
+            or self.lateral_noise_growth
+            or self.speck_rate
+        )
+
+    @property
+    def worn(self) -> bool:
+        """Whether paint wears (road-fixed)."""
+        return bool(self.worn_dash_rate or self.worn_stretch_rate)
+
+    @property
+    def conditions(self) -> bool:
+        """Whether any condition beyond CarMaker's noise and dropout is on."""
+        return bool(
+            self.occlusion
+            or self.worn
+            or self.lateral_noise_growth
+            or self.visibility is not None
+            or self.seam_rate
+            or self.old_marking_rate
+            or self.speck_rate
         )
 
 
@@ -267,6 +372,7 @@ class LineSensor:
         ext_rotation: Any = _NO_TURN,
         ext_travel: Any = _NO_TURN,
         s_hint: float | None = None,
+        occluders: Any = None,
     ) -> SensorFrame:
         """Measure the road's markings from a vehicle at ``pose``.
 
@@ -279,6 +385,11 @@ class LineSensor:
             frame [rad]; yaw turns the sensor, roll and pitch are recorded only.
         :param ext_travel: additional external travel (x, y, z) in the mount frame [m].
         :param s_hint: the sensor's reference arc length, if already known [m].
+        :param occluders: with ``occlusion`` on, the vehicles whose footprints hide
+            markings: highway-env vehicles or an ``(V, 6)`` array of world ``(x, y,
+            heading, length, width, height)`` (see
+            :func:`~aldm_gym.sensor.conditions.occluder_array`); the ego may be among
+            them (a footprint holding the sensor hides nothing).
         :return: the frame.
         """
         if not hasattr(road, "sample_visible"):
@@ -299,14 +410,21 @@ class LineSensor:
             axis_y = self.middle_axis_y(travel, float(rot[2]))
         xs = self._xs
         rows, ys, us = road.sample_visible(origin, yaw, xs, s_hint)
+        gen = rng if rng is not None else self._rng
         if c.noisy:
-            gen = rng if rng is not None else self._rng
             # Draw for the whole grid so the stream does not depend on what is visible.
             noise = gen.standard_normal((3, *ys.shape))
             draw = gen.random(ys.shape)
         else:
             noise, draw = _NO_NOISE, _NO_DRAW
         tab = road.marking_table
+        noise_std = self._noise_std
+        n_markings = len(tab["height"])
+        bridges = getattr(road, "overpass_lines", None)
+        if c.conditions or (bridges is not None and len(bridges)):
+            rows, ys, us, tab, noise, draw, noise_std = self._conditions(
+                road, tab, rows, ys, us, origin, yaw, occluders, gen, noise, draw, bridges
+            )
         points, line_start, mk, piece, n_left, rel_left, rel_right = _assemble(
             xs,
             ys,
@@ -325,10 +443,15 @@ class LineSensor:
             axis_y,
             noise,
             draw,
-            self._noise_std,
+            noise_std,
             c.dropout,
             c.max_lines_per_side,
         )
+        if len(tab["height"]) > n_markings:
+            # Clutter, specks and bridge markings are no marking of this road.
+            mk_truth = np.where(mk < n_markings, mk, -1)
+        else:
+            mk_truth = mk
         return SensorFrame(
             timestamp=float(t),
             sensor_index=c.sensor_index,
@@ -338,7 +461,7 @@ class LineSensor:
             line_colour=tab["colour"][mk],
             line_height=tab["height"][mk],
             line_width=tab["width"][mk],
-            line_marking=mk,
+            line_marking=mk_truth,
             line_piece=piece,
             n_left=n_left,
             relevant_left=rel_left,
@@ -356,6 +479,129 @@ class LineSensor:
             max_lateral=self._max_lateral,
             axis_y=axis_y,
         )
+
+    def _conditions(
+        self,
+        road: Any,
+        tab: dict[str, np.ndarray],
+        rows: np.ndarray,
+        ys: FloatArray,
+        us: FloatArray,
+        origin: FloatArray,
+        yaw: float,
+        occluders: Any,
+        gen: np.random.Generator,
+        noise: FloatArray,
+        draw: FloatArray,
+        bridges: FloatArray | None,
+    ) -> tuple[
+        np.ndarray,
+        FloatArray,
+        FloatArray,
+        dict[str, np.ndarray],
+        FloatArray,
+        FloatArray,
+        FloatArray,
+    ]:
+        """The sensor conditions on the sampled grid (``docs/sensor.md``).
+
+        Extra rows (seams, old markings, bridge markings, specks) become virtual
+        markings appended to the marking table (continuous, one object each); masks
+        (worn paint, visibility, occlusion) set hidden points' y to NaN, on the
+        noiseless positions. Generator draws, after the grid's noise: specks, then the
+        extra rows' noise.
+
+        :return: ``(rows, ys, us, table, noise, draw, noise_std)`` for ``_assemble``.
+        """
+        c = self.config
+        xs = self._xs
+        k = len(xs)
+        height = tab["height"]
+        ys = ys.copy()
+        key = 0
+        if c.worn or c.seam_rate or c.old_marking_rate:
+            key = cond.road_key(road, c.wear_seed)
+        extra_y: list[FloatArray] = []
+        extra_z: list[FloatArray] = []
+        if c.seam_rate or c.old_marking_rate:
+            cy, _ = cond._clutter(
+                ys, us, rows, height, key, c.seam_rate / 1000.0, c.old_marking_rate / 1000.0
+            )
+            extra_y.append(cy)
+            extra_z.append(np.zeros(len(cy)))
+        if bridges is not None and len(bridges):
+            by, bz = cond.overpass_rows(np.asarray(bridges, dtype=np.float64), origin, yaw, xs)
+            extra_y.append(by)
+            extra_z.append(bz)
+        if c.speck_rate:
+            n = int(gen.poisson(c.speck_rate))
+            at = gen.integers(0, k, n)
+            sy = np.full((n, k), np.nan)
+            sy[np.arange(n), at] = gen.uniform(-cond.SPECK_BAND, cond.SPECK_BAND, n)
+            extra_y.append(sy)
+            extra_z.append(np.zeros(n))
+        if c.worn:
+            cond._wear(
+                ys,
+                us,
+                rows,
+                height,
+                tab["phase"],
+                tab["period"],
+                tab["broken"],
+                tab["paint"],
+                tab["paint_start"],
+                key,
+                c.worn_dash_rate,
+                c.worn_stretch_rate / 1000.0,
+                c.worn_stretch_length[0],
+                c.worn_stretch_length[1],
+            )
+        n_extra = sum(len(e) for e in extra_y)
+        m = len(height)
+        if n_extra:
+            ys = np.vstack([ys, *extra_y])
+            us = np.vstack([us, np.zeros((n_extra, k))])
+            rows = np.concatenate([rows, m + np.arange(n_extra, dtype=np.int64)])
+            z_extra = np.concatenate(extra_z)
+            tab = _with_virtual(tab, z_extra)
+            if c.noisy:
+                noise = np.concatenate([noise, gen.standard_normal((3, n_extra, k))], axis=1)
+                draw = np.vstack([draw, gen.random((n_extra, k))])
+        if c.visibility is not None:
+            ys[:, xs > c.visibility] = np.nan
+        if c.occlusion and occluders is not None:
+            world = cond.occluder_array(occluders)
+            if len(world):
+                reach = c.range + 10.0  # a point in range, behind half an 18 m truck
+                z = tab["height"][rows]
+                cond._occlude(xs, ys, z, world, origin[0], origin[1], yaw, reach, c.mount_z)
+        noise_std = self._noise_std
+        if c.lateral_noise_growth and noise.shape[1]:
+            # sigma_y(x) = sigma_0 + k x: scale the draws, unit weight in the kernel.
+            noise = noise.copy()
+            noise[0] *= c.lateral_noise + c.lateral_noise_growth * xs
+            noise_std = np.array([1.0, noise_std[1], noise_std[2]])
+        return rows, ys, us, tab, noise, draw, noise_std
+
+
+def _with_virtual(tab: dict[str, np.ndarray], z: FloatArray) -> dict[str, np.ndarray]:
+    """The marking table with ``len(z)`` virtual markings appended: continuous, white,
+    0.15 m wide, at height ``z`` [m], no explicit paint (clutter, specks, bridges)."""
+    n = len(z)
+    ps = tab["paint_start"]
+    return {
+        "type": np.concatenate([tab["type"], np.ones(n, dtype=np.int64)]),
+        "colour": np.concatenate([tab["colour"], np.zeros(n, dtype=np.int64)]),
+        "height": np.concatenate([tab["height"], z]),
+        "width": np.concatenate([tab["width"], np.full(n, 0.15)]),
+        "dash": np.concatenate([tab["dash"], np.zeros(n)]),
+        "period": np.concatenate([tab["period"], np.ones(n)]),
+        "phase": np.concatenate([tab["phase"], np.zeros(n)]),
+        "broken": np.concatenate([tab["broken"], np.zeros(n, dtype=bool)]),
+        "paint": tab["paint"],
+        "paint_start": np.concatenate([ps, np.full(n, ps[-1], dtype=ps.dtype)]),
+    }
 
 
 def _assemble_py(
