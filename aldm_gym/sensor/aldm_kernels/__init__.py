@@ -24,9 +24,10 @@ with the plain-Python reference. The algorithm and every decision where the pape
 silent are described in ``docs/aldm.md``; paper references are to its section
 "Advanced Lane Detection Model" (§ALDM).
 
-Numba's on-disk cache tracks each kernel's own source file only: a cached kernel
-holds the compiled code of the kernels it calls, and is *not* recompiled when one of
-those changes in another file (numba issue #1833). After editing a kernel module,
-delete the cache (``find aldm_gym -name '*.nb[ic]' -delete``) before measuring or
-testing.
+:func:`output._detect` dispatches to one compiled pipeline per mode, so a first run
+compiles only the mode it uses.
+
+numba's on-disk cache tracks each kernel's own source file only; the package keys
+every kernel by a digest of all kernel sources instead (``aldm_gym/_numba.py``), so an
+edit to any kernel module recompiles them all, once, and nothing stale is loaded.
 """
