@@ -67,9 +67,18 @@ def world_point(name: str, value: Any) -> FloatArray:
         arr = np.zeros(0)
     if arr.shape not in ((2,), (3,)) or not (math.isfinite(arr[0]) and math.isfinite(arr[1])):
         raise ValueError(f"{name} must be 2 finite numbers (x, y) [m], got {value!r}")
-    if abs(arr[0]) > MAX_COORDINATE or abs(arr[1]) > MAX_COORDINATE:
+    check_within_world(name, float(arr[0]), float(arr[1]), value)
+    return arr[:2]
+
+
+def check_within_world(name: str, x: float, y: float, value: Any) -> None:
+    """Raise unless the world point ``(x, y)`` [m] lies within :data:`MAX_COORDINATE`
+    of the origin on each axis.
+
+    :raises ValueError: naming ``name`` and quoting ``value`` (what the caller got).
+    """
+    if abs(x) > MAX_COORDINATE or abs(y) > MAX_COORDINATE:
         raise ValueError(
             f"{name} must lie within ±{MAX_COORDINATE:g} m of the origin on each axis, "
             f"got {value!r}"
         )
-    return arr[:2]

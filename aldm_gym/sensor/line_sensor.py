@@ -30,7 +30,7 @@ import numpy as np
 
 from aldm_gym.config import build_config, setting, validate
 from aldm_gym.roads.highway import HighwayRoad
-from aldm_gym.roads.position import MAX_COORDINATE
+from aldm_gym.roads.position import check_within_world
 from aldm_gym.sensor import conditions as cond
 from aldm_gym.sensor.conditions import CELL, MAX_STRETCH
 from aldm_gym.sensor.frame import SensorFrame
@@ -279,11 +279,7 @@ def _pose_numbers(pose: Any) -> tuple[float, float, float]:
         x, y, h = arr
     if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(h)):
         raise ValueError(f"pose must be finite, got {(x, y, h)}")
-    if abs(x) > MAX_COORDINATE or abs(y) > MAX_COORDINATE:
-        raise ValueError(
-            f"pose must lie within ±{MAX_COORDINATE:g} m of the origin on each axis, "
-            f"got {(x, y, h)}"
-        )
+    check_within_world("pose", x, y, (x, y, h))
     return float(x), float(y), float(h)
 
 
