@@ -352,3 +352,82 @@ def test_progress_postfix_and_validation_line() -> None:
         "(best so far) | rule-based: return 9.50, success 90%, 24.2 m/s, 2/20 collided "
         "| IDLE: return 9.50, success 90%, 22.0 m/s, 1/20 collided"
     )
+
+
+class _SignalInKernelAt(_InterruptAt):
+    """A signal handler's KeyboardInterrupt raised inside a C call (a numba kernel
+    boxing its result) surfaces as ``SystemError`` with the interrupt as context."""
+
+    def _on_step(self) -> bool:
+        if self.num_timesteps >= self.steps:
+            try:
+                raise KeyboardInterrupt
+            except KeyboardInterrupt:
+                raise SystemError("<CPUDispatcher> returned a result with an exception set")  # noqa: B904
+        return True
+
+
+def test_an_interrupt_wrapped_by_a_c_call_is_an_interruption() -> None:
+    from aldm_gym.agents.training import _raised_by_interrupt
+
+    try:
+        _SignalInKernelAt(0)._on_step()
+    except SystemError as exc:
+        assert _raised_by_interrupt(exc)
+    assert _raised_by_interrupt(KeyboardInterrupt())
+    assert not _raised_by_interrupt(SystemError("a real fault"))
+    try:
+        try:
+            raise ValueError("x")
+        except ValueError:
+            raise SystemError("y")  # noqa: B904
+    except SystemError as exc:
+        assert not _raised_by_interrupt(exc)
+
+
+@pytest.mark.slow
+def test_a_signal_inside_a_kernel_call_still_saves_the_checkpoint(tmp_path: Path) -> None:
+    """SIGTERM landing in a numba call used to end the run with exit 1 and no save."""
+    with pytest.raises(KeyboardInterrupt):
+        train(
+            tmp_path,
+            timesteps=96,
+            params=PPOParams(n_steps=32),
+            callback=_SignalInKernelAt(40),
+            detector="naive",
+            n_envs=1,
+            duration=5.0,
+            vehicles_count=5,
+            checkpoint_freq=1000,
+            validation_freq=0,
+            progress=False,
+        )
+    assert latest_checkpoint(tmp_path)[2] == 32
+    # A SystemError of another cause is not taken for an interruption.
+    with pytest.raises(SystemError):
+        train(
+            tmp_path / "other",
+            timesteps=96,
+            params=PPOParams(n_steps=32),
+            callback=_RaiseAt(40, SystemError("a real fault")),
+            detector="naive",
+            n_envs=1,
+            duration=5.0,
+            vehicles_count=5,
+            checkpoint_freq=1000,
+            validation_freq=0,
+            progress=False,
+        )
+
+
+class _RaiseAt(_InterruptAt):
+    """Raise ``exc`` once ``steps`` steps are done."""
+
+    def __init__(self, steps: int, exc: BaseException) -> None:
+        super().__init__(steps)
+        self.exc = exc
+
+    def _on_step(self) -> bool:
+        if self.num_timesteps >= self.steps:
+            raise self.exc
+        return True

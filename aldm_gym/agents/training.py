@@ -287,6 +287,24 @@ def _signals_as_interrupt() -> Iterator[None]:
         signal.signal(signal.SIGTERM, previous)
 
 
+def _raised_by_interrupt(exc: BaseException) -> bool:
+    """``exc`` is a KeyboardInterrupt, or carries one in its chain.
+
+    A signal handler runs wherever the interpreter checks for signals, also inside a
+    C extension's call (a numba kernel boxing its result): the KeyboardInterrupt it
+    raises then surfaces as ``SystemError: ... returned a result with an exception
+    set``, with the KeyboardInterrupt as its context. Both are the same interruption.
+    """
+    seen: set[int] = set()
+    cur: BaseException | None = exc
+    while cur is not None and id(cur) not in seen:
+        if isinstance(cur, KeyboardInterrupt):
+            return True
+        seen.add(id(cur))
+        cur = cur.__cause__ or cur.__context__
+    return False
+
+
 @contextmanager
 def _signals_deferred() -> Iterator[None]:
     """Hold SIGINT and SIGTERM back while the block runs (a final save completes);
@@ -606,7 +624,9 @@ def _train_locked(
             # The state after the last update (also when resumed with nothing left to
             # do), taken while the envs are open.
             final = take_snapshot(model)
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, SystemError) as exc:
+        if not _raised_by_interrupt(exc):
+            raise
         interrupted = True
     finally:
         if interrupted:
