@@ -13,6 +13,7 @@ top level              :class:`EnvConfig` (below)
 ``observation``        :class:`aldm_gym.envs.observation.ObservationConfig`
 ``lka``                :class:`aldm_gym.envs.control.LKAConfig`
 ``acc``                :class:`aldm_gym.envs.longitudinal.ACCConfig`
+``traffic``            :class:`aldm_gym.envs.traffic.mix.TrafficConfig` (trucks)
 ``sensor``             :class:`aldm_gym.sensor.line_sensor.LineSensorConfig`
 ``road``               :class:`aldm_gym.roads.highway.RoadConfig`, or :class:`MapConfig`
                        with ``road.xodr`` (an OpenDRIVE map)
@@ -43,6 +44,7 @@ from aldm_gym.envs.actions import ACTION_TYPES, ActionConfig
 from aldm_gym.envs.control import LKAConfig
 from aldm_gym.envs.longitudinal import ACCConfig
 from aldm_gym.envs.observation import ObservationConfig
+from aldm_gym.envs.traffic.mix import TrafficConfig
 from aldm_gym.roads.highway import MARKING_MODELS, RoadConfig
 from aldm_gym.roads.map_road import OpenDriveRoad
 from aldm_gym.roads.opendrive import DEFAULT_BROKEN_PATTERN, DEFAULT_SAMPLE_STEP
@@ -97,7 +99,8 @@ class EnvConfig:
     ``normalize_reward``, ``offroad_terminal``. aldm-gym's: ``initial_speed`` [m/s],
     ``marking_model``, ``detector``, ``progress_reward``, ``lane_keeping_reward``,
     ``departure_reward``, ``departure_terminal``, and the sections ``detector_params``,
-    ``sensor``, ``road``, ``lka``, ``acc`` (ACC and AEB). Meanings: ``docs/env.md``.
+    ``sensor``, ``road``, ``lka``, ``acc`` (ACC and AEB), ``traffic`` (trucks).
+    Meanings: ``docs/env.md``.
     """
 
     # --- highway-env: AbstractEnv
@@ -140,6 +143,7 @@ class EnvConfig:
     road: Any = setting(None, kind="any")
     lka: Any = setting(None, kind="any")
     acc: Any = setting(None, kind="any")
+    traffic: Any = setting(None, kind="any")
     progress_reward: float = _reward(0.2)
     lane_keeping_reward: float = _reward(0.3)
     departure_reward: float = _reward(-0.5)
@@ -205,12 +209,13 @@ SECTIONS: dict[str, Any] = {
     "action": ActionConfig,
     "lka": LKAConfig,
     "acc": ACCConfig,
+    "traffic": TrafficConfig,
     "sensor": LineSensorConfig,
     "road": RoadConfig,
 }
 """The config sections declared by a dataclass (``detector_params`` is the detector's)."""
 
-_FULL_SECTIONS = ("observation", "action", "lka", "acc")
+_FULL_SECTIONS = ("observation", "action", "lka", "acc", "traffic")
 """Sections held complete (defaults filled in); ``sensor`` and ``road`` hold only what
 the user set, since ``road`` takes ``lanes_count``/``marking_model`` from the top level."""
 

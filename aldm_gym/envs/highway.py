@@ -33,6 +33,7 @@ from aldm_gym.envs.targets import (
     objects_from_world,
 )
 from aldm_gym.envs.traffic import FastRoad
+from aldm_gym.envs.traffic.mix import Spawner, TrafficConfig, make_truck
 from aldm_gym.envs.vehicle import MapIDMVehicle, SensorVehicle
 from aldm_gym.roads.cache import cached_road
 from aldm_gym.roads.highway import HighwayRoad
@@ -324,9 +325,11 @@ class ALDMHighwayEnv(AbstractEnv):
         ego = self._make_ego(seed_vehicle.position, seed_vehicle.heading, seed_vehicle.speed)
         self.controlled_vehicles = [ego]
         self.road.vehicles.append(ego)
+        spawner = Spawner(TrafficConfig(**cfg["traffic"]), self.np_random)
         for _ in range(int(cfg["vehicles_count"])):
             v = other_type.create_random(self.road, spacing=1.0 / float(cfg["vehicles_density"]))
             v.randomize_behavior()
+            spawner.place(v, spawner.draw())
             self.road.vehicles.append(v)
 
     def _make_ego(self, position: Any, heading: float, speed: float) -> SensorVehicle:
@@ -407,12 +410,15 @@ class ALDMHighwayEnv(AbstractEnv):
         ):
             other_type = MapIDMVehicle  # the default traffic, with the mandatory merge
         spacing = 1.0 / float(cfg["vehicles_density"])
+        spawner = Spawner(TrafficConfig(**cfg["traffic"]), rng)
         cur, cur_u = key, u
         for _ in range(int(cfg["vehicles_count"])):
             siblings = road.siblings(cur)
             v_speed = float(rng.uniform(0.7 * lane.speed_limit, 0.8 * lane.speed_limit))
             offset = spacing * (12.0 + v_speed) * math.exp(-5.0 / 40.0 * len(siblings))
             cur_u += offset * float(rng.uniform(0.9, 1.1))
+            truck = spawner.draw()
+            cur_u += spawner.extra_shift(truck)
             while cur is not None and cur_u > road.lane_length(cur):
                 cur_u -= road.lane_length(cur)
                 cur = road.successor(cur)
@@ -428,6 +434,8 @@ class ALDMHighwayEnv(AbstractEnv):
                 continue
             v = other_type(self.road, other.position(s, 0.0), other.heading_at(s), v_speed)
             v.randomize_behavior()
+            if truck is not None:
+                make_truck(v, truck, spawner.config)
             self.road.vehicles.append(v)
 
     # ------------------------------------------------------------------ simulation

@@ -27,11 +27,12 @@ key                    shape        content
 
 ``lanes`` summarises every vehicle within ``perception_distance`` (not only the N
 nearest) by the same lane codes: a gap is bumper to bumper along x, measured from the
-ego's centre (the sensor sits ``mount_x`` ahead of it), ``|x - x_ego| - VEHICLE_LENGTH``
-clipped to ``[0, perception_distance]``; an empty lane (or a
-lane not detected) reads ``perception_distance`` with relative speed 0. It is what an
-object-to-lane assignment of a highway chauffeur hands to its decision layer, and what
-a learning agent needs most: "is my lane blocked, is the next one free".
+ego's centre (the sensor sits ``mount_x`` ahead of it), ``|x - x_ego|`` less half of
+both vehicles' lengths (``VEHICLE_LENGTH`` between two cars), clipped to
+``[0, perception_distance]``; an empty lane (or a lane not detected) reads
+``perception_distance`` with relative speed 0. It is what an object-to-lane assignment
+of a highway chauffeur hands to its decision layer, and what a learning agent needs
+most: "is my lane blocked, is the next one free".
 """
 
 from __future__ import annotations
@@ -189,7 +190,11 @@ def assign_lanes(
 
 
 def lane_gaps(
-    codes: FloatArray, x: FloatArray, vx: FloatArray, perception_distance: float
+    codes: FloatArray,
+    x: FloatArray,
+    vx: FloatArray,
+    perception_distance: float,
+    lengths: FloatArray | None = None,
 ) -> FloatArray:
     """The ``lanes`` observation: per lane of :data:`LANE_ROWS`, nearest vehicle ahead and behind.
 
@@ -197,6 +202,8 @@ def lane_gaps(
     :param x: ``(N,)`` longitudinal positions relative to the ego's centre, along the
         sensor's x axis [m].
     :param vx: ``(N,)`` longitudinal speeds relative to the ego [m/s].
+    :param lengths: ``(N,)`` vehicle lengths [m] (``None``: all
+        :data:`VEHICLE_LENGTH`, as is the ego).
     :return: ``(3, 4)``: front gap [m], front relative vx [m/s], rear gap [m], rear
         relative vx [m/s]; gaps ``perception_distance`` and speeds 0 where no vehicle.
     :raises ValueError: arrays of different shapes, or non-finite x / vx.
@@ -208,6 +215,14 @@ def lane_gaps(
         )
     if not (np.all(np.isfinite(x)) and np.all(np.isfinite(vx))):
         raise ValueError("x and vx must be finite")
+    # Centre to bumper: half of each length (5.0 exactly between two cars).
+    if lengths is None:
+        reach = np.full(x.shape, VEHICLE_LENGTH)
+    else:
+        lengths = np.asarray(lengths, dtype=np.float64)
+        if lengths.shape != x.shape or not np.all(np.isfinite(lengths)):
+            raise ValueError(f"lengths must be finite of shape {x.shape}, got {lengths.shape}")
+        reach = 0.5 * (lengths + VEHICLE_LENGTH)
     pd = perception_distance
     out = np.tile(np.array([pd, 0.0, pd, 0.0]), (3, 1))
     for row, code in enumerate(LANE_ROWS):
@@ -215,12 +230,12 @@ def lane_gaps(
         ahead = np.flatnonzero(mine & (x >= 0.0))
         if len(ahead):
             i = ahead[np.argmin(x[ahead])]
-            out[row, 0] = min(max(x[i] - VEHICLE_LENGTH, 0.0), pd)
+            out[row, 0] = min(max(x[i] - reach[i], 0.0), pd)
             out[row, 1] = vx[i]
         behind = np.flatnonzero(mine & (x < 0.0))
         if len(behind):
             i = behind[np.argmax(x[behind])]
-            out[row, 2] = min(max(-x[i] - VEHICLE_LENGTH, 0.0), pd)
+            out[row, 2] = min(max(-x[i] - reach[i], 0.0), pd)
             out[row, 3] = vx[i]
     return out
 
@@ -234,6 +249,7 @@ def build_observation(
     perception_distance: float,
     ego_x: float = 0.0,
     target: FloatArray | None = None,
+    lengths: FloatArray | None = None,
 ) -> dict[str, np.ndarray]:
     """Assemble the observation dict.
 
@@ -246,6 +262,7 @@ def build_observation(
         ``lanes`` gaps are measured from it.
     :param target: ``(3,)`` the ACC's target: present (0/1), gap [m], relative speed
         [m/s]; ``None``: none, gap :data:`TARGET_GAP_BOUND`.
+    :param lengths: ``(M,)`` lengths of the other vehicles [m] (``None``: all cars).
     """
     lines = np.zeros((4, N_POINTS, 2))
     valid = np.zeros(4)
@@ -272,7 +289,13 @@ def build_observation(
         near = near[np.argsort(dist[near], kind="stable")]
         seen = others[near]
         codes = assign_lanes(full, seen[:, 0], seen[:, 1])
-        lanes = lane_gaps(codes, seen[:, 0] - ego_x, seen[:, 2], perception_distance)
+        lanes = lane_gaps(
+            codes,
+            seen[:, 0] - ego_x,
+            seen[:, 2],
+            perception_distance,
+            None if lengths is None else np.asarray(lengths, dtype=np.float64)[near],
+        )
         k = min(len(seen), vehicles_count)
         veh[:k, 0] = 1.0
         veh[:k, 1:5] = seen[:k]
@@ -374,6 +397,7 @@ class ALDMObservation:
             float(self.config.perception_distance),
             ego_x,
             self._target(),
+            np.array([v.LENGTH for v in others], dtype=np.float64) if others else None,
         )
 
     def _target(self) -> FloatArray | None:

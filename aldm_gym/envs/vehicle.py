@@ -275,7 +275,7 @@ class MapIDMVehicle(FastIDMVehicle):
         # IDM towards a standing obstacle at the lane's end (dv = own speed).
         v = max(self.speed, 0.0)
         ab = -self.COMFORT_ACC_MAX * self.COMFORT_ACC_MIN
-        wanted = self.DISTANCE_WANTED - self.LENGTH + v * self.TIME_WANTED
+        wanted = self.DISTANCE_WANTED - Vehicle.LENGTH + v * self.TIME_WANTED  # a car's d0
         wanted += v * v / (2 * math.sqrt(ab))
         ratio = wanted / max(gap, 1e-3)
         stop = self.COMFORT_ACC_MAX * (1 - ratio * ratio)

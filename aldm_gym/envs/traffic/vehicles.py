@@ -56,6 +56,18 @@ def _uses_base_kinematics(cls: type) -> bool:
     )
 
 
+def _extra_length(obj: RoadObject) -> float:
+    """Half of what ``obj`` is longer than highway-env's vehicle [m] (0 if not longer).
+
+    highway-env's IDM measures centre to centre and its ``DISTANCE_WANTED`` includes one
+    vehicle length, which is right only between two 5 m vehicles. A truck
+    (:mod:`aldm_gym.envs.traffic.mix`) shortens the gap by this much at each end;
+    objects no longer than a car keep highway-env's gap exactly.
+    """
+    length = obj.LENGTH
+    return 0.5 * (length - Vehicle.LENGTH) if length > Vehicle.LENGTH else 0.0
+
+
 class BatchedLaneUpdate(Vehicle):
     """Mixin: lets :meth:`FastRoad.step` defer this vehicle's closest-lane look-up.
 
@@ -189,7 +201,9 @@ class FastIDMVehicle(FastControlledVehicle, IDMVehicle):
     Use it as ``other_vehicles_type = "aldm_gym.envs.traffic.FastIDMVehicle"``.
     ``act``, ``acceleration`` and ``desired_gap`` are the base code with numpy scalar
     calls replaced by the same float operations; MOBIL (``change_lane_policy``,
-    ``mobil``) is inherited unchanged and benefits through these methods.
+    ``mobil``) is inherited unchanged and benefits through these methods. One
+    extension: gaps to and from vehicles longer than 5 m (trucks) are bumper to bumper
+    (:func:`_extra_length`); between cars the results are highway-env's.
     """
 
     def step(self, dt: float) -> None:
@@ -255,6 +269,9 @@ class FastIDMVehicle(FastControlledVehicle, IDMVehicle):
         )
         if front_vehicle:
             d = ego_vehicle.lane_distance_to(front_vehicle)
+            extra = _extra_length(ego_vehicle) + _extra_length(front_vehicle)
+            if extra:
+                d -= extra  # bumper to bumper as between two cars (trucks)
             ratio = self.desired_gap(ego_vehicle, front_vehicle) / not_zero_scalar(d)
             # np.power(x, 2) is computed as x * x.
             acceleration -= self.COMFORT_ACC_MAX * (ratio * ratio)
