@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 from pathlib import Path
 from typing import Any
 
@@ -65,7 +66,7 @@ def test_trucks_start_with_the_gaps_of_cars(share: float) -> None:
             by_lane.setdefault(v.lane_index, []).append((s, v.LENGTH))
         for row in by_lane.values():
             row.sort()
-            for (s0, l0), (s1, l1) in zip(row, row[1:], strict=False):
+            for (s0, l0), (s1, l1) in itertools.pairwise(row):
                 assert s1 - s0 - 0.5 * (l0 + l1) > 2.0
 
 
