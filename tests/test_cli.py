@@ -48,6 +48,42 @@ def test_compare_quick_writes_csvs_and_figures(
     assert "Closed loop" in out and "both_correct" in out
 
 
+@pytest.mark.slow
+def test_compare_with_the_camera_preset_adds_tracking_and_the_conditions_frame(
+    tmp_path: Path,
+) -> None:
+    argv = ["compare", "--quick", "--roads", "1", "--frames", "6", "--episodes", "1"]
+    argv += ["--scenes", "4", "--sensor-preset", "camera", "--trucks", "0.2"]
+    assert main([*argv, "--sensor", "visibility=120", "--out", str(tmp_path), "--no-progress"]) == 0
+    with open(tmp_path / "compare.csv") as fh:
+        loop = {(r["marking_model"], r["detector"]): r for r in csv.DictReader(fh)}
+    detectors = ("naive", "aldm", "aldm_tracking", "ground_truth")
+    assert set(loop) == {(m, d) for m in ("per_dash", "editor") for d in detectors}
+    # visibility 120 m (wins over the preset's 150 m): no detected line reaches further
+    assert float(loop[("per_dash", "aldm")]["mean_preview_m"]) <= 120.0
+    assert float(loop[("per_dash", "ground_truth")]["both_correct"]) == 1.0
+    assert (tmp_path / "frame_conditions.png").stat().st_size > 10_000
+
+
+def test_conditions_on_and_detector_variants() -> None:
+    import argparse
+
+    from aldm_gym.agents.comparison import compare_closed_loop
+    from aldm_gym.cli.compare import conditions_on, sensor_settings
+
+    assert not conditions_on({})
+    assert not conditions_on({"lateral_noise": 0.1, "dropout": 0.2})
+    assert conditions_on({"preset": "camera"})
+    assert conditions_on({"occlusion": True})
+    assert conditions_on({"preset": "camera", "occlusion": False})  # the rest stay on
+    args = argparse.Namespace(
+        sensor_preset="camera", sensor=[("occlusion", False)], noise=0.05, dropout=None
+    )
+    assert sensor_settings(args) == {"preset": "camera", "occlusion": False, "lateral_noise": 0.05}
+    with pytest.raises(ValueError, match=r"unknown detector\(s\) \['aldm_tracker'\]"):
+        compare_closed_loop([0], detectors=["aldm_tracker"])
+
+
 def test_headline_naive_fails_on_per_dash_aldm_holds() -> None:
     base = HighwayRoad({"seed": 5})
     roads = [base, base.with_marking_model("editor")]

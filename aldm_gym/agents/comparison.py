@@ -4,7 +4,8 @@ For every marking model and detector, the LKA with IDLE and the rule-based LCA d
 the same seeded ``ALDMHighway-v0`` episodes; :func:`compare_closed_loop` returns one
 row of ground-truth metrics per (marking model, detector) and the first IDLE
 episode's lateral-offset trace of each (for
-:func:`~aldm_gym.agents.plot.plot_offsets`).
+:func:`~aldm_gym.agents.plot.plot_offsets`). The rows are detector *variants*
+(:data:`DETECTOR_VARIANTS`): the registry's detectors and the tracking ALDM.
 """
 
 from __future__ import annotations
@@ -48,6 +49,16 @@ CLOSED_LOOP_COLUMNS: tuple[str, ...] = (
 last seven score the ACC's target selection (``info["target"]``, see
 :func:`~aldm_gym.agents.evaluation.summarize`)."""
 
+DETECTOR_VARIANTS: dict[str, tuple[str, dict[str, Any]]] = {
+    "naive": ("naive", {}),
+    "aldm": ("aldm", {}),
+    "aldm_tracking": ("aldm", {"tracking": True}),
+    "ground_truth": ("ground_truth", {}),
+}
+"""A closed-loop row's name -> the env's ``detector`` and ``detector_params``: the
+registry's detectors (:data:`~aldm_gym.sensor.detectors.DETECTORS`) and the tracking
+ALDM (stateful, so it is compared in closed loop only). Also the order of the rows."""
+
 Trace = list[tuple[float, float]]
 """``(distance from the start [m], signed lateral offset [m])`` per policy step."""
 
@@ -58,6 +69,7 @@ def compare_closed_loop(
     marking_models: Iterable[str] = MARKING_MODELS,
     detectors: Iterable[str] = DETECTORS,
     sensor: dict[str, Any] | None = None,
+    traffic: dict[str, Any] | None = None,
     min_radius: float | None = None,
     xodr: str | os.PathLike[str] | None = None,
     progress: Callable[[int], None] | None = None,
@@ -65,8 +77,10 @@ def compare_closed_loop(
     """IDLE (LKA only) and the rule-based LCA on the same seeded episodes, per detector.
 
     :param seeds: episode seeds; each policy plays each seed once per row.
+    :param detectors: row names, keys of :data:`DETECTOR_VARIANTS`.
     :param sensor: the env's ``sensor`` config section (e.g. ``lateral_noise``,
-        ``dropout``); None: the env's defaults.
+        ``dropout``, ``preset``); None: the env's defaults.
+    :param traffic: the env's ``traffic`` section (e.g. ``truck_share``); None: cars.
     :param min_radius: smallest curve radius of the generated roads [m] (None: the
         env's default).
     :param xodr: drive on this OpenDRIVE map (the env's ``road.xodr``) instead of the
@@ -80,13 +94,21 @@ def compare_closed_loop(
     if xodr is not None and min_radius is not None:
         raise ValueError("min_radius applies to generated roads, not to a map (xodr)")
     detectors = list(detectors)
+    unknown = [d for d in detectors if d not in DETECTOR_VARIANTS]
+    if unknown:
+        raise ValueError(f"unknown detector(s) {unknown}; allowed: {list(DETECTOR_VARIANTS)}")
     rows: list[dict[str, Any]] = []
     traces: dict[tuple[str, str], Trace] = {}
     for model in marking_models:
         for det in detectors:
-            config: dict[str, Any] = {"marking_model": model, "detector": det}
+            name, params = DETECTOR_VARIANTS[det]
+            config: dict[str, Any] = {"marking_model": model, "detector": name}
+            if params:
+                config["detector_params"] = dict(params)
             if sensor is not None:
                 config["sensor"] = dict(sensor)
+            if traffic is not None:
+                config["traffic"] = dict(traffic)
             if min_radius is not None:
                 config["road"] = {"min_radius": min_radius}
             if xodr is not None:
@@ -101,3 +123,106 @@ def compare_closed_loop(
             rows.append({c: row[c] for c in CLOSED_LOOP_COLUMNS})
             traces[(model, det)] = idle[0].trace
     return rows, traces
+
+
+def conditions_scene(
+    seed: int,
+    *,
+    sensor: dict[str, Any],
+    traffic: dict[str, Any] | None = None,
+    road: dict[str, Any] | None = None,
+    marking_model: str = "per_dash",
+    max_steps: int = 400,
+    settle: int = 50,
+) -> dict[str, Any]:
+    """A frame of a tracking-ALDM episode where a vehicle ahead hides marking points.
+
+    Drives IDLE (one simulation step at a time) on seed ``seed`` with the tracking
+    ALDM and the given sensor conditions and keeps, after the first ``settle`` steps
+    (the start places the traffic densely ahead), the frame with the most vehicle
+    footprint 15–80 m ahead within 6 m of the sensor's axis (the frame where the
+    occlusion shows most), then detects that same frame with the single-frame ALDM
+    and naive.
+
+    :param sensor: the env's ``sensor`` section (e.g. ``{"preset": "camera"}``).
+    :param traffic: the env's ``traffic`` section (e.g. ``{"truck_share": 0.2}``).
+    :param road: the env's ``road`` section (e.g. ``{"xodr": path}``).
+    :param max_steps: simulation steps driven (at most: the episode may end first).
+    :param settle: simulation steps not considered at the start.
+    :return: ``frame``, ``detections`` (``{"naive", "aldm", "aldm_tracking",
+        "ground_truth"} -> LaneDetection``), ``boxes`` (``(V, 4, 2)`` corners of the
+        other vehicles in the sensor frame [m]), ``step`` and ``seed``.
+    """
+    import numpy as np
+
+    from aldm_gym.envs.observation import to_sensor_frame
+    from aldm_gym.sensor.detectors import make_detector
+
+    config: dict[str, Any] = {
+        "marking_model": marking_model,
+        "detector": "aldm",
+        "detector_params": {"tracking": True},
+        "sensor": dict(sensor),
+        "policy_frequency": 10,
+    }
+    if traffic is not None:
+        config["traffic"] = dict(traffic)
+    if road is not None:
+        config["road"] = dict(road)
+    env = gym.make(ENV_ID, config=config)
+    try:
+        env.reset(seed=seed)
+        u = env.unwrapped
+        best: dict[str, Any] | None = None
+        for step in range(max_steps):
+            _, _, term, trunc, _ = env.step(1)  # IDLE
+            frame = u.frame
+            others = _others(u)
+            boxes = np.zeros((len(others), 4, 2))
+            area = 0.0
+            for i, v in enumerate(others):
+                c, s = np.cos(v.heading), np.sin(v.heading)
+                ex = np.array([c, s]) * 0.5 * v.LENGTH
+                ey = np.array([-s, c]) * 0.5 * v.WIDTH
+                corners = v.position + np.array([ex + ey, ex - ey, -ex - ey, -ex + ey])
+                rel = to_sensor_frame(corners, np.zeros((4, 2)), frame.origin, frame.yaw)
+                boxes[i] = rel[:, :2]
+                cx, cy = rel[:, 0].mean(), rel[:, 1].mean()
+                if 15.0 < cx < 80.0 and abs(cy) < 6.0:
+                    area += v.LENGTH * v.WIDTH
+            if step + 1 >= min(settle, max_steps) and (best is None or area > best["area"]):
+                best = {
+                    "area": area,
+                    "frame": frame,
+                    "boxes": boxes,
+                    "step": step + 1,
+                    "tracking": u.detection,
+                    "lane": u.lane_position.lane,
+                }
+            if term or trunc:
+                break
+        assert best is not None
+        road = u.highway
+        frame = best["frame"]
+        lane = best["lane"]
+        path_range = u.path_range
+        detections = {
+            "naive": make_detector("naive", path_range=path_range)(frame, road, lane),
+            "aldm": make_detector("aldm", path_range=path_range)(frame, road, lane),
+            "aldm_tracking": best["tracking"],
+            "ground_truth": make_detector("ground_truth", path_range=path_range)(frame, road, lane),
+        }
+        return {
+            "frame": frame,
+            "detections": detections,
+            "boxes": best["boxes"],
+            "step": best["step"],
+            "seed": seed,
+        }
+    finally:
+        env.close()
+
+
+def _others(env: Any) -> list[Any]:
+    """The env's vehicles other than the ego, in ``road.vehicles`` order."""
+    return [v for v in env.road.vehicles if v is not env.vehicle]

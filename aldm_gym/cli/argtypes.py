@@ -144,6 +144,26 @@ def config_setting(module: str, cls: str, name: str, kind: type = float) -> Call
     return parse
 
 
+def key_value(text: str) -> tuple[str, Any]:
+    """``KEY=VALUE`` (e.g. ``occlusion=true``, ``visibility=120``,
+    ``worn_stretch_length=[20,60]``): the value read as JSON when it parses
+    (numbers, ``true``/``false``, ``null``, lists), else as the string itself. The
+    key's name and value are checked where they are used."""
+    import json
+
+    key, sep, value = text.partition("=")
+    key = key.strip()
+    if not sep or not key:
+        raise argparse.ArgumentTypeError(f"must be KEY=VALUE, got {text!r}")
+    try:
+        parsed: Any = json.loads(value)
+    except json.JSONDecodeError:
+        parsed = value
+    if isinstance(parsed, float) and not math.isfinite(parsed):
+        raise argparse.ArgumentTypeError(f"{key} must be finite, got {value}")
+    return key, parsed
+
+
 def _check_parent(path: Path) -> None:
     """The nearest existing ancestor of ``path`` is a writable folder."""
     parent = path.absolute().parent

@@ -12,6 +12,13 @@ vehicles 60–150 m ahead in the ego and adjacent lanes, cut-ins), generated roa
 only: ``compare_targets.csv`` and ``compare_targets.png``. With ``--xodr PATH`` both
 halves run on that OpenDRIVE map instead of seeded generated roads (frames on its
 driving lanes, episodes with ``road.xodr``).
+
+Sensor conditions (``--sensor-preset camera``, ``--sensor KEY=VALUE``) apply to both
+halves (the open loop has no traffic, so no occlusion there) and add the tracking
+ALDM to the closed loop (``aldm_tracking``; ``--tracking`` adds it without
+conditions) and the figure ``frame_conditions.png``: a closed-loop frame with the
+vehicles, their shadows and the clutter under every detector's lines. ``--trucks``
+sets the closed loop's share of trucks.
 """
 
 from __future__ import annotations
@@ -28,6 +35,7 @@ from aldm_gym.cli.argtypes import (
     existing_file,
     finite_float,
     fraction,
+    key_value,
     make_output_dir,
     non_negative_float,
     output_dir,
@@ -62,8 +70,35 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         help="an OpenDRIVE map to compare on (instead of generated roads)",
     )
     parser.add_argument("--frames", type=positive_int, help="frames per road and model")
-    parser.add_argument("--noise", type=non_negative_float, default=0.0, help="lateral noise σ [m]")
-    parser.add_argument("--dropout", type=fraction, default=0.0, help="point dropout share")
+    parser.add_argument(
+        "--noise", type=non_negative_float, help="lateral noise σ [m] (sensor lateral_noise: 0)"
+    )
+    parser.add_argument("--dropout", type=fraction, help="point dropout share (sensor dropout: 0)")
+    parser.add_argument(
+        "--sensor-preset",
+        choices=_presets(),
+        help="sensor conditions preset (docs/sensor.md; default: CarMaker's ideal sensor)",
+    )
+    parser.add_argument(
+        "--sensor",
+        type=key_value,
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="a sensor setting, repeatable, e.g. occlusion=true worn_stretch_rate=2 "
+        "(LineSensorConfig; wins over the preset)",
+    )
+    parser.add_argument(
+        "--trucks",
+        type=fraction,
+        default=0.0,
+        help="share of trucks in the closed loop's traffic (traffic.truck_share)",
+    )
+    parser.add_argument(
+        "--tracking",
+        action="store_true",
+        help="add the tracking ALDM to the closed loop (on with sensor conditions)",
+    )
     parser.add_argument(
         "--min-radius", type=min_radius, default=500.0, help="smallest curve radius [m]"
     )
@@ -81,8 +116,55 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     return parser
 
 
+def _presets() -> list[str]:
+    from aldm_gym.sensor.line_sensor import PRESETS
+
+    return list(PRESETS)
+
+
+def sensor_settings(args: argparse.Namespace) -> dict[str, Any]:
+    """The ``sensor`` settings of the run: preset, ``--sensor`` pairs, noise, dropout.
+
+    :raises BadArgument: naming ``--sensor`` when a key is unknown (with the allowed
+        ones) or a value breaks its rule.
+    """
+    from aldm_gym.config import build_config
+    from aldm_gym.sensor.line_sensor import LineSensorConfig
+
+    settings: dict[str, Any] = {}
+    if args.sensor_preset is not None:
+        settings["preset"] = args.sensor_preset
+    settings.update(dict(args.sensor))
+    if args.noise is not None:
+        settings["lateral_noise"] = args.noise
+    if args.dropout is not None:
+        settings["dropout"] = args.dropout
+    try:
+        build_config(LineSensorConfig, settings, where="sensor")
+    except (TypeError, ValueError) as exc:
+        raise BadArgument("--sensor", str(exc)) from None
+    return settings
+
+
+def conditions_on(settings: dict[str, Any]) -> bool:
+    """Whether ``settings`` turn on a sensor condition beyond CarMaker's sensor with
+    noise and dropout (the preset, occlusion, wear, clutter, ...)."""
+    from aldm_gym.sensor.line_sensor import CONDITIONS_OFF, LineSensorConfig
+
+    config = LineSensorConfig(**settings)
+    return any(getattr(config, k) != v for k, v in CONDITIONS_OFF.items() if k != "lateral_noise")
+
+
+def _describe(settings: dict[str, Any]) -> str:
+    """The sensor settings in one phrase, e.g. ``preset camera, occlusion False``."""
+    if not settings:
+        return "CarMaker's ideal"
+    return ", ".join(f"{k} {v}" for k, v in settings.items())
+
+
 def run(args: argparse.Namespace) -> int:
     """``aldm-gym compare``: frame-level comparison, then closed-loop episodes."""
+    args.sensor_settings = sensor_settings(args)
     if args.xodr is not None:
         from aldm_gym.roads import OpenDriveRoad
 
@@ -111,7 +193,7 @@ def _compare_frames(args: argparse.Namespace, out: Path) -> list[Path]:
 
     n_roads = args.roads or (2 if args.quick else 5)
     n_frames = args.frames or (100 if args.quick else 400)
-    sensor = LineSensor({"lateral_noise": args.noise, "dropout": args.dropout})
+    sensor = LineSensor(args.sensor_settings)
     if args.xodr is not None:
         n_frames *= n_roads  # one map: as many frames as the generated roads would give
         base: list[Any] = [OpenDriveRoad.from_file(args.xodr)]
@@ -133,9 +215,9 @@ def _compare_frames(args: argparse.Namespace, out: Path) -> list[Path]:
     print(format_table(rows, COLUMNS))
     print(
         f"{'map ' + str(args.xodr) + ', ' if args.xodr else ''}"
-        f"{len(roads)} roads x {n_frames} frames, noise {args.noise} m, dropout "
-        f"{args.dropout:.0%}, {time.perf_counter() - t0:.1f} s. both_correct: both ego lines "
-        "within 0.3 m of the true markings, starting <= 25 m and reaching >= 60 m.\n"
+        f"{len(roads)} roads x {n_frames} frames, sensor {_describe(args.sensor_settings)}, "
+        f"{time.perf_counter() - t0:.1f} s. both_correct: both ego lines within 0.3 m of "
+        "the true markings, starting <= 25 m and reaching >= 60 m.\n"
     )
     written = [out / "compare_frames.csv"]
     written += _plot_naive_failure(base[0], sensor, n_frames, args.seed, out)
@@ -226,12 +308,19 @@ def _compare_closed_loop(args: argparse.Namespace, out: Path) -> list[Path]:
 
     n_ep = args.episodes or (2 if args.quick else 10)
     seeds = [args.seed + i for i in range(n_ep)]
+    settings = args.sensor_settings
+    detectors = list(DETECTORS)
+    if args.tracking or conditions_on(settings):
+        detectors.insert(detectors.index("aldm") + 1, "aldm_tracking")
+    traffic = {"truck_share": args.trucks} if args.trucks else None
     t0 = time.perf_counter()
-    total = len(MARKING_MODELS) * len(DETECTORS) * 2 * n_ep
+    total = len(MARKING_MODELS) * len(detectors) * 2 * n_ep
     with tqdm(total=total, desc="episodes", unit="ep", disable=args.no_progress) as bar:
         rows, traces = compare_closed_loop(
             seeds,
-            sensor={"lateral_noise": args.noise, "dropout": args.dropout},
+            detectors=detectors,
+            sensor=settings,
+            traffic=traffic,
             min_radius=None if args.xodr else args.min_radius,
             xodr=args.xodr,
             progress=bar.update,
@@ -244,7 +333,34 @@ def _compare_closed_loop(args: argparse.Namespace, out: Path) -> list[Path]:
         "lane changes; a departure is a wheel over a marking without a lane change.\n"
     )
     plot_offsets(traces, out / "offset.png", crashed=_crashed(traces, args))
-    return [out / "compare.csv", out / "offset.png"]
+    written = [out / "compare.csv", out / "offset.png"]
+    if conditions_on(settings):
+        written.append(_plot_conditions(args, traffic, out))
+    return written
+
+
+def _plot_conditions(args: argparse.Namespace, traffic: dict[str, Any] | None, out: Path) -> Path:
+    """``frame_conditions.png``: a closed-loop frame of the first seed under the
+    conditions, with vehicles, shadows and clutter, under every detector's lines."""
+    from aldm_gym.agents.comparison import conditions_scene
+    from aldm_gym.sensor.plot import plot_conditions_frame
+
+    scene = conditions_scene(
+        args.seed,
+        sensor=args.sensor_settings,
+        traffic=traffic,
+        road={"xodr": str(args.xodr)} if args.xodr else {"min_radius": args.min_radius},
+    )
+    trucks = f", trucks {args.trucks:.0%}" if args.trucks else ""
+    plot_conditions_frame(
+        scene,
+        out / "frame_conditions.png",
+        title=(
+            f"sensor {_describe(args.sensor_settings)}{trucks}: per_dash road, seed "
+            f"{args.seed}, step {scene['step']} (0.1 s), the frame with most vehicles ahead"
+        ),
+    )
+    return out / "frame_conditions.png"
 
 
 def _crashed(traces: dict[tuple[str, str], list[Any]], args: argparse.Namespace) -> dict:

@@ -146,6 +146,7 @@ def plot_frames(
 DETECTOR_STYLE = {
     "naive": ("naive", "tab:red"),
     "aldm": ("ALDM", "tab:blue"),
+    "aldm_tracking": ("ALDM tracking", "tab:cyan"),
     "ground_truth": ("ground truth", "0.45"),
 }
 """Legend name and colour of each detector in the comparison figures."""
@@ -228,3 +229,93 @@ def _fmt(v: Any) -> str:
     if isinstance(v, float | np.floating):
         return f"{v:.3g}"
     return str(v)
+
+
+def draw_occluders(ax: Axes, boxes: np.ndarray, reach: float) -> None:
+    """Vehicles and their shadows in a frame's axes (drawn under the points).
+
+    :param boxes: ``(V, 4, 2)`` corners (x, y) of the vehicles in the sensor frame [m].
+    :param reach: how far to draw a shadow [m] (every vehicle is taller than the
+        sensor's default 1.3 m mount, so its shadow reaches the end of the range).
+    """
+    from matplotlib.patches import Polygon
+
+    for corners in boxes:
+        if not np.all(corners[:, 0] > 0.5):
+            continue  # beside or behind the sensor: no shadow ahead
+        angles = np.arctan2(corners[:, 1], corners[:, 0])
+        lo, hi = corners[int(np.argmin(angles))], corners[int(np.argmax(angles))]
+        far_lo = lo / lo[0] * reach
+        far_hi = hi / hi[0] * reach
+        shadow = np.array([lo, hi, far_hi, far_lo])
+        ax.add_patch(
+            Polygon(shadow[:, ::-1], closed=True, color="0.85", zorder=0, lw=0, label="shadow")
+        )
+    for corners in boxes:
+        ax.add_patch(
+            Polygon(corners[:, ::-1], closed=True, color="0.35", zorder=1, lw=0, label="vehicle")
+        )
+
+
+def plot_conditions_frame(scene: Mapping[str, Any], path: str | Path, *, title: str = "") -> None:
+    """One sensor frame with vehicles, shadows and clutter, under each detector's lines.
+
+    :param scene: :func:`~aldm_gym.agents.comparison.conditions_scene`'s result.
+    :param path: the PNG written.
+    :param title: the figure's title.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    frame = scene["frame"]
+    names = {
+        "naive": "naive",
+        "aldm": "ALDM (single frame)",
+        "aldm_tracking": "ALDM tracking",
+        "ground_truth": "ground truth",
+    }
+    panels = {names[k]: (frame, det) for k, det in scene["detections"].items() if k in names}
+    fig = plot_frames(panels, None, suptitle=title or None, x_max=frame.range)
+    clutter = [
+        frame.line_points(n)
+        for n in range(frame.n_lines)
+        if frame.line_marking[n] < 0 and float(np.max(np.abs(frame.line_points(n)[:, 2]))) < 0.5
+    ]
+    for ax in fig.axes:
+        draw_occluders(ax, scene["boxes"], frame.range)
+        for i, pts in enumerate(clutter):
+            ax.plot(
+                pts[:, 1],
+                pts[:, 0],
+                "x",
+                color="black",
+                ms=3.5,
+                mew=0.9,
+                label="clutter (not a marking)" if i == 0 else None,
+            )
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+
+    # One legend below the panels: the lines any panel drew, then the scene's parts.
+    lines: dict[str, Any] = {}
+    for ax in fig.axes:
+        for handle, label in zip(*ax.get_legend_handles_labels(), strict=True):
+            if label in (*LINE_NAMES, "trajectory"):
+                lines.setdefault(label, handle)
+    handles = [
+        *lines.values(),
+        Patch(color="0.35", label="vehicle"),
+        Patch(color="0.85", label="its shadow"),
+        Line2D([], [], ls="", marker="+", color="tab:green", label="points, left"),
+        Line2D([], [], ls="", marker="+", color="tab:red", label="points, right"),
+        Line2D([], [], ls="", marker="x", color="black", label="clutter (not a marking)"),
+    ]
+    for legend in list(fig.legends):
+        legend.remove()
+    fig.legend(handles=handles, loc="lower center", fontsize=9.5, ncol=5, frameon=False)
+    fig.tight_layout(rect=(0.0, 0.08, 1.0, 1.0))
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=130)
+    plt.close(fig)
