@@ -32,6 +32,18 @@ def test_subcommand_help_shows_defaults(capsys: pytest.CaptureFixture[str]) -> N
     assert "(default: 0)" in capsys.readouterr().out
 
 
+@pytest.mark.parametrize("command", ["compare", "plot", "train", "evaluate"])
+def test_help_has_no_empty_defaults(command: str, capsys: pytest.CaptureFixture[str]) -> None:
+    """Arguments without a default of their own do not read "(default: None)"."""
+    argv = [command, "--help"]
+    with pytest.raises(SystemExit):
+        main(argv)
+    out = capsys.readouterr().out
+    assert "--out" in out
+    for empty in ("(default: None)", "(default: False)", "(default: [])"):
+        assert empty not in out
+
+
 def test_python_dash_m() -> None:
     out = subprocess.run(
         [sys.executable, "-m", "aldm_gym", "--version"], capture_output=True, text=True, check=True

@@ -29,11 +29,23 @@ SUBCOMMANDS = (compare, plot, train, evaluate)
 """The subcommand modules, in the order of ``aldm-gym --help``."""
 
 
+class _DefaultsFormatter(argparse.ArgumentDefaultsHelpFormatter):
+    """Shows an argument's default, unless it has none to show (``None``, a flag's
+    ``False``, an empty list): those helps name the effective default themselves,
+    e.g. "(49152; --quick 1024)"."""
+
+    def _get_help_string(self, action: argparse.Action) -> str | None:
+        default = action.default
+        if default is None or default is False or (isinstance(default, list) and not default):
+            return action.help
+        return super()._get_help_string(action)
+
+
 class _SubcommandParser(argparse.ArgumentParser):
     """A subcommand's parser: ``--help`` shows every default."""
 
     def __init__(self, *args: object, **kwargs: object) -> None:
-        kwargs.setdefault("formatter_class", argparse.ArgumentDefaultsHelpFormatter)
+        kwargs.setdefault("formatter_class", _DefaultsFormatter)
         super().__init__(*args, **kwargs)  # type: ignore[arg-type]
 
 
