@@ -357,7 +357,7 @@ def _plot_conditions(args: argparse.Namespace, traffic: dict[str, Any] | None, o
         out / "frame_conditions.png",
         title=(
             f"sensor {_describe(args.sensor_settings)}{trucks}: per_dash road, seed "
-            f"{args.seed}, step {scene['step']} (0.1 s), the frame with most vehicles ahead"
+            f"{args.seed}, t = {scene['step'] / 10:.1f} s, the frame with most vehicles ahead"
         ),
     )
     return out / "frame_conditions.png"
