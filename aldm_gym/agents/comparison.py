@@ -155,7 +155,6 @@ def conditions_scene(
     """
     import numpy as np
 
-    from aldm_gym.envs.observation import to_sensor_frame
     from aldm_gym.sensor.detectors import make_detector
 
     config: dict[str, Any] = {
@@ -177,19 +176,10 @@ def conditions_scene(
         for step in range(max_steps):
             _, _, term, trunc, _ = env.step(1)  # IDLE
             frame = u.frame
-            others = _others(u)
-            boxes = np.zeros((len(others), 4, 2))
-            area = 0.0
-            for i, v in enumerate(others):
-                c, s = np.cos(v.heading), np.sin(v.heading)
-                ex = np.array([c, s]) * 0.5 * v.LENGTH
-                ey = np.array([-s, c]) * 0.5 * v.WIDTH
-                corners = v.position + np.array([ex + ey, ex - ey, -ex - ey, -ex + ey])
-                rel = to_sensor_frame(corners, np.zeros((4, 2)), frame.origin, frame.yaw)
-                boxes[i] = rel[:, :2]
-                cx, cy = rel[:, 0].mean(), rel[:, 1].mean()
-                if 15.0 < cx < 80.0 and abs(cy) < 6.0:
-                    area += v.LENGTH * v.WIDTH
+            boxes, areas = _footprints(_others(u), frame)
+            centre = boxes.mean(axis=1)
+            near = (centre[:, 0] > 15.0) & (centre[:, 0] < 80.0) & (np.abs(centre[:, 1]) < 6.0)
+            area = float(np.sum(areas[near]))
             if step + 1 >= min(settle, max_steps) and (best is None or area > best["area"]):
                 best = {
                     "area": area,
@@ -221,6 +211,27 @@ def conditions_scene(
         }
     finally:
         env.close()
+
+
+def _footprints(vehicles: list[Any], frame: Any) -> tuple[Any, Any]:
+    """``(V, 4, 2)`` corners (x, y) [m] of the vehicles' footprints in ``frame``'s
+    sensor frame and their ``(V,)`` areas [m²] (the boxes
+    :func:`~aldm_gym.sensor.conditions.occluder_array` gives the occlusion)."""
+    import numpy as np
+
+    from aldm_gym.envs.observation import to_sensor_frame
+    from aldm_gym.sensor.conditions import occluder_array
+
+    if not vehicles:
+        return np.zeros((0, 4, 2)), np.zeros(0)
+    box = occluder_array(vehicles)
+    c, s = np.cos(box[:, 2]), np.sin(box[:, 2])
+    ex = np.stack((c, s), axis=1) * (0.5 * box[:, 3:4])
+    ey = np.stack((-s, c), axis=1) * (0.5 * box[:, 4:5])
+    corners = box[:, None, :2] + np.stack((ex + ey, ex - ey, -ex - ey, -ex + ey), axis=1)
+    flat = corners.reshape(-1, 2)
+    rel = to_sensor_frame(flat, np.zeros_like(flat), frame.origin, frame.yaw)
+    return rel[:, :2].reshape(-1, 4, 2), box[:, 3] * box[:, 4]
 
 
 def _others(env: Any) -> list[Any]:

@@ -29,14 +29,12 @@ import numpy as np
 from highway_env.vehicle.kinematics import Vehicle
 
 from aldm_gym.config import setting, validate
+from aldm_gym.sensor.conditions import TRUCK_HEIGHT
 
-__all__ = ["CAR_LENGTH", "TRUCK_HEIGHT", "Spawner", "TrafficConfig", "TruckSpec", "make_truck"]
+__all__ = ["CAR_LENGTH", "Spawner", "TrafficConfig", "TruckSpec", "make_truck"]
 
 CAR_LENGTH: float = float(Vehicle.LENGTH)
 """highway-env's vehicle length [m] (every car's)."""
-
-TRUCK_HEIGHT = 4.0
-"""Height of a truck [m] (the occlusion's shadow length depends on it)."""
 
 
 @dataclass(frozen=True)
@@ -85,7 +83,7 @@ def make_truck(vehicle: Any, spec: TruckSpec, config: TrafficConfig) -> None:
     """
     vehicle.LENGTH = spec.length
     vehicle.WIDTH = config.truck_width
-    vehicle.HEIGHT = TRUCK_HEIGHT
+    vehicle.HEIGHT = TRUCK_HEIGHT  # the occlusion's height of long vehicles
     vehicle.diagonal = math.hypot(spec.length, config.truck_width)
     vehicle.target_speed = spec.speed
     vehicle.speed = min(float(vehicle.speed), spec.speed)
