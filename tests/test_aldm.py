@@ -353,6 +353,28 @@ def test_noise_free_curves_both_ego_lines_right(radius: float) -> None:
         assert all(line_ok(road, det, n) for n in EGO), seed
 
 
+@pytest.mark.parametrize("offset", [-0.7, -0.35, 0.35, 0.7])
+@pytest.mark.parametrize("radius", [np.inf, 500.0])
+def test_tar_seam_beside_a_dashed_ego_line_is_not_taken(offset: float, radius: float) -> None:
+    """A continuous seam 0.35-0.7 m beside the dashed left ego line over its first
+    80 m (either side): with the start region chained without the common shape, a
+    lane-width check between competing markings and a poorly fitting nearest point
+    yielding to a better one farther on, the line stays on the paint; the settings
+    of before (one chaining pass, merge within 1 m, no skipping) take the seam."""
+    old = {"chain_dy": 1.5, "merge_dy": 1.0, "skip_residual": 10.0}
+    wrong_before = 0
+    for seed in range(4):
+        road, pts = frame(seed, radius=radius)
+        t = road.truth(road.ego_left)
+        xs = np.arange(5.52, 80.0, 2.0) + 0.5
+        seam = np.column_stack([xs, np.interp(xs, t[:, 0], t[:, 1]) + offset, 0.0 * xs])
+        cloud = np.concatenate([pts, seam[:, : pts.shape[1]]])
+        assert line_ok(road, detect_lanes(cloud), "ego_left"), seed
+        assert line_ok(road, detect_lanes(cloud), "ego_right"), seed
+        wrong_before += not line_ok(road, detect_lanes(cloud, **old), "ego_left")
+    assert wrong_before >= 1
+
+
 def test_robust_at_5cm_noise_10pct_dropout() -> None:
     good = total = 0
     for radius in (np.inf, 500.0, -500.0, 250.0):

@@ -113,13 +113,19 @@ class ALDMParams:
         frame (|dy/dx| = 1 is 45°; a polynomial y(x) cannot follow further).
     :ivar min_seed_points: fewest start-region points a line needs.
     :ivar link_dx: start region: points chain when at most this far apart in x ...
-    :ivar link_dy: ... and this far apart in y.
+    :ivar link_dy: ... and this far apart in y (first pass, for the common shape).
+    :ivar chain_dy: second pass, the common shape taken out: points chain when at most
+        link_dx apart in x and this far apart in y (keeps a seam beside a marking
+        apart from it).
     :ivar merge_dy: chains whose offsets at the sensor differ less are one marking.
     :ivar max_ego_offset: an ego line passes within this lateral distance of the sensor.
     :ivar min_lane_width: smallest plausible lane width (lane-width estimate).
     :ivar max_lane_width: an adjacent line lies at most this far outside the ego line.
     :ivar smooth_half_width: half width of the local quadratic of smoothed output.
     :ivar tie_dx: gated candidates within this x of the nearest one compete by residual.
+    :ivar skip_residual: a winning candidate with a larger |residual| yields to the
+        nearest gated point farther in the window with at most half its residual
+        (clutter beside a dashed line, in its gaps).
     """
 
     mode: str = setting("robust", choices=MODES)
@@ -152,12 +158,14 @@ class ALDMParams:
     min_seed_points: int = setting(1, lo=1, hi=1000, integer=True)
     link_dx: float = setting(4.5, lo=0.0, lo_open=True, hi=100.0)
     link_dy: float = setting(1.5, lo=0.0, lo_open=True, hi=100.0)
-    merge_dy: float = setting(1.0, lo=0.0, hi=100.0)
+    chain_dy: float = setting(0.3, lo=0.0, lo_open=True, hi=100.0)
+    merge_dy: float = setting(0.3, lo=0.0, hi=100.0)
     max_ego_offset: float = setting(4.0, lo=0.0, lo_open=True, hi=100.0)
     min_lane_width: float = setting(2.5, lo=0.0, hi=20.0)
     max_lane_width: float = setting(5.0, lo="min_lane_width", hi=50.0)
     smooth_half_width: float = setting(20.0, lo=0.0, lo_open=True, hi=1000.0)
     tie_dx: float = setting(1.0, lo=0.0, hi=100.0)
+    skip_residual: float = setting(0.3, lo=0.0, hi=10.0)
 
     def __post_init__(self) -> None:
         validate(self, "aldm")
@@ -215,6 +223,8 @@ def _pack(params: ALDMParams) -> tuple[FloatArray, IntArray]:
         max_slope=params.max_slope,
         guide_a_std=0.5 * params.guide_curvature_std,
         guide_b_std=params.guide_heading_std,
+        chain_dy=params.chain_dy,
+        skip_residual=params.skip_residual,
     )
     ip = IntParams(
         paper=1 if params.mode == "paper" else 0,

@@ -146,56 +146,29 @@ def _cell_rows_py(geo, x_last, xa, xb, A, B, C, margin):
 _cell_rows = numba.njit(cache=True)(_cell_rows_py)
 
 
-def _grid_search_py(xs, ys, mask, geo, start, pts, x_last, A, B, C, inv, fp, sig2, search):
-    """Next point of a robust trace (§ALDM step 2 with a gate), via the grid.
+def _scan_py(
+    xs, ys, mask, geo, start, pts, x_last, A, B, C, inv, fp, sig2, x_lo, x_hi, r_max, nearest
+):
+    """The best unclaimed point with ``x_lo < x <= x_hi`` that passes the gate
+    (:func:`_gated`) with |residual| <= ``r_max``: the nearest in x (``nearest``;
+    ties: smaller residual, then smaller index) or the smallest residual (ties:
+    smaller index). Only grid cells the prediction ± gate_max crosses are visited,
+    bins in x order (``nearest`` stops at the first bin with a hit).
 
-    Among unclaimed points with ``x_last < x <= x_last + search`` that pass the
-    gate (:func:`_gated`), the nearest in x wins; gated points within ``tie_dx`` of
-    it compete by |residual| (ties: smaller (x, y)). Only grid cells the
-    prediction ± gate_max crosses are visited.
-
-    :return: index of the chosen point, or -1.
+    :return: ``(index or -1, its |residual|)``.
     """
-    n = xs.shape[0]
-    if n == 0:
-        return -1
     x0 = geo[0]
     igx = geo[1]
     gx = 1.0 / igx
     nx = int(geo[4])
     ny = int(geo[5])
-    x_hi = x_last + search
-    tie_dx = fp[P.tie_dx]
     gm = fp[P.gate_max]
-    bx0 = min(int((x_last - x0) * igx), nx - 1) if x_last >= x0 else 0
-    bx1 = min(int((x_hi - x0) * igx), nx - 1)
-    # pass 1: the nearest gated x (bins are visited in x order)
-    x_first = np.inf
-    bx_first = -1
-    for bx in range(bx0, bx1 + 1):
-        xa = max(x0 + bx * gx, x_last)
-        xb = min(x0 + (bx + 1) * gx, x_hi)
-        by0, by1 = _cell_rows(geo, x_last, xa, xb, A, B, C, gm)
-        for by in range(by0, by1 + 1):
-            c = bx * ny + by
-            for q in range(start[c], start[c + 1]):
-                k = pts[q]
-                x = xs[k]
-                if x <= x_last or x > x_hi or mask[k] != 0 or x >= x_first:
-                    continue
-                if _gated(xs, ys, k, x_last, A, B, C, inv, fp, sig2) >= 0.0:
-                    x_first = x
-        if x_first < np.inf:
-            bx_first = bx
-            break
-    if bx_first < 0:
-        return -1
-    # pass 2: smallest residual among gated points within tie_dx of x_first
-    x_tie = min(x_first + tie_dx, x_hi)
-    bx2 = min(int((x_tie - x0) * igx), nx - 1)
+    bx_lo = min(int((x_lo - x0) * igx), nx - 1) if x_lo >= x0 else 0
+    bx_hi = min(int((x_hi - x0) * igx), nx - 1)
     best = -1
+    best_x = np.inf
     best_r = np.inf
-    for bx in range(bx_first, bx2 + 1):
+    for bx in range(bx_lo, bx_hi + 1):
         xa = max(x0 + bx * gx, x_last)
         xb = min(x0 + (bx + 1) * gx, x_hi)
         by0, by1 = _cell_rows(geo, x_last, xa, xb, A, B, C, gm)
@@ -204,13 +177,73 @@ def _grid_search_py(xs, ys, mask, geo, start, pts, x_last, A, B, C, inv, fp, sig
             for q in range(start[c], start[c + 1]):
                 k = pts[q]
                 x = xs[k]
-                if x < x_first or x > x_tie or mask[k] != 0:
+                if x <= x_lo or x > x_hi or mask[k] != 0 or (nearest and x > best_x):
                     continue
                 r = _gated(xs, ys, k, x_last, A, B, C, inv, fp, sig2)
-                if r >= 0.0 and (r < best_r or (r == best_r and k < best)):
-                    best_r = r
+                if r < 0.0 or r > r_max:
+                    continue
+                if (nearest and x < best_x) or r < best_r or (r == best_r and k < best):
                     best = k
-    return best
+                    best_x = x
+                    best_r = r
+        if nearest and best >= 0:
+            break
+    return best, best_r
+
+
+_scan = numba.njit(cache=True)(_scan_py)
+
+
+def _grid_search_py(xs, ys, mask, geo, start, pts, x_last, A, B, C, inv, fp, sig2, search):
+    """Next point of a robust trace (§ALDM step 2 with a gate), via the grid.
+
+    Among unclaimed points with ``x_last < x <= x_last + search`` that pass the
+    gate (:func:`_gated`), the nearest in x wins; gated points within ``tie_dx`` of
+    it compete by |residual| (ties: smaller (x, y)). If the winner's residual exceeds
+    ``skip_residual``, the nearest gated point farther in the window with at most half
+    that residual wins instead (clutter beside a dashed line fills its gaps).
+
+    :return: index of the chosen point, or -1.
+    """
+    if xs.shape[0] == 0:
+        return -1
+    x_hi = x_last + search
+    first, _ = _scan(
+        xs, ys, mask, geo, start, pts, x_last, A, B, C, inv, fp, sig2, x_last, x_hi, np.inf, True
+    )
+    if first < 0:
+        return -1
+    # the nearest x and the points up to tie_dx beyond it compete by residual
+    x_first = xs[first]
+    x_tie = min(x_first + fp[P.tie_dx], x_hi)
+    x_below = np.nextafter(x_first, -np.inf)
+    best, best_r = _scan(
+        xs, ys, mask, geo, start, pts, x_last, A, B, C, inv, fp, sig2, x_below, x_tie, np.inf, False
+    )
+    if best_r <= fp[P.skip_residual]:
+        return best
+    # a poor fit (a tar seam beside a dashed line, in the gap) yields to the nearest
+    # gated point farther in the window that fits at least twice as well
+    skip, _ = _scan(
+        xs,
+        ys,
+        mask,
+        geo,
+        start,
+        pts,
+        x_last,
+        A,
+        B,
+        C,
+        inv,
+        fp,
+        sig2,
+        x_tie,
+        x_hi,
+        0.5 * best_r,
+        True,
+    )
+    return skip if skip >= 0 else best
 
 
 _grid_search = numba.njit(cache=True)(_grid_search_py)

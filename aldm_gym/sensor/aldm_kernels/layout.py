@@ -51,6 +51,8 @@ class FloatParams(NamedTuple):
     max_slope: float  # robust: a trace stops where its slope |dy/dx| exceeds this [-]
     guide_a_std: float  # robust: prior std of a about the guide line's [1/m]
     guide_b_std: float  # robust: prior std of the slope about the guide line's [-]
+    chain_dy: float  # robust seeds: ... second pass, shape removed: this far apart in y
+    skip_residual: float  # robust: a nearest point fitting worse yields to a better one
 
 
 class IntParams(NamedTuple):

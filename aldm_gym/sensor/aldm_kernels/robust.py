@@ -36,6 +36,12 @@ GUIDE_STEP = 2.0
 """x step of the guide's shape table [m]."""
 MAX_SHAPE_OUTLIERS = 3
 """Start-region chains that may be left out of the common shape as not parallel."""
+SHAPE_MAX_RMS = 0.5
+"""A start-region chain whose RMS residual under the common shape exceeds this [m] is
+left out of the shape as not parallel (:func:`_joint_shape`)."""
+AMBIGUITY_MARGIN = 0.1
+"""A farther candidate of an ego line replaces the nearest one only when its lane
+widths agree better by more than this [m] (:func:`_pick_ego`)."""
 
 
 def _find_py(parent, i):
@@ -195,15 +201,120 @@ def _joint_shape_py(xs, ys, comp, m, lam_a, lam_b, a_max, max_rms):
 _joint_shape = numba.njit(cache=True)(_joint_shape_py)
 
 
+def _next_group_py(g_off, g_cnt, ng, k, side, min_dist, min_seed):
+    """The nearest marking group at least ``min_dist`` from group ``k`` on ``side``
+    (+1: larger offsets, -1: smaller), or -1."""
+    g = k + (1 if side > 0.0 else -1)
+    while 0 <= g < ng:
+        if g_cnt[g] >= min_seed and side * (g_off[g] - g_off[k]) >= min_dist:
+            return g
+        g += 1 if side > 0.0 else -1
+    return -1
+
+
+_next_group = numba.njit(cache=True)(_next_group_py)
+
+
+def _lane_fit_py(g_off, g_cnt, ng, k, side, min_seed, fp):
+    """How badly group ``k`` fits as an ego line on ``side``: the difference of the
+    lane widths on its two sides [m] (inf: not judged).
+
+    The inner width runs from ``k`` to the nearest group at least min_lane_width
+    inwards (the other ego line); the outer one from ``k`` to the nearest group at
+    least min_lane_width outwards, or, without one, the lane beyond the other ego
+    line. Widths above max_lane_width do not count.
+    """
+    lo = fp[P.min_lane_width]
+    hi = fp[P.max_lane_width]
+    inner = _next_group(g_off, g_cnt, ng, k, -side, lo, min_seed)
+    if inner < 0 or abs(g_off[k] - g_off[inner]) > hi:
+        return np.inf
+    w_in = abs(g_off[k] - g_off[inner])
+    outer = _next_group(g_off, g_cnt, ng, k, side, lo, min_seed)
+    if outer >= 0 and abs(g_off[outer] - g_off[k]) <= hi:
+        return abs(abs(g_off[outer] - g_off[k]) - w_in)
+    beyond = _next_group(g_off, g_cnt, ng, inner, -side, lo, min_seed)
+    if beyond >= 0 and abs(g_off[inner] - g_off[beyond]) <= hi:
+        return abs(abs(g_off[inner] - g_off[beyond]) - w_in)
+    return np.inf
+
+
+_lane_fit = numba.njit(cache=True)(_lane_fit_py)
+
+
+def _pick_ego_py(g_off, g_cnt, ng, side, min_seed, fp):
+    """The ego line's marking group on ``side`` (+1 left, -1 right), or -1.
+
+    The nearest group with offset in (0, max_ego] (left) or [-max_ego, 0] (right).
+    Two groups less than min_lane_width apart cannot both bound lanes: where farther
+    groups within max_ego lie that close beyond the nearest (a tar seam or an old
+    marking beside the marking, either side of it), the one whose lane widths agree
+    best (:func:`_lane_fit`) is taken, if it beats the nearest by ``AMBIGUITY_MARGIN``.
+    """
+    max_ego = fp[P.max_ego_offset]
+    near = -1
+    g = 0 if side > 0.0 else ng - 1
+    while 0 <= g < ng:
+        off = g_off[g]
+        if g_cnt[g] >= min_seed and (
+            (side > 0.0 and 0.0 < off <= max_ego) or (side < 0.0 and -max_ego <= off <= 0.0)
+        ):
+            near = g
+            break
+        g += 1 if side > 0.0 else -1
+    if near < 0:
+        return -1
+    best = near
+    best_fit = np.inf
+    g = near + (1 if side > 0.0 else -1)
+    while 0 <= g < ng and side * (g_off[g] - g_off[near]) < fp[P.min_lane_width]:
+        if g_cnt[g] >= min_seed and abs(g_off[g]) <= max_ego:
+            if best_fit == np.inf:
+                best_fit = _lane_fit(g_off, g_cnt, ng, near, side, min_seed, fp)
+            fit = _lane_fit(g_off, g_cnt, ng, g, side, min_seed, fp)
+            if fit + AMBIGUITY_MARGIN < best_fit:
+                best = g
+                best_fit = fit
+        g += 1 if side > 0.0 else -1
+    return best
+
+
+_pick_ego = numba.njit(cache=True)(_pick_ego_py)
+
+
+def _pick_adjacent_py(g_off, g_cnt, ng, ego, side, w_ego, min_seed, fp):
+    """The adjacent line's group beyond ego line group ``ego`` on ``side``, or -1:
+    of the groups adjacent_offset..max_lane_width beyond it, the one whose lane width
+    is nearest ``w_ego`` (ties: the nearest)."""
+    best = -1
+    best_d = np.inf
+    g = ego + (1 if side > 0.0 else -1)
+    while 0 <= g < ng:
+        d = side * (g_off[g] - g_off[ego])
+        if d > fp[P.max_lane_width]:
+            break
+        if g_cnt[g] >= min_seed and d >= fp[P.adjacent_offset] and abs(d - w_ego) < best_d:
+            best_d = abs(d - w_ego)
+            best = g
+        g += 1 if side > 0.0 else -1
+    return best
+
+
+_pick_adjacent = numba.njit(cache=True)(_pick_adjacent_py)
+
+
 def _robust_seeds_py(xs, ys, m, fp, ip, lam_a, lam_b, label, offsets):
     """Robust start condition: seed points of the four lines (``label`` per point).
 
     Chains of start-region points are placed by their offset at x = 0 under the
-    common shape (:func:`_joint_shape`); chains whose offsets differ by less than
-    ``merge_dy`` are pieces of one marking (e.g. two dashes). The left ego line is
-    the nearest marking with offset in (0, max_ego], the right one the nearest in
-    [-max_ego, 0]; adjacent lines are the nearest markings at least ``adj_offset``
-    and at most ``max_lane`` outside them. A marking needs ``min_seed`` points.
+    common shape (:func:`_joint_shape`), then chained again with that shape taken
+    out (``chain_dy``), which keeps a seam beside a dashed marking out of its chain;
+    chains whose offsets differ by less than ``merge_dy`` are pieces of one marking
+    (e.g. two dashes). The left ego line is the nearest marking with offset in
+    (0, max_ego], the right one the nearest in [-max_ego, 0], unless a marking close
+    beyond it fits the lane widths better (:func:`_pick_ego`); adjacent lines lie
+    ``adj_offset``..``max_lane`` outside them (:func:`_pick_adjacent`). A marking
+    needs ``min_seed`` points.
     Judging by the offset at x = 0 rather than by |y| of single points is what keeps
     a marking that crosses the car's axis within 23.5 m (R ~ 100 m) on its own side.
 
@@ -215,7 +326,17 @@ def _robust_seeds_py(xs, ys, m, fp, ip, lam_a, lam_b, label, offsets):
     if m == 0:
         return 0.0, 0.0
     comp = _seed_chains(xs, ys, m, fp[P.link_dx], fp[P.link_dy])
-    a, b, c, cnt = _joint_shape(xs, ys, comp, m, lam_a, lam_b, fp[P.a_max], 0.5 * fp[P.merge_dy])
+    a, b, c, cnt = _joint_shape(xs, ys, comp, m, lam_a, lam_b, fp[P.a_max], SHAPE_MAX_RMS)
+    # Second pass, with the common shape taken out: every marking is then a level
+    # row, and points chain only within chain_dy of each other. A tar seam or an old
+    # marking beside a dashed marking, which the first pass linked into the dashes
+    # (nothing else lies within link_dx of a dash's first point), becomes a chain of
+    # its own.
+    flat = np.empty(m)
+    for i in range(m):
+        flat[i] = ys[i] - (b + a * xs[i]) * xs[i]
+    comp = _seed_chains(xs, flat, m, fp[P.link_dx], fp[P.chain_dy])
+    a, b, c, cnt = _joint_shape(xs, ys, comp, m, lam_a, lam_b, fp[P.a_max], SHAPE_MAX_RMS)
     # Chains sorted by offset (ties: root index), then merged into markings.
     nroot = 0
     roots = np.empty(m, dtype=np.int64)
@@ -245,34 +366,25 @@ def _robust_seeds_py(xs, ys, m, fp, ip, lam_a, lam_b, label, offsets):
         g_off[g] /= g_cnt[g]
     min_seed = ip[I.min_seed_points]
     chosen = np.full(N_LINES, -1, dtype=np.int64)
-    # Ego lines: the nearest marking on each side within max_ego.
-    for g in range(ng):
-        if g_cnt[g] < min_seed:
-            continue
-        off = g_off[g]
-        if 0.0 < off <= fp[P.max_ego_offset] and chosen[L_EGO_LEFT] < 0:
-            chosen[L_EGO_LEFT] = g
-    for g in range(ng - 1, -1, -1):
-        if g_cnt[g] < min_seed:
-            continue
-        off = g_off[g]
-        if -fp[P.max_ego_offset] <= off <= 0.0 and chosen[L_EGO_RIGHT] < 0:
-            chosen[L_EGO_RIGHT] = g
-    # Adjacent lines: nearest marking outside the ego line on its side.
+    # Ego lines: the nearest marking on each side within max_ego, unless a farther
+    # one less than min_lane_width beyond it fits the lanes better (_pick_ego).
+    chosen[L_EGO_LEFT] = _pick_ego(g_off, g_cnt, ng, 1.0, min_seed, fp)
+    chosen[L_EGO_RIGHT] = _pick_ego(g_off, g_cnt, ng, -1.0, min_seed, fp)
+    # Adjacent lines: outside the ego line on its side, between adjacent_offset and
+    # max_lane_width beyond it; of several, the one whose lane is nearest the ego
+    # lane's width (ties: the nearest).
+    if chosen[L_EGO_LEFT] >= 0 and chosen[L_EGO_RIGHT] >= 0:
+        w_ego = g_off[chosen[L_EGO_LEFT]] - g_off[chosen[L_EGO_RIGHT]]
+    else:
+        w_ego = fp[P.lane_width]
     if chosen[L_EGO_LEFT] >= 0:
-        base = g_off[chosen[L_EGO_LEFT]]
-        for g in range(ng):
-            d = g_off[g] - base
-            if g_cnt[g] >= min_seed and fp[P.adjacent_offset] <= d <= fp[P.max_lane_width]:
-                chosen[L_LEFT_ADJ] = g
-                break
+        chosen[L_LEFT_ADJ] = _pick_adjacent(
+            g_off, g_cnt, ng, chosen[L_EGO_LEFT], 1.0, w_ego, min_seed, fp
+        )
     if chosen[L_EGO_RIGHT] >= 0:
-        base = g_off[chosen[L_EGO_RIGHT]]
-        for g in range(ng - 1, -1, -1):
-            d = base - g_off[g]
-            if g_cnt[g] >= min_seed and fp[P.adjacent_offset] <= d <= fp[P.max_lane_width]:
-                chosen[L_RIGHT_ADJ] = g
-                break
+        chosen[L_RIGHT_ADJ] = _pick_adjacent(
+            g_off, g_cnt, ng, chosen[L_EGO_RIGHT], -1.0, w_ego, min_seed, fp
+        )
     for s in range(N_LINES):
         if chosen[s] >= 0:
             offsets[s] = g_off[chosen[s]]
