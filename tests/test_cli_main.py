@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 import subprocess
 import sys
 
@@ -42,6 +43,9 @@ def test_help_has_no_empty_defaults(command: str, capsys: pytest.CaptureFixture[
     assert "--out" in out
     for empty in ("(default: None)", "(default: False)", "(default: [])"):
         assert empty not in out
+    # no help names its default a second time ("(default -1) (default: -1)")
+    for chunk in re.split(r"\n  -", out):
+        assert chunk.count("default") <= 1, chunk
 
 
 def test_python_dash_m() -> None:

@@ -20,6 +20,7 @@ from aldm_gym.agents.model_evaluation import (
     summary_line,
 )
 from aldm_gym.agents.sb3 import MissingRLDependencies
+from aldm_gym.agents.training import VALIDATION_SEED
 from aldm_gym.cli.argtypes import (
     BadArgument,
     existing_file,
@@ -63,7 +64,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         "--seed",
         type=seed,
         default=EVALUATION_SEED,
-        help=f"first episode seed ({EVALUATION_SEED}; training uses 0..)",
+        help=f"first episode seed (training uses 0.., validation {VALIDATION_SEED}..)",
     )
     parser.add_argument(
         "--out", type=output_dir, default=None, help="folder for evaluation JSON (the model's)"

@@ -42,7 +42,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     )
     parser.add_argument("--road-id", help="map: the OpenDRIVE road id of the car's lane")
     parser.add_argument(
-        "--lane-id", type=int, default=-1, help="map: the OpenDRIVE lane id (default -1)"
+        "--lane-id", type=int, default=-1, help="map: the OpenDRIVE lane id"
     )
     parser.add_argument(
         "--out", type=image_file, default=Path("out/frame.png"), help="image path (.png, .pdf, ...)"
