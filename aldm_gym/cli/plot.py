@@ -41,9 +41,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         "--xodr", type=existing_file, help="an OpenDRIVE map instead of a generated road"
     )
     parser.add_argument("--road-id", help="map: the OpenDRIVE road id of the car's lane")
-    parser.add_argument(
-        "--lane-id", type=int, default=-1, help="map: the OpenDRIVE lane id"
-    )
+    parser.add_argument("--lane-id", type=int, default=-1, help="map: the OpenDRIVE lane id")
     parser.add_argument(
         "--out", type=image_file, default=Path("out/frame.png"), help="image path (.png, .pdf, ...)"
     )
