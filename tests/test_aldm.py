@@ -375,6 +375,25 @@ def test_tar_seam_beside_a_dashed_ego_line_is_not_taken(offset: float, radius: f
     assert wrong_before >= 1
 
 
+@pytest.mark.parametrize("side", [-1.0, 1.0])
+def test_old_marking_diverging_from_a_dashed_ego_line_is_not_followed(side: float) -> None:
+    """An old marking starts 0.1 m beside the dashed right ego line at x = 40 m and
+    diverges from it at 2° over 60 m: the line checks its points against the guide
+    (the other ego line) shifted by its offset and stays on the paint; with that
+    check off (``parallel_gate`` 10 m) it follows the old marking."""
+    wrong_off = 0
+    for seed in range(4):
+        road, pts = frame(seed, radius=800.0)
+        t = road.truth(road.ego_right)
+        xs = np.arange(40.0, 100.0, 2.0) + 0.7
+        dy = side * (0.1 + np.tan(np.radians(2.0)) * (xs - xs[0]))
+        old = np.column_stack([xs, np.interp(xs, t[:, 0], t[:, 1]) + dy, 0.0 * xs])
+        cloud = np.concatenate([pts, old[:, : pts.shape[1]]])
+        assert line_ok(road, detect_lanes(cloud), "ego_right"), seed
+        wrong_off += not line_ok(road, detect_lanes(cloud, parallel_gate=10.0), "ego_right")
+    assert wrong_off >= 1
+
+
 def test_robust_at_5cm_noise_10pct_dropout() -> None:
     good = total = 0
     for radius in (np.inf, 500.0, -500.0, 250.0):

@@ -126,6 +126,10 @@ class ALDMParams:
     :ivar skip_residual: a winning candidate with a larger |residual| yields to the
         nearest gated point farther in the window with at most half its residual
         (clutter beside a dashed line, in its gaps).
+    :ivar parallel_gate: a winning candidate farther than this from the guide line
+        (the first traced line) shifted by the traced line's mean offset from it
+        yields to the nearest gated point at most half as far off (an old marking
+        diverging from the paint).
     """
 
     mode: str = setting("robust", choices=MODES)
@@ -166,6 +170,7 @@ class ALDMParams:
     smooth_half_width: float = setting(20.0, lo=0.0, lo_open=True, hi=1000.0)
     tie_dx: float = setting(1.0, lo=0.0, hi=100.0)
     skip_residual: float = setting(0.3, lo=0.0, hi=10.0)
+    parallel_gate: float = setting(0.3, lo=0.0, hi=10.0)
 
     def __post_init__(self) -> None:
         validate(self, "aldm")
@@ -225,6 +230,7 @@ def _pack(params: ALDMParams) -> tuple[FloatArray, IntArray]:
         guide_b_std=params.guide_heading_std,
         chain_dy=params.chain_dy,
         skip_residual=params.skip_residual,
+        parallel_gate=params.parallel_gate,
     )
     ip = IntParams(
         paper=1 if params.mode == "paper" else 0,

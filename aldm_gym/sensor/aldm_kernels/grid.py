@@ -13,6 +13,9 @@ import numpy as np
 
 from aldm_gym.sensor.aldm_kernels.layout import P
 
+GUIDE_STEP = 2.0
+"""x step of a guide line's table [m] (:func:`_guide_dev`)."""
+
 
 def _build_grid_py(xs, ys, cell_y):
     """Bucket the sorted points into an x-by-y grid (counting sort, O(N + cells)).
@@ -146,11 +149,48 @@ def _cell_rows_py(geo, x_last, xa, xb, A, B, C, margin):
 _cell_rows = numba.njit(cache=True)(_cell_rows_py)
 
 
+def _guide_dev_py(guide, x, y):
+    """``y`` minus the guide line at ``x`` [m] (NaN outside the guide's x range).
+
+    ``guide`` is a ``(G, 4)`` table (x, slope, a, y) every :data:`GUIDE_STEP`
+    (G = 0: none); the line near ``x`` is the local quadratic of the nearest row.
+    """
+    ng = guide.shape[0]
+    if ng == 0 or x < guide[0, 0] or x > guide[ng - 1, 0]:
+        return np.nan
+    g = min(int((x - guide[0, 0]) / GUIDE_STEP + 0.5), ng - 1)
+    u = x - guide[g, 0]
+    return y - (guide[g, 3] + (guide[g, 1] + guide[g, 2] * u) * u)
+
+
+_guide_dev = numba.njit(cache=True)(_guide_dev_py)
+
+
 def _scan_py(
-    xs, ys, mask, geo, start, pts, x_last, A, B, C, inv, fp, sig2, x_lo, x_hi, r_max, nearest
+    xs,
+    ys,
+    mask,
+    geo,
+    start,
+    pts,
+    x_last,
+    A,
+    B,
+    C,
+    inv,
+    fp,
+    sig2,
+    x_lo,
+    x_hi,
+    r_max,
+    nearest,
+    guide,
+    g_off,
+    par_max,
 ):
     """The best unclaimed point with ``x_lo < x <= x_hi`` that passes the gate
-    (:func:`_gated`) with |residual| <= ``r_max``: the nearest in x (``nearest``;
+    (:func:`_gated`) with |residual| <= ``r_max`` (and, for a finite ``par_max``, lies
+    within ``par_max`` of the guide line shifted by ``g_off``): the nearest in x (``nearest``;
     ties: smaller residual, then smaller index) or the smallest residual (ties:
     smaller index). Only grid cells the prediction ± gate_max crosses are visited,
     bins in x order (``nearest`` stops at the first bin with a hit).
@@ -182,6 +222,8 @@ def _scan_py(
                 r = _gated(xs, ys, k, x_last, A, B, C, inv, fp, sig2)
                 if r < 0.0 or r > r_max:
                     continue
+                if par_max < np.inf and not abs(_guide_dev(guide, x, ys[k]) - g_off) <= par_max:
+                    continue
                 if (nearest and x < best_x) or r < best_r or (r == best_r and k < best):
                     best = k
                     best_x = x
@@ -194,7 +236,9 @@ def _scan_py(
 _scan = numba.njit(cache=True)(_scan_py)
 
 
-def _grid_search_py(xs, ys, mask, geo, start, pts, x_last, A, B, C, inv, fp, sig2, search):
+def _grid_search_py(
+    xs, ys, mask, geo, start, pts, x_last, A, B, C, inv, fp, sig2, search, guide, g_off
+):
     """Next point of a robust trace (§ALDM step 2 with a gate), via the grid.
 
     Among unclaimed points with ``x_last < x <= x_last + search`` that pass the
@@ -203,28 +247,18 @@ def _grid_search_py(xs, ys, mask, geo, start, pts, x_last, A, B, C, inv, fp, sig
     ``skip_residual``, the nearest gated point farther in the window with at most half
     that residual wins instead (clutter beside a dashed line fills its gaps).
 
+    Markings are parallel: with a guide line (``guide``, see :func:`_guide_dev`) and
+    the traced line's mean offset from it (``g_off``; NaN: not known), a winner more
+    than ``parallel_gate`` off the guide shifted by that offset yields to the nearest
+    gated point in the window at most half as far off (an old marking diverging from
+    the paint at a small angle, while the paint goes on).
+
     :return: index of the chosen point, or -1.
     """
     if xs.shape[0] == 0:
         return -1
     x_hi = x_last + search
     first, _ = _scan(
-        xs, ys, mask, geo, start, pts, x_last, A, B, C, inv, fp, sig2, x_last, x_hi, np.inf, True
-    )
-    if first < 0:
-        return -1
-    # the nearest x and the points up to tie_dx beyond it compete by residual
-    x_first = xs[first]
-    x_tie = min(x_first + fp[P.tie_dx], x_hi)
-    x_below = np.nextafter(x_first, -np.inf)
-    best, best_r = _scan(
-        xs, ys, mask, geo, start, pts, x_last, A, B, C, inv, fp, sig2, x_below, x_tie, np.inf, False
-    )
-    if best_r <= fp[P.skip_residual]:
-        return best
-    # a poor fit (a tar seam beside a dashed line, in the gap) yields to the nearest
-    # gated point farther in the window that fits at least twice as well
-    skip, _ = _scan(
         xs,
         ys,
         mask,
@@ -238,12 +272,97 @@ def _grid_search_py(xs, ys, mask, geo, start, pts, x_last, A, B, C, inv, fp, sig
         inv,
         fp,
         sig2,
-        x_tie,
+        x_last,
         x_hi,
-        0.5 * best_r,
+        np.inf,
         True,
+        guide,
+        g_off,
+        np.inf,
     )
-    return skip if skip >= 0 else best
+    if first < 0:
+        return -1
+    # the nearest x and the points up to tie_dx beyond it compete by residual
+    x_first = xs[first]
+    x_tie = min(x_first + fp[P.tie_dx], x_hi)
+    x_below = np.nextafter(x_first, -np.inf)
+    best, best_r = _scan(
+        xs,
+        ys,
+        mask,
+        geo,
+        start,
+        pts,
+        x_last,
+        A,
+        B,
+        C,
+        inv,
+        fp,
+        sig2,
+        x_below,
+        x_tie,
+        np.inf,
+        False,
+        guide,
+        g_off,
+        np.inf,
+    )
+    if best_r > fp[P.skip_residual]:
+        # a poor fit (a tar seam beside a dashed line, in the gap) yields to the
+        # nearest gated point farther in the window that fits at least twice as well
+        skip, _ = _scan(
+            xs,
+            ys,
+            mask,
+            geo,
+            start,
+            pts,
+            x_last,
+            A,
+            B,
+            C,
+            inv,
+            fp,
+            sig2,
+            x_tie,
+            x_hi,
+            0.5 * best_r,
+            True,
+            guide,
+            g_off,
+            np.inf,
+        )
+        if skip >= 0:
+            best = skip
+    if g_off == g_off:
+        dev = abs(_guide_dev(guide, xs[best], ys[best]) - g_off)
+        if dev > fp[P.parallel_gate]:
+            alt, _ = _scan(
+                xs,
+                ys,
+                mask,
+                geo,
+                start,
+                pts,
+                x_last,
+                A,
+                B,
+                C,
+                inv,
+                fp,
+                sig2,
+                x_last,
+                x_hi,
+                np.inf,
+                True,
+                guide,
+                g_off,
+                0.5 * dev,
+            )
+            if alt >= 0:
+                best = alt
+    return best
 
 
 _grid_search = numba.njit(cache=True)(_grid_search_py)

@@ -53,6 +53,7 @@ class FloatParams(NamedTuple):
     guide_b_std: float  # robust: prior std of the slope about the guide line's [-]
     chain_dy: float  # robust seeds: ... second pass, shape removed: this far apart in y
     skip_residual: float  # robust: a nearest point fitting worse yields to a better one
+    parallel_gate: float  # robust: a point this far off parallel to the guide yields
 
 
 class IntParams(NamedTuple):

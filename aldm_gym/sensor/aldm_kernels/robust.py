@@ -14,7 +14,7 @@ import numba
 import numpy as np
 
 from aldm_gym.sensor.aldm_kernels.fit import _ridge_solve, _smooth_at, _update_sums
-from aldm_gym.sensor.aldm_kernels.grid import _build_grid, _grid_search
+from aldm_gym.sensor.aldm_kernels.grid import GUIDE_STEP, _build_grid, _grid_search, _guide_dev
 from aldm_gym.sensor.aldm_kernels.layout import (
     L_EGO_LEFT,
     L_EGO_RIGHT,
@@ -32,8 +32,9 @@ GUIDE_MIN_POINTS = 6
 """A guide line needs this many points ..."""
 GUIDE_MIN_EXTENT = 30.0
 """... over at least this x extent [m]."""
-GUIDE_STEP = 2.0
-"""x step of the guide's shape table [m]."""
+PARALLEL_MIN_POINTS = 3
+"""A traced line's offset from the guide counts once this many of its window's
+points lie along the guide."""
 MAX_SHAPE_OUTLIERS = 3
 """Start-region chains that may be left out of the common shape as not parallel."""
 SHAPE_MAX_RMS = 0.5
@@ -414,11 +415,13 @@ def _robust_trace_py(xs, ys, first, last, a0, b0, fp, lam_a, lam_b, guide, grid,
     (x, y)). No gated point: the line ends here (exit, lane drop, end of paint).
     Nor is a line followed where it is steeper than ``max_slope``.
 
-    ``guide`` is a ``(G, 3)`` table (x, slope, a) of the shape of an already traced
-    line every 2 m (``G = 0``: none). Markings are parallel, so where the guide
-    exists its local slope and curvature are the (tighter) priors of the fit: a
-    dashed line then needs only its offset from its own points, and crosses gaps
-    along the guide's shape.
+    ``guide`` is a ``(G, 4)`` table (x, slope, a, y) of an already traced line every
+    2 m (``G = 0``: none). Markings are parallel, so where the guide exists its local
+    slope and curvature are the (tighter) priors of the fit: a dashed line then needs
+    only its offset from its own points, and crosses gaps along the guide's shape;
+    and the mean offset from the guide of the window's points (at least
+    ``PARALLEL_MIN_POINTS``) tells the next point from clutter diverging from the
+    line (:func:`_grid_search`).
     """
     hist = np.empty(HIST, dtype=np.int64)
     head = 0  # number of accepted points so far (hist is a ring)
@@ -476,8 +479,23 @@ def _robust_trace_py(xs, ys, first, last, a0, b0, fp, lam_a, lam_b, guide, grid,
         )
         if abs(B) > fp[P.max_slope]:
             break
+        # Mean offset from the guide of the window's points within its range.
+        g_off = np.nan
+        if ng > 0:
+            dsum = 0.0
+            dcnt = 0
+            for q in range(lo, head):
+                j = hist[q % HIST]
+                d = _guide_dev(guide, xs[j], ys[j])
+                if d == d:
+                    dsum += d
+                    dcnt += 1
+            if dcnt >= PARALLEL_MIN_POINTS:
+                g_off = dsum / dcnt
         geo, start, pts = grid
-        best = _grid_search(xs, ys, mask, geo, start, pts, x_last, A, B, C, inv, fp, sig2, search)
+        best = _grid_search(
+            xs, ys, mask, geo, start, pts, x_last, A, B, C, inv, fp, sig2, search, guide, g_off
+        )
         if best < 0:
             break
         x_new = xs[best]
@@ -526,7 +544,7 @@ _robust_trace = numba.njit(cache=True)(_robust_trace_py)
 
 
 def _guide_table_py(xs, ys, mask, bit, fp, a0, b0, lam_a, lam_b):
-    """Shape table ``(G, 3)`` = (x, slope, a) of a traced line every 2 m, or (0, 3).
+    """Table ``(G, 4)`` = (x, slope, a, y) of a traced line every 2 m, or (0, 4).
 
     Empty when the line has fewer than ``GUIDE_MIN_POINTS`` points or spans less
     than ``GUIDE_MIN_EXTENT`` in x.
@@ -539,24 +557,25 @@ def _guide_table_py(xs, ys, mask, bit, fp, a0, b0, lam_a, lam_b):
             idx[cnt] = i
             cnt += 1
     if cnt < GUIDE_MIN_POINTS:
-        return np.zeros((0, 3))
+        return np.zeros((0, 4))
     lx = np.empty(cnt)
     ly = np.empty(cnt)
     for k in range(cnt):
         lx[k] = xs[idx[k]]
         ly[k] = ys[idx[k]]
     if lx[cnt - 1] - lx[0] < GUIDE_MIN_EXTENT:
-        return np.zeros((0, 3))
+        return np.zeros((0, 4))
     g = int((lx[cnt - 1] - lx[0]) / GUIDE_STEP) + 1
     gx = np.empty(g)
     for j in range(g):
         gx[j] = lx[0] + GUIDE_STEP * j
-    _, gb, ga = _smooth_at(lx, ly, gx, fp[P.smooth_half_width], a0, b0, lam_a, lam_b, fp[P.a_max])
-    out = np.empty((g, 3))
+    gy, gb, ga = _smooth_at(lx, ly, gx, fp[P.smooth_half_width], a0, b0, lam_a, lam_b, fp[P.a_max])
+    out = np.empty((g, 4))
     for j in range(g):
         out[j, 0] = gx[j]
         out[j, 1] = gb[j]
         out[j, 2] = ga[j]
+        out[j, 3] = gy[j]
     return out
 
 
@@ -626,7 +645,7 @@ def _robust_detect_py(xs, ys, fp, ip, mask, offsets):
     # Trace order: larger seed first (ties: slot order); the first line traced with
     # enough support becomes the guide (shape prior) of the others.
     order = np.argsort(-size, kind="mergesort")
-    guide = np.zeros((0, 3))
+    guide = np.zeros((0, 4))
     grid = _build_grid(xs, ys, fp[P.gate_max])
     for q in range(N_LINES):
         s = order[q]
