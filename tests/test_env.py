@@ -65,6 +65,14 @@ def test_config_errors_name_the_key(config: dict, name: str) -> None:
         gym.make("ALDMHighway-v0", config=config)
 
 
+@pytest.mark.parametrize("config", ["abc", 5, [("duration", 5)]])
+def test_config_that_is_no_mapping_is_named(config: object) -> None:
+    with pytest.raises(
+        ValueError, match=r"config must be a mapping .*got " + type(config).__name__
+    ):
+        gym.make("ALDMHighway-v0", config=config)
+
+
 def test_unknown_key_lists_allowed_keys() -> None:
     with pytest.raises(ValueError, match=r"allowed keys.*vehicles_count"):
         gym.make("ALDMHighway-v0", config={"vehicle_count": 3})

@@ -163,6 +163,10 @@ class ALDMHighwayEnv(AbstractEnv):
 
     def __init__(self, config: Mapping[str, Any] | None = None, render_mode: str | None = None):
         # AbstractEnv.__init__ calls reset(): everything reset needs is set first.
+        if config is not None and not isinstance(config, Mapping):
+            raise ValueError(
+                f"config must be a mapping of settings (a dict), got {type(config).__name__}"
+            )
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(
                 f"render_mode must be one of {self.metadata['render_modes']} or None, "
