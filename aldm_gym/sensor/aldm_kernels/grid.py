@@ -166,28 +166,7 @@ def _guide_dev_py(guide, x, y):
 _guide_dev = numba.njit(cache=True)(_guide_dev_py)
 
 
-def _scan_py(
-    xs,
-    ys,
-    mask,
-    geo,
-    start,
-    pts,
-    x_last,
-    A,
-    B,
-    C,
-    inv,
-    fp,
-    sig2,
-    x_lo,
-    x_hi,
-    r_max,
-    nearest,
-    guide,
-    g_off,
-    par_max,
-):
+def _scan_py(ctx, x_lo, x_hi, r_max, nearest, par_max):
     """The best unclaimed point with ``x_lo < x <= x_hi`` that passes the gate
     (:func:`_gated`) with |residual| <= ``r_max`` (and, for a finite ``par_max``, lies
     within ``par_max`` of the guide line shifted by ``g_off``): the nearest in x (``nearest``;
@@ -195,8 +174,12 @@ def _scan_py(
     smaller index). Only grid cells the prediction ± gate_max crosses are visited,
     bins in x order (``nearest`` stops at the first bin with a hit).
 
+    ``ctx`` is the search's context, ``(xs, ys, mask, geo, start, pts, x_last, A, B,
+    C, inv, fp, sig2, guide, g_off)`` (see :func:`_grid_search`).
+
     :return: ``(index or -1, its |residual|)``.
     """
+    xs, ys, mask, geo, start, pts, x_last, A, B, C, inv, fp, sig2, guide, g_off = ctx
     x0 = geo[0]
     igx = geo[1]
     gx = 1.0 / igx
@@ -258,108 +241,25 @@ def _grid_search_py(
     if xs.shape[0] == 0:
         return -1
     x_hi = x_last + search
-    first, _ = _scan(
-        xs,
-        ys,
-        mask,
-        geo,
-        start,
-        pts,
-        x_last,
-        A,
-        B,
-        C,
-        inv,
-        fp,
-        sig2,
-        x_last,
-        x_hi,
-        np.inf,
-        True,
-        guide,
-        g_off,
-        np.inf,
-    )
+    ctx = (xs, ys, mask, geo, start, pts, x_last, A, B, C, inv, fp, sig2, guide, g_off)
+    first, _ = _scan(ctx, x_last, x_hi, np.inf, True, np.inf)
     if first < 0:
         return -1
     # the nearest x and the points up to tie_dx beyond it compete by residual
     x_first = xs[first]
     x_tie = min(x_first + fp[P.tie_dx], x_hi)
     x_below = np.nextafter(x_first, -np.inf)
-    best, best_r = _scan(
-        xs,
-        ys,
-        mask,
-        geo,
-        start,
-        pts,
-        x_last,
-        A,
-        B,
-        C,
-        inv,
-        fp,
-        sig2,
-        x_below,
-        x_tie,
-        np.inf,
-        False,
-        guide,
-        g_off,
-        np.inf,
-    )
+    best, best_r = _scan(ctx, x_below, x_tie, np.inf, False, np.inf)
     if best_r > fp[P.skip_residual]:
         # a poor fit (a tar seam beside a dashed line, in the gap) yields to the
         # nearest gated point farther in the window that fits at least twice as well
-        skip, _ = _scan(
-            xs,
-            ys,
-            mask,
-            geo,
-            start,
-            pts,
-            x_last,
-            A,
-            B,
-            C,
-            inv,
-            fp,
-            sig2,
-            x_tie,
-            x_hi,
-            0.5 * best_r,
-            True,
-            guide,
-            g_off,
-            np.inf,
-        )
+        skip, _ = _scan(ctx, x_tie, x_hi, 0.5 * best_r, True, np.inf)
         if skip >= 0:
             best = skip
     if g_off == g_off:
         dev = abs(_guide_dev(guide, xs[best], ys[best]) - g_off)
         if dev > fp[P.parallel_gate]:
-            alt, _ = _scan(
-                xs,
-                ys,
-                mask,
-                geo,
-                start,
-                pts,
-                x_last,
-                A,
-                B,
-                C,
-                inv,
-                fp,
-                sig2,
-                x_last,
-                x_hi,
-                np.inf,
-                True,
-                guide,
-                g_off,
-                0.5 * dev,
-            )
+            alt, _ = _scan(ctx, x_last, x_hi, np.inf, True, 0.5 * dev)
             if alt >= 0:
                 best = alt
     return best
