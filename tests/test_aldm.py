@@ -892,6 +892,6 @@ def test_diverging_exit_edges_do_not_tilt_the_seed_shape() -> None:
         (fp[layout.P.noise_std] / fp[layout.P.b_std]) ** 2,
     )
     right = comp[np.flatnonzero(ys[:m] == -1.89)[0]]
-    for max_rms, sign in ((np.inf, 1.0), (0.5 * fp[layout.P.merge_dy], -1.0)):
-        _, _, c, _ = robust._joint_shape_py(xs, ys, comp, m, *lam, fp[layout.P.a_max], max_rms)
+    for max_rms, sign in ((np.inf, 1.0), (robust.SHAPE_MAX_RMS, -1.0)):
+        _, _, c, _, _ = robust._joint_shape_py(xs, ys, comp, m, *lam, fp[layout.P.a_max], max_rms)
         assert np.sign(c[right]) == sign

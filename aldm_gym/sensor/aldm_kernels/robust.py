@@ -121,8 +121,9 @@ def _joint_shape_py(xs, ys, comp, m, lam_a, lam_b, a_max, max_rms):
     out of the shape (at most :data:`MAX_SHAPE_OUTLIERS` chains) and the shape refitted.
     A chain left out gets the offset at x = 0 of its own straight-line fit.
 
-    :return: ``(a, b, c, cnt)``; ``c`` and ``cnt`` (points per chain) are indexed
-        by the chain root.
+    :return: ``(a, b, c, cnt, worst)``; ``c`` and ``cnt`` (points per chain) are
+        indexed by the chain root; ``worst`` is the largest mean square residual of a
+        chain of two or more points under the common shape [m²].
     """
     cnt = np.zeros(m)
     sx = np.zeros(m)
@@ -191,12 +192,15 @@ def _joint_shape_py(xs, ys, comp, m, lam_a, lam_b, a_max, max_rms):
         if worst < 0 or _round == MAX_SHAPE_OUTLIERS:
             break
         out[worst] = True
+    worst_ms = 0.0
     for r in range(m):
+        if cnt[r] >= 2.0:
+            worst_ms = max(worst_ms, rss[r] / cnt[r])
         if out[r]:
             vx = sx2[r] - sx[r] * sx[r] / cnt[r]
             slope = (sxy[r] - sx[r] * sy[r] / cnt[r]) / vx if vx > 0.0 else b
             c[r] = (sy[r] - slope * sx[r]) / cnt[r]
-    return a, b, c, cnt
+    return a, b, c, cnt, worst_ms
 
 
 _joint_shape = numba.njit(cache=True)(_joint_shape_py)
@@ -327,17 +331,19 @@ def _robust_seeds_py(xs, ys, m, fp, ip, lam_a, lam_b, label, offsets):
     if m == 0:
         return 0.0, 0.0
     comp = _seed_chains(xs, ys, m, fp[P.link_dx], fp[P.link_dy])
-    a, b, c, cnt = _joint_shape(xs, ys, comp, m, lam_a, lam_b, fp[P.a_max], SHAPE_MAX_RMS)
-    # Second pass, with the common shape taken out: every marking is then a level
-    # row, and points chain only within chain_dy of each other. A tar seam or an old
+    a, b, c, cnt, worst = _joint_shape(xs, ys, comp, m, lam_a, lam_b, fp[P.a_max], SHAPE_MAX_RMS)
+    # Second pass, where a chain strays from the common shape by more than half
+    # chain_dy (RMS), with that shape taken out: every marking is then a level row,
+    # and points chain only within chain_dy of each other. A tar seam or an old
     # marking beside a dashed marking, which the first pass linked into the dashes
     # (nothing else lies within link_dx of a dash's first point), becomes a chain of
     # its own.
-    flat = np.empty(m)
-    for i in range(m):
-        flat[i] = ys[i] - (b + a * xs[i]) * xs[i]
-    comp = _seed_chains(xs, flat, m, fp[P.link_dx], fp[P.chain_dy])
-    a, b, c, cnt = _joint_shape(xs, ys, comp, m, lam_a, lam_b, fp[P.a_max], SHAPE_MAX_RMS)
+    if worst > 0.0625 * fp[P.chain_dy] * fp[P.chain_dy]:
+        flat = np.empty(m)
+        for i in range(m):
+            flat[i] = ys[i] - (b + a * xs[i]) * xs[i]
+        comp = _seed_chains(xs, flat, m, fp[P.link_dx], fp[P.chain_dy])
+        a, b, c, cnt, _ = _joint_shape(xs, ys, comp, m, lam_a, lam_b, fp[P.a_max], SHAPE_MAX_RMS)
     # Chains sorted by offset (ties: root index), then merged into markings.
     nroot = 0
     roots = np.empty(m, dtype=np.int64)
@@ -457,11 +463,19 @@ def _robust_trace_py(xs, ys, first, last, a0, b0, fp, lam_a, lam_b, guide, grid,
     t0 = 0.0
     t1 = 0.0
     t2 = 0.0
+    # Running sum and count of the window points' offsets from the guide (those
+    # within its x range), updated with the window like the fit's sums.
+    dsum = 0.0
+    dcnt = 0
     for q in range(head - 1, lo - 1, -1):
         j = hist[q % HIST]
         s0, s1, s2, s3, s4, t0, t1, t2 = _update_sums(
             s0, s1, s2, s3, s4, t0, t1, t2, xs[j] - x_last, ys[j], 1.0
         )
+        d = _guide_dev(guide, xs[j], ys[j])
+        if d == d:
+            dsum += d
+            dcnt += 1
     while True:
         # Priors: the guide's shape at x_last, else the start region's common shape.
         pa = a0
@@ -480,18 +494,7 @@ def _robust_trace_py(xs, ys, first, last, a0, b0, fp, lam_a, lam_b, guide, grid,
         if abs(B) > fp[P.max_slope]:
             break
         # Mean offset from the guide of the window's points within its range.
-        g_off = np.nan
-        if ng > 0:
-            dsum = 0.0
-            dcnt = 0
-            for q in range(lo, head):
-                j = hist[q % HIST]
-                d = _guide_dev(guide, xs[j], ys[j])
-                if d == d:
-                    dsum += d
-                    dcnt += 1
-            if dcnt >= PARALLEL_MIN_POINTS:
-                g_off = dsum / dcnt
+        g_off = dsum / dcnt if dcnt >= PARALLEL_MIN_POINTS else np.nan
         geo, start, pts = grid
         best = _grid_search(
             xs, ys, mask, geo, start, pts, x_last, A, B, C, inv, fp, sig2, search, guide, g_off
@@ -506,6 +509,10 @@ def _robust_trace_py(xs, ys, first, last, a0, b0, fp, lam_a, lam_b, guide, grid,
             s0, s1, s2, s3, s4, t0, t1, t2 = _update_sums(
                 s0, s1, s2, s3, s4, t0, t1, t2, xs[j] - x_last, ys[j], -1.0
             )
+            d = _guide_dev(guide, xs[j], ys[j])
+            if d == d:
+                dsum -= d
+                dcnt -= 1
             lo += 1
         mask[best] |= bit
         hist[head % HIST] = best
@@ -523,13 +530,24 @@ def _robust_trace_py(xs, ys, first, last, a0, b0, fp, lam_a, lam_b, guide, grid,
         # ... add the new point (u = 0) and drop those now more than fit_length behind.
         s0 += 1.0
         t0 += ys[best]
+        d = _guide_dev(guide, x_new, ys[best])
+        if d == d:
+            dsum += d
+            dcnt += 1
         while xs[hist[lo % HIST]] - x_last < -fit_length:
             j = hist[lo % HIST]
             s0, s1, s2, s3, s4, t0, t1, t2 = _update_sums(
                 s0, s1, s2, s3, s4, t0, t1, t2, xs[j] - x_last, ys[j], -1.0
             )
+            d = _guide_dev(guide, xs[j], ys[j])
+            if d == d:
+                dsum -= d
+                dcnt -= 1
             lo += 1
         if lo == head - 1:  # the new point alone: the sums are exact, drop the residue
+            d = _guide_dev(guide, x_new, ys[best])
+            dsum = d if d == d else 0.0
+            dcnt = 1 if d == d else 0
             s0 = 1.0
             s1 = 0.0
             s2 = 0.0
