@@ -296,58 +296,25 @@ def _grid_search_py(
         abs(_guide_dev(guide, xs[best], ys[best]) - g_off) > fp[P.parallel_gate]
     ):
         return best  # the common case: no second look (NaN offsets compare false)
-    return _second_look(
-        xs,
-        ys,
-        mask,
-        geo,
-        start,
-        pts,
-        x_last,
-        A,
-        B,
-        C,
-        inv,
-        fp,
-        sig2,
-        guide,
-        g_off,
-        x_hi,
-        x_tie,
-        best,
-        best_r,
-    )
+    ctx = (xs, ys, mask, geo, start, pts, x_last, A, B, C, inv, fp, sig2, guide, g_off)
+    return _second_look(ctx, x_hi, x_tie, best, best_r)
 
 
-def _second_look_py(
-    xs,
-    ys,
-    mask,
-    geo,
-    start,
-    pts,
-    x_last,
-    A,
-    B,
-    C,
-    inv,
-    fp,
-    sig2,
-    guide,
-    g_off,
-    x_hi,
-    x_tie,
-    best,
-    best_r,
-):
+def _second_look_py(ctx, x_hi, x_tie, best, best_r):
     """The rare second look of :func:`_grid_search` at its winner ``best``: a poor fit
     (residual above ``skip_residual``: a tar seam beside a dashed line, in the gap)
     yields to the nearest gated point farther in the window that fits at least twice
     as well; a point off the guide shifted by ``g_off`` by more than ``parallel_gate``
     (an old marking diverging from the paint) to the nearest gated point at most half
     as far off. Kept out of the search's common path, which stays as small as it was.
+    ``ctx`` is the search's context (:func:`_scan`).
     """
-    ctx = (xs, ys, mask, geo, start, pts, x_last, A, B, C, inv, fp, sig2, guide, g_off)
+    xs = ctx[0]
+    ys = ctx[1]
+    x_last = ctx[6]
+    fp = ctx[11]
+    guide = ctx[13]
+    g_off = ctx[14]
     if best_r > fp[P.skip_residual]:
         skip, _ = _scan(ctx, x_tie, x_hi, 0.5 * best_r, True, np.inf)
         if skip >= 0:
