@@ -33,8 +33,8 @@ $(VENV)/.stamp-kernels: $(KERNEL_SOURCES) | $(VENV)/.stamp-base
 	MPLBACKEND=Agg SDL_VIDEODRIVER=dummy $(BIN)/python -m aldm_gym.warmup
 	touch $@
 
-setup: $(VENV)/.stamp-base
-setup-dev: $(VENV)/.stamp-dev
+setup: $(VENV)/.stamp-base $(VENV)/.stamp-kernels
+setup-dev: $(VENV)/.stamp-dev $(VENV)/.stamp-kernels
 
 ## Main job: the naive-vs-ALDM comparison (quick default, a few minutes on 2 cores).
 demo: $(VENV)/.stamp-base $(VENV)/.stamp-kernels
