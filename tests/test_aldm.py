@@ -359,8 +359,9 @@ def test_tar_seam_beside_a_dashed_ego_line_is_not_taken(offset: float, radius: f
     """A continuous seam 0.35-0.7 m beside the dashed left ego line over its first
     80 m (either side): with the start region chained without the common shape, a
     lane-width check between competing markings and a poorly fitting nearest point
-    yielding to a better one farther on, the line stays on the paint; the settings
-    of before (one chaining pass, merge within 1 m, no skipping) take the seam."""
+    yielding to a better one farther on, the line stays on the paint; with the
+    settings of before (chaining within 1.5 m, merging within 1 m, no skipping) the
+    seam is taken at least once."""
     old = {"chain_dy": 1.5, "merge_dy": 1.0, "skip_residual": 10.0}
     wrong_before = 0
     for seed in range(4):
@@ -373,6 +374,19 @@ def test_tar_seam_beside_a_dashed_ego_line_is_not_taken(offset: float, radius: f
         assert line_ok(road, detect_lanes(cloud), "ego_right"), seed
         wrong_before += not line_ok(road, detect_lanes(cloud, **old), "ego_left")
     assert wrong_before >= 1
+
+
+def test_lane_width_check_needs_evidence_against_the_nearest_marking() -> None:
+    """Markings at -1.75 / 1.75 m, a seam at 2.6 m and one stray point at 7.3 m: the
+    nearest left marking's widths cannot be judged (5.55 m to the next one outward is
+    no lane), the seam's agree only within 0.35 m; the nearest stays. With a left
+    adjacent marking at 5.5 m it is judged and beats the seam."""
+    fp, _ = _packed(make_params(None))
+    cnt = np.array([5.0, 5.0, 5.0, 1.0])
+    assert robust._pick_ego_py(np.array([-1.75, 1.75, 2.6, 7.3]), cnt, 4, 1.0, 1, fp) == 1
+    off = np.array([-1.75, 1.25, 1.75, 5.5])  # a seam 0.5 m inside the left marking
+    assert robust._pick_ego_py(off, cnt, 4, 1.0, 1, fp) == 2
+    assert robust._pick_ego_py(off, cnt, 4, -1.0, 1, fp) == 0
 
 
 @pytest.mark.parametrize("side", [-1.0, 1.0])

@@ -114,8 +114,9 @@ class ALDMParams:
     :ivar min_seed_points: fewest start-region points a line needs.
     :ivar link_dx: start region: points chain when at most this far apart in x ...
     :ivar link_dy: ... and this far apart in y (first pass, for the common shape).
-    :ivar chain_dy: second pass, the common shape taken out: points chain when at most
-        link_dx apart in x and this far apart in y (keeps a seam beside a marking
+    :ivar chain_dy: second pass, where a chain strays from the common shape by more
+        than a quarter of this (RMS), with that shape taken out: points chain when at
+        most link_dx apart in x and this far apart in y (keeps a seam beside a marking
         apart from it).
     :ivar merge_dy: chains whose offsets at the sensor differ less are one marking.
     :ivar max_ego_offset: an ego line passes within this lateral distance of the sensor.
@@ -127,7 +128,8 @@ class ALDMParams:
         nearest gated point farther in the window with at most half its residual
         (clutter beside a dashed line, in its gaps).
     :ivar parallel_gate: a winning candidate farther than this from the guide line
-        (the first traced line) shifted by the traced line's mean offset from it
+        (the first traced line with at least 6 points over 30 m) shifted by the traced
+        line's mean offset from it
         yields to the nearest gated point at most half as far off (an old marking
         diverging from the paint).
     """

@@ -40,6 +40,9 @@ MAX_SHAPE_OUTLIERS = 3
 SHAPE_MAX_RMS = 0.5
 """A start-region chain whose RMS residual under the common shape exceeds this [m] is
 left out of the shape as not parallel (:func:`_joint_shape`)."""
+CLEAR_DY = 1.0
+"""An ego line found only in the extended start region must lie farther than this
+from every line already found [m]."""
 AMBIGUITY_MARGIN = 0.1
 """A farther candidate of an ego line replaces the nearest one only when its lane
 widths agree better by more than this [m] (:func:`_pick_ego`)."""
@@ -123,7 +126,7 @@ def _joint_shape_py(xs, ys, comp, m, lam_a, lam_b, a_max, max_rms):
 
     :return: ``(a, b, c, cnt, worst)``; ``c`` and ``cnt`` (points per chain) are
         indexed by the chain root; ``worst`` is the largest mean square residual of a
-        chain of two or more points under the common shape [m²].
+        chain of two or more points under the common shape, left out of it or not [m²].
     """
     cnt = np.zeros(m)
     sx = np.zeros(m)
@@ -254,7 +257,9 @@ def _pick_ego_py(g_off, g_cnt, ng, side, min_seed, fp):
     Two groups less than min_lane_width apart cannot both bound lanes: where farther
     groups within max_ego lie that close beyond the nearest (a tar seam or an old
     marking beside the marking, either side of it), the one whose lane widths agree
-    best (:func:`_lane_fit`) is taken, if it beats the nearest by ``AMBIGUITY_MARGIN``.
+    best (:func:`_lane_fit`) is taken, if it beats the nearest by ``AMBIGUITY_MARGIN``;
+    where the nearest's widths cannot be judged, only a candidate whose widths agree
+    within ``AMBIGUITY_MARGIN`` replaces it.
     """
     max_ego = fp[P.max_ego_offset]
     near = -1
@@ -270,12 +275,16 @@ def _pick_ego_py(g_off, g_cnt, ng, side, min_seed, fp):
     if near < 0:
         return -1
     best = near
-    best_fit = np.inf
+    best_fit = -1.0  # the nearest's fit, computed when a competitor shows up
     g = near + (1 if side > 0.0 else -1)
     while 0 <= g < ng and side * (g_off[g] - g_off[near]) < fp[P.min_lane_width]:
         if g_cnt[g] >= min_seed and abs(g_off[g]) <= max_ego:
-            if best_fit == np.inf:
+            if best_fit < 0.0:
                 best_fit = _lane_fit(g_off, g_cnt, ng, near, side, min_seed, fp)
+                if best_fit == np.inf:
+                    # The nearest cannot be judged: only a candidate whose widths
+                    # agree within the margin replaces it.
+                    best_fit = 2.0 * AMBIGUITY_MARGIN
             fit = _lane_fit(g_off, g_cnt, ng, g, side, min_seed, fp)
             if fit + AMBIGUITY_MARGIN < best_fit:
                 best = g
@@ -312,8 +321,9 @@ def _robust_seeds_py(xs, ys, m, fp, ip, lam_a, lam_b, label, offsets):
     """Robust start condition: seed points of the four lines (``label`` per point).
 
     Chains of start-region points are placed by their offset at x = 0 under the
-    common shape (:func:`_joint_shape`), then chained again with that shape taken
-    out (``chain_dy``), which keeps a seam beside a dashed marking out of its chain;
+    common shape (:func:`_joint_shape`); where a chain strays from it, they are
+    chained again with that shape taken out (``chain_dy``), which keeps a seam
+    beside a dashed marking out of its chain;
     chains whose offsets differ by less than ``merge_dy`` are pieces of one marking
     (e.g. two dashes). The left ego line is the nearest marking with offset in
     (0, max_ego], the right one the nearest in [-max_ego, 0], unless a marking close
@@ -332,8 +342,9 @@ def _robust_seeds_py(xs, ys, m, fp, ip, lam_a, lam_b, label, offsets):
         return 0.0, 0.0
     comp = _seed_chains(xs, ys, m, fp[P.link_dx], fp[P.link_dy])
     a, b, c, cnt, worst = _joint_shape(xs, ys, comp, m, lam_a, lam_b, fp[P.a_max], SHAPE_MAX_RMS)
-    # Second pass, where a chain strays from the common shape by more than half
-    # chain_dy (RMS), with that shape taken out: every marking is then a level row,
+    # Second pass, where a chain strays from the common shape by more than a quarter
+    # of chain_dy (RMS; also one left out of the shape, which may be a seam joined to
+    # a marking's dashes), with that shape taken out: every marking is then a level row,
     # and points chain only within chain_dy of each other. A tar seam or an old
     # marking beside a dashed marking, which the first pass linked into the dashes
     # (nothing else lies within link_dx of a dash's first point), becomes a chain of
@@ -418,8 +429,10 @@ def _robust_trace_py(xs, ys, first, last, a0, b0, fp, lam_a, lam_b, guide, grid,
     covariance), clipped to [gate_min, gate_max]. Among unclaimed points in
     ``(x_last, x_last + search]`` whose residual passes the gate, the nearest in x
     wins; gated points within ``tie_dx`` of it compete by |residual| (ties: smaller
-    (x, y)). No gated point: the line ends here (exit, lane drop, end of paint).
-    Nor is a line followed where it is steeper than ``max_slope``.
+    (x, y)); a winner that fits poorly, or lies off the guide (below), may yield to a
+    better point farther on (:func:`_grid_search`). No gated point: the line ends here
+    (exit, lane drop, end of paint). Nor is a line followed where it is steeper than
+    ``max_slope``.
 
     ``guide`` is a ``(G, 4)`` table (x, slope, a, y) of an already traced line every
     2 m (``G = 0``: none). Markings are parallel, so where the guide exists its local
@@ -633,7 +646,7 @@ def _robust_detect_py(xs, ys, fp, ip, mask, offsets):
                 continue
             clear = True
             for t in range(N_LINES):
-                if not math.isnan(offsets[t]) and abs(offsets[t] - off2[s]) <= fp[P.merge_dy]:
+                if not math.isnan(offsets[t]) and abs(offsets[t] - off2[s]) <= CLEAR_DY:
                     clear = False
             if (s == L_EGO_LEFT and off2[s] <= offsets[L_EGO_RIGHT]) or (
                 s == L_EGO_RIGHT and off2[s] >= offsets[L_EGO_LEFT]
