@@ -70,3 +70,15 @@ def test_verdict_calls_differences_only_when_the_data_support_them() -> None:
     assert verdict(_info([23.0] * n, idle, set(), set(range(10)))).startswith(
         "is slower than IDLE with fewer collisions"
     )
+
+
+def test_verdict_against_the_rule_based_lca() -> None:
+    n = 30
+    info = _info([25.0 + 0.1 * (i % 3) for i in range(n)], [24.0] * n, set(), set())
+    info["per_episode"]["rule_based"] = {"mean_speed": [26.0] * n, "collided": [False] * n}
+    text = verdict(info, "rule_based")
+    assert text.startswith("is slower than the rule-based LCA with no significant difference")
+    assert "vs the rule-based LCA" in text
+    assert verdict(info).startswith("is faster than IDLE")
+    with pytest.raises(ValueError, match=r"unknown baseline 'rule'.*idle.*rule_based"):
+        verdict(info, "rule")

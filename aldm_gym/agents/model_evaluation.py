@@ -149,42 +149,51 @@ def collision_test(a: list[bool], b: list[bool]) -> float:
     return float(stats.binomtest(only_a, only_a + only_b, 0.5).pvalue)
 
 
-def verdict(info: dict[str, Any]) -> str:
-    """How the model compares with IDLE, stating the uncertainty (see the module).
+BASELINES: dict[str, str] = {"idle": "IDLE", "rule_based": "the rule-based LCA"}
+"""The policies a model is compared with, by their ``per_episode`` key, and their names."""
+
+
+def verdict(info: dict[str, Any], baseline: str = "idle") -> str:
+    """How the model compares with a baseline policy (``"idle"`` or ``"rule_based"``),
+    stating the uncertainty (see the module).
 
     :param info: what :func:`evaluate` returns (its ``per_episode``).
+    :raises ValueError: an unknown baseline (naming the allowed ones).
     """
-    model, idle = info["per_episode"]["model"], info["per_episode"]["idle"]
+    if baseline not in BASELINES:
+        raise ValueError(f"unknown baseline {baseline!r}; allowed: {sorted(BASELINES)}")
+    name = BASELINES[baseline]
+    model, base = info["per_episode"]["model"], info["per_episode"][baseline]
     n = len(model["mean_speed"])
-    dv, lo, hi = paired_difference(model["mean_speed"], idle["mean_speed"])
-    p = collision_test(model["collided"], idle["collided"])
-    cm, ci = sum(model["collided"]), sum(idle["collided"])
+    dv, lo, hi = paired_difference(model["mean_speed"], base["mean_speed"])
+    p = collision_test(model["collided"], base["collided"])
+    cm, cb = sum(model["collided"]), sum(base["collided"])
     speed = (
-        f"speed {dv:+.2f} m/s vs IDLE ({CONFIDENCE:.0%} CI {lo:+.2f} to {hi:+.2f}, "
+        f"speed {dv:+.2f} m/s vs {name} ({CONFIDENCE:.0%} CI {lo:+.2f} to {hi:+.2f}, "
         "per-episode means on the same seeds)"
     )
-    crashes = f"collisions in {cm} vs {ci} of {n} episodes (paired exact test p = {p:.2f})"
+    crashes = f"collisions in {cm} vs {cb} of {n} episodes (paired exact test p = {p:.2f})"
     if n < MIN_EPISODES:
         return (
             f"inconclusive: {n} episodes are too few for a verdict (at least {MIN_EPISODES}); "
             f"{speed}; {crashes}"
         )
     if lo > 0:
-        pace = "is faster than IDLE"
+        pace = f"is faster than {name}"
     elif hi < 0:
-        pace = "is slower than IDLE"
+        pace = f"is slower than {name}"
     else:
-        pace = "is not measurably faster or slower than IDLE"
+        pace = f"is not measurably faster or slower than {name}"
     if p < SIGNIFICANCE:
-        safety = "with fewer collisions" if cm < ci else "with more collisions"
+        safety = "with fewer collisions" if cm < cb else "with more collisions"
     else:
         safety = "with no significant difference in collisions"
     return f"{pace} {safety}: {speed}; {crashes}"
 
 
 def summary_line(rows: list[dict[str, Any]], info: dict[str, Any]) -> str:
-    """One sentence on the model against IDLE and the rule-based LCA, with the
-    :func:`verdict` and its uncertainty.
+    """The model against IDLE and the rule-based LCA: a :func:`verdict` against each,
+    with its uncertainty, and the summary figures.
 
     :param rows, info: what :func:`evaluate` returns.
     """
@@ -195,7 +204,8 @@ def summary_line(rows: list[dict[str, Any]], info: dict[str, Any]) -> str:
     return (
         f"model ({info['timesteps']} steps, trained on {trained['detector']}/"
         f"{trained['marking_model']}, evaluated on {cfg['detector']}/{cfg['marking_model']}, "
-        f"{m['episodes']} episodes) {verdict(info)}. Success {m['success_rate']:.0%} "
+        f"{m['episodes']} episodes) {verdict(info)}; it "
+        f"{verdict(info, 'rule_based')}. Success {m['success_rate']:.0%} "
         f"(IDLE {idle['success_rate']:.0%}, rule-based {rule['success_rate']:.0%}), "
         f"mean speed {m['mean_speed']:.1f} m/s (IDLE {idle['mean_speed']:.1f}, rule-based "
         f"{rule['mean_speed']:.1f}), collisions {m['collisions']} (IDLE {idle['collisions']}, "
