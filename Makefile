@@ -9,7 +9,7 @@ PIP    := $(BIN)/python -m pip
 # pip resolves an unpinned torch to a multi-GB CUDA build.
 TORCH  := torch==2.13.0
 
-.PHONY: demo test bench lint clean setup setup-dev
+.PHONY: demo test test-ray bench lint clean setup setup-dev setup-ray
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -45,6 +45,26 @@ test: $(VENV)/.stamp-dev $(VENV)/.stamp-kernels
 	$(BIN)/ruff check aldm_gym tests benchmarks
 	MPLBACKEND=Agg SDL_VIDEODRIVER=dummy $(BIN)/python -m pytest -n 2 -q
 
+# The [ray] extra in a venv of its own: ray[rllib] pins gymnasium 1.2.2 where the
+# default install resolves the newest, so the package is tested under both.
+RAY_VENV := .venv-ray
+RAY_BIN  := $(RAY_VENV)/bin
+$(RAY_VENV)/.stamp: pyproject.toml
+	$(PYTHON) -m venv $(RAY_VENV)
+	$(RAY_BIN)/python -m pip install --quiet --upgrade pip
+	$(RAY_BIN)/python -m pip install --quiet $(TORCH)
+	$(RAY_BIN)/python -m pip install --quiet -e ".[rl,ray,dev]"
+	MPLBACKEND=Agg SDL_VIDEODRIVER=dummy $(RAY_BIN)/python -m aldm_gym.warmup
+	touch $@
+
+setup-ray: $(RAY_VENV)/.stamp
+
+## The suite again under the [ray] extra's pins, then the RLlib tests (a two-node cluster).
+test-ray: $(RAY_VENV)/.stamp
+	MPLBACKEND=Agg SDL_VIDEODRIVER=dummy $(RAY_BIN)/python -m pytest -n 2 -q -m "not slow" \
+		--ignore=tests/test_rllib.py
+	MPLBACKEND=Agg SDL_VIDEODRIVER=dummy $(RAY_BIN)/python -m pytest -n 2 -q tests/test_rllib.py
+
 ## Speed benchmarks (figures go to BENCHMARKS.md by hand, with the machine noted).
 bench: $(VENV)/.stamp-dev
 	$(BIN)/python -m benchmarks
@@ -54,4 +74,4 @@ lint: $(VENV)/.stamp-dev
 	$(BIN)/ruff format --check aldm_gym tests benchmarks
 
 clean:
-	rm -rf $(VENV) out .pytest_cache .ruff_cache
+	rm -rf $(VENV) $(RAY_VENV) out .pytest_cache .ruff_cache

@@ -83,9 +83,29 @@ CASES = [
     (["train", "--n-envs", "1000"], "--n-envs", "must be in [1, 64]"),
     (["train", "--n-steps", "1"], "--n-steps", "must be in [2, "),
     (["train", "--resume", "--out", "DIR/nothing"], "--resume", "nothing to resume"),
+    (["train", "--backend", "ray"], "--backend", "invalid choice: 'ray'"),
+    (["train", "--num-env-runners", "-1"], "--num-env-runners", "must be in [0, 1024]"),
+    (["train", "--address", "nohost"], "--address", "must be 'auto' or host:port"),
+    (["train", "--address", "h:99999"], "--address", "must be 'auto' or host:port"),
+    (
+        ["train", "--num-env-runners", "2", "--out", "DIR/t"],
+        "--num-env-runners",
+        "applies to --backend rllib only",
+    ),
+    (["train", "--address", "auto", "--out", "DIR/t"], "--address", "applies to --backend rllib"),
+    (
+        ["train", "--backend", "rllib", "--n-envs", "2", "--out", "DIR/t"],
+        "--n-envs",
+        "applies to --backend sb3 only",
+    ),
+    (
+        ["train", "--backend", "rllib", "--validation-freq", "0", "--out", "DIR/t"],
+        "--validation-freq",
+        "applies to --backend sb3 only",
+    ),
     # evaluate
     (["evaluate", "--model", "MISSING"], "--model", "does not exist"),
-    (["evaluate", "--model", "DIR"], "--model", "is not a file"),
+    (["evaluate", "--model", "DIR"], "--model", "no training.json next to"),
     (["evaluate", "--model", "FILE"], "--model", "no training.json next to"),
     (["evaluate", "--model", "FILE", "--seed", "-1"], "--seed", "must be in [0, 2**31 - 1]"),
     (["evaluate", "--model", "FILE", "--out", "FILE"], "--out", "exists and is not a folder"),
@@ -153,3 +173,27 @@ def test_the_installed_command_exits_2_without_traceback(tmp_path: Path) -> None
     assert run.stderr.strip().splitlines()[-1] == (
         f"aldm-gym compare: error: argument --out: {afile} exists and is not a folder"
     )
+
+
+def test_a_folder_that_is_not_an_rllib_checkpoint(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    (tmp_path / "training.json").write_text(json.dumps({"env_config": {}}))
+    (tmp_path / "rllib_model").mkdir()
+    line = usage_error(["evaluate", "--model", str(tmp_path / "rllib_model")], capsys)
+    assert "argument --model: " in line and "is a folder but not an RLlib checkpoint" in line
+
+
+def test_resuming_with_the_other_backend_is_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    record = {
+        "env_config": {"detector": "aldm", "marking_model": "per_dash"},
+        "ppo": {"n_steps": 64, "gamma": 0.8},
+    }
+    (tmp_path / "training.json").write_text(json.dumps(record))  # an SB3 training
+    line = usage_error(["train", "--resume", "--backend", "rllib", "--out", str(tmp_path)], capsys)
+    assert "argument --backend: rllib contradicts the training being resumed (sb3)" in line
+    (tmp_path / "training.json").write_text(json.dumps({**record, "backend": "rllib"}))
+    line = usage_error(["train", "--resume", "--n-envs", "2", "--out", str(tmp_path)], capsys)
+    assert "argument --n-envs: applies to --backend sb3 only" in line

@@ -50,7 +50,7 @@ def test_collision_test_counts_only_discordant_episodes() -> None:
 def test_few_episodes_are_inconclusive_whatever_the_numbers() -> None:
     n = MIN_EPISODES - 1
     text = verdict(_info([30.0 + 0.1 * i for i in range(n)], [20.0] * n, set(), set(range(n))))
-    assert text.startswith(f"inconclusive: {n} episodes are too few")
+    assert text.startswith(f"is inconclusive against IDLE: {n} episodes are too few")
     assert "95% CI" in text and "p = " in text
 
 

@@ -335,7 +335,8 @@ def test_quick_cli_with_subprocess_envs(tmp_path: Path, capsys: pytest.CaptureFi
     )
     last = capsys.readouterr().out.strip().splitlines()[-1]
     assert last.startswith("model (")
-    assert "inconclusive: 5 episodes are too few for a verdict" in last
+    assert "is inconclusive against IDLE: 5 episodes are too few for a verdict" in last
+    assert "it is inconclusive against the rule-based LCA: 5 episodes" in last
 
 
 def test_progress_postfix_and_validation_line() -> None:

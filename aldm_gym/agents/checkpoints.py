@@ -41,6 +41,7 @@ import json
 import os
 import pickle
 import re
+import shutil
 import tempfile
 import warnings
 import zipfile
@@ -188,7 +189,10 @@ def remove_temporary_files(out: Path) -> list[Path]:
     removed = []
     for folder in (Path(out), Path(out) / CHECKPOINT_DIR):
         for path in folder.glob(f".*{_TEMP_MARK}*"):
-            path.unlink(missing_ok=True)
+            if path.is_dir():  # an RLlib checkpoint folder being written
+                shutil.rmtree(path, ignore_errors=True)
+            else:
+                path.unlink(missing_ok=True)
             removed.append(path)
     return removed
 
@@ -426,6 +430,11 @@ class NormalizedModel:
         self.model = model
         self.vecnormalize = vecnormalize
 
+    @property
+    def num_timesteps(self) -> int:
+        """Policy steps the model was trained for."""
+        return int(self.model.num_timesteps)
+
     def predict(
         self,
         observation: dict[str, Any],
@@ -441,20 +450,28 @@ class NormalizedModel:
         )
 
 
-def load_policy(model_path: Path) -> tuple[NormalizedModel, dict[str, Any]]:
+def load_policy(model_path: Path) -> tuple[Any, dict[str, Any]]:
     """Load a model ``.zip`` (final, best or checkpoint) and its ``training.json``.
+
+    A folder is read as an RLlib checkpoint
+    (:func:`~aldm_gym.agents.rllib.load_rllib_policy`).
 
     :return: the policy (with its observation normalisation) and the training metadata.
     :raises FileNotFoundError: no model, or no ``training.json`` next to it or in its
         parent folder.
     :raises ValueError: the model, its normalisation or its ``training.json`` is corrupt
         (naming the file).
-    :raises MissingRLDependencies: stable-baselines3 / torch missing.
+    :raises MissingRLDependencies: stable-baselines3 / torch missing (Ray RLlib for a
+        folder).
     """
     import pickle
 
     from aldm_gym.agents.sb3 import import_sb3
 
+    if Path(model_path).is_dir():
+        from aldm_gym.agents.rllib import load_rllib_policy
+
+        return load_rllib_policy(model_path)  # type: ignore[return-value]
     import_sb3()
 
     from stable_baselines3 import PPO

@@ -103,7 +103,7 @@ def evaluate(
     info = {
         "env_config": config,
         "trained_on": meta["env_config"],
-        "timesteps": int(policy.model.num_timesteps),
+        "timesteps": int(policy.num_timesteps),
         "seeds": [seed, seed + episodes - 1],
         "per_episode": per_episode,
     }
@@ -175,7 +175,8 @@ def verdict(info: dict[str, Any], baseline: str = "idle") -> str:
     crashes = f"collisions in {cm} vs {cb} of {n} episodes (paired exact test p = {p:.2f})"
     if n < MIN_EPISODES:
         return (
-            f"inconclusive: {n} episodes are too few for a verdict (at least {MIN_EPISODES}); "
+            f"is inconclusive against {name}: {n} episodes are too few for a verdict "
+            f"(at least {MIN_EPISODES}); "
             f"{speed}; {crashes}"
         )
     if lo > 0:

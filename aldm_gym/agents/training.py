@@ -270,7 +270,7 @@ def _restore_resume_state(model: Any, path: Path) -> None:
 
 
 @contextmanager
-def _signals_as_interrupt() -> Iterator[None]:
+def signals_as_interrupt() -> Iterator[None]:
     """Turn SIGTERM into KeyboardInterrupt (``kill PID`` checkpoints like Ctrl-C)."""
 
     def handler(signum: int, frame: Any) -> None:
@@ -613,7 +613,7 @@ def _train_locked(
     interrupted = False
     t0 = time.perf_counter()
     try:
-        with _signals_as_interrupt():
+        with signals_as_interrupt():
             if timesteps > done:
                 model.learn(
                     total_timesteps=timesteps - done,

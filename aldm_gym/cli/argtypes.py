@@ -215,6 +215,27 @@ def existing_file(text: str) -> Path:
     return path
 
 
+def model_path(text: str) -> Path:
+    """A trained model: a readable ``.zip`` file (stable-baselines3) or a folder (an
+    RLlib checkpoint, checked when the command loads it)."""
+    path = Path(text)
+    if path.is_dir():
+        if not os.access(path, os.R_OK | os.X_OK):
+            raise argparse.ArgumentTypeError(f"{path} is not readable")
+        return path
+    return existing_file(text)
+
+
+def ray_address(text: str) -> str:
+    """A Ray cluster address: ``auto`` or ``host:port`` (port 1-65535)."""
+    if text == "auto":
+        return text
+    host, sep, port = text.rpartition(":")
+    if not sep or not host or not port.isdigit() or not 1 <= int(port) <= 65535:
+        raise argparse.ArgumentTypeError(f"must be 'auto' or host:port, got {text!r}")
+    return text
+
+
 def make_output_dir(path: Path, argument: str = "--out") -> Path:
     """Create the output folder ``path`` (and its parents) when the command runs.
 

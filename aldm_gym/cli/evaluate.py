@@ -1,5 +1,8 @@
 """``aldm-gym evaluate``: a trained policy against IDLE and the rule-based LCA.
 
+``--model`` is an SB3 ``.zip`` or an RLlib checkpoint folder (``--backend rllib``);
+both play the same seeds through the same code.
+
 Writes ``evaluate_<model>_<detector>_<marking model>.json`` next to the model (or to
 ``--out``) and prints the table and a one-line verdict
 (:mod:`aldm_gym.agents.model_evaluation`).
@@ -23,8 +26,8 @@ from aldm_gym.agents.sb3 import MissingRLDependencies
 from aldm_gym.agents.training import VALIDATION_SEED
 from aldm_gym.cli.argtypes import (
     BadArgument,
-    existing_file,
     make_output_dir,
+    model_path,
     output_dir,
     positive_int,
     seed,
@@ -46,7 +49,11 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         "evaluate", help="evaluate a trained policy against rule-based ones"
     )
     parser.add_argument(
-        "--model", type=existing_file, required=True, help="model .zip (or checkpoint)"
+        "--model",
+        type=model_path,
+        required=True,
+        help="model .zip or checkpoint (SB3), or checkpoint folder (RLlib: rllib_model, "
+        "checkpoints/rllib_<steps>)",
     )
     parser.add_argument(
         "--episodes",
@@ -98,11 +105,12 @@ def run(args: argparse.Namespace) -> int:
         )
     except MissingRLDependencies as exc:
         raise SystemExit(f"aldm-gym evaluate: {exc}") from None
-    except ValueError as exc:  # a corrupt model, normalisation or training.json
+    except (ValueError, FileNotFoundError) as exc:  # a corrupt model, not a checkpoint
         raise BadArgument("--model", str(exc)) from None
     out = make_output_dir(args.out or args.model.parent)
     cfg = info["env_config"]
-    path = out / f"evaluate_{args.model.stem}_{cfg['detector']}_{cfg['marking_model']}.json"
+    name = args.model.name if args.model.is_dir() else args.model.stem
+    path = out / f"evaluate_{name}_{cfg['detector']}_{cfg['marking_model']}.json"
     path.write_text(json.dumps({"rows": rows, **info}, indent=2) + "\n")
     print(f"wrote {path} ({time.perf_counter() - t0:.0f} s)")
     print(format_table(rows, EVAL_COLUMNS))

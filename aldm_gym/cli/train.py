@@ -1,11 +1,18 @@
 """``aldm-gym train``: train (or resume) a PPO lane-change policy.
 
+``--backend sb3`` (the default) trains with stable-baselines3 on this machine
+(:func:`~aldm_gym.agents.training.train`); ``--backend rllib`` with Ray RLlib on a
+local Ray instance or, with ``--address``, on a running cluster
+(:func:`~aldm_gym.agents.rllib.train_rllib`, ``docs/cluster.md``). Flags of one backend
+only are refused with the other. ``--resume`` continues with the backend of the
+training in ``--out``.
+
 Flags map onto :func:`~aldm_gym.agents.training.train`; ``--resume`` takes the env
 config and hyperparameters saved in ``<out>/training.json`` and refuses flags that
 contradict them, and restores the run's settings (budget, envs, seed, checkpoint and
 validation periods) unless a flag gives them, saying which it restored and which it
 overrode. Warnings (a stale lock taken over, a corrupt checkpoint skipped) print as one
-line each. stable-baselines3 is imported only when the command runs.
+line each. stable-baselines3 and Ray are imported only when the command runs.
 """
 
 from __future__ import annotations
@@ -51,6 +58,7 @@ from aldm_gym.cli.argtypes import (
     non_negative_int,
     output_dir,
     positive_int,
+    ray_address,
     seed,
 )
 from aldm_gym.roads.highway import MARKING_MODELS
@@ -74,6 +82,18 @@ QUICK_VALIDATION_EPISODES = 3
 MAX_N_ENVS = 64
 """Most ``--n-envs`` accepted (each is a subprocess)."""
 
+MAX_ENV_RUNNERS = 1024
+"""Most ``--num-env-runners`` accepted."""
+
+BACKENDS = ("sb3", "rllib")
+"""Training backends: stable-baselines3 (one machine), Ray RLlib (a cluster)."""
+
+_ONLY = {
+    "sb3": ("n_envs", "validation_freq", "validation_episodes"),
+    "rllib": ("num_env_runners", "address"),
+}
+"""The flags (argparse dests) of one backend only."""
+
 _ENV_CONFIG = ("aldm_gym.envs.config", "EnvConfig")
 """Where the env's config rules live (``--duration``, ``--vehicles``, ``--collision-reward``
 are checked against them)."""
@@ -82,6 +102,13 @@ are checked against them)."""
 def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     """Declare ``aldm-gym train`` and its arguments."""
     parser = subparsers.add_parser("train", help="train a PPO lane-change policy")
+    parser.add_argument(
+        "--backend",
+        choices=BACKENDS,
+        default=None,
+        help="sb3: stable-baselines3 on this machine; rllib: Ray RLlib, local or on a "
+        "cluster ([ray] extra) (sb3; --resume: the training's)",
+    )
     parser.add_argument(
         "--detector", choices=DETECTORS, default=None, help="lanes in the observation (aldm)"
     )
@@ -99,7 +126,19 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         "--n-envs",
         type=int_in(1, MAX_N_ENVS),
         default=None,
-        help="parallel envs (1; more run in subprocesses, but change the results)",
+        help="sb3: parallel envs (1; more run in subprocesses, but change the results)",
+    )
+    parser.add_argument(
+        "--num-env-runners",
+        type=int_in(0, MAX_ENV_RUNNERS),
+        default=None,
+        help="rllib: env runners, one CPU each (1; 0 samples in the driver)",
+    )
+    parser.add_argument(
+        "--address",
+        type=ray_address,
+        default=None,
+        help="rllib: a running Ray cluster, 'auto' or host:port (none: a local Ray instance)",
     )
     parser.add_argument(
         "--n-steps",
@@ -172,6 +211,28 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     return parser
 
 
+def _flag(dest: str) -> str:
+    return "--" + dest.replace("_", "-")
+
+
+def _backend(args: argparse.Namespace, meta: dict[str, Any] | None) -> str:
+    """The backend of the run: ``--backend``, else the resumed training's, else sb3;
+    refuses flags of the other backend (:class:`BadArgument`)."""
+    saved = None if meta is None else meta.get("backend", "sb3")
+    backend = args.backend or saved or "sb3"
+    if saved is not None and backend != saved:
+        raise BadArgument(
+            "--backend", f"{backend} contradicts the training being resumed ({saved}); omit it"
+        )
+    for other, dests in _ONLY.items():
+        if other == backend:
+            continue
+        for dest in dests:
+            if getattr(args, dest) is not None:
+                raise BadArgument(_flag(dest), f"applies to --backend {other} only")
+    return backend
+
+
 def _check_resume(args: argparse.Namespace, meta: dict[str, Any]) -> None:
     """Refuse flags that contradict the training being resumed (:class:`BadArgument`)."""
     cfg = meta["env_config"]
@@ -190,6 +251,30 @@ def _check_resume(args: argparse.Namespace, meta: dict[str, Any]) -> None:
                 name,
                 f"{value} contradicts the training being resumed ({saved}); omit it with --resume",
             )
+
+
+def _common_settings(args: argparse.Namespace, quick: bool) -> dict[str, Any]:
+    """The keyword arguments both backends' training functions take from the flags."""
+    n_steps = args.n_steps or (QUICK_N_STEPS if quick else PPOParams.n_steps)
+    return {
+        "detector": args.detector or "aldm",
+        "marking_model": args.marking_model or "per_dash",
+        "timesteps": args.timesteps or (QUICK_TIMESTEPS if quick else None),
+        "seed": args.seed,
+        "checkpoint_freq": args.checkpoint_freq,
+        "duration": args.duration or (QUICK_DURATION if quick else None),
+        "vehicles_count": args.vehicles,
+        "collision_reward": (
+            DEFAULT_COLLISION_REWARD if args.collision_reward is None else args.collision_reward
+        ),
+        "params": PPOParams(
+            n_steps=n_steps,
+            gamma=PPOParams.gamma if args.gamma is None else args.gamma,
+            lr_schedule=args.lr_schedule or PPOParams.lr_schedule,
+        ),
+        "resume": args.resume,
+        "progress": not args.no_progress,
+    }
 
 
 def _one_line_warning(
@@ -212,12 +297,14 @@ def run(args: argparse.Namespace) -> int:
         check_unlocked(out)
     except OutputLocked as exc:
         raise BadArgument("--out", str(exc)) from None
+    meta = None
     if args.resume:
         if not (out / TRAINING_FILE).exists():
             raise BadArgument("--resume", f"nothing to resume in {out} (no {TRAINING_FILE})")
         try:
-            _check_resume(args, read_training(out))
-        except (ValueError, KeyError, TypeError) as exc:
+            meta = read_training(out)
+            _check_resume(args, meta)
+        except (ValueError, KeyError, TypeError, AttributeError) as exc:
             raise BadArgument(
                 "--resume", f"{out / TRAINING_FILE} is not a training record ({exc!r})"
             ) from None
@@ -226,41 +313,25 @@ def run(args: argparse.Namespace) -> int:
             "--out",
             f"{out} already holds a training; pass --resume to continue it or choose another --out",
         )
+    backend = _backend(args, meta)
     make_output_dir(out)
+    if backend == "rllib":
+        return _run_rllib(args, quick)
     validation_freq = args.validation_freq
     validation_episodes = args.validation_episodes
     if quick:
         validation_freq = QUICK_VALIDATION_FREQ if validation_freq is None else validation_freq
         validation_episodes = validation_episodes or QUICK_VALIDATION_EPISODES
-    n_steps = args.n_steps or (QUICK_N_STEPS if quick else PPOParams.n_steps)
     try:
         t0 = time.perf_counter()
         with warnings.catch_warnings():
             warnings.showwarning = _one_line_warning
             model = train(
                 out,
-                detector=args.detector or "aldm",
-                marking_model=args.marking_model or "per_dash",
-                timesteps=args.timesteps or (QUICK_TIMESTEPS if quick else None),
                 n_envs=args.n_envs,
-                seed=args.seed,
-                checkpoint_freq=args.checkpoint_freq,
-                duration=args.duration or (QUICK_DURATION if quick else None),
-                vehicles_count=args.vehicles,
-                collision_reward=(
-                    DEFAULT_COLLISION_REWARD
-                    if args.collision_reward is None
-                    else args.collision_reward
-                ),
-                params=PPOParams(
-                    n_steps=n_steps,
-                    gamma=PPOParams.gamma if args.gamma is None else args.gamma,
-                    lr_schedule=args.lr_schedule or PPOParams.lr_schedule,
-                ),
                 validation_freq=validation_freq,
                 validation_episodes=validation_episodes,
-                resume=args.resume,
-                progress=not args.no_progress,
+                **_common_settings(args, quick),
             )
     except MissingRLDependencies as exc:
         raise SystemExit(f"aldm-gym train: {exc}") from None
@@ -284,4 +355,37 @@ def run(args: argparse.Namespace) -> int:
             f"{out / BEST_MODEL_FILE}; evaluate it with "
             f"aldm-gym evaluate --model {out / BEST_MODEL_FILE}"
         )
+    return 0
+
+
+def _run_rllib(args: argparse.Namespace, quick: bool) -> int:
+    """``aldm-gym train --backend rllib``."""
+    from aldm_gym.agents.rllib import MODEL_DIR, TB_RUN, train_rllib
+
+    out: Path = args.out
+    t0 = time.perf_counter()
+    try:
+        with warnings.catch_warnings():
+            warnings.showwarning = _one_line_warning
+            steps = train_rllib(
+                out,
+                num_env_runners=args.num_env_runners,
+                address=args.address,
+                **_common_settings(args, quick),
+            )
+    except MissingRLDependencies as exc:
+        raise SystemExit(f"aldm-gym train: {exc}") from None
+    except ValueError as exc:  # the cluster: absent or too small
+        raise BadArgument("--address" if args.address else "--num-env-runners", str(exc)) from None
+    except (OutputLocked, FileExistsError, FileNotFoundError) as exc:  # a race on --out
+        raise BadArgument("--out", str(exc)) from None
+    except KeyboardInterrupt:
+        return 130
+    tb = out / TENSORBOARD_DIR
+    print(
+        f"trained {steps} steps in {time.perf_counter() - t0:.0f} s; wrote {out / MODEL_DIR}, "
+        f"checkpoints in {out / CHECKPOINT_DIR}, tensorboard logs in {tb / TB_RUN} "
+        f"(tensorboard --logdir {tb}); evaluate it with "
+        f"aldm-gym evaluate --model {out / MODEL_DIR}"
+    )
     return 0

@@ -1,0 +1,205 @@
+"""Env steps per second when training: SB3's vectorised envs and RLlib's env runners.
+
+Two measurements on the training env (``ALDMHighway-v0`` with
+:func:`~aldm_gym.agents.training.env_config`'s defaults: ALDM, per-dash road, 40 s
+episodes, 20 vehicles):
+
+* **sampling**: env steps per second of SB3's ``DummyVecEnv`` and ``SubprocVecEnv`` with
+  1 and 2 envs (uniformly random meta actions, seeded) and of RLlib with 1 and 2 env
+  runners (``synchronous_parallel_sample``: the runners step with the untrained policy,
+  a 128×128 MLP forward per step, ~0.5 ms beside a ~15 ms env step); a warm-up round
+  (numba caches loaded, processes started) is not timed; then ``--rounds`` rounds of
+  ``--steps`` steps per env, the median of each configuration, configurations
+  alternating round by round. The scaling is 2 envs / 1 env of the same kind.
+* **training** (``--train-steps N``, 0 skips it): wall time of a PPO training of N
+  steps with ``aldm-gym train``'s settings, SB3 with ``--n-envs`` 1 and 2, RLlib with
+  ``--num-env-runners`` 1 and 2 (rollout ``--n-steps`` per env or runner, so an update
+  sees the same number of steps per env both ways), set-up included.
+
+RLlib's rows are skipped without the ``[ray]`` extra (run it in ``.venv-ray``). Usage::
+
+    .venv-ray/bin/python -m benchmarks.bench_throughput [--rounds 5] [--steps 128]
+        [--train-steps 4096] [--n-steps 256]
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import os
+import platform
+import statistics
+import tempfile
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+
+def _sb3_sampler(n_envs: int, subprocess: bool) -> tuple[Callable[[int], int], Callable[[], None]]:
+    """``(sample(steps_per_env) -> env steps, close)`` for an SB3 vectorised env."""
+    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
+
+    from aldm_gym.agents.training import _make_env, env_config
+
+    config = env_config()
+    fns = [lambda: _make_env(config) for _ in range(n_envs)]
+    venv = SubprocVecEnv(fns) if subprocess else DummyVecEnv(fns)
+    venv.seed(0)
+    venv.reset()
+    rng = np.random.default_rng(0)
+
+    def sample(steps: int) -> int:
+        for _ in range(steps):
+            venv.step(rng.integers(0, 5, size=n_envs))
+        return steps * n_envs
+
+    return sample, venv.close
+
+
+def _rllib_sampler(runners: int) -> tuple[Callable[[int], int], Callable[[], None]]:
+    """``(sample(steps_per_runner) -> env steps, close)`` for RLlib env runners."""
+    import ray
+    from ray.rllib.execution.rollout_ops import synchronous_parallel_sample
+
+    from aldm_gym.agents.rllib import _connect, ppo_config
+    from aldm_gym.agents.training import PPOParams, env_config
+
+    _connect(None, runners)
+    config = ppo_config(env_config(), PPOParams(), timesteps=10**6, num_env_runners=runners)
+    algo = config.build_algo()
+
+    def sample(steps: int) -> int:
+        episodes = synchronous_parallel_sample(
+            worker_set=algo.env_runner_group,
+            max_env_steps=steps * runners,
+            _uses_new_env_runners=True,
+        )
+        return int(sum(len(e) for e in episodes))
+
+    def close() -> None:
+        algo.stop()
+        ray.shutdown()
+
+    return sample, close
+
+
+def sampling(rounds: int, steps: int, with_rllib: bool) -> dict[str, float]:
+    """Median env steps/s of each configuration (alternating round by round)."""
+    makers: dict[str, Callable[[], tuple[Callable[[int], int], Callable[[], None]]]] = {
+        "SB3 DummyVecEnv, 1 env": lambda: _sb3_sampler(1, False),
+        "SB3 DummyVecEnv, 2 envs": lambda: _sb3_sampler(2, False),
+        "SB3 SubprocVecEnv, 1 env": lambda: _sb3_sampler(1, True),
+        "SB3 SubprocVecEnv, 2 envs": lambda: _sb3_sampler(2, True),
+    }
+    if with_rllib:
+        makers["RLlib, 1 env runner"] = lambda: _rllib_sampler(1)
+        makers["RLlib, 2 env runners"] = lambda: _rllib_sampler(2)
+    rates: dict[str, list[float]] = {name: [] for name in makers}
+    # A Ray instance per RLlib configuration, so each runs alone: configurations are
+    # built, warmed up and timed one after another, the rounds interleaved within each.
+    for name, make in makers.items():
+        sample, close = make()
+        try:
+            sample(max(8, steps // 8))  # warm-up: caches, processes
+            for _ in range(rounds):
+                t0 = time.perf_counter()
+                n = sample(steps)
+                rates[name].append(n / (time.perf_counter() - t0))
+        finally:
+            close()
+        print(f"{name}: {statistics.median(rates[name]):.1f} steps/s", flush=True)
+    return {name: statistics.median(r) for name, r in rates.items()}
+
+
+def training(train_steps: int, n_steps: int, with_rllib: bool) -> dict[str, float]:
+    """Wall time [s] of a training of ``train_steps`` steps per configuration."""
+    from aldm_gym.agents.training import PPOParams, train
+
+    times = {}
+    params = PPOParams(n_steps=n_steps)
+    runs: list[tuple[str, Callable[[Path], Any]]] = [
+        (
+            f"SB3, --n-envs {n}",
+            lambda out, n=n: train(
+                out,
+                timesteps=train_steps,
+                n_envs=n,
+                params=params,
+                validation_freq=0,
+                progress=False,
+            ),
+        )
+        for n in (1, 2)
+    ]
+    if with_rllib:
+        from aldm_gym.agents.rllib import train_rllib
+
+        runs += [
+            (
+                f"RLlib, --num-env-runners {n}",
+                lambda out, n=n: train_rllib(
+                    out,
+                    timesteps=train_steps,
+                    num_env_runners=n,
+                    params=params,
+                    progress=False,
+                ),
+            )
+            for n in (1, 2)
+        ]
+    for name, run in runs:
+        with tempfile.TemporaryDirectory() as tmp:
+            t0 = time.perf_counter()
+            run(Path(tmp) / "out")
+            times[name] = time.perf_counter() - t0
+        print(f"{name}: {times[name]:.0f} s for {train_steps} steps", flush=True)
+    return times
+
+
+def _scaling(rates: dict[str, float], one: str, two: str) -> str:
+    return f"{rates[two] / rates[one]:.2f}×" if one in rates and two in rates else "-"
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Print the sampling table (and the training times) as Markdown."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--rounds", type=int, default=5)
+    parser.add_argument("--steps", type=int, default=128, help="steps per env per round")
+    parser.add_argument("--train-steps", type=int, default=0, help="training budget (0: skip)")
+    parser.add_argument("--n-steps", type=int, default=256, help="rollout per env / runner")
+    args = parser.parse_args(argv)
+    with_rllib = importlib.util.find_spec("ray") is not None
+    import numba
+    import torch
+
+    print(
+        f"machine: {platform.machine()}, nproc={os.cpu_count()}, Python "
+        f"{platform.python_version()}, numba {numba.__version__}, torch {torch.__version__}, "
+        f"load {os.getloadavg()[0]:.1f}"
+    )
+    if with_rllib:
+        import ray
+
+        print(f"ray {ray.__version__}")
+    rates = sampling(args.rounds, args.steps, with_rllib)
+    print("\n| sampling | env steps/s | 2 vs 1 |\n|---|---:|---:|")
+    pairs = {
+        "SB3 DummyVecEnv, 2 envs": "SB3 DummyVecEnv, 1 env",
+        "SB3 SubprocVecEnv, 2 envs": "SB3 SubprocVecEnv, 1 env",
+        "RLlib, 2 env runners": "RLlib, 1 env runner",
+    }
+    for name, rate in rates.items():
+        scale = _scaling(rates, pairs[name], name) if name in pairs else ""
+        print(f"| {name} | {rate:.1f} | {scale} |")
+    if args.train_steps > 0:
+        times = training(args.train_steps, args.n_steps, with_rllib)
+        print(f"\n| training, {args.train_steps} steps | wall time [s] |\n|---|---:|")
+        for name, seconds in times.items():
+            print(f"| {name} | {seconds:.0f} |")
+
+
+if __name__ == "__main__":
+    main()
