@@ -9,8 +9,11 @@ episodes, 20 vehicles):
   runners (``synchronous_parallel_sample``: the runners step with the untrained policy,
   a 128×128 MLP forward per step, ~0.5 ms beside a ~15 ms env step); a warm-up round
   (numba caches loaded, processes started) is not timed; then ``--rounds`` rounds of
-  ``--steps`` steps per env, the median of each configuration, configurations
-  alternating round by round. The scaling is 2 envs / 1 env of the same kind.
+  ``--steps`` steps per env, the median of each configuration, every configuration
+  timed in every round (all are built first; RLlib's 1-runner case uses one of the same
+  two runners). The scaling is 2 envs / 1 env of the same kind. Beside them, the
+  machine's own ceiling: 1 vs 2 processes of pure-Python work, timed in the same rounds
+  (a VM's second core may be shared with other tenants).
 * **training** (``--train-steps N``, 0 skips it): wall time of a PPO training of N
   steps with ``aldm-gym train``'s settings, SB3 with ``--n-envs`` 1 and 2, RLlib with
   ``--num-env-runners`` 1 and 2 (rollout ``--n-steps`` per env or runner, so an update
@@ -37,9 +40,12 @@ from typing import Any
 
 import numpy as np
 
+Sampler = Callable[[int], int]
+"""``sample(steps per env) -> env steps done``."""
 
-def _sb3_sampler(n_envs: int, subprocess: bool) -> tuple[Callable[[int], int], Callable[[], None]]:
-    """``(sample(steps_per_env) -> env steps, close)`` for an SB3 vectorised env."""
+
+def _sb3_sampler(n_envs: int, subprocess: bool) -> tuple[Sampler, Callable[[], None]]:
+    """``(sample, close)`` for an SB3 vectorised env."""
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
     from aldm_gym.agents.training import _make_env, env_config
@@ -59,58 +65,96 @@ def _sb3_sampler(n_envs: int, subprocess: bool) -> tuple[Callable[[int], int], C
     return sample, venv.close
 
 
-def _rllib_sampler(runners: int) -> tuple[Callable[[int], int], Callable[[], None]]:
-    """``(sample(steps_per_runner) -> env steps, close)`` for RLlib env runners."""
+def _rllib_samplers() -> tuple[dict[str, Sampler], Callable[[], None]]:
+    """Samplers with 1 and 2 of the same two RLlib env runners, and ``close``."""
     import ray
-    from ray.rllib.execution.rollout_ops import synchronous_parallel_sample
 
     from aldm_gym.agents.rllib import _connect, ppo_config
     from aldm_gym.agents.training import PPOParams, env_config
 
-    _connect(None, runners)
-    config = ppo_config(env_config(), PPOParams(), timesteps=10**6, num_env_runners=runners)
+    _connect(None, 2)
+    config = ppo_config(env_config(), PPOParams(), timesteps=10**6, num_env_runners=2)
     algo = config.build_algo()
+    group = algo.env_runner_group
 
-    def sample(steps: int) -> int:
-        episodes = synchronous_parallel_sample(
-            worker_set=algo.env_runner_group,
-            max_env_steps=steps * runners,
-            _uses_new_env_runners=True,
-        )
-        return int(sum(len(e) for e in episodes))
+    def on(ids: list[int]) -> Sampler:
+        def sample(steps: int) -> int:
+            counts = group.foreach_env_runner(
+                lambda runner: sum(len(e) for e in runner.sample(num_timesteps=steps)),
+                local_env_runner=False,
+                remote_worker_ids=ids,
+            )
+            return int(sum(counts))
+
+        return sample
 
     def close() -> None:
         algo.stop()
         ray.shutdown()
 
-    return sample, close
+    return {"RLlib, 1 env runner": on([1]), "RLlib, 2 env runners": on([1, 2])}, close
+
+
+def _spin(seconds: float) -> int:
+    """Pure-Python work for ``seconds``; the loops done."""
+    end, n, x = time.perf_counter() + seconds, 0, 0
+    while time.perf_counter() < end:
+        for i in range(10_000):
+            x += i * i
+        n += 1
+    return n
+
+
+def _ceiling_samplers() -> tuple[dict[str, Sampler], Callable[[], None]]:
+    """1 and 2 processes of pure-Python work: what the machine's cores scale to."""
+    from concurrent.futures import ProcessPoolExecutor
+
+    pool = ProcessPoolExecutor(2)
+    list(pool.map(_spin, [0.1, 0.1]))
+
+    def on(n: int) -> Sampler:
+        def sample(steps: int) -> int:
+            return sum(pool.map(_spin, [steps * 0.015] * n))
+
+        return sample
+
+    return {"pure Python, 1 process": on(1), "pure Python, 2 processes": on(2)}, pool.shutdown
 
 
 def sampling(rounds: int, steps: int, with_rllib: bool) -> dict[str, float]:
-    """Median env steps/s of each configuration (alternating round by round)."""
-    makers: dict[str, Callable[[], tuple[Callable[[int], int], Callable[[], None]]]] = {
-        "SB3 DummyVecEnv, 1 env": lambda: _sb3_sampler(1, False),
-        "SB3 DummyVecEnv, 2 envs": lambda: _sb3_sampler(2, False),
-        "SB3 SubprocVecEnv, 1 env": lambda: _sb3_sampler(1, True),
-        "SB3 SubprocVecEnv, 2 envs": lambda: _sb3_sampler(2, True),
-    }
-    if with_rllib:
-        makers["RLlib, 1 env runner"] = lambda: _rllib_sampler(1)
-        makers["RLlib, 2 env runners"] = lambda: _rllib_sampler(2)
-    rates: dict[str, list[float]] = {name: [] for name in makers}
-    # A Ray instance per RLlib configuration, so each runs alone: configurations are
-    # built, warmed up and timed one after another, the rounds interleaved within each.
-    for name, make in makers.items():
-        sample, close = make()
-        try:
+    """Median rate of each configuration [env steps/s; loops/s for the pure-Python
+    ceiling]. Every configuration is built first; then each round times all of them
+    in turn, so the machine's changing load hits all alike."""
+    samplers: dict[str, Sampler] = {}
+    closers: list[Callable[[], None]] = []
+    try:
+        built, close = _ceiling_samplers()
+        samplers.update(built)
+        closers.append(close)
+        for name, n, sub in (
+            ("SB3 DummyVecEnv, 1 env", 1, False),
+            ("SB3 DummyVecEnv, 2 envs", 2, False),
+            ("SB3 SubprocVecEnv, 1 env", 1, True),
+            ("SB3 SubprocVecEnv, 2 envs", 2, True),
+        ):
+            samplers[name], close = _sb3_sampler(n, sub)
+            closers.append(close)
+        if with_rllib:
+            built, close = _rllib_samplers()
+            samplers.update(built)
+            closers.append(close)
+        for sample in samplers.values():
             sample(max(8, steps // 8))  # warm-up: caches, processes
-            for _ in range(rounds):
+        rates: dict[str, list[float]] = {name: [] for name in samplers}
+        for r in range(rounds):
+            for name, sample in samplers.items():
                 t0 = time.perf_counter()
                 n = sample(steps)
                 rates[name].append(n / (time.perf_counter() - t0))
-        finally:
+            print(f"round {r + 1}/{rounds} done", flush=True)
+    finally:
+        for close in closers:
             close()
-        print(f"{name}: {statistics.median(rates[name]):.1f} steps/s", flush=True)
     return {name: statistics.median(r) for name, r in rates.items()}
 
 
@@ -185,8 +229,9 @@ def main(argv: list[str] | None = None) -> None:
 
         print(f"ray {ray.__version__}")
     rates = sampling(args.rounds, args.steps, with_rllib)
-    print("\n| sampling | env steps/s | 2 vs 1 |\n|---|---:|---:|")
+    print("\n| sampling | env steps/s (pure Python: loops/s) | 2 vs 1 |\n|---|---:|---:|")
     pairs = {
+        "pure Python, 2 processes": "pure Python, 1 process",
         "SB3 DummyVecEnv, 2 envs": "SB3 DummyVecEnv, 1 env",
         "SB3 SubprocVecEnv, 2 envs": "SB3 SubprocVecEnv, 1 env",
         "RLlib, 2 env runners": "RLlib, 1 env runner",
