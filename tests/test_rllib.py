@@ -80,6 +80,8 @@ def test_ppo_runs_as_on_the_sb3_path(rllib: object) -> None:
     assert cfg.use_kl_loss is False and cfg.vf_loss_coeff == 0.5 and cfg.grad_clip == 0.5
     assert cfg.num_env_runners == 3 and cfg.seed == 7
     assert cfg.model_config["fcnet_hiddens"] == [128, 128]
+    assert cfg.model_config["fcnet_activation"] == "tanh"  # as SB3's MlpPolicy
+    assert cfg.model_config["vf_share_layers"] is False and cfg.vf_clip_param == float("inf")
     constant = ppo_config(SHORT, PPOParams(lr_schedule="constant"), timesteps=10)
     assert constant.lr == PPOParams.learning_rate
     assert constant.train_batch_size_per_learner == PPOParams.n_steps  # 0 runners: 1 env
@@ -87,12 +89,12 @@ def test_ppo_runs_as_on_the_sb3_path(rllib: object) -> None:
 
 @pytest.fixture(scope="module")
 def trained(rllib: object, tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """128 steps in the driver (no env runner process), then resumed to 256."""
+    """128 steps on one remote env runner, then resumed to 256."""
     from aldm_gym.agents.rllib import train_rllib
 
     out = tmp_path_factory.mktemp("rllib")
     kwargs = {
-        "num_env_runners": 0,
+        "num_env_runners": 1,
         "duration": 10.0,
         "params": PPOParams(n_steps=64),
         "checkpoint_freq": 128,
@@ -116,6 +118,50 @@ def test_training_writes_checkpoints_and_resumes(trained: Path) -> None:
     assert len(events) == 2  # one per run, in the same tensorboard run
     with pytest.raises(FileExistsError, match="already holds a training"):
         train_rllib(trained, timesteps=512, progress=False)
+
+
+def _observations_seen(checkpoint: Path) -> int:
+    """How many observations the checkpoint's normalisation statistics count."""
+    from aldm_gym.agents.rllib import RLlibPolicy
+
+    state = RLlibPolicy(checkpoint).pipeline.get_state()
+    return int(state["MeanStdFilter"][None]["running_stats"][0]["num_pushes"])
+
+
+def test_checkpoints_carry_the_runners_statistics_across_a_resume(trained: Path) -> None:
+    # 128 steps (and the resets' observations) before the resume ...
+    first = _observations_seen(trained / "checkpoints" / "rllib_128")
+    assert 128 <= first < 200
+    # ... and the resumed runner started from them: 128 more, not from zero.
+    assert _observations_seen(trained / "rllib_model") >= first + 128
+
+
+def test_resume_falls_back_to_an_older_checkpoint(trained: Path, tmp_path: Path) -> None:
+    import shutil
+
+    from aldm_gym.agents.checkpoints import TrainingWarning
+    from aldm_gym.agents.rllib import train_rllib
+
+    out = tmp_path / "out"
+    shutil.copytree(trained, out, ignore=shutil.ignore_patterns("train.lock"))
+    for path in (out / "checkpoints" / "rllib_256").rglob("*.pkl"):
+        path.write_bytes(b"damaged")
+    with pytest.warns(TrainingWarning, match="skipping .*rllib_256: does not restore"):
+        steps = train_rllib(out, timesteps=320, resume=True, progress=False)
+    assert steps == 320  # from 128, not from 0 nor from the damaged 256
+    assert checkpoint_steps(out / "checkpoints" / "rllib_256") == 256  # written anew
+    assert _observations_seen(out / "checkpoints" / "rllib_256") >= 256
+
+
+def test_a_closed_port_is_one_line_and_exit_2(
+    rllib: object, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from _cli import usage_error
+
+    argv = ["train", "--backend", "rllib", "--address", f"127.0.0.1:{_free_port()}"]
+    line = usage_error([*argv, "--out", str(tmp_path / "t")], capsys)
+    assert "argument --address: no Ray cluster answers at 127.0.0.1:" in line
+    assert not (tmp_path / "t" / "training.json").exists()  # nothing to clean up
 
 
 def test_an_sb3_training_is_not_resumed_by_rllib(rllib: object, tmp_path: Path) -> None:
@@ -145,6 +191,12 @@ def test_a_checkpoint_plays_outside_ray_with_frozen_statistics(trained: Path) ->
         assert policy.predict(obs)[0] == action  # the same observation, the same action
         obs, *_ = env.step(action)
     env.close()
+    # Stochastic play samples the softmax of the logits.
+    drawn = [int(policy.predict(obs, deterministic=False)[0]) for _ in range(300)]
+    p = np.exp(policy.logits(obs) - policy.logits(obs).max())
+    p /= p.sum()
+    counts = np.bincount(drawn, minlength=len(p))
+    assert np.all(np.abs(counts / 300 - p) < 0.1)
     assert json.dumps(policy.pipeline.get_state(), default=str) == state
 
 
@@ -307,3 +359,28 @@ def test_train_on_a_two_node_cluster_and_evaluate(
     record = json.loads((out / "evaluate_rllib_model_aldm_per_dash.json").read_text())
     assert [r["policy"] for r in record["rows"]] == ["idle", "rule_based", "model"]
     assert record["timesteps"] >= 384
+
+
+@pytest.mark.slow
+def test_sigterm_finishes_the_iteration_and_saves_it(rllib: object, tmp_path: Path) -> None:
+    import signal
+
+    out = tmp_path / "out"
+    argv = [str(BIN / "aldm-gym"), "train", "--backend", "rllib", "--num-env-runners", "1"]
+    argv += ["--timesteps", "100000", "--n-steps", "64", "--duration", "10"]
+    argv += ["--checkpoint-freq", "100000", "--out", str(out), "--no-progress"]
+    proc = subprocess.Popen(argv, stderr=subprocess.PIPE, text=True)
+    try:
+        end = time.monotonic() + 300
+        while not list((out / "tb").rglob("events.out.tfevents.*")):  # training has begun
+            assert proc.poll() is None and time.monotonic() < end, proc.stderr.read()[-2000:]
+            time.sleep(0.2)
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=300)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 130, err[-2000:]
+    assert "stopping after this iteration" in err and "continue with --resume" in err
+    saved = newest_checkpoint(out)
+    assert saved is not None and checkpoint_steps(saved) >= 64  # no checkpoint was due

@@ -25,12 +25,20 @@ Output folder (beside SB3's files, :mod:`aldm_gym.agents.checkpoints`)::
     <out>/checkpoints/rllib_<steps>/    a checkpoint every checkpoint_freq steps
     <out>/tb/RLlib_PPO/                 tensorboard events (returns, losses, rates)
 
-A checkpoint folder is written under a temporary name and renamed into place once
-complete (it then holds :data:`STEPS_FILE`), so a kill never leaves a half-written one
-that ``--resume`` would take. An interruption (Ctrl-C, SIGTERM) stops the run; the
-newest checkpoint is where ``--resume`` continues (the iteration in progress is lost:
-RLlib's learner state mid-update is not a consistent one to save). Unlike the SB3 path
-a resume is not bit-exact: the env runners restart their episodes.
+A checkpoint folder is written under a temporary name, flushed to disk and renamed
+into place once complete (it then holds :data:`STEPS_FILE`), so a kill never leaves a
+half-written one that ``--resume`` would take; a resume falls back to an older
+checkpoint, with a warning, when the newest does not restore. The first Ctrl-C or
+SIGTERM lets the iteration in progress finish and saves a checkpoint of it; a second
+one stops at once (that iteration is lost: RLlib's learner state mid-update is not one
+to save). Unlike the SB3 path a resume is not bit-exact: the env runners start new
+episodes, seeded ``seed + steps done``.
+
+Observation statistics: each env runner normalises with its own running mean/std
+(RLlib 2.60 does not merge ``MeanStdFilter`` states across remote runners, and leaves
+the local runner's, which a checkpoint stores, empty); before every save the first
+remote runner's statistics are copied into the local runner, and a resume gives the
+restored statistics to every runner.
 
 :class:`RLlibPolicy` plays a checkpoint outside Ray (the RLModule and the saved
 connector pipeline, with the observation statistics frozen), so ``aldm-gym evaluate``
@@ -45,11 +53,14 @@ import json
 import logging
 import os
 import shutil
+import signal
 import socket
 import sys
 import tempfile
 import time
-from collections.abc import Mapping
+import warnings
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
 from dataclasses import asdict
 from pathlib import Path
 from typing import Any
@@ -73,7 +84,6 @@ from aldm_gym.agents.training import (
     DEFAULT_TIMESTEPS,
     PPOParams,
     env_config,
-    signals_as_interrupt,
 )
 
 RLLIB_ENV_ID = f"aldm_gym:{ENV_ID}"
@@ -98,6 +108,7 @@ CONNECT_TIMEOUT = 5.0
 """Seconds to wait for a cluster's head at ``--address`` to accept a connection."""
 
 _RLLIB_MARKER = "rllib_checkpoint.json"
+_ENV_TO_MODULE = "env_to_module_connector"
 _LOGGED = {
     "env_runners": ("episode_return_mean", "episode_len_mean", "num_episodes"),
     "learners/default_policy": (
@@ -211,21 +222,21 @@ def checkpoint_steps(path: Path) -> int:
 
 def newest_checkpoint(out: Path) -> Path | None:
     """The complete ``<out>/checkpoints/rllib_<steps>`` with the most steps, or None."""
-    found = []
-    for path in (Path(out) / CHECKPOINT_DIR).glob(f"{CHECKPOINT_PREFIX}*"):
-        tail = path.name[len(CHECKPOINT_PREFIX) :]
-        if tail.isdigit() and is_checkpoint(path):
-            found.append((int(tail), path))
-    return max(found)[1] if found else None
+    found = _complete_checkpoints(out)
+    return found[0] if found else None
 
 
 def _save(algo: Any, path: Path, steps: int) -> Path:
     """Save ``algo`` as the checkpoint folder ``path`` (written aside, then renamed in;
     an older folder of that name is replaced)."""
     path.parent.mkdir(parents=True, exist_ok=True)
+    _pull_runner_statistics(algo)
     tmp = Path(tempfile.mkdtemp(dir=path.parent, prefix=f".{path.name}.tmp"))
     algo.save_to_path(str(tmp))
     (tmp / STEPS_FILE).write_text(json.dumps({"steps": int(steps)}) + "\n")
+    _fsync_tree(tmp)
+    # Replacing a folder (only rllib_model) leaves a moment without it; the checkpoint
+    # folder saved just before holds the same state.
     old = None
     if path.exists():
         old = path.with_name(f".{path.name}.tmp-old-{os.getpid()}")
@@ -236,29 +247,57 @@ def _save(algo: Any, path: Path, steps: int) -> Path:
     return path
 
 
+def _fsync_tree(folder: Path) -> None:
+    """Flush every file of ``folder`` and the folders themselves to disk."""
+    for root, _, files in os.walk(folder):
+        for name in files:
+            fd = os.open(os.path.join(root, name), os.O_RDONLY)
+            try:
+                os.fsync(fd)
+            finally:
+                os.close(fd)
+        fd = os.open(root, os.O_RDONLY)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+
+
 def _connect(address: str | None, num_env_runners: int) -> None:
     """Start a local Ray instance (``address`` None) or join a running cluster.
 
-    :raises ValueError: the cluster has fewer CPUs than the env runners need (RLlib
-        would wait for them forever), or no cluster answers at ``address``.
+    A local instance is given at least one CPU per env runner (more runners than cores
+    share them, with a warning).
+
+    :raises ClusterError: no cluster answers at ``address``, it refuses this process
+        (e.g. no or another auth token), or it has fewer CPUs than the env runners need
+        (RLlib would wait for them forever).
     """
     import ray
 
     kwargs: dict[str, Any] = {"include_dashboard": False, "logging_level": "ERROR"}
     if address is None:  # "local": a new instance, even where a cluster is running
-        kwargs.update(address="local", num_cpus=max(os.cpu_count() or 1, num_env_runners))
+        cores = os.cpu_count() or 1
+        if num_env_runners > cores:
+            warnings.warn(
+                f"{num_env_runners} env runners share {cores} cores", UserWarning, stacklevel=3
+            )
+        kwargs.update(address="local", num_cpus=max(cores, num_env_runners))
     else:
         if address != "auto":
             _check_reachable(address)  # ray.init retries a dead address for minutes
         kwargs["address"] = address
     try:
         ray.init(**kwargs)
-    except ConnectionError as exc:
-        raise ValueError(f"no Ray cluster at {address!r} ({exc})") from None
+    except (ConnectionError, RuntimeError, ray.exceptions.RayError) as exc:
+        raise ClusterError(
+            f"cannot join the Ray cluster at {address!r} ({exc}); a cluster with token "
+            "authentication needs RAY_AUTH_MODE=token and its token here (docs/cluster.md)"
+        ) from None
     cpus = float(ray.cluster_resources().get("CPU", 0))
     if cpus < num_env_runners:
         ray.shutdown()
-        raise ValueError(
+        raise ClusterError(
             f"the Ray cluster at {address or 'local'} has {cpus:g} CPUs; "
             f"{num_env_runners} env runners need one each"
         )
@@ -271,7 +310,7 @@ def _check_reachable(address: str, timeout: float = CONNECT_TIMEOUT) -> None:
         with socket.create_connection((host, int(port)), timeout=timeout):
             pass
     except (OSError, ValueError) as exc:
-        raise ValueError(
+        raise ClusterError(
             f"no Ray cluster answers at {address} ({exc}); start one with "
             f"ray start --head --port {port} (docs/cluster.md)"
         ) from None
@@ -336,8 +375,10 @@ def train_rllib(
         given here override the saved ones).
     :raises FileExistsError: ``out`` holds a training and ``resume`` is False.
     :raises FileNotFoundError: ``resume`` without a ``training.json`` in ``out``.
-    :raises ValueError: a bad setting, a resume of an SB3 training, or a cluster too
-        small or not there.
+    :raises ValueError: a bad setting.
+    :raises ResumeError: ``resume`` of an SB3 training.
+    :raises ClusterError: the cluster is not there, refuses this process or is too
+        small.
     :raises MissingRayDependencies: Ray RLlib / torch missing.
     """
     import_rllib()
@@ -360,7 +401,7 @@ def train_rllib(
                 raise FileNotFoundError(f"nothing to resume in {out}: no {TRAINING_FILE}")
             saved = read_training(out)
             if saved.get("backend", "sb3") != "rllib":
-                raise ValueError(f"{out} holds an SB3 training; resume it without --backend rllib")
+                raise ResumeError(f"{out} holds an SB3 training; resume it without --backend rllib")
         elif holds_training(out):
             raise FileExistsError(
                 f"{out} already holds a training; pass --resume to continue it "
@@ -395,6 +436,92 @@ def train_rllib(
         return _train_locked(out, meta, params, address, saved is not None, progress)
 
 
+class ClusterError(ValueError):
+    """No Ray cluster at the address, a token it refuses, or too few CPUs."""
+
+
+class ResumeError(ValueError):
+    """What ``--resume`` found in the output folder cannot be resumed by this backend."""
+
+
+class _StopRequest:
+    """Set by the first SIGINT/SIGTERM of a training: stop after this iteration."""
+
+    requested = False
+
+
+@contextmanager
+def _stop_between_iterations() -> Iterator[_StopRequest]:
+    """The first SIGINT or SIGTERM asks the training to stop after the iteration in
+    progress (it then saves a checkpoint); a second one raises KeyboardInterrupt at once.
+    """
+    stop = _StopRequest()
+
+    def handler(signum: int, frame: Any) -> None:
+        if stop.requested:
+            raise KeyboardInterrupt
+        stop.requested = True
+        print(
+            "\nstopping after this iteration and saving a checkpoint "
+            "(signal again to stop at once, losing the iteration)",
+            file=sys.stderr,
+        )
+
+    try:
+        previous = {sig: signal.signal(sig, handler) for sig in (signal.SIGINT, signal.SIGTERM)}
+    except ValueError:  # not the main thread: signals stay as they are
+        yield stop
+        return
+    try:
+        yield stop
+    finally:
+        for sig, old in previous.items():
+            signal.signal(sig, old)
+
+
+def _complete_checkpoints(out: Path) -> list[Path]:
+    """The complete ``<out>/checkpoints/rllib_<steps>`` folders, newest first."""
+    found = []
+    for path in (Path(out) / CHECKPOINT_DIR).glob(f"{CHECKPOINT_PREFIX}*"):
+        tail = path.name[len(CHECKPOINT_PREFIX) :]
+        if tail.isdigit() and is_checkpoint(path):
+            found.append((int(tail), path))
+    return [path for _, path in sorted(found, reverse=True)]
+
+
+def _connector_state(runner: Any) -> Any:
+    """An env runner's env-to-module connector state (the observation statistics)."""
+    return runner.get_state(components=[_ENV_TO_MODULE])
+
+
+def _pull_runner_statistics(algo: Any) -> None:
+    """Copy the first remote env runner's observation statistics into the local env
+    runner, whose state is what a checkpoint stores.
+
+    With remote env runners, RLlib 2.60 neither merges their ``MeanStdFilter``
+    statistics nor updates the local runner's (measured: each runner keeps its own,
+    the local one stays empty), so without this a checkpoint would normalise with empty
+    statistics. Each runner normalises with its own running statistics while training.
+    """
+    group = algo.env_runner_group
+    if group.num_healthy_remote_workers() == 0:
+        return  # the local runner samples itself: its statistics are the training's
+    states = group.foreach_env_runner(
+        _connector_state, local_env_runner=False, remote_worker_ids=[group.healthy_worker_ids()[0]]
+    )
+    if states:
+        algo.env_runner.set_state(states[0])
+
+
+def _push_runner_statistics(algo: Any) -> None:
+    """Give every remote env runner the (restored) local runner's statistics."""
+    group = algo.env_runner_group
+    if group.num_healthy_remote_workers() == 0:
+        return
+    state = _connector_state(algo.env_runner)
+    group.foreach_env_runner(lambda runner: runner.set_state(state), local_env_runner=False)
+
+
 def _train_locked(
     out: Path,
     meta: dict[str, Any],
@@ -408,44 +535,93 @@ def _train_locked(
     it was)."""
     import ray
     import torch
+
+    torch.set_num_threads(1)  # the env runners need the cores; the MLP is tiny
+    candidates = _complete_checkpoints(out) if resume else []
+    _connect(address, meta["num_env_runners"])
+    try:
+        write_json(out / TRAINING_FILE, meta)
+        return _run(out, meta, params, candidates, resume, progress)
+    finally:
+        ray.shutdown()
+
+
+def _build(meta: dict[str, Any], params: PPOParams, done: int) -> Any:
+    """The algorithm of a training at ``done`` steps (its envs seeded ``seed + done``,
+    so a resume does not replay the first episodes)."""
+    return ppo_config(
+        meta["env_config"],
+        params,
+        timesteps=meta["timesteps"],
+        num_env_runners=meta["num_env_runners"],
+        seed=meta["seed"] + done,
+    ).build_algo()
+
+
+def _restore(meta: dict[str, Any], params: PPOParams, candidates: list[Path]) -> tuple[Any, int]:
+    """The algorithm restored from the newest checkpoint that loads (an older one when a
+    newer fails, with a :class:`~aldm_gym.agents.checkpoints.TrainingWarning`), and its
+    steps; a new one at step 0 if none loads."""
+    from aldm_gym.agents.checkpoints import TrainingWarning
+
+    for path in candidates:
+        try:
+            done = checkpoint_steps(path)
+        except (OSError, ValueError, KeyError, TypeError) as exc:
+            warnings.warn(
+                f"skipping {path}: unreadable {STEPS_FILE} ({exc})", TrainingWarning, stacklevel=2
+            )
+            continue
+        algo = _build(meta, params, done)
+        try:
+            algo.restore_from_path(str(path))
+        except Exception as exc:  # a damaged checkpoint fails in pickle, torch or RLlib
+            algo.stop()
+            warnings.warn(
+                f"skipping {path}: does not restore ({type(exc).__name__}: {exc})",
+                TrainingWarning,
+                stacklevel=2,
+            )
+            continue
+        _push_runner_statistics(algo)
+        print(f"resuming from {path} at {done} steps", file=sys.stderr)
+        return algo, done
+    print("no checkpoint to resume from: starting at step 0", file=sys.stderr)
+    return _build(meta, params, 0), 0
+
+
+def _run(
+    out: Path,
+    meta: dict[str, Any],
+    params: PPOParams,
+    candidates: list[Path],
+    resume: bool,
+    progress: bool,
+) -> int:
+    """Build (or restore) the algorithm and train it to the budget, checkpointing."""
     from torch.utils.tensorboard import SummaryWriter
     from tqdm import tqdm
 
-    torch.set_num_threads(1)  # the env runners need the cores; the MLP is tiny
-    found = newest_checkpoint(out) if resume else None
-    done = checkpoint_steps(found) if found is not None else 0
-    if resume:
-        where = f"from {found} at {done} steps" if found else "from step 0 (no checkpoint)"
-        print(f"resuming {out} {where}", file=sys.stderr)
-    config, run = meta["env_config"], meta
-    _connect(address, run["num_env_runners"])
-    write_json(out / TRAINING_FILE, meta)
-    algo = None
+    algo: Any = None
     writer = None
-    interrupted = False
-    steps = done
-    last_saved = done
+    graceful = False
     t0 = time.perf_counter()
     try:
-        with signals_as_interrupt():
-            algo = ppo_config(
-                config,
-                params,
-                timesteps=run["timesteps"],
-                num_env_runners=run["num_env_runners"],
-                seed=run["seed"],
-            ).build_algo()
-            if found is not None:
-                algo.restore_from_path(str(found))
+        with _stop_between_iterations() as stop:
+            if resume:
+                algo, done = _restore(meta, params, candidates)
+            else:
+                algo, done = _build(meta, params, 0), 0
+            steps = last_saved = done
             writer = SummaryWriter(str(out / TENSORBOARD_DIR / TB_RUN))
             with tqdm(
-                total=run["timesteps"],
+                total=meta["timesteps"],
                 initial=done,
                 desc="train",
                 unit="step",
                 disable=not progress,
             ) as bar:
-                while steps < run["timesteps"]:
+                while steps < meta["timesteps"] and not stop.requested:
                     result = algo.train()
                     sampled = int(result["env_runners"]["num_env_steps_sampled"])
                     steps += sampled
@@ -453,30 +629,36 @@ def _train_locked(
                     bar.set_postfix(_postfix(result), refresh=True)
                     for tag, value in _tb_scalars(result).items():
                         writer.add_scalar(tag, value, steps)
-                    if steps - last_saved >= run["checkpoint_freq"]:
+                    if steps - last_saved >= meta["checkpoint_freq"] or stop.requested:
                         _save(algo, out / CHECKPOINT_DIR / f"{CHECKPOINT_PREFIX}{steps}", steps)
                         last_saved = steps
-            if steps > last_saved or found is None:
+            if stop.requested:
+                graceful = True
+                print(
+                    f"\nstopped after {time.perf_counter() - t0:.0f} s; saved "
+                    f"{out / CHECKPOINT_DIR / f'{CHECKPOINT_PREFIX}{steps}'}; "
+                    "continue with --resume",
+                    file=sys.stderr,
+                )
+                raise KeyboardInterrupt
+            if steps > last_saved:
                 _save(algo, out / CHECKPOINT_DIR / f"{CHECKPOINT_PREFIX}{steps}", steps)
             _save(algo, out / MODEL_DIR, steps)
+            return steps
     except KeyboardInterrupt:
-        interrupted = True
+        if not graceful:  # a second signal: the iteration in progress is lost
+            newest = newest_checkpoint(out)
+            where = f"newest checkpoint {newest}" if newest else "no checkpoint yet"
+            print(f"interrupted; {where}; continue with --resume", file=sys.stderr)
+        raise
     finally:
         if writer is not None:
             writer.close()
         if algo is not None:
-            algo.stop()
-        ray.shutdown()
-    if interrupted:
-        newest = newest_checkpoint(out)
-        where = f"newest checkpoint {newest}" if newest else "no checkpoint yet"
-        print(
-            f"\ninterrupted after {time.perf_counter() - t0:.0f} s; {where}; "
-            "continue with --resume",
-            file=sys.stderr,
-        )
-        raise KeyboardInterrupt
-    return steps
+            try:
+                algo.stop()
+            except Exception as exc:  # the cluster went away: nothing left to stop
+                print(f"stopping the algorithm failed: {exc}", file=sys.stderr)
 
 
 class RLlibPolicy:

@@ -5,7 +5,8 @@
 local Ray instance or, with ``--address``, on a running cluster
 (:func:`~aldm_gym.agents.rllib.train_rllib`, ``docs/cluster.md``). Flags of one backend
 only are refused with the other. ``--resume`` continues with the backend of the
-training in ``--out``.
+training in ``--out`` (the RLlib path from its newest checkpoint that loads, with the
+saved settings unless a flag gives them).
 
 Flags map onto :func:`~aldm_gym.agents.training.train`; ``--resume`` takes the env
 config and hyperparameters saved in ``<out>/training.json`` and refuses flags that
@@ -360,7 +361,7 @@ def run(args: argparse.Namespace) -> int:
 
 def _run_rllib(args: argparse.Namespace, quick: bool) -> int:
     """``aldm-gym train --backend rllib``."""
-    from aldm_gym.agents.rllib import MODEL_DIR, TB_RUN, train_rllib
+    from aldm_gym.agents.rllib import MODEL_DIR, TB_RUN, ClusterError, ResumeError, train_rllib
 
     out: Path = args.out
     t0 = time.perf_counter()
@@ -375,8 +376,10 @@ def _run_rllib(args: argparse.Namespace, quick: bool) -> int:
             )
     except MissingRLDependencies as exc:
         raise SystemExit(f"aldm-gym train: {exc}") from None
-    except ValueError as exc:  # the cluster: absent or too small
+    except ClusterError as exc:  # absent, refusing our token, or too small
         raise BadArgument("--address" if args.address else "--num-env-runners", str(exc)) from None
+    except ResumeError as exc:
+        raise BadArgument("--resume", str(exc)) from None
     except (OutputLocked, FileExistsError, FileNotFoundError) as exc:  # a race on --out
         raise BadArgument("--out", str(exc)) from None
     except KeyboardInterrupt:
