@@ -89,7 +89,8 @@ def test_ppo_runs_as_on_the_sb3_path(rllib: object) -> None:
 
 @pytest.fixture(scope="module")
 def trained(rllib: object, tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """128 steps on one remote env runner, then resumed to 256."""
+    """128 steps on one remote env runner, then resumed to 256; ``out`` given as a
+    relative path (as a user types it)."""
     from aldm_gym.agents.rllib import train_rllib
 
     out = tmp_path_factory.mktemp("rllib")
@@ -100,8 +101,14 @@ def trained(rllib: object, tmp_path_factory: pytest.TempPathFactory) -> Path:
         "checkpoint_freq": 128,
         "progress": False,
     }
-    assert train_rllib(out, timesteps=128, **kwargs) == 128
-    assert train_rllib(out, timesteps=256, resume=True, **kwargs) == 256
+    cwd = os.getcwd()
+    os.chdir(out.parent)
+    try:
+        relative = Path(out.name)
+        assert train_rllib(relative, timesteps=128, **kwargs) == 128
+        assert train_rllib(relative, timesteps=256, resume=True, **kwargs) == 256
+    finally:
+        os.chdir(cwd)
     return out
 
 

@@ -384,7 +384,7 @@ def train_rllib(
     import_rllib()
     from aldm_gym.agents.checkpoints import holds_training
 
-    out = Path(out)
+    out = Path(out).absolute()  # RLlib reads a relative path as a URI without a scheme
     for name, value, least in (
         ("timesteps", timesteps, 1),
         ("num_env_runners", num_env_runners, 0),
@@ -682,7 +682,7 @@ class RLlibPolicy:
 
         # RLModule.from_checkpoint builds the module the way RLlib itself deprecates.
         logging.getLogger("ray.rllib.core.rl_module.rl_module").setLevel(logging.ERROR)
-        path = Path(path)
+        path = Path(path).absolute()  # RLlib reads a relative path as a URI
         self.path = path
         self.num_timesteps = checkpoint_steps(path)
         self.module = RLModule.from_checkpoint(
