@@ -171,6 +171,15 @@ def test_a_closed_port_is_one_line_and_exit_2(
     assert not (tmp_path / "t" / "training.json").exists()  # nothing to clean up
 
 
+def test_an_iteration_that_sampled_nothing_counts_no_steps() -> None:
+    from aldm_gym.agents.rllib import _sampled
+
+    assert _sampled({"env_runners": {"num_env_steps_sampled": 256}}) == 256
+    for result in ({"env_runners": {"num_env_steps_sampled": float("nan")}}, {}):
+        with pytest.warns(UserWarning, match="sampled no env steps"):
+            assert _sampled(result) == 0
+
+
 def test_an_sb3_training_is_not_resumed_by_rllib(rllib: object, tmp_path: Path) -> None:
     from aldm_gym.agents.rllib import train_rllib
 

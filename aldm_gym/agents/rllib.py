@@ -331,6 +331,21 @@ def _tb_scalars(result: Mapping[str, Any]) -> dict[str, float]:
     return {k: v for k, v in scalars.items() if np.isfinite(v)}
 
 
+def _sampled(result: Mapping[str, Any]) -> int:
+    """Env steps sampled in one iteration; 0 (with a warning) for an iteration whose
+    env runners returned nothing (RLlib then reports NaN, e.g. when every runner's
+    sample timed out on an overloaded machine)."""
+    value = result.get("env_runners", {}).get("num_env_steps_sampled")
+    if value is None or not np.isfinite(float(value)):
+        warnings.warn(
+            "an iteration sampled no env steps (the env runners returned nothing)",
+            UserWarning,
+            stacklevel=2,
+        )
+        return 0
+    return int(value)
+
+
 def _postfix(result: Mapping[str, Any]) -> dict[str, str]:
     """The progress bar's postfix: recent training episodes' mean return and length."""
     runners = result.get("env_runners", {})
@@ -623,7 +638,7 @@ def _run(
             ) as bar:
                 while steps < meta["timesteps"] and not stop.requested:
                     result = algo.train()
-                    sampled = int(result["env_runners"]["num_env_steps_sampled"])
+                    sampled = _sampled(result)
                     steps += sampled
                     bar.update(sampled)
                     bar.set_postfix(_postfix(result), refresh=True)
