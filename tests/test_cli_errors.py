@@ -96,7 +96,7 @@ CASES = [
     (
         ["train", "--backend", "rllib", "--n-envs", "2", "--out", "DIR/t"],
         "--n-envs",
-        "applies to --backend sb3 only",
+        "applies to --backend sb3 only; with rllib use --num-env-runners",
     ),
     (
         ["train", "--backend", "rllib", "--validation-freq", "0", "--out", "DIR/t"],

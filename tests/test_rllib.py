@@ -325,6 +325,17 @@ def test_train_on_a_two_node_cluster_and_evaluate(
 ) -> None:
     address, env = ray_cluster
     out = tmp_path / "train"
+    argv = [str(BIN / "aldm-gym"), "train", "--backend", "rllib", "--address", address]
+    too_many = subprocess.run(
+        [*argv, "--num-env-runners", "3", "--out", str(tmp_path / "too_many")],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert too_many.returncode == 2 and "Traceback" not in too_many.stderr
+    assert "argument --num-env-runners: the Ray cluster at" in too_many.stderr
+    assert "has 2 CPUs; 3 env runners need one each" in too_many.stderr
     # Two env runners needing one CPU each on two one-CPU nodes: one runs on each node.
     train = subprocess.run(
         [

@@ -299,8 +299,11 @@ def _connect(address: str | None, num_env_runners: int) -> None:
         ray.shutdown()
         raise ClusterError(
             f"the Ray cluster at {address or 'local'} has {cpus:g} CPUs; "
-            f"{num_env_runners} env runners need one each"
+            f"{num_env_runners} env runners need one each",
+            argument="--num-env-runners",
         )
+    where = f"the Ray cluster at {address}" if address else "a local Ray instance"
+    print(f"training on {where} ({cpus:g} CPUs)", file=sys.stderr)
 
 
 def _check_reachable(address: str, timeout: float = CONNECT_TIMEOUT) -> None:
@@ -311,8 +314,8 @@ def _check_reachable(address: str, timeout: float = CONNECT_TIMEOUT) -> None:
             pass
     except (OSError, ValueError) as exc:
         raise ClusterError(
-            f"no Ray cluster answers at {address} ({exc}); start one with "
-            f"ray start --head --port {port} (docs/cluster.md)"
+            f"no Ray cluster answers at {address} ({exc}); check the address, or start "
+            f"a cluster there (docs/cluster.md)"
         ) from None
 
 
@@ -452,7 +455,15 @@ def train_rllib(
 
 
 class ClusterError(ValueError):
-    """No Ray cluster at the address, a token it refuses, or too few CPUs."""
+    """No Ray cluster at the address, a token it refuses, or too few CPUs.
+
+    :ivar argument: the command-line flag to blame (``--address`` or
+        ``--num-env-runners``).
+    """
+
+    def __init__(self, message: str, argument: str = "--address") -> None:
+        super().__init__(message)
+        self.argument = argument
 
 
 class ResumeError(ValueError):

@@ -230,7 +230,8 @@ def _backend(args: argparse.Namespace, meta: dict[str, Any] | None) -> str:
             continue
         for dest in dests:
             if getattr(args, dest) is not None:
-                raise BadArgument(_flag(dest), f"applies to --backend {other} only")
+                hint = {"n_envs": "; with rllib use --num-env-runners"}.get(dest, "")
+                raise BadArgument(_flag(dest), f"applies to --backend {other} only{hint}")
     return backend
 
 
@@ -377,7 +378,7 @@ def _run_rllib(args: argparse.Namespace, quick: bool) -> int:
     except MissingRLDependencies as exc:
         raise SystemExit(f"aldm-gym train: {exc}") from None
     except ClusterError as exc:  # absent, refusing our token, or too small
-        raise BadArgument("--address" if args.address else "--num-env-runners", str(exc)) from None
+        raise BadArgument(exc.argument, str(exc)) from None
     except ResumeError as exc:
         raise BadArgument("--resume", str(exc)) from None
     except (OutputLocked, FileExistsError, FileNotFoundError) as exc:  # a race on --out
