@@ -660,9 +660,10 @@ def _run(
                         last_saved = steps
             if stop.requested:
                 graceful = True
+                newest = newest_checkpoint(out)
+                what = f"saved {newest}" if steps > done else "stopped before an iteration ended"
                 print(
-                    f"\nstopped after {time.perf_counter() - t0:.0f} s; saved "
-                    f"{out / CHECKPOINT_DIR / f'{CHECKPOINT_PREFIX}{steps}'}; "
+                    f"\nstopped after {time.perf_counter() - t0:.0f} s; {what}; "
                     "continue with --resume",
                     file=sys.stderr,
                 )
