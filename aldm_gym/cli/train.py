@@ -23,6 +23,7 @@ import json
 import sys
 import time
 import warnings
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -279,6 +280,28 @@ def _common_settings(args: argparse.Namespace, quick: bool) -> dict[str, Any]:
     }
 
 
+def _call_training(func: Callable[..., Any], out: Path, **kwargs: Any) -> Any:
+    """``func(out, **kwargs)`` (either backend's training) with warnings as one line
+    each; its result, or None when interrupted (Ctrl-C, SIGTERM). What the user can fix
+    is raised as :class:`BadArgument` naming the flag, a missing extra as SystemExit."""
+    from aldm_gym.agents.rllib import ClusterError, ResumeError  # no Ray imported
+
+    try:
+        with warnings.catch_warnings():
+            warnings.showwarning = _one_line_warning
+            return func(out, **kwargs)
+    except MissingRLDependencies as exc:
+        raise SystemExit(f"aldm-gym train: {exc}") from None
+    except ClusterError as exc:  # absent, refusing our token, or too small
+        raise BadArgument(exc.argument, str(exc)) from None
+    except ResumeError as exc:
+        raise BadArgument("--resume", str(exc)) from None
+    except (OutputLocked, FileExistsError, FileNotFoundError) as exc:  # a race on --out
+        raise BadArgument("--out", str(exc)) from None
+    except KeyboardInterrupt:
+        return None
+
+
 def _one_line_warning(
     message: Warning | str,
     category: type[Warning],
@@ -324,22 +347,16 @@ def run(args: argparse.Namespace) -> int:
     if quick:
         validation_freq = QUICK_VALIDATION_FREQ if validation_freq is None else validation_freq
         validation_episodes = validation_episodes or QUICK_VALIDATION_EPISODES
-    try:
-        t0 = time.perf_counter()
-        with warnings.catch_warnings():
-            warnings.showwarning = _one_line_warning
-            model = train(
-                out,
-                n_envs=args.n_envs,
-                validation_freq=validation_freq,
-                validation_episodes=validation_episodes,
-                **_common_settings(args, quick),
-            )
-    except MissingRLDependencies as exc:
-        raise SystemExit(f"aldm-gym train: {exc}") from None
-    except (OutputLocked, FileExistsError, FileNotFoundError) as exc:  # a race on --out
-        raise BadArgument("--out", str(exc)) from None
-    except KeyboardInterrupt:
+    t0 = time.perf_counter()
+    model = _call_training(
+        train,
+        out,
+        n_envs=args.n_envs,
+        validation_freq=validation_freq,
+        validation_episodes=validation_episodes,
+        **_common_settings(args, quick),
+    )
+    if model is None:
         return 130
     tb = out / TENSORBOARD_DIR
     print(
@@ -362,28 +379,18 @@ def run(args: argparse.Namespace) -> int:
 
 def _run_rllib(args: argparse.Namespace, quick: bool) -> int:
     """``aldm-gym train --backend rllib``."""
-    from aldm_gym.agents.rllib import MODEL_DIR, TB_RUN, ClusterError, ResumeError, train_rllib
+    from aldm_gym.agents.rllib import MODEL_DIR, TB_RUN, train_rllib
 
     out: Path = args.out
     t0 = time.perf_counter()
-    try:
-        with warnings.catch_warnings():
-            warnings.showwarning = _one_line_warning
-            steps = train_rllib(
-                out,
-                num_env_runners=args.num_env_runners,
-                address=args.address,
-                **_common_settings(args, quick),
-            )
-    except MissingRLDependencies as exc:
-        raise SystemExit(f"aldm-gym train: {exc}") from None
-    except ClusterError as exc:  # absent, refusing our token, or too small
-        raise BadArgument(exc.argument, str(exc)) from None
-    except ResumeError as exc:
-        raise BadArgument("--resume", str(exc)) from None
-    except (OutputLocked, FileExistsError, FileNotFoundError) as exc:  # a race on --out
-        raise BadArgument("--out", str(exc)) from None
-    except KeyboardInterrupt:
+    steps = _call_training(
+        train_rllib,
+        out,
+        num_env_runners=args.num_env_runners,
+        address=args.address,
+        **_common_settings(args, quick),
+    )
+    if steps is None:
         return 130
     tb = out / TENSORBOARD_DIR
     print(
