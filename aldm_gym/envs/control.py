@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from aldm_gym.config import setting, validate
+from aldm_gym.envs.traffic.scalar import clip_scalar
 from aldm_gym.sensor.line_sensor import LineSensorConfig
 from aldm_gym.types import FloatArray
 
@@ -143,7 +144,8 @@ class LKAController:
             return 0.0
         kappa = 2.0 * py / d2
         delta = math.atan(kappa * self.wheelbase)
-        return float(np.clip(delta, -self.max_steering, self.max_steering))
+        # np.clip's result for a scalar with non-NaN bounds, without its dispatch.
+        return float(clip_scalar(delta, -self.max_steering, self.max_steering))
 
     def predict(
         self,

@@ -33,6 +33,7 @@ from aldm_gym.envs.targets import (
     objects_from_world,
 )
 from aldm_gym.envs.traffic import FastRoad
+from aldm_gym.envs.traffic.compiled import CompiledTraffic
 from aldm_gym.envs.traffic.mix import Spawner, TrafficConfig, make_truck
 from aldm_gym.envs.vehicle import MapIDMVehicle, SensorVehicle
 from aldm_gym.roads.cache import cached_road
@@ -280,6 +281,8 @@ class ALDMHighwayEnv(AbstractEnv):
                 cfg["neighbour_vehicles_connected_lanes"] or on_map is not None
             ),
         )
+        if on_map is None and cfg["traffic"]["engine"] == "compiled":
+            self.road.engine = CompiledTraffic(self.highway)
         self._off_map = False
         if on_map is None:
             self._create_vehicles()
@@ -471,7 +474,9 @@ class ALDMHighwayEnv(AbstractEnv):
             s_hint=pos.s + mount_x,
             occluders=self.road.vehicles if self.sensor.config.occlusion else None,
         )
-        self.detection = det = self._detector(self.frame, hw, pos.lane, motion=self._ego_motion())
+        detector = self._detector
+        motion = self._ego_motion() if getattr(detector, "uses_motion", True) else None
+        self.detection = det = detector(self.frame, hw, pos.lane, motion=motion)
         ego.detection = det
         ego.trajectory = det.trajectory  # fitted up to lka.path_range by the detector
         if self.longitudinal is not None:

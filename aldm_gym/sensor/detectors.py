@@ -24,7 +24,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Any, Protocol
+from typing import Any, ClassVar, Protocol
 
 from aldm_gym.sensor.aldm import detect_lanes
 from aldm_gym.sensor.detection import LaneDetection
@@ -37,7 +37,11 @@ from aldm_gym.sensor.trajectory import fit_reach
 
 class Detector(Protocol):
     """``(frame, road, true lane id, motion) -> LaneDetection``; only ground truth uses
-    ``road`` and the lane id, only the tracking ALDM ``motion``."""
+    ``road`` and the lane id, only the tracking ALDM ``motion``.
+
+    A detector with a false ``uses_motion`` attribute is called with ``motion=None``
+    (the env skips the odometry); without the attribute it gets the motion.
+    """
 
     def __call__(
         self, frame: SensorFrame, road: Any, lane_id: int, motion: EgoMotion | None = None
@@ -53,6 +57,9 @@ class ALDMDetector:
     :ivar params: validated :class:`~aldm_gym.sensor.aldm.ALDMParams`.
     :ivar path_range: the trajectory's fit range [m] (``None``: whole lines).
     """
+
+    uses_motion: ClassVar[bool] = False
+    """It ignores ``motion`` (the env then does not compute it)."""
 
     params: Any
     path_range: float | None = None
@@ -75,6 +82,9 @@ class TrackingALDMDetector:
     :param tracker: validated :class:`~aldm_gym.sensor.tracking.TrackerParams`.
     :param path_range: the trajectory's fit range [m] (``None``: whole lines).
     """
+
+    uses_motion: ClassVar[bool] = True
+    """It reads ``motion``."""
 
     def __init__(self, params: Any, tracker: Any, path_range: float | None = None) -> None:
         self.tracker = LaneTracker(params, tracker, path_range=path_range)
@@ -100,6 +110,9 @@ class NaiveDetector:
     :ivar path_range: the trajectory's fit range [m] (``None``: whole lines).
     """
 
+    uses_motion: ClassVar[bool] = False
+    """It ignores ``motion`` (the env then does not compute it)."""
+
     lane_width: float | None = None
     path_range: float | None = None
 
@@ -121,6 +134,9 @@ class GroundTruthDetector:
 
     :ivar path_range: the trajectory's fit range [m] (``None``: whole lines).
     """
+
+    uses_motion: ClassVar[bool] = False
+    """It ignores ``motion`` (the env then does not compute it)."""
 
     path_range: float | None = None
 

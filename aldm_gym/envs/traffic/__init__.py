@@ -19,6 +19,9 @@ that work. One job per module:
 - :mod:`~aldm_gym.envs.traffic.vehicles` -- :class:`BatchedLaneUpdate`,
   :class:`FastBicycleStep`, :class:`FastControlledVehicle`, :class:`FastIDMVehicle`.
 - :mod:`~aldm_gym.envs.traffic.road` -- :class:`FastRoad`, composing the above.
+- :mod:`~aldm_gym.envs.traffic.compiled` -- :class:`CompiledTraffic`, the optional
+  engine of a ``FastRoad`` on a generated highway: the ``FastIDMVehicle`` traffic in
+  compiled kernels (:mod:`~aldm_gym.envs.traffic.kernels`), same results.
 - :mod:`~aldm_gym.envs.traffic.patch` -- :func:`use_fast_road` for any highway-env env.
 
 Data flow of one simulation step on a :class:`FastRoad`: ``act`` ends the neighbour
@@ -26,7 +29,9 @@ cache's epoch and every vehicle decides its action, querying neighbours (the cac
 projects all road objects once per queried lane edge and answers by bisection) and
 lane geometry (``straight_lanes``, ``scalar``); ``step`` moves every vehicle
 (``FastBicycleStep``), defers their closest-lane look-ups (``BatchedLaneUpdate``) and
-runs them in one batch on the network, ends the epoch, then resolves collisions.
+runs them in one batch on the network, ends the epoch, then resolves collisions. With
+an engine, ``act`` and ``step`` hand the compiled vehicles to it (state gathered into
+arrays, one kernel call each, results written back) whenever it can.
 
 Usage::
 

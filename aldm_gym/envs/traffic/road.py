@@ -29,6 +29,7 @@ from highway_env.vehicle.kinematics import Vehicle
 from highway_env.vehicle.objects import RoadObject
 
 from aldm_gym.envs.traffic.collisions import resolve_collisions
+from aldm_gym.envs.traffic.compiled import CompiledTraffic
 from aldm_gym.envs.traffic.neighbours import NeighbourCache
 from aldm_gym.envs.traffic.network import FastRoadNetwork
 from aldm_gym.envs.traffic.vehicles import STEPS_ENDING_WITH_UPDATE
@@ -69,6 +70,8 @@ class FastRoad(Road):
         self._record_history = bool(record_history)
         self._neighbours = NeighbourCache(self)
         self._deferred_updates: list[Vehicle] | None = None
+        self.engine: CompiledTraffic | None = None
+        """The compiled traffic engine, if any (set by the owner; see :meth:`act`)."""
         super().__init__(
             network=network,
             vehicles=vehicles,
@@ -115,6 +118,8 @@ class FastRoad(Road):
         self.objects.clear()
         self._neighbours._reset()
         self._deferred_updates = None
+        if self.engine is not None:
+            self.engine.forget()  # it may hold the vehicle list between act and step
 
     @property
     def record_history(self) -> bool:
@@ -132,8 +137,11 @@ class FastRoad(Road):
         self._record_history = bool(value)
 
     def invalidate(self) -> None:
-        """Drop the per-step neighbour cache (call after moving vehicles by hand)."""
+        """Drop the per-step neighbour cache and the compiled engine's gathered state
+        (call after moving vehicles by hand)."""
         self._neighbours.valid = False
+        if self.engine is not None:
+            self.engine.forget()
 
     # -- Road API -------------------------------------------------------------------
 
@@ -202,8 +210,15 @@ class FastRoad(Road):
         return objects_
 
     def act(self) -> None:
-        """Decide the actions of every vehicle (positions are fixed from here to ``step``)."""
+        """Decide the actions of every vehicle (positions are fixed from here to ``step``).
+
+        With an :attr:`engine`, it decides the compiled vehicles' actions in one call
+        (same results) whenever it can, else every vehicle acts here in Python.
+        """
         self.invalidate()
+        engine = self.engine
+        if engine is not None and engine.act(self):
+            return
         for vehicle in self.vehicles:
             vehicle.act()
 
@@ -218,18 +233,24 @@ class FastRoad(Road):
         compiled projection of all vehicles; ``prepare_closest_lane_poses`` with the
         headings too, for a network whose look-up weighs them).
 
+        With an :attr:`engine`, it moves the compiled vehicles (and sets their lanes) in
+        one call whenever it can; the vehicles before them move here.
+
         :param dt: timestep [s].
         """
+        engine = self.engine
+        first = engine.step(self, dt) if engine is not None else None
+        movers = self.vehicles if first is None else self.vehicles[:first]
         deferred: list[Vehicle] = []
         try:
-            for vehicle in self.vehicles:
+            for vehicle in movers:
                 self._deferred_updates = (
                     deferred if type(vehicle).step in STEPS_ENDING_WITH_UPDATE else None
                 )
                 vehicle.step(dt)
         finally:
             self._deferred_updates = None
-        if deferred:
+        if len(deferred) > 1:  # a single look-up gains nothing from a batch
             prepare_poses: Callable[[FloatArray, FloatArray], None] | None = getattr(
                 self.network, "prepare_closest_lane_poses", None
             )
@@ -246,9 +267,13 @@ class FastRoad(Road):
                 # Built like NeighbourCache's position array: when every object is a
                 # deferred vehicle (a highway), the next act's batch projection is a memo hit.
                 prepare(np.array([v.position for v in deferred], dtype=np.float64).reshape(-1, 2))
-            for vehicle in deferred:
-                # The vehicle's own on_state_update (its class may extend the end of a
-                # step, e.g. MapIDMVehicle); no longer deferred, it runs Vehicle's now.
-                vehicle.on_state_update()
+        for vehicle in deferred:
+            # The vehicle's own on_state_update (its class may extend the end of a
+            # step, e.g. MapIDMVehicle); no longer deferred, it runs Vehicle's now.
+            vehicle.on_state_update()
         self.invalidate()
-        resolve_collisions(self.vehicles, self.objects, dt)
+        if first is None:
+            resolve_collisions(self.vehicles, self.objects, dt)
+        else:
+            assert engine is not None
+            engine.collide(self, dt, first)

@@ -1,0 +1,445 @@
+"""The compiled traffic engine: IDM/MOBIL of a generated highway in two numba calls per step.
+
+After :class:`~aldm_gym.envs.traffic.road.FastRoad` and
+:class:`~aldm_gym.envs.traffic.vehicles.FastIDMVehicle`, the traffic was still about
+60 % of an env step, spent in Python-level calls: every vehicle's MOBIL asks for
+neighbours and IDM accelerations several times per simulation step. On a road whose
+lanes all follow one reference line (a :class:`~aldm_gym.roads.highway.HighwayRoad`),
+:class:`CompiledTraffic` gathers the vehicles' state into arrays, decides every
+``FastIDMVehicle``'s action in one compiled call
+(:func:`~aldm_gym.envs.traffic.kernels.traffic_act`), moves them and finds their lanes
+in another (:func:`~aldm_gym.envs.traffic.kernels.traffic_step`), and writes the results
+back to the vehicle objects, so everything else (the ego, the sensor, observations,
+collisions, rendering) sees highway-env's vehicles as before.
+
+The kernels repeat highway-env's operations in the same order, so the episode is the
+same bit for bit as with the Python path (``traffic.engine = "python"``; checked on
+whole episodes in ``tests/test_traffic_compiled.py``). A step runs on the Python path
+whenever the engine cannot promise that, decided per simulation step:
+
+- the network must be the road's own one-edge network, with no road objects, no
+  trajectory recording and no search across connected lanes;
+- the compiled vehicles are those of class ``FastIDMVehicle`` exactly (no planned
+  route, an IDM exponent numpy does not special-case); every other vehicle (the ego)
+  acts and moves in Python and must come before them in ``road.vehicles`` (vehicles
+  act in list order and MOBIL reads the target lanes of those that acted before);
+- every vehicle has highway-env's kinematics and lane distance, a lane of this network
+  and a finite position.
+
+Behaviour constants (``DELTA``, ``TIME_WANTED``, ``LENGTH``, ...) are read from each
+vehicle at every step, so instance overrides (trucks, ``randomize_behavior``) hold.
+"""
+
+from __future__ import annotations
+
+from functools import cache
+from itertools import repeat
+from operator import attrgetter, is_not, itemgetter
+from typing import Any
+
+import numpy as np
+from highway_env.road.road import Road
+from highway_env.vehicle.controller import ControlledVehicle
+from highway_env.vehicle.kinematics import Vehicle
+from highway_env.vehicle.objects import RoadObject
+
+from aldm_gym.envs.traffic import kernels as K
+from aldm_gym.envs.traffic.collisions import _uses_base_box, resolve_collisions
+from aldm_gym.envs.traffic.scalar import FAST_MATH_MATCHES_NUMPY
+from aldm_gym.envs.traffic.vehicles import (
+    FastControlledVehicle,
+    FastIDMVehicle,
+    _uses_base_kinematics,
+)
+
+__all__ = ["ENGINES", "CompiledTraffic"]
+
+ENGINES = ("compiled", "python")
+"""Values of the env's ``traffic.engine`` setting."""
+
+_NUMPY_POWER_SPECIAL = frozenset({-2.0, -1.0, -0.5, 0.0, 0.5, 1.0, 2.0, 3.0})
+"""IDM exponents ``np.power`` special-cases (the Python path then calls numpy)."""
+
+_COORD_LIMIT = 1e12
+"""Largest coordinate [m] the compiled projection takes (its int64 cell keys)."""
+
+_BASE_LANE_DISTANCE = (RoadObject.lane_distance_to, FastControlledVehicle.lane_distance_to)
+
+_POSITION = attrgetter("position")
+_HEADING = attrgetter("heading")
+_SPEED = attrgetter("speed")
+_LENGTH = attrgetter("LENGTH")
+_WIDTH = attrgetter("WIDTH")
+_DIAGONAL = attrgetter("diagonal")
+_LANE = attrgetter("lane")
+_LANE_INDEX = attrgetter("lane_index")
+_TARGET_INDEX = attrgetter("target_lane_index")
+_TARGET_SPEED = attrgetter("target_speed")
+_CRASHED = attrgetter("crashed")
+_COLLIDABLE = attrgetter("collidable")
+_CHECKS = attrgetter("check_collisions")
+_ACTION = attrgetter("action")
+_TIMER = attrgetter("timer")
+_LANE_CHANGE = attrgetter("enable_lane_change")
+_ROUTE = attrgetter("route")
+_DELTA = attrgetter("DELTA")
+_IMPACT = attrgetter("impact")
+_STEERING = itemgetter("steering")
+_ACCELERATION = itemgetter("acceleration")
+
+
+_PARAMS = attrgetter(
+    "COMFORT_ACC_MAX",
+    "COMFORT_ACC_MIN",
+    "DISTANCE_WANTED",
+    "TIME_WANTED",
+    "DELTA",
+    "POLITENESS",
+    "LANE_CHANGE_MIN_ACC_GAIN",
+    "LANE_CHANGE_MAX_BRAKING_IMPOSED",
+    "LANE_CHANGE_DELAY",
+    "ACC_MAX",
+    "MAX_STEERING_ANGLE",
+    "KP_LATERAL",
+    "KP_HEADING",
+    "TAU_PURSUIT",
+    "MAX_SPEED",
+    "MIN_SPEED",
+)
+"""Per compiled vehicle: the constants of the ``P_*`` columns, in order."""
+
+
+_CLASS_OK: dict[frozenset[type], tuple[bool, bool]] = {}
+"""Per set of vehicle classes on the road: :func:`_classes_ok`'s answer."""
+
+
+def _classes_ok(kinds: frozenset[type]) -> tuple[bool, bool]:
+    """Whether vehicles of these classes can share a compiled step (highway-env's
+    kinematics, lane distance and vehicle base), and whether they all collide as
+    highway-env's plain boxes."""
+    ok = all(
+        issubclass(cls, Vehicle)
+        and _uses_base_kinematics(cls)
+        and cls.lane_distance_to in _BASE_LANE_DISTANCE
+        for cls in kinds
+    )
+    return ok, all(_uses_base_box(cls) for cls in kinds)
+
+
+@cache
+def _is_controlled(cls: type) -> bool:
+    """Whether ``cls`` is a highway-env ``ControlledVehicle`` (it has a target lane)."""
+    return issubclass(cls, ControlledVehicle)
+
+
+class CompiledTraffic:
+    """Runs the ``FastIDMVehicle`` traffic of one generated highway in compiled kernels.
+
+    Attach it to a :class:`~aldm_gym.envs.traffic.road.FastRoad` (``road.engine``);
+    ``FastRoad.act`` and ``FastRoad.step`` call :meth:`act` and :meth:`step`, which return
+    False (doing nothing) when the step must run on the Python path (module docstring).
+
+    :param highway: the generated road (a :class:`~aldm_gym.roads.highway.HighwayRoad`)
+        whose ``network`` the traffic drives on.
+    """
+
+    def __init__(self, highway: Any) -> None:
+        """Tabulate the road; see the class docstring."""
+        from aldm_gym.roads.highway import EDGE
+
+        ref = highway.reference
+        self.network = highway.network
+        self.edge: tuple[str, str] = EDGE
+        lanes = list(self.network.graph[EDGE[0]][EDGE[1]])
+        self.lanes = lanes
+        self.lane_indices = [(EDGE[0], EDGE[1], i) for i in range(len(lanes))]
+        self.lanes_count = int(highway.lanes_count)
+        self.lane_width = float(highway.lane_width)
+        self.lane_offset = np.array([lane.offset for lane in lanes], dtype=np.float64)
+        self.lane_width_of = np.array([lane.width for lane in lanes], dtype=np.float64)
+        self.lane_length = np.array([lane.length for lane in lanes], dtype=np.float64)
+        self.lane_forbidden = np.array([bool(lane.forbidden) for lane in lanes], dtype=np.int64)
+        self.lane_of_index = {index: i for i, index in enumerate(self.lane_indices)}
+        self.lane_speed_limit_of = {
+            id(lane): np.nan if lane.speed_limit is None else float(lane.speed_limit)
+            for lane in lanes
+        }
+        self.lane_vehicle_length = float(lanes[0].VEHICLE_LENGTH) if lanes else 5.0
+        self.s_tab = np.ascontiguousarray(ref.s, dtype=np.float64)
+        self.h_tab = np.ascontiguousarray(ref.heading, dtype=np.float64)
+        self.ref_xy = np.ascontiguousarray(ref.xy, dtype=np.float64)
+        self.step_length = float(ref.step)
+        self.cell = float(ref._CELL)
+        self.hash_keys = ref._hash_keys
+        self.hash_ptr = ref._hash_ptr
+        self.hash_idx = ref._hash_idx
+        self.coarse = np.ascontiguousarray(ref._coarse, dtype=np.int64)
+        self.window = int(2 * ref._STRIDE)
+        ref_tables = (
+            self.ref_xy,
+            self.step_length,
+            self.cell,
+            self.hash_keys,
+            self.hash_ptr,
+            self.hash_idx,
+            self.coarse,
+            self.window,
+            _COORD_LIMIT,
+        )
+        self.act_tables = (
+            self.lane_offset,
+            self.lane_width_of,
+            self.lane_length,
+            self.lane_forbidden,
+            self.lane_vehicle_length,
+            self.s_tab,
+            self.h_tab,
+            *ref_tables,
+        )
+        """The arguments of :func:`~aldm_gym.envs.traffic.kernels.traffic_act` after
+        the state arrays ``f, k, p``."""
+        self.step_tables = (self.lanes_count, self.lane_width, self.h_tab, *ref_tables)
+        """The arguments of :func:`~aldm_gym.envs.traffic.kernels.traffic_step` after
+        ``f, k, p, dt``."""
+        self._f: np.ndarray | None = None
+        self._k: np.ndarray | None = None
+        self._p: np.ndarray | None = None
+        self._acted: tuple[list[Any], int] | None = None
+        self._params: tuple[int, list[tuple[float, ...]]] | None = None
+        self._boxes = False
+
+    # ----------------------------------------------------------------- eligibility
+    def _road_ok(self, road: Road) -> bool:
+        """The road-level conditions of the module docstring."""
+        graph = road.network.graph
+        return (
+            road.network is self.network
+            and not road.objects
+            and not getattr(road, "_record_history", True)
+            and not road.neighbour_vehicles_connected_lanes
+            and len(graph) == 1
+            and len(graph.get(self.edge[0], {})) == 1
+            and len(graph[self.edge[0]].get(self.edge[1], ())) == len(self.lanes)
+            and FAST_MATH_MATCHES_NUMPY
+        )
+
+    def _split(self, road: Road) -> int | None:
+        """Index of the first compiled vehicle in ``road.vehicles`` (every later one is
+        compiled, every earlier one is not), or None if this step must run in Python."""
+        if not self._road_ok(road):
+            return None
+        vehicles = road.vehicles
+        types = list(map(type, vehicles))
+        try:
+            first = types.index(FastIDMVehicle)
+        except ValueError:
+            return None
+        if types.count(FastIDMVehicle) != len(types) - first:
+            return None  # a Python vehicle after a compiled one
+        kinds = frozenset(types)
+        ok = _CLASS_OK.get(kinds)
+        if ok is None:
+            ok = _CLASS_OK[kinds] = _classes_ok(kinds)
+        if not ok[0]:
+            return None
+        compiled = vehicles[first:]
+        if any(map(_ROUTE, compiled)) or not _NUMPY_POWER_SPECIAL.isdisjoint(map(_DELTA, compiled)):
+            return None
+        self._boxes = ok[1]
+        return first
+
+    # ----------------------------------------------------------------- state
+    def _gather(self, road: Road, first: int) -> bool:
+        """Fill the state arrays from ``road.vehicles``; False if a vehicle is not on
+        this network's edge or its position is not finite.
+
+        Column by column (``map`` of attribute getters): several times cheaper than a
+        Python loop over the vehicles.
+        """
+        vehicles = road.vehicles
+        compiled = vehicles[first:]
+        n = len(vehicles)
+        lane_of = self.lane_of_index.__getitem__
+        try:
+            lane = list(map(lane_of, map(_LANE_INDEX, vehicles)))
+            target = [-1] * first + list(map(lane_of, map(_TARGET_INDEX, compiled)))
+            for row, v in enumerate(vehicles[:first]):
+                if _is_controlled(type(v)):
+                    target[row] = lane_of(v.target_lane_index)
+            limit = list(map(self.lane_speed_limit_of.__getitem__, map(id, map(_LANE, vehicles))))
+            impact = list(map(_IMPACT, vehicles))
+        except (KeyError, TypeError):
+            return False  # a lane (or target) not of this network's edge
+        except AttributeError:  # a vehicle without highway-env's impact attribute
+            impact = [getattr(v, "impact", None) for v in vehicles]
+        pending = list(map(is_not, impact, repeat(None, n)))
+        impact_x = [0.0] * n
+        impact_y = [0.0] * n
+        if any(pending):
+            for row, value in enumerate(impact):
+                if value is not None:
+                    impact_x[row], impact_y[row] = value.tolist()
+        actions = list(map(_ACTION, compiled))
+        xy = np.concatenate(list(map(_POSITION, vehicles))).tolist()
+        no = [0.0] * first
+        columns = [
+            xy[0::2],
+            xy[1::2],
+            list(map(_HEADING, vehicles)),
+            list(map(_SPEED, vehicles)),
+            list(map(_LENGTH, vehicles)),
+            [getattr(v, "target_speed", 0) for v in vehicles[:first]]
+            + list(map(_TARGET_SPEED, compiled)),
+            limit,
+            no + list(map(_TIMER, compiled)),
+            no + list(map(_STEERING, actions)),
+            no + list(map(_ACCELERATION, actions)),
+            impact_x,
+            impact_y,
+            list(map(_WIDTH, vehicles)),
+            list(map(_DIAGONAL, vehicles)),
+            # The integer columns (small integers, exact as floats), in K_* order.
+            lane,
+            target,
+            no + [1.0] * (n - first),
+            list(map(_CRASHED, vehicles)),
+            pending,
+            no + list(map(_LANE_CHANGE, compiled)),
+            list(map(_COLLIDABLE, vehicles)),
+            list(map(_CHECKS, vehicles)),
+        ]
+        # One conversion of all columns (each list converted alone costs about as much).
+        table = np.array(columns, dtype=np.float64)
+        if table.shape != (K.F_COLUMNS + K.K_COLUMNS, n):
+            return False  # a position that is not 2 numbers
+        f = table[: K.F_COLUMNS].T.copy()
+        k = table[K.F_COLUMNS :].T.astype(np.int64)
+        self._f = f
+        self._k = k
+        params = list(map(_PARAMS, compiled))
+        if (first, params) != self._params or self._p is None or len(self._p) != n:
+            # Behaviour constants rarely change: rebuild their array only when they do.
+            self._params = (first, params)
+            p = np.zeros((n, K.P_COLUMNS))
+            p[first:] = params
+            self._p = p
+        return True
+
+    def forget(self) -> None:
+        """Drop the state gathered by :meth:`act` (call after moving vehicles by hand;
+        :meth:`FastRoad.invalidate <aldm_gym.envs.traffic.road.FastRoad.invalidate>`
+        does)."""
+        self._acted = None
+
+    # ----------------------------------------------------------------- the two calls
+    def act(self, road: Road) -> bool:
+        """Every vehicle decides its action (``Road.act``), or False for the Python path.
+
+        The vehicles before the compiled ones act in Python first (list order), then
+        one kernel call decides the rest; their ``action``, ``target_lane_index`` and
+        ``timer`` are written back.
+        """
+        self._acted = None
+        first = self._split(road)
+        if first is None:
+            return False
+        vehicles = road.vehicles
+        for v in vehicles[:first]:
+            v.act()
+        if not self._gather(road, first):
+            # The Python vehicles have acted: the rest act in Python too (same order).
+            for v in vehicles[first:]:
+                v.act()
+            return True
+        f, k, p = self._f, self._k, self._p
+        assert f is not None and k is not None and p is not None
+        if not K.traffic_act(f, k, p, *self.act_tables):
+            # A position not finite (or huge): the rest act in Python (same order).
+            for v in vehicles[first:]:
+                v.act()
+            return True
+        steer = f[first:, K.F_STEERING].tolist()
+        accel = f[first:, K.F_ACCELERATION].tolist()
+        timer = f[first:, K.F_TIMER].tolist()
+        target = k[first:, K.K_TARGET].tolist()
+        crashed = k[first:, K.K_CRASHED].tolist()
+        indices = self.lane_indices
+        # step() moves them from this state (positions do not change in between).
+        self._acted = (list(vehicles), first)
+        for n, v in enumerate(vehicles[first:]):
+            if crashed[n]:
+                continue  # IDMVehicle.act does nothing for a crashed vehicle
+            v.action = {"steering": steer[n], "acceleration": accel[n]}
+            v.timer = timer[n]
+            if v.target_lane_index[2] != target[n]:
+                v.target_lane_index = indices[target[n]]
+        return True
+
+    def step(self, road: Road, dt: float) -> int | None:
+        """Move the compiled vehicles by ``dt`` [s] and set their lanes.
+
+        :return: the index of the first vehicle it moved (the caller steps the earlier
+            ones), or None if it moved none (the Python path steps everyone).
+        """
+        acted, self._acted = self._acted, None
+        if acted is not None and acted[0] == road.vehicles:
+            first = acted[1]  # the state act() gathered and updated
+        else:
+            first = self._split(road)
+            if first is None or not self._gather(road, first):
+                return None
+        f, k, p = self._f, self._k, self._p
+        assert f is not None and k is not None and p is not None
+        if not K.traffic_step(f, k, p, float(dt), *self.step_tables):
+            return None  # a position not finite: the Python path (and its errors)
+        rows = f[first:].tolist()
+        lane = k[first:, K.K_LANE].tolist()
+        crashed = k[first:, K.K_CRASHED].tolist()
+        lanes = self.lanes
+        indices = self.lane_indices
+        for n, v in enumerate(road.vehicles[first:]):
+            row = rows[n]
+            position = v.position
+            position[0] = row[K.F_X]
+            position[1] = row[K.F_Y]
+            v.heading = row[K.F_HEADING]
+            v.speed = row[K.F_SPEED]
+            v.timer = row[K.F_TIMER]
+            action = v.action
+            action["steering"] = row[K.F_STEERING]
+            action["acceleration"] = row[K.F_ACCELERATION]
+            if crashed[n] and not v.crashed:
+                v.crashed = True
+            if getattr(v, "impact", None) is not None:
+                v.impact = None
+            if v.lane_index[2] != lane[n]:
+                v.lane_index = indices[lane[n]]
+                v.lane = lanes[lane[n]]
+        return first
+
+    def collide(self, road: Road, dt: float, first: int) -> None:
+        """Resolve collisions after :meth:`step` moved vehicles ``first:`` and the
+        caller moved the others: ``resolve_collisions``'s result, with the pairs that
+        may collide found in one compiled call (plain boxes only; else its Python path).
+
+        :param dt: timestep [s].
+        :param first: what :meth:`step` returned.
+        """
+        f, k = self._f, self._k
+        vehicles = road.vehicles
+        if not self._boxes or f is None or k is None or len(f) != len(vehicles):
+            resolve_collisions(vehicles, road.objects, dt)
+            return
+        for row, v in enumerate(vehicles[:first]):  # moved in Python since the gather
+            x, y = v.position.tolist()
+            f[row, K.F_X] = x
+            f[row, K.F_Y] = y
+            f[row, K.F_HEADING] = v.heading
+            f[row, K.F_SPEED] = v.speed
+            k[row, K.K_COLLIDABLE] = v.collidable
+            k[row, K.K_CHECKS] = v.check_collisions
+        if not bool(np.isfinite(f[:, : K.F_SPEED + 1]).all()):
+            resolve_collisions(vehicles, road.objects, dt)  # its all-pairs fallback
+            return
+        for i, j in K.collision_pairs(f, k, float(dt)).tolist():
+            vehicles[i].handle_collisions(vehicles[j], dt)

@@ -1,0 +1,268 @@
+"""The compiled traffic engine (``traffic.engine = "compiled"``) against the Python path.
+
+The contract is bit-identity: the same seed gives the same episode with either engine
+(every vehicle's pose, speed, lanes and crash flag, observations, rewards and info at
+every step), and the engine hands a step back to the Python path whenever it cannot
+promise that.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from highway_env.vehicle.behavior import IDMVehicle
+from highway_env.vehicle.objects import Obstacle
+
+import aldm_gym  # noqa: F401  (registers ALDMHighway-v0)
+from aldm_gym.envs.traffic import compiled, kernels
+from aldm_gym.envs.traffic.compiled import CompiledTraffic
+
+
+def _env(engine: str, **config: Any) -> Any:
+    cfg: dict[str, Any] = {
+        "vehicles_count": 20,
+        "lanes_count": 4,
+        "simulation_frequency": 10,
+        "policy_frequency": 1,
+        "duration": 1e4,
+        **config,
+    }
+    cfg["traffic"] = {**cfg.get("traffic", {}), "engine": engine}
+    return gym.make("ALDMHighway-v0", config=cfg)
+
+
+def _vehicles(env: Any) -> list[tuple[Any, ...]]:
+    return [
+        (
+            v.position.tobytes(),
+            float(v.heading),
+            float(v.speed),
+            v.lane_index,
+            getattr(v, "target_lane_index", None),
+            bool(v.crashed),
+            float(getattr(v, "timer", 0.0)),
+            repr(sorted(v.action.items())),
+        )
+        for v in env.unwrapped.road.vehicles
+    ]
+
+
+def _rollout(
+    engine: str, seed: int, steps: int, actions: str = "random", **config: Any
+) -> list[Any]:
+    env = _env(engine, **config)
+    obs, info = env.reset(seed=seed)
+    rng = np.random.default_rng(seed)
+    trace: list[Any] = [sorted((k, v.tobytes()) for k, v in obs.items()), _vehicles(env)]
+    for _ in range(steps):
+        action = int(rng.integers(0, 5)) if actions == "random" else 1
+        obs, reward, terminated, truncated, info = env.step(action)
+        info.pop("action", None)
+        trace.append((sorted((k, v.tobytes()) for k, v in obs.items()), reward, repr(info)))
+        trace.append(_vehicles(env))
+        if terminated or truncated:
+            break
+    env.close()
+    return trace
+
+
+def _crashes(trace: list[Any]) -> int:
+    """Vehicles crashed at the end of a rollout."""
+    return sum(row[5] for row in trace[-1])
+
+
+@pytest.mark.parametrize(
+    ("seed", "config"),
+    [
+        (0, {}),
+        (1, {"traffic": {"truck_share": 0.3, "truck_lane_changes": True}}),
+        (2, {"vehicles_count": 40, "lanes_count": 3}),
+        (3, {"vehicles_density": 2.0, "lanes_count": 2}),
+        (4, {"marking_model": "editor", "acc": {"enabled": False}}),
+    ],
+)
+def test_episodes_are_bit_identical_to_the_python_path(seed: int, config: dict) -> None:
+    """Same seed, same episode, whichever engine runs the traffic."""
+    python = _rollout("python", seed, 25, **config)
+    fast = _rollout("compiled", seed, 25, **config)
+    assert fast == python
+
+
+def test_crashes_and_impacts_are_bit_identical() -> None:
+    """Dense traffic with an aggressive ego: collisions happen, and match exactly."""
+    crashed = 0
+    for seed in range(3):
+        config = {"vehicles_density": 3.0, "lanes_count": 2, "vehicles_count": 30}
+        python = _rollout("python", seed, 30, actions="random", **config)
+        fast = _rollout("compiled", seed, 30, actions="random", **config)
+        assert fast == python
+        crashed += _crashes(python)
+    assert crashed > 0  # the scenes exercise impacts and crashed vehicles
+
+
+def test_the_engine_runs_every_step_of_a_default_episode(monkeypatch: pytest.MonkeyPatch) -> None:
+    """With the default config no step falls back to the Python path."""
+    calls = {"act": 0, "step": 0}
+    act, step = kernels.traffic_act, kernels.traffic_step
+
+    def counting_act(*args: Any) -> bool:
+        calls["act"] += 1
+        return act(*args)
+
+    def counting_step(*args: Any) -> bool:
+        calls["step"] += 1
+        return step(*args)
+
+    monkeypatch.setattr(kernels, "traffic_act", counting_act)
+    monkeypatch.setattr(kernels, "traffic_step", counting_step)
+    env = _env("compiled")
+    env.reset(seed=0)
+    for _ in range(3):
+        env.step(1)
+    assert calls == {"act": 30, "step": 30}
+    assert isinstance(env.unwrapped.road.engine, CompiledTraffic)
+    env_py = _env("python")
+    env_py.reset(seed=0)
+    assert env_py.unwrapped.road.engine is None
+
+
+def _split_after(env: Any) -> int | None:
+    road = env.unwrapped.road
+    return road.engine._split(road)
+
+
+def test_unsupported_scenes_fall_back_to_the_python_path() -> None:
+    """Road objects, trajectory recording, a Python vehicle after the compiled ones or a
+    planned route: the engine declines, and the episode still runs."""
+    env = _env("compiled")
+    env.reset(seed=1)
+    road = env.unwrapped.road
+    assert _split_after(env) == 1  # the ego, then the compiled traffic
+
+    road.objects.append(Obstacle(road, road.vehicles[3].position + np.array([30.0, 0.0])))
+    assert _split_after(env) is None
+    road.objects.clear()
+
+    road.record_history = True
+    assert _split_after(env) is None
+    road.record_history = False
+
+    last = road.vehicles[-1]
+    road.vehicles.append(IDMVehicle.create_from(last))
+    assert _split_after(env) is None
+    road.vehicles.pop()
+
+    last.route = [("a", "b", 0)]
+    assert _split_after(env) is None
+    last.route = None
+    assert _split_after(env) == 1
+    env.step(1)
+
+
+def test_a_step_after_fallback_matches_the_python_path() -> None:
+    """A scene the engine declines for one step (an extra highway-env IDM vehicle at the
+    end) runs the same with either engine setting."""
+
+    def run(engine: str) -> list[Any]:
+        env = _env(engine)
+        env.reset(seed=6)
+        road = env.unwrapped.road
+        road.vehicles.append(IDMVehicle.create_from(road.vehicles[-1]))
+        road.vehicles[-1].position = road.vehicles[-1].position + np.array([60.0, 0.0])
+        trace = []
+        for _ in range(4):
+            env.step(1)
+            trace.append(_vehicles(env))
+        return trace
+
+    assert run("compiled") == run("python")
+
+
+def test_non_finite_positions_take_the_python_path_and_its_error() -> None:
+    """A NaN position is not given to the kernels: the step fails as on the Python path."""
+    errors = []
+    for engine in ("python", "compiled"):
+        env = _env(engine)
+        env.reset(seed=0)
+        env.unwrapped.road.vehicles[5].position[0] = np.nan
+        with pytest.raises(ValueError) as info:
+            for _ in range(3):
+                env.step(1)
+        errors.append(str(info.value))
+    assert errors[0] == errors[1]
+
+
+def test_kernels_match_their_plain_python_twins() -> None:
+    """Each compiled kernel computes what its plain-Python twin computes."""
+    env = _env("compiled", vehicles_density=2.0)
+    env.reset(seed=3)
+    road = env.unwrapped.road
+    engine: CompiledTraffic = road.engine
+    for _ in range(3):
+        env.step(1)
+    first = engine._split(road)
+    assert first is not None and engine._gather(road, first)
+    f, k, p = engine._f, engine._k, engine._p
+    tables = engine.act_tables
+    f1, k1, f2, k2 = f.copy(), k.copy(), f.copy(), k.copy()
+    assert kernels.traffic_act(f1, k1, p, *tables) is True
+    assert kernels._traffic_act_py(f2, k2, p, *tables) is True
+    assert f1.tobytes() == f2.tobytes() and np.array_equal(k1, k2)
+    step_tables = (0.1, *engine.step_tables)
+    assert kernels.traffic_step(f1, k1, p, *step_tables) is True
+    assert kernels._traffic_step_py(f2, k2, p, *step_tables) is True
+    assert f1.tobytes() == f2.tobytes() and np.array_equal(k1, k2)
+    # Push two vehicles together so that the pair search has something to find.
+    f1[2, kernels.F_X] = f1[1, kernels.F_X] + 1.0
+    f1[2, kernels.F_Y] = f1[1, kernels.F_Y]
+    pairs = kernels.collision_pairs(f1, k1, 0.1)
+    assert np.array_equal(pairs, kernels._collision_pairs_py(f1, k1, 0.1))
+    assert [1, 2] in pairs.tolist()
+
+
+def test_collision_pairs_include_every_colliding_pair() -> None:
+    """Every pair highway-env's polygon test finds colliding is among the kernel's pairs."""
+    from highway_env import utils
+
+    rng = np.random.default_rng(0)
+    found = 0
+    for _ in range(200):
+        n = 12
+        f = np.zeros((n, kernels.F_COLUMNS))
+        k = np.ones((n, kernels.K_COLUMNS), dtype=np.int64)
+        f[:, kernels.F_X] = rng.uniform(0.0, 40.0, n)
+        f[:, kernels.F_Y] = rng.uniform(-4.0, 4.0, n)
+        f[:, kernels.F_HEADING] = rng.uniform(-0.3, 0.3, n)
+        f[:, kernels.F_SPEED] = rng.uniform(0.0, 30.0, n)
+        f[:, kernels.F_LENGTH] = rng.choice([5.0, 15.0], n)
+        f[:, kernels.F_WIDTH] = 2.0
+        f[:, kernels.F_DIAGONAL] = np.hypot(f[:, kernels.F_LENGTH], 2.0)
+        pairs = {tuple(p) for p in kernels.collision_pairs(f, k, 0.1).tolist()}
+        for i in range(n):
+            for j in range(i + 1, n):
+                boxes = []
+                for r in (i, j):
+                    c, s = np.cos(f[r, kernels.F_HEADING]), np.sin(f[r, kernels.F_HEADING])
+                    half = np.array([f[r, kernels.F_LENGTH], f[r, kernels.F_WIDTH]]) / 2
+                    corners = np.array([[-1, -1], [-1, 1], [1, 1], [1, -1], [-1, -1]]) * half
+                    rot = np.array([[c, -s], [s, c]])
+                    boxes.append(corners @ rot.T + f[r, kernels.F_X : kernels.F_Y + 1])
+                v_i = f[i, kernels.F_SPEED] * np.array([np.cos(f[i, 2]), np.sin(f[i, 2])])
+                v_j = f[j, kernels.F_SPEED] * np.array([np.cos(f[j, 2]), np.sin(f[j, 2])])
+                hit, will, _ = utils.are_polygons_intersecting(
+                    boxes[0], boxes[1], v_i * 0.1, v_j * 0.1
+                )
+                if hit or will:
+                    found += 1
+                    assert (i, j) in pairs
+    assert found > 50
+
+
+def test_engine_setting_is_validated() -> None:
+    """An unknown engine names the setting and the allowed values."""
+    with pytest.raises(ValueError, match=r"traffic\.engine.*compiled.*python"):
+        _env("numba").reset(seed=0)
+    assert compiled.ENGINES == ("compiled", "python")
