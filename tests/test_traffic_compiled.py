@@ -208,19 +208,32 @@ def test_kernels_match_their_plain_python_twins() -> None:
     f, k, p = engine._f, engine._k, engine._p
     tables = engine.act_tables
     f1, k1, f2, k2 = f.copy(), k.copy(), f.copy(), k.copy()
-    assert kernels.traffic_act(f1, k1, p, *tables) is True
-    assert kernels._traffic_act_py(f2, k2, p, *tables) is True
+    empty = np.full((0, 4), np.nan)
+    assert kernels.traffic_act(f1, k1, p, empty, *tables) is True
+    assert kernels._traffic_act_py(f2, k2, p, empty, *tables) is True
     assert f1.tobytes() == f2.tobytes() and np.array_equal(k1, k2)
     step_tables = (0.1, *engine.step_tables)
-    assert kernels.traffic_step(f1, k1, p, *step_tables) is True
-    assert kernels._traffic_step_py(f2, k2, p, *step_tables) is True
+    memo1, memo2 = np.full((len(f), 4), np.nan), np.full((len(f), 4), np.nan)
+    assert kernels.traffic_step(f1, k1, p, memo1, *step_tables) is True
+    assert kernels._traffic_step_py(f2, k2, p, memo2, *step_tables) is True
     assert f1.tobytes() == f2.tobytes() and np.array_equal(k1, k2)
+    assert memo1.tobytes() == memo2.tobytes()
+    assert np.isnan(memo1[:first]).all() and np.isfinite(memo1[first:]).all()
+    # The next act with the memo gives the act without it, bit for bit.
+    f3, k3, f4, k4 = f1.copy(), k1.copy(), f1.copy(), k1.copy()
+    assert kernels.traffic_act(f3, k3, p, memo1, *tables) is True
+    assert kernels.traffic_act(f4, k4, p, empty, *tables) is True
+    assert f3.tobytes() == f4.tobytes() and np.array_equal(k3, k4)
     # Push two vehicles together so that the pair search has something to find.
     f1[2, kernels.F_X] = f1[1, kernels.F_X] + 1.0
     f1[2, kernels.F_Y] = f1[1, kernels.F_Y]
-    pairs = kernels.collision_pairs(f1, k1, 0.1)
-    assert np.array_equal(pairs, kernels._collision_pairs_py(f1, k1, 0.1))
+    ok, pairs = kernels.collision_pairs(f1, k1, 0.1)
+    ok_py, pairs_py = kernels._collision_pairs_py(f1, k1, 0.1)
+    assert ok and ok_py and np.array_equal(pairs, pairs_py)
     assert [1, 2] in pairs.tolist()
+    f1[4, kernels.F_Y] = np.nan  # not finite: no pairs, the caller checks them all
+    ok, pairs = kernels.collision_pairs(f1, k1, 0.1)
+    assert not ok and len(pairs) == 0
 
 
 def test_collision_pairs_include_every_colliding_pair() -> None:
@@ -240,7 +253,9 @@ def test_collision_pairs_include_every_colliding_pair() -> None:
         f[:, kernels.F_LENGTH] = rng.choice([5.0, 15.0], n)
         f[:, kernels.F_WIDTH] = 2.0
         f[:, kernels.F_DIAGONAL] = np.hypot(f[:, kernels.F_LENGTH], 2.0)
-        pairs = {tuple(p) for p in kernels.collision_pairs(f, k, 0.1).tolist()}
+        ok, found_pairs = kernels.collision_pairs(f, k, 0.1)
+        assert ok
+        pairs = {tuple(p) for p in found_pairs.tolist()}
         for i in range(n):
             for j in range(i + 1, n):
                 boxes = []
@@ -266,3 +281,55 @@ def test_engine_setting_is_validated() -> None:
     with pytest.raises(ValueError, match=r"traffic\.engine.*compiled.*python"):
         _env("numba").reset(seed=0)
     assert compiled.ENGINES == ("compiled", "python")
+
+
+def test_vehicles_changed_between_env_steps_are_read_again() -> None:
+    """The engine keeps its arrays only within one env step (``holding``): a script
+    that moves, slows or re-parameterises a vehicle between env steps is followed."""
+
+    def run(engine: str) -> list[Any]:
+        env = _env(engine)
+        env.reset(seed=2)
+        road = env.unwrapped.road
+        trace = []
+        for t in range(6):
+            env.step(1)
+            v = road.vehicles[3 + t]
+            v.speed = v.speed - 4.0
+            v.position[1] += 0.7
+            v.DELTA = 3.7
+            v.target_speed = 18.0
+            trace.append(_vehicles(env))
+        env.step(1)
+        trace.append(_vehicles(env))
+        return trace
+
+    assert run("compiled") == run("python")
+
+
+def test_holding_keeps_state_only_within_the_block() -> None:
+    """Inside ``holding`` the engine reads the compiled vehicles once; a new block (the
+    next env step) reads them all again."""
+    env = _env("compiled")
+    env.reset(seed=0)
+    road = env.unwrapped.road
+    engine: CompiledTraffic = road.engine
+    reads = {"gather": 0, "refresh": 0}
+    gather, refresh = engine._gather, engine._refresh
+
+    def counting_gather(*args: Any) -> bool:
+        reads["gather"] += 1
+        return gather(*args)
+
+    def counting_refresh(*args: Any) -> bool:
+        reads["refresh"] += 1
+        return refresh(*args)
+
+    engine._gather = counting_gather  # type: ignore[method-assign]
+    engine._refresh = counting_refresh  # type: ignore[method-assign]
+    env.step(1)
+    env.step(1)
+    assert reads == {"gather": 2, "refresh": 18}
+    road.act()  # outside a block: everything is read
+    road.step(0.1)
+    assert reads["gather"] == 3

@@ -5,6 +5,7 @@ See :class:`ALDMHighwayEnv`'s docstring (spaces, reward, episode end) and ``docs
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import math
 import warnings
@@ -33,8 +34,11 @@ from aldm_gym.envs.targets import (
     objects_from_world,
 )
 from aldm_gym.envs.traffic import FastRoad
+from aldm_gym.envs.traffic import kernels as K
 from aldm_gym.envs.traffic.compiled import CompiledTraffic
 from aldm_gym.envs.traffic.mix import Spawner, TrafficConfig, make_truck
+from aldm_gym.envs.traffic.scalar import cos_scalar, sin_scalar
+from aldm_gym.envs.traffic.vehicles import _uses_base_kinematics
 from aldm_gym.envs.vehicle import MapIDMVehicle, SensorVehicle
 from aldm_gym.roads.cache import cached_road
 from aldm_gym.roads.highway import HighwayRoad
@@ -56,6 +60,15 @@ lane chain ahead, plus :data:`ROAD_END_MARGIN` [m]."""
 
 MAP_TRAFFIC_ROOM = 200.0
 """Traffic is not placed on a lane whose chain ends within this distance [m]."""
+
+
+def _velocity(vehicle: Any) -> Any:
+    """``vehicle.velocity`` [m/s] (world frame): for highway-env's own kinematics the
+    same floats computed without building two arrays."""
+    if _uses_base_kinematics(type(vehicle)):
+        speed, heading = vehicle.speed, vehicle.heading
+        return (speed * cos_scalar(heading), speed * sin_scalar(heading))
+    return vehicle.velocity
 
 
 class ALDMHighwayEnv(AbstractEnv):
@@ -525,21 +538,36 @@ class ALDMHighwayEnv(AbstractEnv):
         frame = self.frame
         assert frame is not None
         vehicles = self.road.vehicles
-        rows = [i for i, v in enumerate(vehicles) if v is not ego]
+        n = len(vehicles)
+        ego_row = next((i for i, v in enumerate(vehicles) if v is ego), n)
+        rows = [*range(ego_row), *range(ego_row + 1, n)]
         if not rows:
             return Objects()
-        others = [vehicles[i] for i in rows]
-        xy = self._objects_xy = np.array([v.position for v in others], dtype=np.float64)
+        engine = self.road.engine
+        state = engine.moved_state(self.road) if engine is not None else None
+        if state is not None:
+            # The compiled traffic's arrays hold these very values: no second gather.
+            table = state[1:].copy() if ego_row == 0 else state[rows]
+            xy = self._objects_xy = table[:, K.F_X : K.F_Y + 1]
+            speed, heading = table[:, K.F_SPEED], table[:, K.F_HEADING]
+            width, length = table[:, K.F_WIDTH], table[:, K.F_LENGTH]
+        else:
+            others = [vehicles[i] for i in rows]
+            xy = self._objects_xy = np.array([v.position for v in others], dtype=np.float64)
+            speed = np.array([v.speed for v in others], dtype=np.float64)
+            heading = np.array([v.heading for v in others], dtype=np.float64)
+            width = np.array([v.WIDTH for v in others], dtype=np.float64)
+            length = np.array([v.LENGTH for v in others], dtype=np.float64)
         return objects_from_world(
             np.array(rows, dtype=np.int64),
             xy,
-            np.array([v.speed for v in others], dtype=np.float64),
-            np.array([v.heading for v in others], dtype=np.float64),
-            np.array([v.WIDTH for v in others], dtype=np.float64),
-            np.array([v.LENGTH for v in others], dtype=np.float64),
+            speed,
+            heading,
+            width,
+            length,
             frame.origin,
             frame.yaw,
-            ego.velocity,
+            _velocity(ego),
         )
 
     def _longitudinal_step(self, pos: LanePosition) -> None:
@@ -639,13 +667,16 @@ class ALDMHighwayEnv(AbstractEnv):
         self._acc_step = {"aeb": False, "phantom_braking": False}
         if not self.config["manual_control"]:
             self.action_type.act(action)  # raises ValueError on a bad action (None too)
-        for frame in range(frames):
-            self.road.act()
-            self.road.step(dt)
-            self.steps += 1
-            self._perceive()
-            if frame < frames - 1:
-                self._automatic_rendering()
+        engine = self.road.engine
+        # Nothing but the simulation touches the traffic until the env step ends.
+        with engine.holding() if engine is not None else contextlib.nullcontext():
+            for frame in range(frames):
+                self.road.act()
+                self.road.step(dt)
+                self.steps += 1
+                self._perceive()
+                if frame < frames - 1:
+                    self._automatic_rendering()
         self.enable_auto_render = False
 
     # ------------------------------------------------------------------ reward / end

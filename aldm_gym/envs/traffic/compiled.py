@@ -26,12 +26,23 @@ whenever the engine cannot promise that, decided per simulation step:
 - every vehicle has highway-env's kinematics and lane distance, a lane of this network
   and a finite position.
 
-Behaviour constants (``DELTA``, ``TIME_WANTED``, ``LENGTH``, ...) are read from each
-vehicle at every step, so instance overrides (trucks, ``randomize_behavior``) hold.
+Reading the vehicles into arrays is the engine's main Python cost. Within
+:meth:`CompiledTraffic.holding` (the simulation steps of one env step, which nothing but
+the simulation touches) the arrays are kept from one step to the next: they mirror the
+compiled vehicles exactly (the kernels' results are written back as they are, and the
+impacts and crash flags set by collisions are read back), so only the vehicles before
+the compiled ones (the ego) are read again. Every block, and every step outside one,
+starts by reading everything: behaviour constants (``DELTA``, ``TIME_WANTED``,
+``LENGTH``, ...), speeds and poses a script changed between env steps take effect as on
+the Python path. Code that changes vehicles *during* a block (between ``road.act`` and
+``road.step`` of one simulation step, or in a render hook) must call
+:meth:`FastRoad.invalidate <aldm_gym.envs.traffic.road.FastRoad.invalidate>`.
 """
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from contextlib import contextmanager
 from functools import cache
 from itertools import repeat
 from operator import attrgetter, is_not, itemgetter
@@ -160,6 +171,9 @@ class CompiledTraffic:
         self.lane_length = np.array([lane.length for lane in lanes], dtype=np.float64)
         self.lane_forbidden = np.array([bool(lane.forbidden) for lane in lanes], dtype=np.int64)
         self.lane_of_index = {index: i for i, index in enumerate(self.lane_indices)}
+        self.lane_speed_limit = [
+            np.nan if lane.speed_limit is None else float(lane.speed_limit) for lane in lanes
+        ]
         self.lane_speed_limit_of = {
             id(lane): np.nan if lane.speed_limit is None else float(lane.speed_limit)
             for lane in lanes
@@ -197,14 +211,20 @@ class CompiledTraffic:
             *ref_tables,
         )
         """The arguments of :func:`~aldm_gym.envs.traffic.kernels.traffic_act` after
-        the state arrays ``f, k, p``."""
+        the state arrays ``f, k, p`` and the projection memo."""
         self.step_tables = (self.lanes_count, self.lane_width, self.h_tab, *ref_tables)
         """The arguments of :func:`~aldm_gym.envs.traffic.kernels.traffic_step` after
-        ``f, k, p, dt``."""
+        ``f, k, p``, the projection memo and ``dt``."""
+        self._memo = np.full((0, 4), np.nan)
+        """``(x, y, s, d)`` [m] of the rows :func:`~aldm_gym.envs.traffic.kernels.traffic_step`
+        projected last (see :func:`~aldm_gym.envs.traffic.kernels.traffic_act`)."""
         self._f: np.ndarray | None = None
         self._k: np.ndarray | None = None
         self._p: np.ndarray | None = None
         self._acted: tuple[list[Any], int] | None = None
+        self._current: list[Any] | None = None
+        self._held = False
+        self._first = 0
         self._params: tuple[int, list[tuple[float, ...]]] | None = None
         self._boxes = False
 
@@ -325,11 +345,71 @@ class CompiledTraffic:
             self._p = p
         return True
 
+    def _refresh(self, road: Road, first: int) -> bool:
+        """Read the Python vehicles (rows ``:first``) into the arrays again; False if
+        one is not on this network's edge or its position is not finite."""
+        f, k = self._f, self._k
+        assert f is not None and k is not None
+        lane_of = self.lane_of_index
+        for row, v in enumerate(road.vehicles[:first]):
+            lane = lane_of.get(v.lane_index)
+            limit = self.lane_speed_limit_of.get(id(v.lane))
+            target = -1
+            if _is_controlled(type(v)):
+                target = lane_of.get(v.target_lane_index, -2)
+            if lane is None or limit is None or target == -2:
+                return False
+            x, y = v.position.tolist()
+            if not (abs(x) < _COORD_LIMIT and abs(y) < _COORD_LIMIT):
+                return False
+            impact = v.impact
+            ix, iy = (0.0, 0.0) if impact is None else impact.tolist()
+            f[row, : K.F_SPEED_LIMIT + 1] = (
+                x,
+                y,
+                v.heading,
+                v.speed,
+                v.LENGTH,
+                getattr(v, "target_speed", 0),
+                limit,
+            )
+            f[row, K.F_IMPACT_X : K.F_DIAGONAL + 1] = (ix, iy, v.WIDTH, v.diagonal)
+            k[row] = (
+                lane,
+                target,
+                0,
+                v.crashed,
+                impact is not None,
+                0,
+                v.collidable,
+                v.check_collisions,
+            )
+        return True
+
+    @contextmanager
+    def holding(self) -> Iterator[None]:
+        """Within this block the steps run back to back: no code but the road's
+        ``act``/``step`` and read-only perception touches the compiled vehicles.
+
+        The engine then keeps their state in its arrays from one step to the next
+        instead of reading every vehicle again (the env's ``_simulate`` holds it for
+        the simulation steps of one env step; anything may happen between env steps,
+        so the first step of a block reads everything).
+        """
+        self._held = True
+        self._current = None
+        try:
+            yield
+        finally:
+            self._held = False
+            self._current = None
+
     def forget(self) -> None:
         """Drop the state gathered by :meth:`act` (call after moving vehicles by hand;
         :meth:`FastRoad.invalidate <aldm_gym.envs.traffic.road.FastRoad.invalidate>`
         does)."""
         self._acted = None
+        self._current = None
 
     # ----------------------------------------------------------------- the two calls
     def act(self, road: Road) -> bool:
@@ -339,21 +419,32 @@ class CompiledTraffic:
         one kernel call decides the rest; their ``action``, ``target_lane_index`` and
         ``timer`` are written back.
         """
+        current, self._current = self._current, None
         self._acted = None
-        first = self._split(road)
-        if first is None:
-            return False
         vehicles = road.vehicles
-        for v in vehicles[:first]:
-            v.act()
-        if not self._gather(road, first):
+        if self._held and current is not None and current == vehicles:
+            # Back-to-back steps: the arrays mirror the compiled vehicles (module
+            # docstring); only the Python vehicles are read again after they act.
+            first = self._first
+            for v in vehicles[:first]:
+                v.act()
+            gathered = self._refresh(road, first)
+        else:
+            split = self._split(road)
+            if split is None:
+                return False
+            first = self._first = split
+            for v in vehicles[:first]:
+                v.act()
+            gathered = self._gather(road, first)
+        if not gathered:
             # The Python vehicles have acted: the rest act in Python too (same order).
             for v in vehicles[first:]:
                 v.act()
             return True
         f, k, p = self._f, self._k, self._p
         assert f is not None and k is not None and p is not None
-        if not K.traffic_act(f, k, p, *self.act_tables):
+        if not K.traffic_act(f, k, p, self._memo, *self.act_tables):
             # A position not finite (or huge): the rest act in Python (same order).
             for v in vehicles[first:]:
                 v.act()
@@ -382,6 +473,7 @@ class CompiledTraffic:
             ones), or None if it moved none (the Python path steps everyone).
         """
         acted, self._acted = self._acted, None
+        self._current = None
         if acted is not None and acted[0] == road.vehicles:
             first = acted[1]  # the state act() gathered and updated
         else:
@@ -390,13 +482,17 @@ class CompiledTraffic:
                 return None
         f, k, p = self._f, self._k, self._p
         assert f is not None and k is not None and p is not None
-        if not K.traffic_step(f, k, p, float(dt), *self.step_tables):
+        impact = k[first:, K.K_IMPACT].tolist()  # pending before the kernel applies them
+        if len(self._memo) != len(f):
+            self._memo = np.full((len(f), 4), np.nan)
+        if not K.traffic_step(f, k, p, self._memo, float(dt), *self.step_tables):
             return None  # a position not finite: the Python path (and its errors)
         rows = f[first:].tolist()
         lane = k[first:, K.K_LANE].tolist()
         crashed = k[first:, K.K_CRASHED].tolist()
         lanes = self.lanes
         indices = self.lane_indices
+        limits = self.lane_speed_limit
         for n, v in enumerate(road.vehicles[first:]):
             row = rows[n]
             position = v.position
@@ -410,11 +506,12 @@ class CompiledTraffic:
             action["acceleration"] = row[K.F_ACCELERATION]
             if crashed[n] and not v.crashed:
                 v.crashed = True
-            if getattr(v, "impact", None) is not None:
-                v.impact = None
+            if impact[n]:
+                v.impact = None  # applied by the kernel
             if v.lane_index[2] != lane[n]:
                 v.lane_index = indices[lane[n]]
                 v.lane = lanes[lane[n]]
+                f[first + n, K.F_SPEED_LIMIT] = limits[lane[n]]  # the new lane's
         return first
 
     def collide(self, road: Road, dt: float, first: int) -> None:
@@ -438,8 +535,31 @@ class CompiledTraffic:
             f[row, K.F_SPEED] = v.speed
             k[row, K.K_COLLIDABLE] = v.collidable
             k[row, K.K_CHECKS] = v.check_collisions
-        if not bool(np.isfinite(f[:, : K.F_SPEED + 1]).all()):
+        ok, pairs = K.collision_pairs(f, k, float(dt))
+        if not ok:
             resolve_collisions(vehicles, road.objects, dt)  # its all-pairs fallback
             return
-        for i, j in K.collision_pairs(f, k, float(dt)).tolist():
-            vehicles[i].handle_collisions(vehicles[j], dt)
+        for i, j in pairs.tolist():
+            vehicles[i].handle_collisions(vehicles[j], dt)  # impacts, crash flags only
+            for row in (i, j):  # keep the arrays mirroring the vehicles
+                v = vehicles[row]
+                impact = v.impact
+                k[row, K.K_CRASHED] = v.crashed
+                k[row, K.K_IMPACT] = impact is not None
+                if impact is not None:
+                    f[row, K.F_IMPACT_X], f[row, K.F_IMPACT_Y] = impact.tolist()
+        self._current = list(vehicles)
+
+    def moved_state(self, road: Road) -> np.ndarray | None:
+        """Every vehicle's state right after the last :meth:`collide`, or None.
+
+        ``(N, F_COLUMNS)`` rows in ``road.vehicles`` order (see
+        :mod:`~aldm_gym.envs.traffic.kernels`): the position, heading, speed, length and
+        width columns are the vehicles' own values (the same floats), as long as no
+        vehicle moved since; None after the next ``act``, :meth:`forget` or a step on
+        the Python path. For the env's object list, built once per step this way.
+        """
+        current = self._current
+        if current is None or current != road.vehicles:
+            return None
+        return self._f

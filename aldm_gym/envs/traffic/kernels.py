@@ -241,6 +241,19 @@ def _neighbours_py(
 _neighbours = numba.njit(cache=True)(_neighbours_py)
 
 
+def _same_point_py(x0: float, y0: float, x1: float, y1: float) -> bool:
+    """Whether ``(x0, y0)`` and ``(x1, y1)`` are the same doubles (zeros by sign too)."""
+    return (
+        x0 == x1
+        and y0 == y1
+        and math.copysign(1.0, x0) == math.copysign(1.0, x1)
+        and math.copysign(1.0, y0) == math.copysign(1.0, y1)
+    )
+
+
+_same_point = numba.njit(cache=True)(_same_point_py)
+
+
 def _mobil_py(
     f: FloatArray,
     k: np.ndarray,
@@ -316,6 +329,7 @@ def _traffic_act_py(
     f: FloatArray,
     k: np.ndarray,
     p: FloatArray,
+    memo: FloatArray,
     lane_offset: FloatArray,
     lane_width: FloatArray,
     lane_length: FloatArray,
@@ -336,8 +350,11 @@ def _traffic_act_py(
     """``IDMVehicle.act`` of every compiled, uncrashed vehicle, in row order, in place.
 
     Writes ``F_STEERING``, ``F_ACCELERATION``, ``F_TIMER`` and ``K_TARGET``. Positions
-    are fixed while vehicles act, so each is projected once. ``follow_road`` is left
-    out: on a one-edge network its ``next_lane`` returns the lane it is given.
+    are fixed while vehicles act, so each is projected once; ``memo`` ``(M, 4)`` rows
+    ``(x, y, s, d)`` [m] hold :func:`traffic_step`'s projections, reused for a row
+    whose position is the very same (a projection depends on the point alone).
+    ``follow_road`` is left out: on a one-edge network its ``next_lane`` returns the
+    lane it is given.
 
     :return: False, with nothing written, if a coordinate is not below
         ``coord_limit`` [m] in magnitude (NaN included): the caller's Python path.
@@ -349,6 +366,10 @@ def _traffic_act_py(
     s = np.empty(n)
     d = np.empty(n)
     for j in range(n):
+        if j < memo.shape[0] and _same_point(memo[j, 0], memo[j, 1], f[j, F_X], f[j, F_Y]):
+            s[j] = memo[j, 2]  # projected by the last traffic_step: the same floats
+            d[j] = memo[j, 3]
+            continue
         s[j], d[j] = _project_point(
             ref_xy,
             h_tab,
@@ -431,6 +452,7 @@ def _traffic_step_py(
     f: FloatArray,
     k: np.ndarray,
     p: FloatArray,
+    memo: FloatArray,
     dt: float,
     lanes_count: int,
     lane_width: float,
@@ -450,7 +472,9 @@ def _traffic_step_py(
     ``Vehicle.clip_actions`` (crashed vehicles brake to a stop, speeds stay within
     ``MIN_SPEED``/``MAX_SPEED``), the kinematic bicycle model, a pending impact, then
     ``HighwayRoad.lane_of_offset`` of the new position's projection. Writes the
-    position, heading, speed, timer, clipped action, lane and crash columns.
+    position, heading, speed, timer, clipped action, lane and crash columns, and, if
+    ``memo`` has ``N`` rows, the compiled rows' ``(x, y, s, d)`` (NaN for the others)
+    for the next :func:`traffic_act`.
 
     :return: False, with nothing written, if a compiled vehicle's coordinate is not
         below ``coord_limit`` [m] in magnitude before or after its move (NaN included).
@@ -463,6 +487,7 @@ def _traffic_step_py(
         if not (abs(f[i, F_X]) < coord_limit and abs(f[i, F_Y]) < coord_limit):
             return False
     lanes = np.empty(n, dtype=np.int64)
+    projected = np.full((n, 4), np.nan)
     crashed = k[:, K_CRASHED].copy()
     impact = k[:, K_IMPACT].copy()
     f_in = f
@@ -500,7 +525,7 @@ def _traffic_step_py(
         f[i, F_SPEED] += acceleration * dt
         if not (abs(f[i, F_X]) < coord_limit and abs(f[i, F_Y]) < coord_limit):
             return False
-        _, d = _project_point(
+        s_new, d = _project_point(
             ref_xy,
             h_tab,
             step,
@@ -515,8 +540,14 @@ def _traffic_step_py(
         )
         lane = math.ceil(0.5 * lanes_count - d / lane_width) - 1
         lanes[i] = min(max(lane, 0), lanes_count - 1)
+        projected[i, 0] = f[i, F_X]
+        projected[i, 1] = f[i, F_Y]
+        projected[i, 2] = s_new
+        projected[i, 3] = d
     # Every move was valid: commit.
     f_in[:] = f
+    if memo.shape[0] == n:
+        memo[:] = projected
     for i in range(n):
         if k[i, K_COMPILED] != 0:
             k[i, K_LANE] = lanes[i]
@@ -580,19 +611,28 @@ def _separated_py(f: FloatArray, a: int, b: int, dt: float) -> bool:
 _separated = numba.njit(cache=True)(_separated_py)
 
 
-def _collision_pairs_py(f: FloatArray, k: np.ndarray, dt: float) -> np.ndarray:
+def _collision_pairs_py(f: FloatArray, k: np.ndarray, dt: float) -> tuple[bool, np.ndarray]:
     """Vehicle pairs ``(i, j)``, ``i < j`` in row order, whose ``handle_collisions`` may
     have an effect: :func:`~aldm_gym.envs.traffic.collisions.resolve_collisions`'s
     broad phase (centres within the sum of the radii ``diagonal / 2 + speed dt`` on
     both axes) and narrow phase (boxes apart on an edge normal), for plain boxes.
 
-    :return: ``(M, 2)`` int64 rows, sorted.
+    :return: ``(ok, pairs)``: ``pairs`` ``(M, 2)`` int64 rows, sorted; ``ok`` False
+        (and no pairs) if a collidable vehicle's pose, speed or size is not finite
+        (the caller then checks every pair, as ``resolve_collisions`` does).
     """
     n = f.shape[0]
     radius = np.empty(n)
     for i in range(n):
         r = f[i, F_DIAGONAL] / 2 + max(f[i, F_SPEED] * dt, 0.0)
         radius[i] = r * (1 + 1e-9) + BROAD_PHASE_SLACK
+        if k[i, K_COLLIDABLE] != 0 and not (
+            math.isfinite(f[i, F_X])
+            and math.isfinite(f[i, F_Y])
+            and math.isfinite(f[i, F_HEADING])
+            and math.isfinite(radius[i])
+        ):
+            return False, np.empty((0, 2), dtype=np.int64)
     pairs = np.empty((n * (n - 1) // 2, 2), dtype=np.int64)
     m = 0
     for i in range(n):
@@ -612,7 +652,7 @@ def _collision_pairs_py(f: FloatArray, k: np.ndarray, dt: float) -> np.ndarray:
             pairs[m, 0] = i
             pairs[m, 1] = j
             m += 1
-    return pairs[:m]
+    return True, pairs[:m]
 
 
 collision_pairs = numba.njit(cache=True)(_collision_pairs_py)

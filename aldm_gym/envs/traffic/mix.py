@@ -50,7 +50,7 @@ class TrafficConfig:
         keep the lane they start in).
     :ivar engine: ``"compiled"`` runs the IDM/MOBIL vehicles of a generated highway in
         compiled kernels (:mod:`aldm_gym.envs.traffic.compiled`; the same episode bit
-        for bit, about 3x cheaper traffic); ``"python"`` runs highway-env's vehicle
+        for bit, about 5x cheaper traffic); ``"python"`` runs highway-env's vehicle
         code (through :class:`~aldm_gym.envs.traffic.FastIDMVehicle`). OpenDRIVE maps
         always use the Python path.
     """

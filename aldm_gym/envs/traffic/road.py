@@ -215,7 +215,7 @@ class FastRoad(Road):
         With an :attr:`engine`, it decides the compiled vehicles' actions in one call
         (same results) whenever it can, else every vehicle acts here in Python.
         """
-        self.invalidate()
+        self._neighbours.valid = False  # (the engine keeps its own state: see holding())
         engine = self.engine
         if engine is not None and engine.act(self):
             return
@@ -271,7 +271,7 @@ class FastRoad(Road):
             # The vehicle's own on_state_update (its class may extend the end of a
             # step, e.g. MapIDMVehicle); no longer deferred, it runs Vehicle's now.
             vehicle.on_state_update()
-        self.invalidate()
+        self._neighbours.valid = False
         if first is None:
             resolve_collisions(self.vehicles, self.objects, dt)
         else:
