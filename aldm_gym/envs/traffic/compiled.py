@@ -1,4 +1,4 @@
-"""The compiled traffic engine: IDM/MOBIL of a generated highway in two numba calls per step.
+"""The compiled traffic engine: IDM/MOBIL of a generated highway in three numba calls per step.
 
 After :class:`~aldm_gym.envs.traffic.road.FastRoad` and
 :class:`~aldm_gym.envs.traffic.vehicles.FastIDMVehicle`, the traffic was still about
@@ -8,8 +8,10 @@ lanes all follow one reference line (a :class:`~aldm_gym.roads.highway.HighwayRo
 :class:`CompiledTraffic` gathers the vehicles' state into arrays, decides every
 ``FastIDMVehicle``'s action in one compiled call
 (:func:`~aldm_gym.envs.traffic.kernels.traffic_act`), moves them and finds their lanes
-in another (:func:`~aldm_gym.envs.traffic.kernels.traffic_step`), and writes the results
-back to the vehicle objects, so everything else (the ego, the sensor, observations,
+in another (:func:`~aldm_gym.envs.traffic.kernels.traffic_step`), finds the pairs that
+may collide in a third (:func:`~aldm_gym.envs.traffic.kernels.collision_pairs`; highway-env's
+``handle_collisions`` then runs on those pairs), and writes the results back to the
+vehicle objects, so everything else (the ego, the sensor, observations,
 collisions, rendering) sees highway-env's vehicles as before.
 
 The kernels repeat highway-env's operations in the same order, so the episode is the
@@ -56,7 +58,7 @@ from highway_env.vehicle.objects import RoadObject
 
 from aldm_gym.envs.traffic import kernels as K
 from aldm_gym.envs.traffic.collisions import _uses_base_box, resolve_collisions
-from aldm_gym.envs.traffic.scalar import FAST_MATH_MATCHES_NUMPY
+from aldm_gym.envs.traffic.scalar import _NUMPY_POWER_SPECIAL, FAST_MATH_MATCHES_NUMPY
 from aldm_gym.envs.traffic.vehicles import (
     FastControlledVehicle,
     FastIDMVehicle,
@@ -67,9 +69,6 @@ __all__ = ["ENGINES", "CompiledTraffic"]
 
 ENGINES = ("compiled", "python")
 """Values of the env's ``traffic.engine`` setting."""
-
-_NUMPY_POWER_SPECIAL = frozenset({-2.0, -1.0, -0.5, 0.0, 0.5, 1.0, 2.0, 3.0})
-"""IDM exponents ``np.power`` special-cases (the Python path then calls numpy)."""
 
 _COORD_LIMIT = 1e12
 """Largest coordinate [m] the compiled projection takes (its int64 cell keys)."""
@@ -480,6 +479,7 @@ class CompiledTraffic:
             first = self._split(road)
             if first is None or not self._gather(road, first):
                 return None
+            self._first = first
         f, k, p = self._f, self._k, self._p
         assert f is not None and k is not None and p is not None
         impact = k[first:, K.K_IMPACT].tolist()  # pending before the kernel applies them
@@ -557,7 +557,8 @@ class CompiledTraffic:
         :mod:`~aldm_gym.envs.traffic.kernels`): the position, heading, speed, length and
         width columns are the vehicles' own values (the same floats), as long as no
         vehicle moved since; None after the next ``act``, :meth:`forget` or a step on
-        the Python path. For the env's object list, built once per step this way.
+        the Python path. For the env's object list, built once per step this way. It
+        is the engine's own array, changed by the next step: copy what you keep.
         """
         current = self._current
         if current is None or current != road.vehicles:

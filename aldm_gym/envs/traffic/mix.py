@@ -29,6 +29,7 @@ import numpy as np
 from highway_env.vehicle.kinematics import Vehicle
 
 from aldm_gym.config import setting, validate
+from aldm_gym.envs.traffic.compiled import ENGINES
 from aldm_gym.sensor.conditions import TRUCK_HEIGHT
 
 __all__ = ["CAR_LENGTH", "Spawner", "TrafficConfig", "TruckSpec", "make_truck"]
@@ -60,7 +61,7 @@ class TrafficConfig:
     truck_width: float = setting(2.5, lo=1.5, hi=3.0)
     truck_speed: tuple[float, float] = setting((21.0, 24.0), kind="pair", lo=0.0, hi=40.0)
     truck_lane_changes: bool = setting(False)
-    engine: str = setting("compiled", choices=("compiled", "python"))
+    engine: str = setting("compiled", choices=ENGINES)
 
     def __post_init__(self) -> None:
         validate(self, "traffic")
