@@ -1,0 +1,39 @@
+"""The warm-up (``python -m aldm_gym.warmup``): two processes, and a helper that fails
+is not fatal (the serial pass compiles what it left)."""
+
+from __future__ import annotations
+
+import sys
+from typing import Any
+
+import pytest
+
+from aldm_gym import warmup
+
+
+def test_parallel_warm_up_survives_a_failing_helper(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A helper process that exits with an error leaves the serial pass to do the work."""
+    launched: list[list[str]] = []
+    real_popen = warmup.subprocess.Popen
+
+    def failing_popen(args: list[str], **kwargs: Any) -> Any:
+        launched.append(args)
+        return real_popen([sys.executable, "-c", "raise SystemExit(3)"], **kwargs)
+
+    monkeypatch.setattr(warmup.subprocess, "Popen", failing_popen)
+    took = warmup.warm_up(parallel=True)
+    assert took > 0.0
+    assert len(launched) == 1 and "_the_rest" in launched[0][-1]
+
+
+def test_serial_flag_runs_without_a_helper(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--serial`` compiles in this process only; the default lets the CPU count decide."""
+    seen: list[bool | None] = []
+    monkeypatch.setattr(warmup, "warm_up", lambda parallel=None: seen.append(parallel) or 1.0)
+    for argv, expected in ((["--serial"], False), ([], None)):
+        monkeypatch.setattr(sys, "argv", ["aldm_gym.warmup", *argv])
+        warmup.main()
+        assert seen[-1] is expected
+    assert "kernels ready in 1 s" in capsys.readouterr().out
