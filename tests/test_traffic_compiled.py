@@ -50,6 +50,21 @@ def _vehicles(env: Any) -> list[tuple[Any, ...]]:
     ]
 
 
+@pytest.fixture
+def kernel_acts(monkeypatch: pytest.MonkeyPatch) -> dict[str, int]:
+    """Counts the compiled act calls that decided the traffic (returned True)."""
+    counts = {"ok": 0}
+    act = kernels.traffic_act
+
+    def counting(*args: Any) -> bool:
+        ok = act(*args)
+        counts["ok"] += bool(ok)
+        return ok
+
+    monkeypatch.setattr(kernels, "traffic_act", counting)
+    return counts
+
+
 def _rollout(
     engine: str, seed: int, steps: int, actions: str = "random", **config: Any
 ) -> list[Any]:
@@ -84,14 +99,19 @@ def _crashes(trace: list[Any]) -> int:
         (4, {"marking_model": "editor", "acc": {"enabled": False}}),
     ],
 )
-def test_episodes_are_bit_identical_to_the_python_path(seed: int, config: dict) -> None:
+def test_episodes_are_bit_identical_to_the_python_path(
+    seed: int, config: dict, kernel_acts: dict[str, int]
+) -> None:
     """Same seed, same episode, whichever engine runs the traffic."""
     python = _rollout("python", seed, 25, **config)
+    assert kernel_acts["ok"] == 0
     fast = _rollout("compiled", seed, 25, **config)
     assert fast == python
+    steps = (len(fast) - 2) // 2  # env steps run
+    assert kernel_acts["ok"] == 10 * steps  # the engine decided every simulation step
 
 
-def test_crashes_and_impacts_are_bit_identical() -> None:
+def test_crashes_and_impacts_are_bit_identical(kernel_acts: dict[str, int]) -> None:
     """Dense traffic with an aggressive ego: collisions happen, and match exactly."""
     crashed = 0
     for seed in range(3):
@@ -101,6 +121,7 @@ def test_crashes_and_impacts_are_bit_identical() -> None:
         assert fast == python
         crashed += _crashes(python)
     assert crashed > 0  # the scenes exercise impacts and crashed vehicles
+    assert kernel_acts["ok"] > 0
 
 
 def test_the_engine_runs_every_step_of_a_default_episode(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -162,20 +183,50 @@ def test_unsupported_scenes_fall_back_to_the_python_path() -> None:
     env.step(1)
 
 
-def test_a_step_after_fallback_matches_the_python_path() -> None:
-    """A scene the engine declines for one step (an extra highway-env IDM vehicle at the
-    end) runs the same with either engine setting."""
+def test_steps_after_a_fallback_match_the_python_path(kernel_acts: dict[str, int]) -> None:
+    """A scene the engine declines for two env steps (an extra highway-env IDM vehicle
+    at the end), then takes again once the vehicle is gone, runs the same with either
+    engine setting."""
 
     def run(engine: str) -> list[Any]:
         env = _env(engine)
         env.reset(seed=6)
         road = env.unwrapped.road
-        road.vehicles.append(IDMVehicle.create_from(road.vehicles[-1]))
-        road.vehicles[-1].position = road.vehicles[-1].position + np.array([60.0, 0.0])
+        extra = IDMVehicle.create_from(road.vehicles[-1])
+        extra.position = extra.position + np.array([60.0, 0.0])
+        road.vehicles.append(extra)
         trace = []
-        for _ in range(4):
+        for t in range(5):
             env.step(1)
+            if t == 1:
+                road.vehicles.remove(extra)
             trace.append(_vehicles(env))
+        return trace
+
+    assert run("compiled") == run("python")
+    assert kernel_acts["ok"] == 30  # declined for 2 env steps, then 3 compiled ones
+
+
+def test_lane_changes_of_the_road_between_env_steps_are_followed() -> None:
+    """A script that lowers a lane's speed limit and closes a lane to lane changes
+    (highway-env reads both at every use) is followed from the next env step."""
+
+    def run(engine: str) -> list[Any]:
+        env = _env(engine)
+        env.reset(seed=3)
+        highway = env.unwrapped.highway
+        saved = [(lane.speed_limit, lane.forbidden) for lane in highway.network.lanes_list()]
+        trace = []
+        try:
+            for t in range(6):
+                env.step(1)
+                if t == 1:
+                    highway.lane(1).speed_limit = 15.0
+                    highway.lane(2).forbidden = True
+                trace.append(_vehicles(env))
+        finally:  # the road is cached and shared by later envs
+            for lane, (limit, forbidden) in zip(highway.network.lanes_list(), saved, strict=True):
+                lane.speed_limit, lane.forbidden = limit, forbidden
         return trace
 
     assert run("compiled") == run("python")

@@ -47,7 +47,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from functools import cache
 from itertools import repeat
-from operator import attrgetter, is_not, itemgetter
+from operator import attrgetter, is_, is_not, itemgetter
 from typing import Any
 
 import numpy as np
@@ -60,6 +60,8 @@ from aldm_gym.envs.traffic import kernels as K
 from aldm_gym.envs.traffic.collisions import _uses_base_box, resolve_collisions
 from aldm_gym.envs.traffic.scalar import _NUMPY_POWER_SPECIAL, FAST_MATH_MATCHES_NUMPY
 from aldm_gym.envs.traffic.vehicles import (
+    STEPS_ENDING_WITH_UPDATE,
+    BatchedLaneUpdate,
     FastControlledVehicle,
     FastIDMVehicle,
     _uses_base_kinematics,
@@ -94,6 +96,8 @@ _LANE_CHANGE = attrgetter("enable_lane_change")
 _ROUTE = attrgetter("route")
 _DELTA = attrgetter("DELTA")
 _IMPACT = attrgetter("impact")
+_DTYPE = attrgetter("dtype")
+_FLOAT64 = {np.dtype(np.float64)}
 _STEERING = itemgetter("steering")
 _ACCELERATION = itemgetter("acceleration")
 
@@ -125,12 +129,16 @@ _CLASS_OK: dict[frozenset[type], tuple[bool, bool]] = {}
 
 def _classes_ok(kinds: frozenset[type]) -> tuple[bool, bool]:
     """Whether vehicles of these classes can share a compiled step (highway-env's
-    kinematics, lane distance and vehicle base), and whether they all collide as
-    highway-env's plain boxes."""
+    kinematics, lane distance, vehicle base and bicycle step), and whether they all
+    collide as highway-env's plain boxes."""
     ok = all(
         issubclass(cls, Vehicle)
         and _uses_base_kinematics(cls)
         and cls.lane_distance_to in _BASE_LANE_DISTANCE
+        # Moves that read only the vehicle itself: the compiled vehicles may then move
+        # before the Python ones ahead of them in the list.
+        and cls.step in STEPS_ENDING_WITH_UPDATE
+        and cls.on_state_update in (Vehicle.on_state_update, BatchedLaneUpdate.on_state_update)
         for cls in kinds
     )
     return ok, all(_uses_base_box(cls) for cls in kinds)
@@ -165,19 +173,9 @@ class CompiledTraffic:
         self.lane_indices = [(EDGE[0], EDGE[1], i) for i in range(len(lanes))]
         self.lanes_count = int(highway.lanes_count)
         self.lane_width = float(highway.lane_width)
-        self.lane_offset = np.array([lane.offset for lane in lanes], dtype=np.float64)
-        self.lane_width_of = np.array([lane.width for lane in lanes], dtype=np.float64)
-        self.lane_length = np.array([lane.length for lane in lanes], dtype=np.float64)
-        self.lane_forbidden = np.array([bool(lane.forbidden) for lane in lanes], dtype=np.int64)
         self.lane_of_index = {index: i for i, index in enumerate(self.lane_indices)}
-        self.lane_speed_limit = [
-            np.nan if lane.speed_limit is None else float(lane.speed_limit) for lane in lanes
-        ]
-        self.lane_speed_limit_of = {
-            id(lane): np.nan if lane.speed_limit is None else float(lane.speed_limit)
-            for lane in lanes
-        }
-        self.lane_vehicle_length = float(lanes[0].VEHICLE_LENGTH) if lanes else 5.0
+        self._lane_key: tuple[Any, ...] = ()
+        self._tabulate_lanes()
         self.s_tab = np.ascontiguousarray(ref.s, dtype=np.float64)
         self.h_tab = np.ascontiguousarray(ref.heading, dtype=np.float64)
         self.ref_xy = np.ascontiguousarray(ref.xy, dtype=np.float64)
@@ -188,6 +186,56 @@ class CompiledTraffic:
         self.hash_idx = ref._hash_idx
         self.coarse = np.ascontiguousarray(ref._coarse, dtype=np.int64)
         self.window = int(2 * ref._STRIDE)
+        self._build_tables()
+        self._memo = np.full((0, 4), np.nan)
+        """``(x, y, s, d)`` [m] of the rows :func:`~aldm_gym.envs.traffic.kernels.traffic_step`
+        projected last (see :func:`~aldm_gym.envs.traffic.kernels.traffic_act`)."""
+        self._f: np.ndarray | None = None
+        self._k: np.ndarray | None = None
+        self._p: np.ndarray | None = None
+        self._acted: tuple[list[Any], int] | None = None
+        self._current: list[Any] | None = None
+        self._held = False
+        self._first = 0
+        self._params: tuple[int, list[tuple[float, ...]]] | None = None
+        self._boxes = False
+
+    def _tabulate_lanes(self) -> bool:
+        """(Re)build the lane arrays when a lane's geometry, speed limit or
+        ``forbidden`` flag changed (highway-env reads them at every use); True if
+        they changed."""
+        key = tuple(
+            (
+                lane.offset,
+                lane.width,
+                lane.length,
+                bool(lane.forbidden),
+                lane.speed_limit,
+                lane.VEHICLE_LENGTH,
+            )
+            for lane in self.lanes
+        )
+        if key == self._lane_key:
+            return False
+        self._lane_key = key
+        lanes = self.lanes
+        self.lane_offset = np.array([lane.offset for lane in lanes], dtype=np.float64)
+        self.lane_width_of = np.array([lane.width for lane in lanes], dtype=np.float64)
+        self.lane_length = np.array([lane.length for lane in lanes], dtype=np.float64)
+        self.lane_forbidden = np.array([bool(lane.forbidden) for lane in lanes], dtype=np.int64)
+        self.lane_speed_limit = [
+            np.nan if lane.speed_limit is None else float(lane.speed_limit) for lane in lanes
+        ]
+        self.lane_speed_limit_of = {
+            id(lane): limit for lane, limit in zip(lanes, self.lane_speed_limit, strict=True)
+        }
+        self.lane_vehicle_length = float(lanes[0].VEHICLE_LENGTH) if lanes else 5.0
+        if hasattr(self, "ref_xy"):
+            self._build_tables()
+        return True
+
+    def _build_tables(self) -> None:
+        """The kernels' argument tuples (lane arrays and the reference line)."""
         ref_tables = (
             self.ref_xy,
             self.step_length,
@@ -214,18 +262,6 @@ class CompiledTraffic:
         self.step_tables = (self.lanes_count, self.lane_width, self.h_tab, *ref_tables)
         """The arguments of :func:`~aldm_gym.envs.traffic.kernels.traffic_step` after
         ``f, k, p``, the projection memo and ``dt``."""
-        self._memo = np.full((0, 4), np.nan)
-        """``(x, y, s, d)`` [m] of the rows :func:`~aldm_gym.envs.traffic.kernels.traffic_step`
-        projected last (see :func:`~aldm_gym.envs.traffic.kernels.traffic_act`)."""
-        self._f: np.ndarray | None = None
-        self._k: np.ndarray | None = None
-        self._p: np.ndarray | None = None
-        self._acted: tuple[list[Any], int] | None = None
-        self._current: list[Any] | None = None
-        self._held = False
-        self._first = 0
-        self._params: tuple[int, list[tuple[float, ...]]] | None = None
-        self._boxes = False
 
     # ----------------------------------------------------------------- eligibility
     def _road_ok(self, road: Road) -> bool:
@@ -239,6 +275,7 @@ class CompiledTraffic:
             and len(graph) == 1
             and len(graph.get(self.edge[0], {})) == 1
             and len(graph[self.edge[0]].get(self.edge[1], ())) == len(self.lanes)
+            and all(map(is_, graph[self.edge[0]][self.edge[1]], self.lanes))
             and FAST_MATH_MATCHES_NUMPY
         )
 
@@ -278,6 +315,7 @@ class CompiledTraffic:
         vehicles = road.vehicles
         compiled = vehicles[first:]
         n = len(vehicles)
+        self._tabulate_lanes()  # a script may have changed a lane's limit or flags
         lane_of = self.lane_of_index.__getitem__
         try:
             lane = list(map(lane_of, map(_LANE_INDEX, vehicles)))
@@ -286,11 +324,11 @@ class CompiledTraffic:
                 if _is_controlled(type(v)):
                     target[row] = lane_of(v.target_lane_index)
             limit = list(map(self.lane_speed_limit_of.__getitem__, map(id, map(_LANE, vehicles))))
-            impact = list(map(_IMPACT, vehicles))
-        except (KeyError, TypeError):
+        except (KeyError, TypeError, AttributeError):
             return False  # a lane (or target) not of this network's edge
-        except AttributeError:  # a vehicle without highway-env's impact attribute
-            impact = [getattr(v, "impact", None) for v in vehicles]
+        impact = [getattr(v, "impact", None) for v in vehicles[:first]] + list(
+            map(_IMPACT, compiled)
+        )
         pending = list(map(is_not, impact, repeat(None, n)))
         impact_x = [0.0] * n
         impact_y = [0.0] * n
@@ -299,7 +337,10 @@ class CompiledTraffic:
                 if value is not None:
                     impact_x[row], impact_y[row] = value.tolist()
         actions = list(map(_ACTION, compiled))
-        xy = np.concatenate(list(map(_POSITION, vehicles))).tolist()
+        positions = list(map(_POSITION, vehicles))
+        if set(map(_DTYPE, positions)) != _FLOAT64:
+            return False  # the kernels' write-back keeps float64 positions only
+        xy = np.concatenate(positions).tolist()
         no = [0.0] * first
         columns = [
             xy[0::2],
@@ -338,9 +379,13 @@ class CompiledTraffic:
         params = list(map(_PARAMS, compiled))
         if (first, params) != self._params or self._p is None or len(self._p) != n:
             # Behaviour constants rarely change: rebuild their array only when they do.
-            self._params = (first, params)
             p = np.zeros((n, K.P_COLUMNS))
             p[first:] = params
+            if not bool(
+                np.all(-p[first:, K.P_COMFORT_ACC_MAX] * p[first:, K.P_COMFORT_ACC_MIN] >= 0.0)
+            ):
+                return False  # the IDM's sqrt fails: the Python path raises its error
+            self._params = (first, params)
             self._p = p
         return True
 
