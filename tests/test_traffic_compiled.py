@@ -51,17 +51,18 @@ def _vehicles(env: Any) -> list[tuple[Any, ...]]:
 
 
 @pytest.fixture
-def kernel_acts(monkeypatch: pytest.MonkeyPatch) -> dict[str, int]:
-    """Counts the compiled act calls that decided the traffic (returned True)."""
-    counts = {"ok": 0}
-    act = kernels.traffic_act
+def kernel_calls(monkeypatch: pytest.MonkeyPatch) -> dict[str, int]:
+    """Counts the compiled act and step calls that ran the traffic (returned True)."""
+    counts = {"act": 0, "step": 0}
+    for name in ("act", "step"):
+        kernel = getattr(kernels, f"traffic_{name}")
 
-    def counting(*args: Any) -> bool:
-        ok = act(*args)
-        counts["ok"] += bool(ok)
-        return ok
+        def counting(*args: Any, kernel: Any = kernel, name: str = name) -> bool:
+            ok = kernel(*args)
+            counts[name] += bool(ok)
+            return ok
 
-    monkeypatch.setattr(kernels, "traffic_act", counting)
+        monkeypatch.setattr(kernels, f"traffic_{name}", counting)
     return counts
 
 
@@ -100,18 +101,18 @@ def _crashes(trace: list[Any]) -> int:
     ],
 )
 def test_episodes_are_bit_identical_to_the_python_path(
-    seed: int, config: dict, kernel_acts: dict[str, int]
+    seed: int, config: dict, kernel_calls: dict[str, int]
 ) -> None:
     """Same seed, same episode, whichever engine runs the traffic."""
     python = _rollout("python", seed, 25, **config)
-    assert kernel_acts["ok"] == 0
+    assert kernel_calls["act"] == 0
     fast = _rollout("compiled", seed, 25, **config)
     assert fast == python
     steps = (len(fast) - 2) // 2  # env steps run
-    assert kernel_acts["ok"] == 10 * steps  # the engine decided every simulation step
+    assert kernel_calls["act"] == 10 * steps  # the engine decided every simulation step
 
 
-def test_crashes_and_impacts_are_bit_identical(kernel_acts: dict[str, int]) -> None:
+def test_crashes_and_impacts_are_bit_identical(kernel_calls: dict[str, int]) -> None:
     """Dense traffic with an aggressive ego: collisions happen, and match exactly."""
     crashed = 0
     for seed in range(3):
@@ -121,29 +122,16 @@ def test_crashes_and_impacts_are_bit_identical(kernel_acts: dict[str, int]) -> N
         assert fast == python
         crashed += _crashes(python)
     assert crashed > 0  # the scenes exercise impacts and crashed vehicles
-    assert kernel_acts["ok"] > 0
+    assert kernel_calls["act"] > 0
 
 
-def test_the_engine_runs_every_step_of_a_default_episode(monkeypatch: pytest.MonkeyPatch) -> None:
+def test_the_engine_runs_every_step_of_a_default_episode(kernel_calls: dict[str, int]) -> None:
     """With the default config no step falls back to the Python path."""
-    calls = {"act": 0, "step": 0}
-    act, step = kernels.traffic_act, kernels.traffic_step
-
-    def counting_act(*args: Any) -> bool:
-        calls["act"] += 1
-        return act(*args)
-
-    def counting_step(*args: Any) -> bool:
-        calls["step"] += 1
-        return step(*args)
-
-    monkeypatch.setattr(kernels, "traffic_act", counting_act)
-    monkeypatch.setattr(kernels, "traffic_step", counting_step)
     env = _env("compiled")
     env.reset(seed=0)
     for _ in range(3):
         env.step(1)
-    assert calls == {"act": 30, "step": 30}
+    assert kernel_calls == {"act": 30, "step": 30}
     assert isinstance(env.unwrapped.road.engine, CompiledTraffic)
     env_py = _env("python")
     env_py.reset(seed=0)
@@ -183,7 +171,7 @@ def test_unsupported_scenes_fall_back_to_the_python_path() -> None:
     env.step(1)
 
 
-def test_steps_after_a_fallback_match_the_python_path(kernel_acts: dict[str, int]) -> None:
+def test_steps_after_a_fallback_match_the_python_path(kernel_calls: dict[str, int]) -> None:
     """A scene the engine declines for two env steps (an extra highway-env IDM vehicle
     at the end), then takes again once the vehicle is gone, runs the same with either
     engine setting."""
@@ -204,7 +192,7 @@ def test_steps_after_a_fallback_match_the_python_path(kernel_acts: dict[str, int
         return trace
 
     assert run("compiled") == run("python")
-    assert kernel_acts["ok"] == 30  # declined for 2 env steps, then 3 compiled ones
+    assert kernel_calls["act"] == 30  # declined for 2 env steps, then 3 compiled ones
 
 
 def test_lane_changes_of_the_road_between_env_steps_are_followed() -> None:
@@ -380,7 +368,9 @@ def test_holding_keeps_state_only_within_the_block() -> None:
     engine._refresh = counting_refresh  # type: ignore[method-assign]
     env.step(1)
     env.step(1)
-    assert reads == {"gather": 2, "refresh": 18}
+    # Per env step: one full read, then the ego alone before each of the 9 later acts
+    # and after each of the 10 moves (for the collision pairs).
+    assert reads == {"gather": 2, "refresh": 38}
     road.act()  # outside a block: everything is read
     road.step(0.1)
     assert reads["gather"] == 3

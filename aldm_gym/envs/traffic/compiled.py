@@ -175,7 +175,6 @@ class CompiledTraffic:
         self.lane_width = float(highway.lane_width)
         self.lane_of_index = {index: i for i, index in enumerate(self.lane_indices)}
         self._lane_key: tuple[Any, ...] = ()
-        self._tabulate_lanes()
         self.s_tab = np.ascontiguousarray(ref.s, dtype=np.float64)
         self.h_tab = np.ascontiguousarray(ref.heading, dtype=np.float64)
         self.ref_xy = np.ascontiguousarray(ref.xy, dtype=np.float64)
@@ -186,7 +185,7 @@ class CompiledTraffic:
         self.hash_idx = ref._hash_idx
         self.coarse = np.ascontiguousarray(ref._coarse, dtype=np.int64)
         self.window = int(2 * ref._STRIDE)
-        self._build_tables()
+        self._tabulate_lanes()  # the lane arrays and the kernels' argument tuples
         self._memo = np.full((0, 4), np.nan)
         """``(x, y, s, d)`` [m] of the rows :func:`~aldm_gym.envs.traffic.kernels.traffic_step`
         projected last (see :func:`~aldm_gym.envs.traffic.kernels.traffic_act`)."""
@@ -230,8 +229,7 @@ class CompiledTraffic:
             id(lane): limit for lane, limit in zip(lanes, self.lane_speed_limit, strict=True)
         }
         self.lane_vehicle_length = float(lanes[0].VEHICLE_LENGTH) if lanes else 5.0
-        if hasattr(self, "ref_xy"):
-            self._build_tables()
+        self._build_tables()
         return True
 
     def _build_tables(self) -> None:
@@ -307,7 +305,8 @@ class CompiledTraffic:
     # ----------------------------------------------------------------- state
     def _gather(self, road: Road, first: int) -> bool:
         """Fill the state arrays from ``road.vehicles``; False if a vehicle is not on
-        this network's edge or its position is not finite.
+        this network's edge, a position is not a float64 pair or the IDM constants make
+        its square root fail (coordinates are checked by the kernels).
 
         Column by column (``map`` of attribute getters): several times cheaper than a
         Python loop over the vehicles.
@@ -391,7 +390,11 @@ class CompiledTraffic:
 
     def _refresh(self, road: Road, first: int) -> bool:
         """Read the Python vehicles (rows ``:first``) into the arrays again; False if
-        one is not on this network's edge or its position is not finite."""
+        one is not on this network's edge or its position is not finite.
+
+        Row by row, the columns of :meth:`_gather`: for the one or two vehicles before
+        the compiled ones this costs ~6 µs, :meth:`_gather`'s column reads ~20 µs.
+        """
         f, k = self._f, self._k
         assert f is not None and k is not None
         lane_of = self.lane_of_index
@@ -572,14 +575,9 @@ class CompiledTraffic:
         if not self._boxes or f is None or k is None or len(f) != len(vehicles):
             resolve_collisions(vehicles, road.objects, dt)
             return
-        for row, v in enumerate(vehicles[:first]):  # moved in Python since the gather
-            x, y = v.position.tolist()
-            f[row, K.F_X] = x
-            f[row, K.F_Y] = y
-            f[row, K.F_HEADING] = v.heading
-            f[row, K.F_SPEED] = v.speed
-            k[row, K.K_COLLIDABLE] = v.collidable
-            k[row, K.K_CHECKS] = v.check_collisions
+        if not self._refresh(road, first):  # they moved in Python since the gather
+            resolve_collisions(vehicles, road.objects, dt)
+            return
         ok, pairs = K.collision_pairs(f, k, float(dt))
         if not ok:
             resolve_collisions(vehicles, road.objects, dt)  # its all-pairs fallback
