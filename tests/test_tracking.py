@@ -223,3 +223,56 @@ def test_env_tracking_determinism_pickle_and_reset() -> None:
     assert base._detector is not old
     assert base._detector.tracker._next_id <= 4  # a fresh tracker: no ids carried over
     env.close()
+
+
+class _Recorder:
+    """A detector wrapper keeping every (frame, lane, motion) the env passes."""
+
+    uses_motion = True
+
+    def __init__(self, inner) -> None:
+        self.inner = inner
+        self.calls: list = []
+
+    def __call__(self, frame, road=None, lane_id=0, motion=None):
+        self.calls.append((frame, lane_id, motion))
+        return self.inner(frame, road, lane_id, motion=motion)
+
+
+def test_env_odometry_carries_the_last_frame_onto_this_one() -> None:
+    """The env's ego motion, applied as the tracker applies it, moves the last frame's
+    true lines onto this frame's (to 2 cm at 120 m) in left and right bends: the yaw
+    rate is the sensor frame's (ISO 8855, left positive), not highway-env's heading
+    change (which grows clockwise)."""
+    from aldm_gym.sensor.ground_truth import ground_truth_detect
+
+    turns = {-1: 0, 1: 0}
+    for road_seed in (0, 1):  # a right bend, a left bend
+        env = gym.make(
+            "ALDMHighway-v0",
+            config={
+                "detector_params": {"tracking": True},
+                "vehicles_count": 0,
+                "duration": 12,
+                "road": {"seed": road_seed, "min_radius": 300.0, "max_radius": 400.0},
+            },
+        )
+        env.reset(seed=0)
+        base = env.unwrapped
+        rec = base._detector = _Recorder(base._detector)
+        for _ in range(12):
+            env.step(1)
+        env.close()
+        for (f0, lane0, _), (f1, lane1, motion) in zip(rec.calls, rec.calls[1:], strict=False):
+            if motion is None or lane0 != lane1:
+                continue
+            a = ground_truth_detect(base.highway, f0, lane0).ego_left
+            b = ground_truth_detect(base.highway, f1, lane1).ego_left
+            moved = K._table(a, np.array([0, len(a)]), *motion.displacement())[0]
+            xs = np.arange(20.0, 121.0, 10.0)
+            grid = np.arange(len(moved)) * K.TABLE_STEP
+            err = np.interp(xs, grid, moved) - np.interp(xs, *b.T)
+            assert np.max(np.abs(err)) < 0.02, (motion, err)
+            if abs(motion.yaw_rate) > 0.02:
+                turns[int(np.sign(motion.yaw_rate))] += 1
+    assert turns[-1] > 0 and turns[1] > 0, turns

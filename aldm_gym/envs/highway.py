@@ -523,7 +523,9 @@ class ALDMHighwayEnv(AbstractEnv):
             return None
         dt = 1.0 / self.config["simulation_frequency"]
         speed = math.hypot(pose[0] - last[0], pose[1] - last[1]) / dt
-        turn = (pose[2] - last[2] + math.pi) % (2.0 * math.pi) - math.pi
+        # highway-env's heading grows clockwise (its y axis points right of x): the
+        # sensor frame's yaw (ISO 8855, left positive) turns the other way
+        turn = -((pose[2] - last[2] + math.pi) % (2.0 * math.pi) - math.pi)
         if speed > 200.0 or abs(turn / dt) > 10.0:
             return None
         return EgoMotion(speed, turn / dt, dt)
