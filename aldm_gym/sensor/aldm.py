@@ -335,14 +335,21 @@ def detect_lanes(
     :raises ValueError: bad shape, unknown parameter or impossible value.
     """
     p = params if type(params) is ALDMParams and not overrides else make_params(params, **overrides)
-    pts = as_points(points)
+    return _detect_lanes(as_points(points), p, path_range)[0]
+
+
+def _detect_lanes(
+    pts: FloatArray, p: ALDMParams, path_range: float | None
+) -> tuple[LaneDetection, float]:
+    """:func:`detect_lanes` on checked points and parameters; also the lane width
+    [m] its trajectory used with a single ego line."""
     reach = fit_reach(path_range)
     fp, ip = _packed(p)
     lines, starts, _offsets, ok, traj, width = _detect(pts, fp, ip, reach)
     fields = {name: lines[starts[s] : starts[s + 1]] for s, name in enumerate(LINE_NAMES)}
     if not ok:  # lines of < 4 points (n_points 2 or 3) or repeated x: numpy's fit
         traj = driving_trajectory(fields["ego_left"], fields["ego_right"], width, PATH_STEP, reach)
-    return LaneDetection.trusted(**fields, trajectory=traj, source="aldm")
+    return LaneDetection.trusted(**fields, trajectory=traj, source="aldm"), float(width)
 
 
 __all__ = ["MODES", "OUTPUTS", "ALDMParams", "as_points", "detect_lanes", "make_params"]

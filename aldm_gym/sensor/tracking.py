@@ -7,12 +7,18 @@ keeps the last frame's lines as *tracks*, moves them into the new sensor frame b
 ego's motion (speed and yaw rate over the frame's time step, :class:`EgoMotion`), and
 uses them as the prior of the next detection:
 
+* lanes are parallel: a track straying from the common shape of the others (it
+  followed clutter far ahead) is set back onto it;
 * points within a gate of a track support it; points inside a tracked lane that
   support no track contradict the track and are dropped (clutter);
 * along a track, stretches without support longer than ``bridge_gap`` (an
   occlusion, worn paint), and the start region up to its first supported point, get
   *prior points* on the moved track, so the ALDM's start condition and trace run
-  through them and continue on the measured points beyond;
+  through them and continue on the measured points beyond; beyond its last
+  supported point a track goes on parallel to a neighbour seen farther (the car
+  ahead hides the ego lane's lines, not the lane beside);
+* the detected lines are held to their common shape once more (clutter beyond
+  the tracks' reach);
 * each detected line takes the identity of the track it continues (mean lateral
   distance), so a marking keeps its id through a lane change while its role changes
   (crossing the ego-left line to the left makes it the ego-right line).
@@ -31,9 +37,10 @@ from typing import Any
 import numpy as np
 
 from aldm_gym.config import build_config, setting, validate
-from aldm_gym.sensor.aldm import ALDMParams, as_points, detect_lanes, make_params
-from aldm_gym.sensor.aldm_kernels.track import _match, _prior, _table
+from aldm_gym.sensor.aldm import ALDMParams, _detect_lanes, as_points, detect_lanes, make_params
+from aldm_gym.sensor.aldm_kernels.track import _consensus, _hold, _match, _prior, _table
 from aldm_gym.sensor.detection import LINE_NAMES, LaneDetection
+from aldm_gym.sensor.trajectory import PATH_STEP, driving_trajectory, fit_reach
 
 MIN_SUPPORT = 3
 """A track counts as measured in a frame when at least this many points support it
@@ -88,15 +95,24 @@ class TrackerParams:
         4.5 m, so that they chain in its start region).
     :ivar coast_length: a track no points support is carried at most this far
         (travelled distance) before it is given up.
+    :ivar tail_length: beyond a track's last supported point, prior points continue
+        it, parallel to a neighbour seen farther, at most this far (0: no
+        continuation).
+    :ivar consensus_tol: a track or detected line farther than this from the lanes'
+        common shape is set onto it (0: lanes are not held parallel) ...
+    :ivar consensus_tol_slope: ... plus this much per metre ahead [m/m].
     :ivar match_gate: a detected line continues a track when their mean lateral
         distance is below this (well below a lane width).
     """
 
-    track_gate: float = setting(0.5, lo=0.0, lo_open=True, hi=10.0)
-    track_gate_slope: float = setting(0.0025, lo=0.0, hi=1.0)
+    track_gate: float = setting(0.25, lo=0.0, lo_open=True, hi=10.0)
+    track_gate_slope: float = setting(0.001, lo=0.0, hi=1.0)
     bridge_gap: float = setting(20.0, lo=0.0, lo_open=True, hi=1000.0)
     bridge_step: float = setting(4.0, lo=0.1, hi=100.0)
     coast_length: float = setting(60.0, lo=0.0, hi=1.0e4)
+    tail_length: float = setting(60.0, lo=0.0, hi=1000.0)
+    consensus_tol: float = setting(0.2, lo=0.0, hi=10.0)
+    consensus_tol_slope: float = setting(0.0, lo=0.0, hi=1.0)
     match_gate: float = setting(1.0, lo=0.0, lo_open=True, hi=10.0)
 
     def __post_init__(self) -> None:
@@ -169,6 +185,8 @@ class LaneTracker:
         """Prior points added in the last frame."""
         self.n_rejected = 0
         """Points dropped as contradicting the tracks in the last frame."""
+        self.n_held = 0
+        """Frames whose lines were held to their common shape since the reset."""
 
     @property
     def ids(self) -> tuple[int, ...]:
@@ -201,6 +219,8 @@ class LaneTracker:
         tp = self.tracker
         travel = motion.travel
         table = _table(self._lines, self._ls, *motion.displacement())
+        if tp.consensus_tol > 0.0:
+            _consensus(table, tp.consensus_tol, tp.consensus_tol_slope)
         keep, vx, vy, support = _prior(
             pts,
             table,
@@ -211,6 +231,7 @@ class LaneTracker:
             tp.bridge_step,
             self.params.max_lane_width,
             self.params.z_band,
+            tp.tail_length,
         )
         self.n_prior = n_prior = len(vx)
         self.n_rejected = len(keep) - int(np.count_nonzero(keep))
@@ -220,8 +241,10 @@ class LaneTracker:
             prior[:, 0] = vx
             prior[:, 1] = vy
             cloud = np.concatenate((cloud, prior))
-        det = detect_lanes(cloud, self.params, path_range=self.path_range)
+        det, width = _detect_lanes(cloud, self.params, self.path_range)
         lines, ls = _concat(det)
+        if tp.consensus_tol > 0.0 and ls[-1] > 0:
+            det, lines = self._hold_together(det, lines, ls, width)
         self._ids, self._coast, self._next_id = _match(
             lines,
             ls,
@@ -236,6 +259,23 @@ class LaneTracker:
         )
         self._lines, self._ls = lines, ls
         return det
+
+    def _hold_together(
+        self, det: LaneDetection, lines: np.ndarray, ls: np.ndarray, width: float
+    ) -> tuple[LaneDetection, np.ndarray]:
+        """The detection's lines held to their common shape (:func:`_hold`): where a
+        line strays from it (far ahead, on clutter no track reached yet) its points
+        are set onto it, and the trajectory follows."""
+        tp = self.tracker
+        out, moved = _hold(lines, ls, tp.consensus_tol, tp.consensus_tol_slope)
+        if not moved:
+            return det, lines
+        fields = {name: out[ls[i] : ls[i + 1]] for i, name in enumerate(LINE_NAMES)}
+        traj = driving_trajectory(
+            fields["ego_left"], fields["ego_right"], width, PATH_STEP, fit_reach(self.path_range)
+        )
+        self.n_held += 1
+        return LaneDetection.trusted(**fields, trajectory=traj, source="aldm"), out
 
 
 def _concat(det: LaneDetection) -> tuple[np.ndarray, np.ndarray]:

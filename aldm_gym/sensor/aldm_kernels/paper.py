@@ -21,6 +21,7 @@ from aldm_gym.sensor.aldm_kernels.layout import (
     I,
     P,
 )
+from aldm_gym.sensor.aldm_kernels.sort import _insertion_sort
 
 
 def _paper_start_py(xs, ys, m, side, ref, min_off, k, spacing, out):
@@ -66,14 +67,7 @@ def _paper_start_py(xs, ys, m, side, ref, min_off, k, spacing, out):
             break
         out[got] = best
         got += 1
-    # Sort the chosen indices (index order is (x, y) order).
-    for i in range(1, got):
-        v = out[i]
-        j = i - 1
-        while j >= 0 and out[j] > v:
-            out[j + 1] = out[j]
-            j -= 1
-        out[j + 1] = v
+    _insertion_sort(out, got)  # index order is (x, y) order
     return got
 
 

@@ -17,6 +17,21 @@ SMALL_RUN = 16
 """Buckets up to this size are sorted by insertion, larger (crowded) ones by argsort."""
 
 
+def _insertion_sort_py(a, m):
+    """Sort ``a[:m]`` in place, ascending, by insertion (a handful of values, no
+    allocation)."""
+    for i in range(1, m):
+        v = a[i]
+        j = i - 1
+        while j >= 0 and a[j] > v:
+            a[j + 1] = a[j]
+            j -= 1
+        a[j + 1] = v
+
+
+_insertion_sort = numba.njit(cache=True)(_insertion_sort_py)
+
+
 def _sort_run_py(k1, k2, order, a, b):
     """Sort ``order[a:b]`` lexicographically by ``(k1, k2)`` (a crowded bucket)."""
     run = order[a:b]

@@ -1,11 +1,12 @@
 """Kernels of the tracking ALDM (:class:`aldm_gym.sensor.tracking.LaneTracker`).
 
 The tracker carries the last frame's lines forward by odometry and tabulates them
-(:func:`_table`), turns them into a prior for the stateless ALDM (:func:`_prior`: which points
-support a track, which contradict it, and prior points along the stretches a track
-has no support in) and gives every detected line the identity of the track it
-continues (:func:`_match`). Decisions and their reasons: ``docs/aldm.md``, section
-"Tracking".
+(:func:`_table`), holds them to the lanes' common shape (:func:`_consensus`; the
+detected lines too, :func:`_hold`), turns them into a prior for the stateless ALDM
+(:func:`_prior`: which points support a track, which contradict it, and prior points
+along the stretches a track has no support in) and gives every detected line the
+identity of the track it continues (:func:`_match`). Decisions and their reasons:
+``docs/aldm.md``, section "Tracking".
 
 A track is a polyline sorted by x (a line of the last detection); the tracks of a
 frame are concatenated into one ``(M, 2)`` array with offsets ``ls`` (track ``t`` is
@@ -19,6 +20,8 @@ import math
 
 import numba
 import numpy as np
+
+from aldm_gym.sensor.aldm_kernels.sort import _insertion_sort
 
 
 def _interp_line_py(lx, ly, lo, hi, x):
@@ -134,6 +137,133 @@ def _table_py(lines, ls, dx, dy, dpsi):
 _table = numba.njit(cache=True)(_table_py)
 
 
+CONSENSUS_NEAR = 50.0
+"""Each track's offset to the reference track is the median over x < this [m] where
+both are tabulated (the near range, seen best)."""
+
+
+def _median_py(buf, m):
+    """Median of ``buf[:m]`` (``m >= 1``), sorting it in place."""
+    _insertion_sort(buf, m)
+    h = m // 2
+    return buf[h] if m % 2 == 1 else 0.5 * (buf[h - 1] + buf[h])
+
+
+_median = numba.njit(cache=True)(_median_py)
+
+
+def _consensus_py(table, tol0, tol_slope):
+    """Pull every track back to the lanes' common shape where it strays (in place).
+
+    Lanes are parallel: a track following an old marking or a seam far ahead
+    diverges from the others. The reference is the track tabulated at the most x.
+    Distances between tracks are taken along the reference's normal (the lateral
+    difference at one x times the cosine of the reference's heading: parallel
+    curves are farther apart in y where they turn away from the x axis). Each
+    track's distance to the reference is its median over x < :data:`CONSENSUS_NEAR`.
+    At every x where at least three tracks are tabulated, the common shift is the
+    median over them of (their distance there minus their distance near); a track
+    more than ``tol0 + tol_slope * x`` [m] from it is set onto it. Where fewer than
+    three tracks are seen nothing changes (two lines cannot say which one strays).
+
+    :return: the number of samples moved.
+    """
+    n_tracks, n_grid = table.shape
+    if n_tracks < 3:
+        return 0
+    count = np.zeros(n_tracks, dtype=np.int64)
+    for t in range(n_tracks):
+        for g in range(n_grid):
+            if not math.isnan(table[t, g]):
+                count[t] += 1
+    ref = 0
+    for t in range(n_tracks):
+        if count[t] > count[ref]:
+            ref = t
+    if count[ref] == 0:
+        return 0
+    cos = np.full(n_grid, math.nan)  # cosine of the reference's heading
+    for g in range(n_grid):
+        if math.isnan(table[ref, g]):
+            continue
+        lo = g - 1 if g > 0 and not math.isnan(table[ref, g - 1]) else g
+        hi = g + 1 if g + 1 < n_grid and not math.isnan(table[ref, g + 1]) else g
+        if hi > lo:
+            k = (table[ref, hi] - table[ref, lo]) / ((hi - lo) * TABLE_STEP)
+            cos[g] = 1.0 / math.sqrt(1.0 + k * k)
+    near = np.full(n_tracks, math.nan)
+    buf = np.empty(max(n_grid, n_tracks))
+    for t in range(n_tracks):
+        m = 0
+        for g in range(n_grid):
+            if g * TABLE_STEP >= CONSENSUS_NEAR:
+                break
+            if not (math.isnan(table[t, g]) or math.isnan(cos[g])):
+                buf[m] = (table[t, g] - table[ref, g]) * cos[g]
+                m += 1
+        if m > 0:
+            near[t] = _median(buf, m)
+    moved = 0
+    for g in range(n_grid):
+        c = cos[g]
+        if math.isnan(c):
+            continue
+        yr = table[ref, g]
+        m = 0
+        for t in range(n_tracks):
+            if not (math.isnan(table[t, g]) or math.isnan(near[t])):
+                buf[m] = (table[t, g] - yr) * c - near[t]
+                m += 1
+        if m < 3:
+            continue
+        shift = _median(buf, m)
+        tol = tol0 + tol_slope * g * TABLE_STEP
+        for t in range(n_tracks):
+            if math.isnan(table[t, g]) or math.isnan(near[t]):
+                continue
+            if abs((table[t, g] - yr) * c - near[t] - shift) > tol:
+                table[t, g] = yr + (near[t] + shift) / c
+                moved += 1
+    return moved
+
+
+_consensus = numba.njit(cache=True)(_consensus_py)
+
+
+def _hold_py(lines, ls, tol0, tol_slope):
+    """A detection's lines (concatenated as the tracks) held to their common shape.
+
+    The lines are tabulated as they are (:func:`_table` without motion) and
+    :func:`_consensus` decides where one strays; from the sample before its first
+    moved one on, the line's vertices take the table's corrected y.
+
+    :return: ``(out, moved)``: the lines (a copy when changed) and whether any moved.
+    """
+    table = _table(lines, ls, 0.0, 0.0, 0.0)
+    before = table.copy()
+    if _consensus(table, tol0, tol_slope) == 0:
+        return lines, False
+    out = lines.copy()
+    for t in range(len(ls) - 1):
+        first = -1
+        for g in range(table.shape[1]):
+            if table[t, g] != before[t, g] and not math.isnan(before[t, g]):
+                first = g
+                break
+        if first < 0:
+            continue
+        x_cut = max(first - 1, 0) * TABLE_STEP
+        for i in range(ls[t], ls[t + 1]):
+            if lines[i, 0] > x_cut:
+                y = _lookup(table, t, lines[i, 0])
+                if not math.isnan(y):
+                    out[i, 1] = y
+    return out, True
+
+
+_hold = numba.njit(cache=True)(_hold_py)
+
+
 def _lookup_py(table, t, x):
     """Track ``t``'s y at ``x`` from its table [m]; NaN where it does not reach."""
     g = int(x / TABLE_STEP)
@@ -168,7 +298,55 @@ def _fill_py(table, t, a, b, ra, rb, step, with_a, with_b, vx, vy, n):
 _fill = numba.njit(cache=True)(_fill_py)
 
 
-def _prior_py(pts, table, coast_ok, gate0, gate_slope, bridge_gap, step, max_pair, z_band):
+def _slope_py(table, t, x):
+    """dy/dx of track ``t`` at ``x`` from its table (central difference, one-sided at
+    its ends); NaN where it does not reach."""
+    y0 = _lookup(table, t, x - TABLE_STEP)
+    y1 = _lookup(table, t, x + TABLE_STEP)
+    if not math.isnan(y0) and not math.isnan(y1):
+        return (y1 - y0) / (2.0 * TABLE_STEP)
+    y = _lookup(table, t, x)
+    if not math.isnan(y1):
+        return (y1 - y) / TABLE_STEP
+    if not math.isnan(y0):
+        return (y - y0) / TABLE_STEP
+    return math.nan
+
+
+_slope = numba.njit(cache=True)(_slope_py)
+
+
+def _beside_py(table, t, x, d):
+    """The point ``d`` [m] to the left of track ``t`` (along its normal) whose foot is
+    at ``x`` [m]: ``(x, y)``, NaN where the track does not reach."""
+    y = _lookup(table, t, x)
+    k = _slope(table, t, x)
+    if math.isnan(y) or math.isnan(k):
+        return math.nan, math.nan
+    c = 1.0 / math.sqrt(1.0 + k * k)
+    return x - d * k * c, y + d * c
+
+
+_beside = numba.njit(cache=True)(_beside_py)
+
+
+def _parallel_py(table, t, d, x):
+    """y at ``x`` [m] of the parallel ``d`` [m] left of track ``t`` (a concentric
+    curve: in a bend a constant lateral shift in the sensor frame is not parallel)."""
+    k = _slope(table, t, x)
+    if math.isnan(k):
+        return math.nan
+    c = 1.0 / math.sqrt(1.0 + k * k)
+    _, y = _beside(table, t, x + d * k * c, d)  # the foot whose normal passes near x
+    return y
+
+
+_parallel = numba.njit(cache=True)(_parallel_py)
+
+
+def _prior_py(
+    pts, table, coast_ok, gate0, gate_slope, bridge_gap, step, max_pair, z_band, tail_length
+):
     """The tracks (tabulated by :func:`_table`) as a prior for one frame's points.
 
     A point *supports* the nearest track when its lateral residual to it is within
@@ -180,8 +358,20 @@ def _prior_py(pts, table, coast_ok, gate0, gate_slope, bridge_gap, step, max_pai
     between supported points, and the stretch from the nearest measured x to the
     first supported point, shifted by the residuals of the supported points at
     the stretch's ends (the odometry's error, measured); a track with no support
-    at all is filled along its whole length when ``coast_ok``. Beyond a track's last
-    supported point nothing is added. Points with NaN/inf, x < 0 or (with z)
+    at all is filled along its whole length when ``coast_ok``.
+
+    Beyond a track's last supported point its *continuation* runs parallel to the
+    laterally nearest track (within ``2 * max_pair``) whose support reaches more than
+    ``bridge_gap`` farther, at their offset there (lanes are parallel: the car ahead
+    hides the ego lane's lines while a line beside is still seen). Points within the
+    gate of the continuation that support no track support it; prior points fill its
+    stretches without support longer than ``bridge_gap`` and its tail, for at most
+    ``tail_length`` [m] beyond its last support, up to the neighbour's last support
+    (``tail_length = 0``: no continuation at all).
+    The continuation follows the neighbour's measured shape, never the track's own
+    carried end (which no point has confirmed for a while and which would drift
+    frame after frame). Without such a neighbour nothing is added beyond a track's
+    last supported point. Points with NaN/inf, x < 0 or (with z)
     ``|z| > z_band`` are kept untouched (the ALDM drops them) and ignored here.
 
     :param pts: ``(N, 2|3)`` points in the sensor frame [m].
@@ -193,9 +383,11 @@ def _prior_py(pts, table, coast_ok, gate0, gate_slope, bridge_gap, step, max_pai
     has_z = pts.shape[1] > 2
     n_tracks = table.shape[0]
     keep = np.ones(n_pts, dtype=np.bool_)
+    free = np.zeros(n_pts, dtype=np.bool_)  # valid, kept, supporting no track
     support = np.zeros(n_tracks, dtype=np.int64)
     sup_x = np.empty((n_tracks, max(n_pts, 1)))
     sup_r = np.empty((n_tracks, max(n_pts, 1)))
+    sup_i = np.empty((n_tracks, max(n_pts, 1)), dtype=np.int64)
     x_near = math.inf
     for i in range(n_pts):
         x = pts[i, 0]
@@ -227,14 +419,23 @@ def _prior_py(pts, table, coast_ok, gate0, gate_slope, bridge_gap, step, max_pai
             elif r >= 0.0 and r < right:
                 right = r
         if best_t < 0:
+            free[i] = True
             continue
         if best <= gate0 + gate_slope * x:
             sup_x[best_t, support[best_t]] = x
             sup_r[best_t, support[best_t]] = best_r
+            sup_i[best_t, support[best_t]] = i
             support[best_t] += 1
         elif left + right <= max_pair:
             keep[i] = False
-    cap = n_tracks * (int(table.shape[1] * TABLE_STEP / step) + 3)
+        else:
+            free[i] = True
+    last_x = np.full(n_tracks, -math.inf)  # each track's farthest support
+    for t in range(n_tracks):
+        for j in range(support[t]):
+            last_x[t] = max(last_x[t], sup_x[t, j])
+    cont_x = np.empty(max(n_pts, 1))
+    cap = n_tracks * (int(table.shape[1] * TABLE_STEP / step) + 3 + n_pts)
     vx = np.empty(cap)
     vy = np.empty(cap)
     n = 0
@@ -268,6 +469,70 @@ def _prior_py(pts, table, coast_ok, gate0, gate_slope, bridge_gap, step, max_pai
                 n = _fill(table, t, prev, xs[j], r_prev, r_next, step, j == 0, False, vx, vy, n)
             prev = xs[j]
             r_prev = np.mean(rs[max(j - 2, 0) : j + 1])
+        # the continuation beyond the last support, along the nearest neighbour
+        # whose support reaches farther
+        y_end = _lookup(table, t, prev)
+        if math.isnan(y_end) or tail_length <= 0.0:
+            continue
+        y_end += r_prev
+        ref = -1
+        d = 0.0  # the continuation's distance left of the neighbour, along its normal
+        closest = 2.0 * max_pair
+        for u in range(n_tracks):
+            if u == t or last_x[u] - prev <= bridge_gap:
+                continue
+            yu = _lookup(table, u, prev)
+            ku = _slope(table, u, prev)
+            if math.isnan(yu) or math.isnan(ku):
+                continue
+            # the neighbour where measured: its table plus the residuals of its
+            # supports within 10 m of x = prev (the nearest one if none)
+            total = 0.0
+            count = 0
+            near_r = 0.0
+            near_dx = math.inf
+            for j in range(support[u]):
+                dxj = abs(sup_x[u, j] - prev)
+                if dxj <= 10.0:
+                    total += sup_r[u, j]
+                    count += 1
+                if dxj < near_dx:
+                    near_dx = dxj
+                    near_r = sup_r[u, j]
+            yu += total / count if count > 0 else near_r
+            if abs(y_end - yu) < closest:
+                closest = abs(y_end - yu)
+                ref = u
+                d = (y_end - yu) / math.sqrt(1.0 + ku * ku)
+        if ref < 0:
+            continue
+        m = 0
+        for i in range(n_pts):
+            x = pts[i, 0]
+            if free[i] and prev < x <= last_x[ref]:
+                yc = _parallel(table, ref, d, x)
+                if abs(pts[i, 1] - yc) <= gate0 + gate_slope * x:
+                    cont_x[m] = x
+                    m += 1
+        cx = np.sort(cont_x[:m])
+        # prior points: the neighbour's supporting points, moved d along its normal,
+        # in the continuation's stretches without support (and its tail)
+        end = prev
+        for j in range(m + 1):
+            a = end
+            b = cx[j] if j < m else min(last_x[ref], end + tail_length)
+            if b - a > bridge_gap:
+                for q in range(support[ref]):
+                    x = sup_x[ref, q]
+                    if a < x <= b:
+                        k = _slope(table, ref, x)
+                        if not math.isnan(k):
+                            c = 1.0 / math.sqrt(1.0 + k * k)
+                            vx[n] = x - d * k * c
+                            vy[n] = pts[sup_i[ref, q], 1] + d * c
+                            n += 1
+            if j < m:
+                end = cx[j]
     return keep, vx[:n], vy[:n], support
 
 
