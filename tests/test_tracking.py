@@ -363,8 +363,8 @@ def test_old_marking_branching_off_is_not_followed() -> None:
 def test_consensus_pulls_a_straying_track_back() -> None:
     """_consensus on tabulated tracks: four parallel lines of a 600 m bend (farther
     apart in y where they turn: not moved), one bent 0.8 m off beyond 100 m, is set
-    back onto the common shape (the others untouched); with two tracks nothing can
-    be decided and nothing moves."""
+    back onto the common shape (the others untouched); of two lines parting, nothing
+    says which strays: both end where they part; one line alone stays."""
     x = np.arange(0.0, 151.0, K.TABLE_STEP)
     radius = 600.0  # a left bend: concentric circles about (0, radius)
     table = np.array(
@@ -377,9 +377,40 @@ def test_consensus_pulls_a_straying_track_back() -> None:
     assert K._consensus(bent, 0.2, 0.0) == np.count_nonzero(x > 100.0)
     np.testing.assert_allclose(bent[1], table[1], atol=0.01)
     np.testing.assert_array_equal(bent[[0, 2, 3]], want[[0, 2, 3]])
-    two = want[:2].copy()
-    assert K._consensus(two, 0.2, 0.0) == 0
-    np.testing.assert_array_equal(two, want[:2])
+    two = want[:2].copy()  # two lines part beyond 100 m: which one strays? both end
+    far = x > 100.0
+    assert K._consensus(two, 0.2, 0.0) == 2 * np.count_nonzero(far)
+    assert np.isnan(two[:, far]).all()
+    np.testing.assert_array_equal(two[:, ~far], want[:2, ~far])
+    one = want[1:2].copy()
+    assert K._consensus(one, 0.2, 0.0) == 0
     again = want.copy()
     assert K._consensus_py(again, 0.2, 0.0) == np.count_nonzero(x > 100.0)
     np.testing.assert_array_equal(again, bent)
+
+
+def test_hold_sets_or_ends_straying_lines() -> None:
+    """_hold on detected lines (13 vertices each, as the ALDM returns them): a line
+    bent 0.8 m off beyond 100 m among three takes the common shape there; of two
+    lines parting, both lose their vertices beyond; compiled and plain Python agree."""
+    x = np.linspace(6.0, 150.0, 13)
+    lines = [np.column_stack([x, np.full(13, off)]) for off in (5.6, 1.9, -1.9)]
+    lines[1][x > 100.0, 1] += 0.8
+    cat = np.concatenate(lines)
+    ls = np.array([0, 13, 26, 39])
+    out, out_ls, moved = K._hold(cat, ls, 0.2, 0.0)
+    assert moved
+    np.testing.assert_array_equal(out_ls, ls)
+    np.testing.assert_allclose(out[13:26, 1], 1.9, atol=1e-12)
+    np.testing.assert_array_equal(
+        out[[*range(13), *range(26, 39)]], cat[[*range(13), *range(26, 39)]]
+    )
+    two = np.concatenate(lines[1:])
+    out2, ls2, moved2 = K._hold(two, np.array([0, 13, 26]), 0.2, 0.0)
+    assert moved2 and list(ls2) == [0, 8, 16]  # the vertices up to 90 m
+    assert out2[:, 0].max() < 100.0
+    for args in ((cat, ls, 0.2, 0.0), (two, np.array([0, 13, 26]), 0.2, 0.0)):
+        for a, b in zip(K._hold(*args), K._hold_py(*args), strict=True):
+            np.testing.assert_array_equal(a, b)
+    same = K._hold(cat[:13].copy(), np.array([0, 13]), 0.2, 0.0)
+    assert not same[2]

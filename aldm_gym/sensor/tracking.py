@@ -244,7 +244,7 @@ class LaneTracker:
         det, width = _detect_lanes(cloud, self.params, self.path_range)
         lines, ls = _concat(det)
         if tp.consensus_tol > 0.0 and ls[-1] > 0:
-            det, lines = self._hold_together(det, lines, ls, width)
+            det, lines, ls = self._hold_together(det, lines, ls, width)
         self._ids, self._coast, self._next_id = _match(
             lines,
             ls,
@@ -262,20 +262,20 @@ class LaneTracker:
 
     def _hold_together(
         self, det: LaneDetection, lines: np.ndarray, ls: np.ndarray, width: float
-    ) -> tuple[LaneDetection, np.ndarray]:
+    ) -> tuple[LaneDetection, np.ndarray, np.ndarray]:
         """The detection's lines held to their common shape (:func:`_hold`): where a
         line strays from it (far ahead, on clutter no track reached yet) its points
-        are set onto it, and the trajectory follows."""
+        are set onto it, where two lines part both end, and the trajectory follows."""
         tp = self.tracker
-        out, moved = _hold(lines, ls, tp.consensus_tol, tp.consensus_tol_slope)
+        out, ls, moved = _hold(lines, ls, tp.consensus_tol, tp.consensus_tol_slope)
         if not moved:
-            return det, lines
+            return det, lines, ls
         fields = {name: out[ls[i] : ls[i + 1]] for i, name in enumerate(LINE_NAMES)}
         traj = driving_trajectory(
             fields["ego_left"], fields["ego_right"], width, PATH_STEP, fit_reach(self.path_range)
         )
         self.n_held += 1
-        return LaneDetection.trusted(**fields, trajectory=traj, source="aldm"), out
+        return LaneDetection.trusted(**fields, trajectory=traj, source="aldm"), out, ls
 
 
 def _concat(det: LaneDetection) -> tuple[np.ndarray, np.ndarray]:

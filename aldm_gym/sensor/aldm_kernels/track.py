@@ -163,13 +163,14 @@ def _consensus_py(table, tol0, tol_slope):
     track's distance to the reference is its median over x < :data:`CONSENSUS_NEAR`.
     At every x where at least three tracks are tabulated, the common shift is the
     median over them of (their distance there minus their distance near); a track
-    more than ``tol0 + tol_slope * x`` [m] from it is set onto it. Where fewer than
-    three tracks are seen nothing changes (two lines cannot say which one strays).
+    more than ``tol0 + tol_slope * x`` [m] from it is set onto it. Where only two
+    tracks are seen and their distance changes by more than that, nothing says which
+    one strays: both end there (NaN from there on). One track alone is left as it is.
 
     :return: the number of samples moved.
     """
     n_tracks, n_grid = table.shape
-    if n_tracks < 3:
+    if n_tracks < 2:
         return 0
     count = np.zeros(n_tracks, dtype=np.int64)
     for t in range(n_tracks):
@@ -204,20 +205,31 @@ def _consensus_py(table, tol0, tol_slope):
         if m > 0:
             near[t] = _median(buf, m)
     moved = 0
+    pair = np.empty(2, dtype=np.int64)
     for g in range(n_grid):
         c = cos[g]
-        if math.isnan(c):
-            continue
         yr = table[ref, g]
+        if math.isnan(c) or math.isnan(yr):
+            continue
         m = 0
         for t in range(n_tracks):
             if not (math.isnan(table[t, g]) or math.isnan(near[t])):
                 buf[m] = (table[t, g] - yr) * c - near[t]
+                if m < 2:
+                    pair[m] = t
                 m += 1
+        tol = tol0 + tol_slope * g * TABLE_STEP
+        if m == 2 and abs(buf[0] - buf[1]) > tol:
+            # two lines part and nothing says which one strays: both end here
+            for t in pair:
+                for g2 in range(g, n_grid):
+                    if not math.isnan(table[t, g2]):
+                        table[t, g2] = math.nan
+                        moved += 1
+            continue
         if m < 3:
             continue
         shift = _median(buf, m)
-        tol = tol0 + tol_slope * g * TABLE_STEP
         for t in range(n_tracks):
             if math.isnan(table[t, g]) or math.isnan(near[t]):
                 continue
@@ -235,30 +247,51 @@ def _hold_py(lines, ls, tol0, tol_slope):
 
     The lines are tabulated as they are (:func:`_table` without motion) and
     :func:`_consensus` decides where one strays; from the sample before its first
-    moved one on, the line's vertices take the table's corrected y.
+    moved one on, the line's vertices take the table's corrected y, and vertices
+    where the table was ended (two lines parting) are dropped.
 
-    :return: ``(out, moved)``: the lines (a copy when changed) and whether any moved.
+    :return: ``(out, out_ls, moved)``: the lines and their offsets (new arrays when
+        changed) and whether any moved.
     """
     table = _table(lines, ls, 0.0, 0.0, 0.0)
     before = table.copy()
     if _consensus(table, tol0, tol_slope) == 0:
-        return lines, False
-    out = lines.copy()
+        return lines, ls, False
+    out = np.empty_like(lines)
+    out_ls = np.zeros_like(ls)
+    n = 0
+    n_grid = table.shape[1]
     for t in range(len(ls) - 1):
-        first = -1
-        for g in range(table.shape[1]):
-            if table[t, g] != before[t, g] and not math.isnan(before[t, g]):
+        out_ls[t] = n
+        first = -1  # the first sample consensus changed
+        end = n_grid  # the first sample it ended the line at
+        last = -1  # the last sample left
+        for g in range(n_grid):
+            if math.isnan(before[t, g]):
+                continue
+            if table[t, g] != before[t, g] and first < 0:
                 first = g
-                break
-        if first < 0:
-            continue
-        x_cut = max(first - 1, 0) * TABLE_STEP
+            if math.isnan(table[t, g]):
+                end = min(end, g)
+            else:
+                last = g
+        x_cut = math.inf if first < 0 else max(first - 1, 0) * TABLE_STEP
         for i in range(ls[t], ls[t + 1]):
-            if lines[i, 0] > x_cut:
-                y = _lookup(table, t, lines[i, 0])
-                if not math.isnan(y):
-                    out[i, 1] = y
-    return out, True
+            x = lines[i, 0]
+            out[n, 0] = x
+            out[n, 1] = lines[i, 1]
+            if x > x_cut:
+                if x >= (end - 1) * TABLE_STEP:
+                    continue  # where two lines part, both end a sample before
+                y = _lookup(table, t, x)
+                if math.isnan(y) and last >= 0:  # past the last sample: its correction
+                    y = lines[i, 1] + table[t, last] - before[t, last]
+                out[n, 1] = y
+            n += 1
+        if n - out_ls[t] < 2:  # a line needs two points
+            n = out_ls[t]
+    out_ls[len(ls) - 1] = n
+    return out[:n], out_ls, True
 
 
 _hold = numba.njit(cache=True)(_hold_py)
