@@ -164,8 +164,9 @@ def _consensus_py(table, tol0, tol_slope):
     At every x where at least three tracks are tabulated, the common shift is the
     median over them of (their distance there minus their distance near); a track
     more than ``tol0 + tol_slope * x`` [m] from it is set onto it. Where only two
-    tracks are seen and their distance changes by more than that, nothing says which
-    one strays: both end there (NaN from there on). One track alone is left as it is.
+    tracks are seen beyond :data:`CONSENSUS_NEAR` and their distance changes by more
+    than that, nothing says which one strays: both end there (NaN from there on).
+    One track alone is left as it is.
 
     :return: the number of samples moved.
     """
@@ -219,7 +220,7 @@ def _consensus_py(table, tol0, tol_slope):
                     pair[m] = t
                 m += 1
         tol = tol0 + tol_slope * g * TABLE_STEP
-        if m == 2 and abs(buf[0] - buf[1]) > tol:
+        if m == 2 and g * TABLE_STEP >= CONSENSUS_NEAR and abs(buf[0] - buf[1]) > tol:
             # two lines part and nothing says which one strays: both end here
             for t in pair:
                 for g2 in range(g, n_grid):
@@ -401,9 +402,9 @@ def _prior_py(
     stretches without support longer than ``bridge_gap`` and its tail, for at most
     ``tail_length`` [m] beyond its last support, up to the neighbour's last support
     (``tail_length = 0``: no continuation at all).
-    The continuation follows the neighbour's measured shape, never the track's own
-    carried end (which no point has confirmed for a while and which would drift
-    frame after frame). Without such a neighbour nothing is added beyond a track's
+    The continuation follows the neighbour, seen there in this frame, never the
+    track's own carried end (which no point has confirmed for a while and which
+    would drift frame after frame). Without such a neighbour nothing is added beyond a track's
     last supported point. Points with NaN/inf, x < 0 or (with z)
     ``|z| > z_band`` are kept untouched (the ALDM drops them) and ignored here.
 
@@ -420,7 +421,6 @@ def _prior_py(
     support = np.zeros(n_tracks, dtype=np.int64)
     sup_x = np.empty((n_tracks, max(n_pts, 1)))
     sup_r = np.empty((n_tracks, max(n_pts, 1)))
-    sup_i = np.empty((n_tracks, max(n_pts, 1)), dtype=np.int64)
     x_near = math.inf
     for i in range(n_pts):
         x = pts[i, 0]
@@ -457,7 +457,6 @@ def _prior_py(
         if best <= gate0 + gate_slope * x:
             sup_x[best_t, support[best_t]] = x
             sup_r[best_t, support[best_t]] = best_r
-            sup_i[best_t, support[best_t]] = i
             support[best_t] += 1
         elif left + right <= max_pair:
             keep[i] = False
@@ -548,22 +547,20 @@ def _prior_py(
                     cont_x[m] = x
                     m += 1
         cx = np.sort(cont_x[:m])
-        # prior points: the neighbour's supporting points, moved d along its normal,
-        # in the continuation's stretches without support (and its tail)
+        # prior points every `step` on the neighbour's track moved d along its
+        # normal, in the continuation's stretches without support (and its tail)
         end = prev
         for j in range(m + 1):
             a = end
             b = cx[j] if j < m else min(last_x[ref], end + tail_length)
             if b - a > bridge_gap:
-                for q in range(support[ref]):
-                    x = sup_x[ref, q]
-                    if a < x <= b:
-                        k = _slope(table, ref, x)
-                        if not math.isnan(k):
-                            c = 1.0 / math.sqrt(1.0 + k * k)
-                            vx[n] = x - d * k * c
-                            vy[n] = pts[sup_i[ref, q], 1] + d * c
-                            n += 1
+                steps = int(math.ceil((b - a) / step))  # noqa: RUF046
+                for q in range(1, steps + 1):
+                    px, py = _beside(table, ref, a + (b - a) * q / steps, d)
+                    if not math.isnan(py):
+                        vx[n] = px
+                        vy[n] = py
+                        n += 1
             if j < m:
                 end = cx[j]
     return keep, vx[:n], vy[:n], support
