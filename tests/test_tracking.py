@@ -414,3 +414,27 @@ def test_hold_sets_or_ends_straying_lines() -> None:
             np.testing.assert_array_equal(a, b)
     same = K._hold(cat[:13].copy(), np.array([0, 13]), 0.2, 0.0)
     assert not same[2]
+
+
+def test_table_samples_the_lines_parabolas() -> None:
+    """_table (Newton's form, once per segment) gives _interp_line_py's parabola at
+    every sample, for a curved line starting 17 m ahead (extrapolated to x = 0), a
+    two-vertex line and a moved frame; NaN beyond each line's end."""
+    x = np.linspace(17.0, 190.0, 13)
+    curved = np.column_stack([x, 1.9 + x**2 / 1600.0 + 0.01 * np.sin(x)])
+    short = np.array([[10.0, -1.8], [40.0, -1.7]])
+    lines = np.concatenate([curved, short])
+    ls = np.array([0, 13, 15])
+    for motion in ((0.0, 0.0, 0.0), (2.5, 0.01, 0.003)):
+        table = K._table(lines, ls, *motion)
+        np.testing.assert_array_equal(table, K._table_py(lines, ls, *motion))
+        c, s = math.cos(motion[2]), math.sin(motion[2])
+        for t in range(2):
+            seg = lines[ls[t] : ls[t + 1]] - motion[:2]
+            px, py = c * seg[:, 0] + s * seg[:, 1], -s * seg[:, 0] + c * seg[:, 1]
+            for g in range(table.shape[1]):
+                want = K._interp_line_py(px, py, 0, len(px), g * K.TABLE_STEP)
+                if math.isnan(want):
+                    assert math.isnan(table[t, g])
+                else:
+                    assert abs(table[t, g] - want) < 1e-9, (t, g)

@@ -340,16 +340,19 @@ def detect_lanes(
 
 def _detect_lanes(
     pts: FloatArray, p: ALDMParams, path_range: float | None
-) -> tuple[LaneDetection, float]:
+) -> tuple[LaneDetection, float, FloatArray, IntArray]:
     """:func:`detect_lanes` on checked points and parameters; also the lane width
-    [m] its trajectory used with a single ego line."""
+    [m] its trajectory used with a single ego line, and the lines concatenated in
+    :data:`LINE_NAMES` order with their offsets (the detection's lines are views of
+    it)."""
     reach = fit_reach(path_range)
     fp, ip = _packed(p)
     lines, starts, _offsets, ok, traj, width = _detect(pts, fp, ip, reach)
     fields = {name: lines[starts[s] : starts[s + 1]] for s, name in enumerate(LINE_NAMES)}
     if not ok:  # lines of < 4 points (n_points 2 or 3) or repeated x: numpy's fit
         traj = driving_trajectory(fields["ego_left"], fields["ego_right"], width, PATH_STEP, reach)
-    return LaneDetection.trusted(**fields, trajectory=traj, source="aldm"), float(width)
+    det = LaneDetection.trusted(**fields, trajectory=traj, source="aldm")
+    return det, float(width), lines, starts
 
 
 __all__ = ["MODES", "OUTPUTS", "ALDMParams", "as_points", "detect_lanes", "make_params"]

@@ -241,8 +241,7 @@ class LaneTracker:
             prior[:, 0] = vx
             prior[:, 1] = vy
             cloud = np.concatenate((cloud, prior))
-        det, width = _detect_lanes(cloud, self.params, self.path_range)
-        lines, ls = _concat(det)
+        det, width, lines, ls = _detect_lanes(cloud, self.params, self.path_range)
         if tp.consensus_tol > 0.0 and ls[-1] > 0:
             det, lines, ls = self._hold_together(det, lines, ls, width)
         self._ids, self._coast, self._next_id = _match(

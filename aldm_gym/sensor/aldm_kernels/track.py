@@ -65,9 +65,6 @@ def _interp_line_py(lx, ly, lo, hi, x):
     )
 
 
-_interp_line = numba.njit(cache=True)(_interp_line_py)
-
-
 TABLE_STEP = 2.0
 """Spacing in x of the tracks' look-up tables [m]: linear interpolation between
 samples of the parabolas 2 m apart is off by 0.6 mm in a 800 m curve, 5 mm in a
@@ -79,8 +76,9 @@ def _table_py(lines, ls, dx, dy, dpsi):
     the new sensor frame, tabulated.
 
     The sensor moved by ``(dx, dy)`` [m] and turned by ``dpsi`` [rad], both in the
-    old frame. Each moved track is sampled at x = 0, 1, 2, ... m (:func:`_interp_line`,
-    walking the vertices once); NaN where the track does not reach. A track is cut at
+    old frame. Each moved track is sampled at x = 0, 2, 4, ... m on
+    :func:`_interp_line_py`'s parabolas (in Newton's form, computed once per segment
+    while walking the vertices once); NaN where the track does not reach. A track is cut at
     its first vertex that would not be strictly ahead of the previous one.
 
     :return: ``(T, G)`` table of y [m].
@@ -117,6 +115,8 @@ def _table_py(lines, ls, dx, dy, dpsi):
         if hi - lo < 2:
             continue
         a = lo  # the segment (a, a + 1) holding x, walked forward once (x grows)
+        seg = -1  # the segment whose parabola is in (x0, x1, y0, d01, d012)
+        x0 = x1 = y0 = d01 = d012 = 0.0
         for g in range(n_grid):
             x = g * TABLE_STEP
             if x > px[hi - 1]:
@@ -125,12 +125,24 @@ def _table_py(lines, ls, dx, dy, dpsi):
                 continue
             while a + 2 < hi and px[a + 1] <= x:
                 a += 1
-            # _interp_line's parabola, without its binary search
-            table[t, g] = (
-                _interp_line(px, py, a, min(a + 3, hi), x)
-                if a + 3 <= hi
-                else (_interp_line(px, py, lo, hi, x))
-            )
+            if a != seg:
+                # _interp_line_py's parabola: through a, a + 1 and the next vertex (the
+                # previous one on the last segment), in Newton's form, once per segment
+                seg = a
+                if hi - lo == 2:
+                    i0, i1, i2 = a, a + 1, -1
+                elif a + 3 <= hi:
+                    i0, i1, i2 = a, a + 1, a + 2
+                else:
+                    i0, i1, i2 = a - 1, a, a + 1
+                x0 = px[i0]
+                x1 = px[i1]
+                y0 = py[i0]
+                d01 = (py[i1] - y0) / (x1 - x0)
+                d012 = 0.0
+                if i2 >= 0:
+                    d012 = ((py[i2] - py[i1]) / (px[i2] - x1) - d01) / (px[i2] - x0)
+            table[t, g] = y0 + (x - x0) * (d01 + (x - x1) * d012)
     return table
 
 
