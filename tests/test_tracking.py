@@ -163,8 +163,9 @@ def test_kernels_match_plain_python() -> None:
     motion = EgoMotion(SPEED, SPEED / 800.0, DT)
     disp = motion.displacement()
     args = (tracker._lines, tracker._ls, *disp)
-    np.testing.assert_array_equal(K._table(*args), K._table_py(*args))
-    table = K._table(*args)
+    for a, b in zip(K._table(*args), K._table_py(*args), strict=True):
+        np.testing.assert_array_equal(a, b)
+    table = K._table(*args)[0]
     pargs = (pts, table, np.ones(4, dtype=bool), 0.25, 0.001, 20.0, 4.0, 5.0, 0.5, 60.0)
     for got, want in zip(K._prior(*pargs), K._prior_py(*pargs), strict=True):
         np.testing.assert_array_equal(got, want)
@@ -173,7 +174,7 @@ def test_kernels_match_plain_python() -> None:
     for k, _road, pts in _hidden_frames(8):
         if k < 7:
             tracker.update(pts, None if k == 0 else HIDDEN_MOTION)
-    table = K._table(tracker._lines, tracker._ls, *HIDDEN_MOTION.displacement())
+    table = K._table(tracker._lines, tracker._ls, *HIDDEN_MOTION.displacement())[0]
     pargs = (pts, table, np.ones(4, dtype=bool), 0.25, 0.001, 20.0, 4.0, 5.0, 0.5, 60.0)
     got, want = K._prior(*pargs), K._prior_py(*pargs)
     assert np.count_nonzero(got[1] > 60.0) >= 5
@@ -258,7 +259,8 @@ def test_env_odometry_carries_the_last_frame_onto_this_one() -> None:
     from aldm_gym.sensor.ground_truth import ground_truth_detect
 
     turns = {-1: 0, 1: 0}
-    for road_seed in (0, 1):  # a right bend, a left bend
+    # a right bend, a left bend, and a sensor mounted 0.8 m left of the car's axis
+    for road_seed, mount_y in ((0, 0.0), (1, 0.0), (0, 0.8)):
         env = gym.make(
             "ALDMHighway-v0",
             config={
@@ -266,6 +268,7 @@ def test_env_odometry_carries_the_last_frame_onto_this_one() -> None:
                 "vehicles_count": 0,
                 "duration": 12,
                 "road": {"seed": road_seed, "min_radius": 300.0, "max_radius": 400.0},
+                "sensor": {"mount_y": mount_y},
             },
         )
         env.reset(seed=0)
@@ -279,7 +282,7 @@ def test_env_odometry_carries_the_last_frame_onto_this_one() -> None:
                 continue
             a = ground_truth_detect(base.highway, f0, lane0).ego_left
             b = ground_truth_detect(base.highway, f1, lane1).ego_left
-            moved = K._table(a, np.array([0, len(a)]), *motion.displacement())[0]
+            moved = K._table(a, np.array([0, len(a)]), *motion.displacement())[0][0]
             xs = np.arange(20.0, 121.0, 10.0)
             grid = np.arange(len(moved)) * K.TABLE_STEP
             err = np.interp(xs, grid, moved) - np.interp(xs, *b.T)
@@ -370,22 +373,22 @@ def test_consensus_pulls_a_straying_track_back() -> None:
     table = np.array(
         [radius - np.sqrt((radius - off) ** 2 - x**2) for off in (5.6, 1.9, -1.9, -5.6)]
     )
-    assert K._consensus(table.copy(), 0.05, 0.0) == 0
+    assert K._consensus(table.copy(), np.zeros(4), 0.05, 0.0) == 0
     bent = table.copy()
     bent[1, x > 100.0] += 0.8
     want = bent.copy()
-    assert K._consensus(bent, 0.2, 0.0) == np.count_nonzero(x > 100.0)
+    assert K._consensus(bent, np.zeros(4), 0.2, 0.0) == np.count_nonzero(x > 100.0)
     np.testing.assert_allclose(bent[1], table[1], atol=0.01)
     np.testing.assert_array_equal(bent[[0, 2, 3]], want[[0, 2, 3]])
     two = want[:2].copy()  # two lines part beyond 100 m: which one strays? both end
     far = x > 100.0
-    assert K._consensus(two, 0.2, 0.0) == 2 * np.count_nonzero(far)
+    assert K._consensus(two, np.zeros(2), 0.2, 0.0) == 2 * np.count_nonzero(far)
     assert np.isnan(two[:, far]).all()
     np.testing.assert_array_equal(two[:, ~far], want[:2, ~far])
     one = want[1:2].copy()
-    assert K._consensus(one, 0.2, 0.0) == 0
+    assert K._consensus(one, np.zeros(1), 0.2, 0.0) == 0
     again = want.copy()
-    assert K._consensus_py(again, 0.2, 0.0) == np.count_nonzero(x > 100.0)
+    assert K._consensus_py(again, np.zeros(4), 0.2, 0.0) == np.count_nonzero(x > 100.0)
     np.testing.assert_array_equal(again, bent)
 
 
@@ -426,8 +429,9 @@ def test_table_samples_the_lines_parabolas() -> None:
     lines = np.concatenate([curved, short])
     ls = np.array([0, 13, 15])
     for motion in ((0.0, 0.0, 0.0), (2.5, 0.01, 0.003)):
-        table = K._table(lines, ls, *motion)
-        np.testing.assert_array_equal(table, K._table_py(lines, ls, *motion))
+        table, first = K._table(lines, ls, *motion)
+        np.testing.assert_array_equal(table, K._table_py(lines, ls, *motion)[0])
+        np.testing.assert_array_equal(first, K._table_py(lines, ls, *motion)[1])
         c, s = math.cos(motion[2]), math.sin(motion[2])
         for t in range(2):
             seg = lines[ls[t] : ls[t + 1]] - motion[:2]
@@ -438,3 +442,49 @@ def test_table_samples_the_lines_parabolas() -> None:
                     assert math.isnan(table[t, g])
                 else:
                     assert abs(table[t, g] - want) < 1e-9, (t, g)
+
+
+def test_consensus_offsets_from_own_samples() -> None:
+    """A line starting 40 m ahead, its first vertex 8 cm off, is not moved: its
+    distance to the others is measured on its own samples, not on its extrapolation
+    back to the sensor (which took it 0.3 m off over 150 m before)."""
+    x = np.linspace(6.0, 184.0, 13)
+    far = np.linspace(40.0, 184.0, 13)
+    lines = [np.column_stack([x, np.full(13, 1.9)]), np.column_stack([x, np.full(13, -1.9)])]
+    third = np.column_stack([far, np.full(13, -5.6)])
+    third[0, 1] += 0.08
+    cat = np.concatenate([*lines, third])
+    out, _, moved = K._hold(cat, np.array([0, 13, 26, 39]), 0.2, 0.0)
+    assert not moved and out is cat
+
+
+def test_continuation_is_not_carried_by_a_stray_point() -> None:
+    """Three straight tracks; the middle one (tabulated to 40 m) has points to 39 m,
+    the others are seen to 190 m; one stray point lies on the middle line at 170 m.
+    Prior points continue the middle line beside its neighbour at most tail_length
+    (60 m) beyond its last point: to 99 m, not to the stray point."""
+    g = np.arange(0.0, 201.0, K.TABLE_STEP)
+    table = np.array([np.full(len(g), 3.75), np.zeros(len(g)), np.full(len(g), -3.75)])
+    table[1, g > 40.0] = np.nan  # last frame's middle line ended at 40 m
+    xs = np.arange(6.0, 191.0, 2.0)
+    pts = [np.column_stack([xs, np.full(len(xs), 3.75)])]
+    pts.append(np.column_stack([xs[xs <= 39.0], np.zeros(np.count_nonzero(xs <= 39.0))]))
+    pts.append(np.column_stack([xs, np.full(len(xs), -3.75)]))
+    pts.append(np.array([[170.0, 0.0]]))
+    cloud = np.concatenate(pts)
+    args = (cloud, table, np.ones(3, dtype=bool), 0.25, 0.001, 20.0, 4.0, 5.0, 0.5, 60.0)
+    _, vx, vy, _ = K._prior(*args)
+    mid = np.abs(vy) < 0.5
+    assert vx[mid].min() > 39.0 and 95.0 <= vx[mid].max() <= 39.0 + 60.0 + 1e-9
+    for a, b in zip(K._prior(*args), K._prior_py(*args), strict=True):
+        np.testing.assert_array_equal(a, b)
+
+
+def test_tracker_settings_that_would_do_nothing_are_refused() -> None:
+    with pytest.raises(
+        ValueError, match=r"tail_length must be 0 \(no continuation\) or > bridge_gap"
+    ):
+        TrackerParams(tail_length=15.0)
+    with pytest.raises(ValueError, match="consensus_tol_slope needs consensus_tol > 0"):
+        TrackerParams(consensus_tol=0.0, consensus_tol_slope=0.01)
+    assert TrackerParams(tail_length=0.0, consensus_tol=0.0).tail_length == 0.0

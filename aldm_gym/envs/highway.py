@@ -511,13 +511,9 @@ class ALDMHighwayEnv(AbstractEnv):
         after an implausible jump."""
         ego = self.vehicle
         assert self.sensor is not None
-        cfg = self.sensor.config
-        c, s = math.cos(ego.heading), math.sin(ego.heading)
-        pose = (
-            float(ego.position[0]) + c * cfg.mount_x - s * cfg.mount_y,
-            float(ego.position[1]) + s * cfg.mount_x + c * cfg.mount_y,
-            float(ego.heading),
-        )
+        heading = float(ego.heading)
+        origin, _ = self.sensor.world_pose((ego.position[0], ego.position[1], heading))
+        pose = (float(origin[0]), float(origin[1]), heading)
         last, self._odometry = self._odometry, pose
         if last is None:
             return None

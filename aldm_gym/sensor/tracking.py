@@ -96,8 +96,8 @@ class TrackerParams:
     :ivar coast_length: a track no points support is carried at most this far
         (travelled distance) before it is given up.
     :ivar tail_length: beyond a track's last supported point, prior points continue
-        it, parallel to a neighbour seen farther, at most this far (0: no
-        continuation).
+        it, parallel to a neighbour seen farther, at most this far beyond a point
+        supporting it or its continuation (0: no continuation; else > bridge_gap).
     :ivar consensus_tol: a track or detected line farther than this from the lanes'
         common shape is set onto it (0: lanes are not held parallel) ...
     :ivar consensus_tol_slope: ... plus this much per metre ahead [m/m].
@@ -117,6 +117,16 @@ class TrackerParams:
 
     def __post_init__(self) -> None:
         validate(self, "tracker")
+        if 0.0 < self.tail_length <= self.bridge_gap:
+            raise ValueError(
+                f"tracker.tail_length must be 0 (no continuation) or > bridge_gap "
+                f"({self.bridge_gap}), got {self.tail_length}: a shorter tail is never filled"
+            )
+        if self.consensus_tol == 0.0 and self.consensus_tol_slope > 0.0:
+            raise ValueError(
+                "tracker.consensus_tol_slope needs consensus_tol > 0 "
+                "(consensus_tol=0 turns the lanes' common shape off)"
+            )
 
 
 TRACKER_KEYS: tuple[str, ...] = ("tracking", *TrackerParams.__dataclass_fields__)
@@ -218,9 +228,9 @@ class LaneTracker:
             return det
         tp = self.tracker
         travel = motion.travel
-        table = _table(self._lines, self._ls, *motion.displacement())
+        table, first = _table(self._lines, self._ls, *motion.displacement())
         if tp.consensus_tol > 0.0:
-            _consensus(table, tp.consensus_tol, tp.consensus_tol_slope)
+            _consensus(table, first, tp.consensus_tol, tp.consensus_tol_slope)
         keep, vx, vy, support = _prior(
             pts,
             table,
@@ -256,7 +266,8 @@ class LaneTracker:
             MIN_SUPPORT,
             self._next_id,
         )
-        self._lines, self._ls = lines, ls
+        # a copy: the returned detection's lines are views of `lines`
+        self._lines, self._ls = lines.copy(), ls
         return det
 
     def _hold_together(

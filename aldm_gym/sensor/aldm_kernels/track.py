@@ -78,10 +78,13 @@ def _table_py(lines, ls, dx, dy, dpsi):
     The sensor moved by ``(dx, dy)`` [m] and turned by ``dpsi`` [rad], both in the
     old frame. Each moved track is sampled at x = 0, 2, 4, ... m on
     :func:`_interp_line_py`'s parabolas (in Newton's form, computed once per segment
-    while walking the vertices once); NaN where the track does not reach. A track is cut at
-    its first vertex that would not be strictly ahead of the previous one.
+    while walking the vertices once); NaN where the track does not reach. Before its
+    first vertex a track is extrapolated down to x = 0. A track is cut at its first
+    vertex that would not be strictly ahead of the previous one.
 
-    :return: ``(T, G)`` table of y [m].
+    :return: ``(table, first)``: ``(T, G)`` y [m], and ``(T,)`` the x of each moved
+        track's first vertex [m] (inf for a track of fewer than two vertices; samples
+        before it are extrapolated).
     """
     c = math.cos(dpsi)
     s = math.sin(dpsi)
@@ -109,11 +112,13 @@ def _table_py(lines, ls, dx, dy, dpsi):
     ps[n_tracks] = k
     n_grid = int(x_max / TABLE_STEP) + 2
     table = np.full((n_tracks, n_grid), math.nan)
+    first = np.full(n_tracks, math.inf)
     for t in range(n_tracks):
         lo = ps[t]
         hi = ps[t + 1]
         if hi - lo < 2:
             continue
+        first[t] = px[lo]
         a = lo  # the segment (a, a + 1) holding x, walked forward once (x grows)
         seg = -1  # the segment whose parabola is in (x0, x1, y0, d01, d012)
         x0 = x1 = y0 = d01 = d012 = 0.0
@@ -143,19 +148,22 @@ def _table_py(lines, ls, dx, dy, dpsi):
                 if i2 >= 0:
                     d012 = ((py[i2] - py[i1]) / (px[i2] - x1) - d01) / (px[i2] - x0)
             table[t, g] = y0 + (x - x0) * (d01 + (x - x1) * d012)
-    return table
+    return table, first
 
 
 _table = numba.njit(cache=True)(_table_py)
 
 
 CONSENSUS_NEAR = 50.0
-"""Each track's offset to the reference track is the median over x < this [m] where
-both are tabulated (the near range, seen best)."""
+"""Two tracks parting are ended only beyond this x [m] (nearer, a part that strays
+is more likely the start region's than the lane's)."""
 
 
 def _median_py(buf, m):
-    """Median of ``buf[:m]`` (``m >= 1``), sorting it in place."""
+    """Median of ``buf[:m]`` (``m >= 1``); a handful of values are sorted in place
+    (no allocation), more by numpy's selection (insertion sort is quadratic)."""
+    if m > 16:
+        return np.median(buf[:m])
     _insertion_sort(buf, m)
     h = m // 2
     return buf[h] if m % 2 == 1 else 0.5 * (buf[h - 1] + buf[h])
@@ -164,15 +172,18 @@ def _median_py(buf, m):
 _median = numba.njit(cache=True)(_median_py)
 
 
-def _consensus_py(table, tol0, tol_slope):
+def _consensus_py(table, first, tol0, tol_slope):
     """Pull every track back to the lanes' common shape where it strays (in place).
 
     Lanes are parallel: a track following an old marking or a seam far ahead
     diverges from the others. The reference is the track tabulated at the most x.
-    Distances between tracks are taken along the reference's normal (the lateral
-    difference at one x times the cosine of the reference's heading: parallel
+    Distances between tracks are taken along the lanes' normal (the lateral
+    difference at one x times the cosine of the tracks' median heading: parallel
     curves are farther apart in y where they turn away from the x axis). Each
-    track's distance to the reference is its median over x < :data:`CONSENSUS_NEAR`.
+    track's distance to the reference is its median over all x where both have
+    their own samples (from the later of their first vertices ``first`` [m] on, not
+    the extrapolation before them): a stray part shorter than half the overlap
+    does not move it.
     At every x where at least three tracks are tabulated, the common shift is the
     median over them of (their distance there minus their distance near); a track
     more than ``tol0 + tol_slope * x`` [m] from it is set onto it. Where only two
@@ -196,22 +207,32 @@ def _consensus_py(table, tol0, tol_slope):
             ref = t
     if count[ref] == 0:
         return 0
-    cos = np.full(n_grid, math.nan)  # cosine of the reference's heading
+    cos = np.full(n_grid, math.nan)  # cosine of the lanes' heading: the median slope
+    slopes = np.empty(n_tracks)
     for g in range(n_grid):
         if math.isnan(table[ref, g]):
             continue
-        lo = g - 1 if g > 0 and not math.isnan(table[ref, g - 1]) else g
-        hi = g + 1 if g + 1 < n_grid and not math.isnan(table[ref, g + 1]) else g
-        if hi > lo:
-            k = (table[ref, hi] - table[ref, lo]) / ((hi - lo) * TABLE_STEP)
+        m = 0
+        for t in range(n_tracks):
+            if math.isnan(table[t, g]):
+                continue
+            lo = g - 1 if g > 0 and not math.isnan(table[t, g - 1]) else g
+            hi = g + 1 if g + 1 < n_grid and not math.isnan(table[t, g + 1]) else g
+            if hi > lo:
+                slopes[m] = (table[t, hi] - table[t, lo]) / ((hi - lo) * TABLE_STEP)
+                m += 1
+        if m > 0:
+            k = _median(slopes, m)
             cos[g] = 1.0 / math.sqrt(1.0 + k * k)
     near = np.full(n_tracks, math.nan)
     buf = np.empty(max(n_grid, n_tracks))
     for t in range(n_tracks):
+        x0 = max(first[t], first[ref], 0.0)
+        if not x0 < math.inf:
+            continue
+        g0 = int(math.ceil(x0 / TABLE_STEP))  # noqa: RUF046  (numba: float ceil)
         m = 0
-        for g in range(n_grid):
-            if g * TABLE_STEP >= CONSENSUS_NEAR:
-                break
+        for g in range(g0, n_grid):
             if not (math.isnan(table[t, g]) or math.isnan(cos[g])):
                 buf[m] = (table[t, g] - table[ref, g]) * cos[g]
                 m += 1
@@ -259,51 +280,57 @@ def _hold_py(lines, ls, tol0, tol_slope):
     """A detection's lines (concatenated as the tracks) held to their common shape.
 
     The lines are tabulated as they are (:func:`_table` without motion) and
-    :func:`_consensus` decides where one strays; from the sample before its first
-    moved one on, the line's vertices take the table's corrected y, and vertices
-    where the table was ended (two lines parting) are dropped.
+    :func:`_consensus` decides where one strays; each vertex moves by the
+    consensus's correction there (interpolated between the samples; past the last
+    sample, the last one's), and the vertices from a sample before a line was ended
+    (two lines parting) on are dropped; a line left with fewer than two is dropped.
 
     :return: ``(out, out_ls, moved)``: the lines and their offsets (new arrays when
-        changed) and whether any moved.
+        any vertex moved or was dropped, else the inputs) and whether one did.
     """
-    table = _table(lines, ls, 0.0, 0.0, 0.0)
+    table, first = _table(lines, ls, 0.0, 0.0, 0.0)
     before = table.copy()
-    if _consensus(table, tol0, tol_slope) == 0:
+    if _consensus(table, first, tol0, tol_slope) == 0:
         return lines, ls, False
     out = np.empty_like(lines)
     out_ls = np.zeros_like(ls)
     n = 0
     n_grid = table.shape[1]
+    changed = False
     for t in range(len(ls) - 1):
         out_ls[t] = n
-        first = -1  # the first sample consensus changed
-        end = n_grid  # the first sample it ended the line at
+        end = n_grid  # the first sample the consensus ended the line at
         last = -1  # the last sample left
         for g in range(n_grid):
             if math.isnan(before[t, g]):
                 continue
-            if table[t, g] != before[t, g] and first < 0:
-                first = g
             if math.isnan(table[t, g]):
                 end = min(end, g)
             else:
                 last = g
-        x_cut = math.inf if first < 0 else max(first - 1, 0) * TABLE_STEP
         for i in range(ls[t], ls[t + 1]):
             x = lines[i, 0]
+            if x >= (end - 1) * TABLE_STEP:
+                changed = True
+                continue
+            yt = _lookup(table, t, x)
+            yb = _lookup(before, t, x)
+            dy = 0.0
+            if not (math.isnan(yt) or math.isnan(yb)):
+                dy = yt - yb
+            elif last >= 0 and x >= last * TABLE_STEP:
+                dy = table[t, last] - before[t, last]
+            if dy != 0.0:
+                changed = True
             out[n, 0] = x
-            out[n, 1] = lines[i, 1]
-            if x > x_cut:
-                if x >= (end - 1) * TABLE_STEP:
-                    continue  # where two lines part, both end a sample before
-                y = _lookup(table, t, x)
-                if math.isnan(y) and last >= 0:  # past the last sample: its correction
-                    y = lines[i, 1] + table[t, last] - before[t, last]
-                out[n, 1] = y
+            out[n, 1] = lines[i, 1] + dy
             n += 1
         if n - out_ls[t] < 2:  # a line needs two points
+            changed = changed or n > out_ls[t]
             n = out_ls[t]
     out_ls[len(ls) - 1] = n
+    if not changed:
+        return lines, ls, False
     return out[:n], out_ls, True
 
 
@@ -411,9 +438,10 @@ def _prior_py(
     ``bridge_gap`` farther, at their offset there (lanes are parallel: the car ahead
     hides the ego lane's lines while a line beside is still seen). Points within the
     gate of the continuation that support no track support it; prior points fill its
-    stretches without support longer than ``bridge_gap`` and its tail, for at most
-    ``tail_length`` [m] beyond its last support, up to the neighbour's last support
-    (``tail_length = 0``: no continuation at all).
+    stretches without support longer than ``bridge_gap`` and its tail, up to the
+    neighbour's last support but never more than ``tail_length`` [m] beyond a point
+    supporting the track or its continuation (a stray point far ahead does not
+    carry it on; ``tail_length = 0``: no continuation at all).
     The continuation follows the neighbour, seen there in this frame, never the
     track's own carried end (which no point has confirmed for a while and which
     would drift frame after frame). Without such a neighbour nothing is added beyond a track's
@@ -560,21 +588,25 @@ def _prior_py(
                     m += 1
         cx = np.sort(cont_x[:m])
         # prior points every `step` on the neighbour's track moved d along its
-        # normal, in the continuation's stretches without support (and its tail)
+        # normal, in the continuation's stretches without support longer than
+        # bridge_gap and its tail; never more than tail_length beyond a point of
+        # the track or its continuation (a stray point far ahead does not carry it)
         end = prev
         for j in range(m + 1):
             a = end
-            b = cx[j] if j < m else min(last_x[ref], end + tail_length)
+            b = min(cx[j] if j < m else last_x[ref], a + tail_length)
             if b - a > bridge_gap:
                 steps = int(math.ceil((b - a) / step))  # noqa: RUF046
-                for q in range(1, steps + 1):
+                upto = steps - 1 if j < m and b == cx[j] else steps  # not on a point
+                for q in range(1, upto + 1):
                     px, py = _beside(table, ref, a + (b - a) * q / steps, d)
                     if not math.isnan(py):
                         vx[n] = px
                         vy[n] = py
                         n += 1
-            if j < m:
-                end = cx[j]
+            if j == m or cx[j] - a > tail_length:
+                break
+            end = cx[j]
     return keep, vx[:n], vy[:n], support
 
 
