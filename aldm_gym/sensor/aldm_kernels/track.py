@@ -185,7 +185,7 @@ def _consensus_py(table, first, tol0, tol_slope):
     the extrapolation before them): a stray part shorter than half the overlap
     does not move it.
     At every x where at least three tracks are tabulated, the common shift is the
-    median over them of (their distance there minus their distance near); a track
+    median over them of (their distance there minus that median distance); a track
     more than ``tol0 + tol_slope * x`` [m] from it is set onto it. Where only two
     tracks are seen beyond :data:`CONSENSUS_NEAR` and their distance changes by more
     than that, nothing says which one strays: both end there (NaN from there on).
@@ -207,7 +207,7 @@ def _consensus_py(table, first, tol0, tol_slope):
             ref = t
     if count[ref] == 0:
         return 0
-    cos = np.full(n_grid, math.nan)  # cosine of the lanes' heading: the median slope
+    cos = np.full(n_grid, math.nan)  # cosine of the lanes' heading (median slope)
     slopes = np.empty(n_tracks)
     for g in range(n_grid):
         if math.isnan(table[ref, g]):
