@@ -37,7 +37,7 @@ from typing import Any
 import numpy as np
 
 from aldm_gym.config import build_config, setting, validate
-from aldm_gym.sensor.aldm import ALDMParams, _detect_lanes, as_points, detect_lanes, make_params
+from aldm_gym.sensor.aldm import ALDMParams, _detect_lanes, as_points, make_params
 from aldm_gym.sensor.aldm_kernels.track import _consensus, _hold, _match, _prior, _table
 from aldm_gym.sensor.detection import LINE_NAMES, LaneDetection
 from aldm_gym.sensor.trajectory import PATH_STEP, driving_trajectory, fit_reach
@@ -216,9 +216,9 @@ class LaneTracker:
         if motion is not None and not isinstance(motion, EgoMotion):
             raise TypeError(f"motion must be EgoMotion or None, got {type(motion).__name__}")
         if motion is None or self._ls[-1] == 0:
-            det = detect_lanes(pts, self.params, path_range=self.path_range)
+            det, _, lines, ls = _detect_lanes(pts, self.params, self.path_range)
             self.n_prior = self.n_rejected = 0
-            self._lines, self._ls = _concat(det)
+            self._lines, self._ls = lines.copy(), ls
             self._ids = np.full(len(LINE_NAMES), -1, dtype=np.int64)
             for i in range(len(LINE_NAMES)):
                 if self._ls[i + 1] - self._ls[i] >= 2:
@@ -286,15 +286,6 @@ class LaneTracker:
         )
         self.n_held += 1
         return LaneDetection.trusted(**fields, trajectory=traj, source="aldm"), out, ls
-
-
-def _concat(det: LaneDetection) -> tuple[np.ndarray, np.ndarray]:
-    """The lines of ``det`` in :data:`LINE_NAMES` order as one ``(M, 2)`` array and
-    their offsets (the kernels' track layout)."""
-    a, b, c, d = det.left_adjacent, det.ego_left, det.ego_right, det.right_adjacent
-    na, nb, nc = len(a), len(a) + len(b), len(a) + len(b) + len(c)
-    offsets = np.array((0, na, nb, nc, nc + len(d)), dtype=np.int64)
-    return np.concatenate((a, b, c, d)), offsets
 
 
 __all__ = [

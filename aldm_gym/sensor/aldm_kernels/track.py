@@ -349,10 +349,12 @@ def _lookup_py(table, t, x):
 _lookup = numba.njit(cache=True)(_lookup_py)
 
 
-def _fill_py(table, t, a, b, ra, rb, step, with_a, with_b, vx, vy, n):
-    """Prior points on track ``t`` between x = a and x = b at most ``step`` apart,
-    shifted laterally by ``ra`` at a to ``rb`` at b (linearly) [m], written to
-    ``vx, vy`` from index ``n``; the ends only when asked. Returns the new count."""
+def _fill_py(table, t, a, b, ra, rb, d, step, with_a, with_b, vx, vy, n):
+    """Prior points on track ``t`` (or, with ``d`` != 0, on its parallel ``d`` [m] to
+    the left, :func:`_beside`) whose feet lie between x = a and x = b at most
+    ``step`` apart, shifted laterally by ``ra`` at a to ``rb`` at b (linearly) [m],
+    written to ``vx, vy`` from index ``n``; the ends only when asked. Returns the
+    new count."""
     m = int(math.ceil((b - a) / step))  # noqa: RUF046  (numba: float ceil)
     if m < 1:
         m = 1
@@ -360,7 +362,10 @@ def _fill_py(table, t, a, b, ra, rb, step, with_a, with_b, vx, vy, n):
     last = m if with_b else m - 1
     for k in range(first, last + 1):
         x = a + (b - a) * k / m
-        y = _lookup(table, t, x)
+        if d == 0.0:
+            y = _lookup(table, t, x)
+        else:
+            x, y = _beside(table, t, x, d)
         if not math.isnan(y):
             vx[n] = x
             vy[n] = y + ra + (rb - ra) * k / m
@@ -524,7 +529,7 @@ def _prior_py(
         ns = support[t]
         if ns == 0:
             if coast_ok[t]:
-                n = _fill(table, t, a, b, 0.0, 0.0, step, True, True, vx, vy, n)
+                n = _fill(table, t, a, b, 0.0, 0.0, 0.0, step, True, True, vx, vy, n)
             continue
         order = np.argsort(sup_x[t, :ns])
         xs = sup_x[t, :ns][order]
@@ -538,7 +543,9 @@ def _prior_py(
                 r_next = np.mean(rs[j : min(j + 3, ns)])
                 if j == 0:
                     r_prev = r_next
-                n = _fill(table, t, prev, xs[j], r_prev, r_next, step, j == 0, False, vx, vy, n)
+                n = _fill(
+                    table, t, prev, xs[j], r_prev, r_next, 0.0, step, j == 0, False, vx, vy, n
+                )
             prev = xs[j]
             r_prev = np.mean(rs[max(j - 2, 0) : j + 1])
         # the continuation beyond the last support, along the nearest neighbour
@@ -596,14 +603,8 @@ def _prior_py(
             a = end
             b = min(cx[j] if j < m else last_x[ref], a + tail_length)
             if b - a > bridge_gap:
-                steps = int(math.ceil((b - a) / step))  # noqa: RUF046
-                upto = steps - 1 if j < m and b == cx[j] else steps  # not on a point
-                for q in range(1, upto + 1):
-                    px, py = _beside(table, ref, a + (b - a) * q / steps, d)
-                    if not math.isnan(py):
-                        vx[n] = px
-                        vy[n] = py
-                        n += 1
+                on_point = j < m and b == cx[j]  # no prior point on a measured one
+                n = _fill(table, ref, a, b, 0.0, 0.0, d, step, False, not on_point, vx, vy, n)
             if j == m or cx[j] - a > tail_length:
                 break
             end = cx[j]
