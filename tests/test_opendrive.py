@@ -247,7 +247,8 @@ def test_negative_length_and_bad_width(tmp_path: Path) -> None:
 
 def test_skipped_elements_one_warning(tmp_path: Path) -> None:
     extra = (
-        '<elevationProfile><elevation s="0" a="0" b="0" c="0" d="0"/></elevationProfile>'
+        '<elevationProfile><elevation s="0" a="2" b="0" c="0" d="0"/></elevationProfile>'
+        '<lateralProfile><superelevation s="0" a="0" b="0" c="0" d="0"/></lateralProfile>'
         '<objects><object id="1" s="3" t="0"/></objects>'
         '<signals><signal id="1" s="3" t="0"/><signal id="2" s="4" t="0"/></signals>'
     )
@@ -262,7 +263,10 @@ def test_skipped_elements_one_warning(tmp_path: Path) -> None:
     assert len(caught) == 1
     text = str(caught[0].message)
     assert "extras.xodr" in text and "road/signals x2" in text and "road/objects x2" in text
-    assert dict(parsed.skipped)["road/elevationProfile"] == 2
+    assert dict(parsed.skipped)["road/lateralProfile"] == 2
+    # The elevation is read (it tells bridges from flat crossings), not skipped.
+    assert "road/elevationProfile" not in dict(parsed.skipped)
+    assert [r.elevation[0].a for r in parsed.roads] == [2.0, 2.0]
 
 
 def test_parse_records(tmp_path: Path) -> None:

@@ -116,6 +116,10 @@ class OpenDriveRoad(PolylineRoad):
             raise ValueError(f"{odr.path}: no driving lane")
         widths = np.concatenate([odr.lanes[k].width for k in self.lanes])
         super().__init__(curves, marking_model, float(np.median(widths)))
+        bridges = np.array(odr.overpass_lines, dtype=np.float64, copy=True)
+        bridges[:, 1] = -bridges[:, 1]  # _flip, for both end points
+        bridges[:, 3] = -bridges[:, 3]
+        self.overpass_lines = bridges
         self._build_lane_index()
 
     @classmethod

@@ -346,7 +346,8 @@ class PolylineRoad:
 
     overpass_lines: FloatArray = np.zeros((0, 5))
     """``(B, 5)`` world segments ``(x0, y0, x1, y1, z)`` [m] of bridge markings above the
-    road (:mod:`aldm_gym.roads.overpass`); none unless :meth:`with_overpasses`."""
+    road (:mod:`aldm_gym.roads.overpass`): a map's own bridges
+    (:mod:`aldm_gym.roads.opendrive.bridges`) and those added by :meth:`with_overpasses`."""
 
     def with_overpasses(
         self,
@@ -355,10 +356,11 @@ class PolylineRoad:
         height: float = 6.0,
         half_width: float = 10.0,
     ) -> PolylineRoad:
-        """The same road with bridges crossing above it (shares the geometry).
+        """The same road with more bridges crossing above it (shares the geometry).
 
-        The OpenDRIVE reader does not read bridges from a map, so a bridge is placed
-        here, by where it crosses.
+        A map's own bridges (roads passing over it in the file) are already there; this
+        adds a straight, level bridge at each place given, e.g. on a map without
+        elevation data.
 
         :param places: world ``(x [m], y [m], heading [rad])`` of each crossing: the
             point on the lower road and that road's heading there.
@@ -379,7 +381,7 @@ class PolylineRoad:
                 raise ValueError(f"overpass places must be finite (x, y, heading), got {place!r}")
             rows.append(overpass_lines(np.array([x, y]), h, half_width, angle, height))
         twin = copy.copy(self)
-        twin.overpass_lines = np.concatenate(rows) if rows else np.zeros((0, 5))
+        twin.overpass_lines = np.concatenate([self.overpass_lines, *rows])
         return twin
 
     def with_marking_model(self, marking_model: str) -> PolylineRoad:

@@ -488,18 +488,28 @@ _occlude = numba.njit(cache=True)(_occlude_py)
 
 
 # -------------------------------------------------------------------- overpass
+OVERPASS_Z_STEP = 0.25
+"""Largest height step between joined bridge segments of one sensor row [m]."""
+
+
 def overpass_rows(
     lines: FloatArray, origin: FloatArray, yaw: float, xs: FloatArray
 ) -> tuple[FloatArray, FloatArray]:
     """The markings of bridges crossing above, sampled at the sensor's x grid.
+
+    Consecutive segments that join end to start, run the same way along the sensor's
+    x axis and differ in height by at most :data:`OVERPASS_Z_STEP` are one row (a map
+    bridge's painted stretch is a chain of short segments); any other segment is a row
+    of its own.
 
     :param lines: ``(B, 5)`` world segments ``(x0, y0, x1, y1, z)`` [m] of the bridge
         markings (the road's ``overpass_lines``).
     :param origin: the sensor's world position (2,) [m].
     :param yaw: the sensor's world heading [rad].
     :param xs: ``(K,)`` x grid [m].
-    :return: ``(y (B', K), z (B',))``: each segment that crosses the grid, its y at
-        ``xs`` (NaN outside the segment) and its height [m].
+    :return: ``(y (B', K), z (B',))``: each row that crosses the grid, its y at
+        ``xs`` (NaN outside it) and its height [m] (its segments' heights weighted by
+        the grid points each covers).
     """
     if len(lines) == 0:
         return np.zeros((0, len(xs))), np.zeros(0)
@@ -511,10 +521,32 @@ def overpass_rows(
     lo = np.minimum(ax, bx)
     hi = np.maximum(ax, bx)
     inside = (xs[None, :] >= lo[:, None]) & (xs[None, :] <= hi[:, None]) & (hi > lo)[:, None]
-    keep = inside.any(axis=1)
+    way = np.sign(bx - ax)
+    joined = np.zeros(len(lines), dtype=bool)
+    joined[1:] = (
+        (lines[1:, 0] == lines[:-1, 2])
+        & (lines[1:, 1] == lines[:-1, 3])
+        & (way[1:] == way[:-1])
+        & (way[1:] != 0.0)
+        & (np.abs(lines[1:, 4] - lines[:-1, 4]) <= OVERPASS_Z_STEP)
+    )
+    run = np.cumsum(~joined) - 1
+    keep_run = np.zeros(run[-1] + 1, dtype=bool)
+    keep_run[run[inside.any(axis=1)]] = True
+    keep = keep_run[run]
     if not keep.any():
         return np.zeros((0, len(xs))), np.zeros(0)
     ax, ay, bx, by, inside = ax[keep], ay[keep], bx[keep], by[keep], inside[keep]
-    t = (xs[None, :] - ax[:, None]) / (bx - ax)[:, None]
-    y = ay[:, None] + t * (by - ay)[:, None]
-    return np.where(inside, y, np.nan), lines[keep, 4].astype(np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = (xs[None, :] - ax[:, None]) / (bx - ax)[:, None]
+    y = np.where(inside, ay[:, None] + t * (by - ay)[:, None], np.nan)
+    z = lines[keep, 4].astype(np.float64)
+    run = run[keep]
+    first = np.flatnonzero(np.r_[True, run[1:] != run[:-1]])
+    if len(first) == len(run):  # every row one segment (a generated road's bridges)
+        return y, z
+    # Segments of a run cover adjacent x intervals: at most two cover a grid point,
+    # where they share an end point (and y).
+    rows = np.fmax.reduceat(y, first, axis=0)
+    count = inside.sum(axis=1)
+    return rows, np.add.reduceat(z * count, first) / np.add.reduceat(count, first)

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from aldm_gym.roads.opendrive.bridges import crossings, levels, overpass_segments
 from aldm_gym.roads.opendrive.geometry import PlanView
 from aldm_gym.roads.opendrive.lanes import (
     cubic_at,
@@ -107,6 +108,11 @@ class OpenDriveMap:
     :ivar lanes: lane key -> lane record.
     :ivar lengths: road id -> reference-line length [m].
     :ivar bounds: ``(x_min, y_min, x_max, y_max)`` of all lanes and markings [m].
+    :ivar bridges: road id -> the crossings where that road passes over the driven
+        level (:mod:`~aldm_gym.roads.opendrive.bridges`); such a road has no lanes or
+        markings here, its paint is in ``overpass_lines``.
+    :ivar hidden: ids of the roads passing under the driven level (not driven, not seen).
+    :ivar overpass_lines: ``(B, 5)`` world segments of the bridges' paint [m].
     """
 
     def __init__(
@@ -128,16 +134,32 @@ class OpenDriveMap:
             rid: PlanView(r.geometries, f"{path}, road {rid!r}") for rid, r in roads.items()
         }
         self.lengths = {rid: pv.length for rid, pv in self.plan_views.items()}
+        linked = _linked_roads(roads, junctions)
+        self.bridges, self.hidden = levels(
+            self.lengths, linked, crossings(roads, self.plan_views, linked)
+        )
         pieces: list[MarkPiece] = []
         samples = {}
+        overpass = [np.zeros((0, 5))]
         for rid, road in roads.items():
+            if rid in self.hidden:
+                continue
             plan = self.plan_views[rid]
+            own: list[MarkPiece] = []
             for sec in sample_sections(road, plan, sample_step, path):
-                samples[(rid, sec.index)] = sec
                 end = section_end(road, sec.index, plan.length)
-                pieces += section_pieces(sec, road.sections[sec.index].lanes, end, broken_pattern)
+                own += section_pieces(sec, road.sections[sec.index].lanes, end, broken_pattern)
+                if rid not in self.bridges:
+                    samples[(rid, sec.index)] = sec
+            if rid in self.bridges:
+                overpass.append(overpass_segments(own, road, self.bridges[rid]))
+            else:
+                pieces += own
+        self.overpass_lines: FloatArray = np.concatenate(overpass)
+        """``(B, 5)`` segments ``(x0, y0, x1, y1, z)`` [m] of the bridges' painted markings
+        (OpenDRIVE's frame; ``z`` above the driven road below them)."""
         self.markings: list[MarkingLine]
-        self.markings, owner = chain_pieces(pieces, self.lengths, _linked_roads(roads, junctions))
+        self.markings, owner = chain_pieces(pieces, self.lengths, linked)
         self.lanes = self._lane_records(samples, pieces, owner)
         points = [m.xy for m in self.markings] + [ln.xy for ln in self.lanes.values()]
         allxy = np.concatenate(points) if points else np.zeros((1, 2))

@@ -414,6 +414,11 @@ def _build(pieces: Sequence[MarkPiece], chain: Sequence[tuple[int, bool]]) -> Ma
     )
 
 
+def piece_line(piece: MarkPiece) -> MarkingLine:
+    """One piece alone as a marking line (its painted intervals from its own pattern)."""
+    return _build([piece], [(0, False)])
+
+
 def chain_pieces(
     pieces: Sequence[MarkPiece],
     road_ends: dict[str, float],

@@ -1,9 +1,11 @@
 """Parse an OpenDRIVE (.xodr) file into plain frozen dataclasses.
 
 Only what shapes the painted markings is read: the plan view, ``laneOffset``, lane
-sections, lanes (widths, borders, road marks, links), road links and junction
-connections. Everything else (signals, objects, elevation, lateral profile, surface,
-controllers, ...) is skipped and reported in one summary :func:`warnings.warn`.
+sections, lanes (widths, borders, road marks, links), road links, junction
+connections, and the ``elevationProfile`` (it tells a bridge from a flat crossing,
+:mod:`aldm_gym.roads.opendrive.bridges`). Everything else (signals, objects,
+superelevation and the rest of the lateral profile, surface, controllers, ...) is
+skipped and reported in one summary :func:`warnings.warn`.
 
 Every error names the file; errors in a road also name the road id, the element and
 its line in the file. Numbers must be finite; lengths must not be negative.
@@ -289,6 +291,8 @@ class Road:
     :ivar geometries: plan view records sorted by s.
     :ivar lane_offsets: ``laneOffset`` records sorted by s.
     :ivar sections: lane sections sorted by s.
+    :ivar elevation: ``elevationProfile`` records sorted by s (height of the reference
+        line [m] as a cubic in s); empty: the road is level at 0 m.
     """
 
     id: str
@@ -301,6 +305,7 @@ class Road:
     geometries: tuple[Geometry, ...]
     lane_offsets: tuple[Cubic, ...]
     sections: tuple[LaneSection, ...]
+    elevation: tuple[Cubic, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -368,7 +373,8 @@ class OpenDriveFile:
 # Children read by this parser, per parent element; any other child is counted as skipped.
 _READ = {
     "OpenDRIVE": {"header", "road", "junction"},
-    "road": {"link", "planView", "lanes"},
+    "road": {"link", "planView", "lanes", "elevationProfile"},
+    "elevationProfile": {"elevation"},
     "lanes": {"laneOffset", "laneSection"},
     "laneSection": {"left", "center", "right"},
     "lane": {"link", "width", "border", "roadMark"},
@@ -444,7 +450,7 @@ class _Reader:
             if child.tag in read:
                 out.append(child)
             elif len(child) or child.attrib or (child.text or "").strip():
-                # Empty placeholders such as <elevationProfile/> carry nothing to skip.
+                # Empty placeholders such as <lateralProfile/> carry nothing to skip.
                 self.skipped[f"{parent}/{child.tag}"] += 1
         return out
 
@@ -639,6 +645,7 @@ def _road(r: _Reader, el: etree._Element) -> Road:
     geometries: list[Geometry] = []
     offsets: list[Cubic] = []
     sections: list[LaneSection] = []
+    elevation: list[Cubic] = []
     for child in r.children(el, "road"):
         if child.tag == "link":
             for item in child:
@@ -650,6 +657,8 @@ def _road(r: _Reader, el: etree._Element) -> Road:
                     r.skipped[f"link/{item.tag}"] += 1
         elif child.tag == "planView":
             geometries += [_geometry(r, g) for g in child if g.tag == "geometry"]
+        elif child.tag == "elevationProfile":
+            elevation += [_cubic(r, item, "s") for item in r.children(child, "elevationProfile")]
         elif child.tag == "lanes":
             for item in r.children(child, "lanes"):
                 if item.tag == "laneOffset":
@@ -671,6 +680,7 @@ def _road(r: _Reader, el: etree._Element) -> Road:
         geometries=tuple(sorted(geometries, key=lambda g: g.s)),
         lane_offsets=tuple(sorted(offsets, key=lambda c: c.s)),
         sections=tuple(sorted(sections, key=lambda sec: sec.s)),
+        elevation=tuple(sorted(elevation, key=lambda c: c.s)),
     )
     r.road = ""
     return road
