@@ -53,6 +53,8 @@ def test_camera_preset_sets_values_and_explicit_values_win() -> None:
         ({"worn_stretch_length": (10.0, 900.0)}, r"sensor\.worn_stretch_length"),
         ({"lateral_noise_growth": -0.1}, r"sensor\.lateral_noise_growth"),
         ({"visibility": 0.0}, r"sensor\.visibility"),
+        ({"sight_clearance": -1.0}, r"sensor\.sight_clearance"),
+        ({"sight_clearance": float("inf")}, r"sensor\.sight_clearance"),
         ({"seam_rate": float("nan")}, r"sensor\.seam_rate"),
         ({"speck_rate": 1000.0}, r"sensor\.speck_rate"),
         ({"occlusion": 1}, r"sensor\.occlusion must be a bool"),
@@ -215,6 +217,86 @@ def test_visibility_shrinks_the_range(solid_road: HighwayRoad) -> None:
     assert f.all_points[:, 0].max() <= 60.0 and f.all_points[:, 0].max() > 57.0
 
 
+def _sight_brute_force(xs, ys, bounds, clearance):
+    """The definition of ``sight_hidden``, checked grid point by grid point."""
+    hidden = np.zeros(ys.shape, dtype=bool)
+    left = [np.nanmax(c) if not np.isnan(c).all() else np.nan for c in bounds.T]
+    right = [np.nanmin(c) if not np.isnan(c).all() else np.nan for c in bounds.T]
+    for r, k in zip(*np.nonzero(~np.isnan(ys)), strict=True):
+        for j in range(k):
+            line = ys[r, k] * xs[j] / xs[k]
+            if line > left[j] + clearance or line < right[j] - clearance:
+                hidden[r, k] = True
+    return hidden
+
+
+def test_sight_hidden_is_its_definition() -> None:
+    rng = np.random.default_rng(4)
+    xs = 5.52 + 2.0 * np.arange(40)
+    for _ in range(20):
+        # Markings of a road bending either way (y = a + b x + c x^2), some gaps.
+        c = rng.uniform(-1.0 / 500.0, 1.0 / 500.0)
+        offsets = np.array([-5.6, -1.9, 1.9, 5.6]) + rng.normal(0.0, 0.2)
+        bounds = offsets[:, None] + 0.5 * c * xs[None] ** 2
+        bounds[rng.random(bounds.shape) < 0.1] = np.nan
+        ys = np.vstack([bounds, rng.uniform(-15.0, 15.0, (3, len(xs)))])
+        clearance = rng.uniform(0.0, 4.0)
+        got = cond.sight_hidden(xs, ys, bounds, clearance)
+        np.testing.assert_array_equal(got, _sight_brute_force(xs, ys, bounds, clearance))
+
+
+def test_sight_clearance_shortens_the_inner_lines_of_a_bend(tmp_path: Path) -> None:
+    """R = 250 m left bend, sensor in the middle of three 3.75 m lanes: the inner edge
+    (the reference line, 5.625 m to the left) ends where the sight line to it touches the
+    circle 2 m inside it (tangents from the sensor and from the point)."""
+    xodr = pytest.importorskip("scenariogeneration.xodr")
+    radius = 250.0
+    spec = xodr.create_road(
+        [xodr.Line(200.0), xodr.Arc(1.0 / radius, 1200.0)],
+        id=0,
+        left_lanes=0,
+        right_lanes=3,
+        lane_width=W,
+    )
+    odr = xodr.OpenDrive("bend")
+    odr.add_road(spec)
+    odr.adjust_roads_and_lanes()
+    odr.write_xml(str(tmp_path / "bend.xodr"))
+    road = OpenDriveRoad.from_file(tmp_path / "bend.xodr")
+    pose = road.lane_pose("0", -2, 600.0)
+    open_side = LineSensor().measure(road, pose)
+    walled = LineSensor({"sight_clearance": 2.0}).measure(road, pose)
+    r_sensor, r_edge, r_wall = radius + 1.5 * W, radius, radius - 2.0
+    angle = np.arccos(r_wall / r_sensor) + np.arccos(r_wall / r_edge)
+    x_end = r_edge * np.sin(angle)  # 90.6 m, along the sensor's axis
+    near = [i for i in range(open_side.n_lines) if open_side.line_points(i)[0, 0] < 6.0]
+    first_y = [open_side.line_points(i)[0, 1] for i in near]
+    inner = int(open_side.line_marking[near[int(np.argmax(first_y))]])
+    outer = int(open_side.line_marking[near[int(np.argmin(first_y))]])
+    assert _xs_of(open_side, inner).max() > 195.0
+    # The wall stands 2 m along the sensor's y (not along the bend's normal, 0.93 of it
+    # there), so the end lies within a few metres of the tangent construction.
+    assert abs(_xs_of(walled, inner).max() - x_end) < 4.0
+    # The outer lines are seen farther than the inner ones, every point a true one.
+    assert _xs_of(walled, outer).max() > _xs_of(walled, inner).max() + 30.0
+    assert set(map(tuple, walled.all_points)) <= set(map(tuple, open_side.all_points))
+
+
+def test_sight_clearance_hides_nothing_on_a_straight_and_not_a_bridge(
+    solid_road: HighwayRoad,
+) -> None:
+    pose = pose_on_lane(solid_road, 300.0, 1)
+    plain = LineSensor().measure(solid_road, pose)
+    walled = LineSensor({"sight_clearance": 0.0}).measure(solid_road, pose)
+    np.testing.assert_array_equal(walled.all_points, plain.all_points)
+    bridged = HighwayRoad({"curved": False, "length": 1000.0, "overpasses": [400.0]})
+    f = LineSensor({"sight_clearance": 0.0}).measure(bridged, pose)
+    g = LineSensor().measure(bridged, pose)
+    # The bridge's markings run 30 m beyond the road's edges, far outside the zone.
+    np.testing.assert_array_equal(f.all_points, g.all_points)
+    assert np.sum(f.all_points[:, 2] == 6.0) > 10
+
+
 # ------------------------------------------------------------------ clutter
 @pytest.mark.parametrize(("kind", "rate"), [("seam", 3.0), ("old", 1.5)])
 def test_clutter_rates(kind: str, rate: float) -> None:
@@ -300,7 +382,15 @@ def test_every_condition_on_is_deterministic() -> None:
     road = HighwayRoad({"seed": 2, "overpasses": [1100.0]})
     pose = pose_on_lane(road, 1000.0, 1)
     occ = np.array([_box_ahead(pose, 40.0, 16.0, 2.5, 4.0), _box_ahead(pose, 70.0, 5.0, 2.0, 1.5)])
-    sensor = LineSensor({"preset": "camera", "dropout": 0.05, "seam_rate": 5.0, "speck_rate": 5.0})
+    sensor = LineSensor(
+        {
+            "preset": "camera",
+            "dropout": 0.05,
+            "seam_rate": 5.0,
+            "speck_rate": 5.0,
+            "sight_clearance": 1.0,
+        }
+    )
     frames = [
         sensor.measure(road, pose, rng=np.random.default_rng(11), occluders=occ) for _ in range(2)
     ]
@@ -316,7 +406,10 @@ def test_every_condition_on_is_deterministic() -> None:
 def test_env_with_every_condition_repeats_with_its_seed() -> None:
     import gymnasium as gym
 
-    config = {"sensor": {"preset": "camera"}, "road": {"overpasses": [400.0, 900.0]}}
+    config = {
+        "sensor": {"preset": "camera", "sight_clearance": 1.0},
+        "road": {"overpasses": [400.0, 900.0]},
+    }
 
     def run(seed: int) -> list[bytes]:
         env = gym.make("ALDMHighway-v0", config=config)

@@ -487,6 +487,48 @@ def _occlude_py(
 _occlude = numba.njit(cache=True)(_occlude_py)
 
 
+# ------------------------------------------------------------------ roadside sight
+GROUND_BAND = 0.5
+"""Rows of markings up to this height [m] lie on the road (curbs included) and can be
+hidden by the roadside; higher ones (bridges) are seen over it."""
+
+
+def sight_hidden(
+    xs: FloatArray, ys: FloatArray, bounds: FloatArray, clearance: float
+) -> np.ndarray:
+    """Points hidden from the sensor by the roadside (barriers, cuttings, vegetation).
+
+    Sight obstructions stand ``clearance`` beyond the outermost markings on either
+    side: at grid x ``x_j`` the clear zone is ``right_j - clearance <= y <= left_j +
+    clearance``, with ``left_j`` / ``right_j`` the largest / smallest y of the rows of
+    ``bounds`` there (no bound where they have none). A point ``(x_k, y_k)`` is hidden
+    when the straight sight line from the sensor (the origin) to it leaves the zone at
+    an earlier grid x: ``y_k x_j / x_k > left_j + clearance`` or ``< right_j -
+    clearance`` for some ``x_j < x_k``, i.e. its bearing ``y_k / x_k`` lies beyond the
+    tightest earlier bound on the bearing. On a straight road nothing is hidden; in a
+    bend of radius R the lines on the inside end where the chord's sagitta ``L² / (8R)``
+    reaches the sensor's distance d to the inner edge of the zone, at ``L ≈ sqrt(8 R
+    d)`` (R = 500 m, d = 10 m: 200 m; R = 250 m: 141 m).
+
+    :param xs: ``(K,)`` x grid [m], increasing.
+    :param ys: ``(R, K)`` y of the rows to test at ``xs`` [m], NaN where absent.
+    :param bounds: ``(B, K)`` y of the road's markings at ``xs`` [m] (they set the zone).
+    :param clearance: distance of the obstructions beyond the outermost markings [m].
+    :return: ``(R, K)`` mask of the hidden points.
+    """
+    k = len(xs)
+    left = np.fmax.reduce(bounds, axis=0) if len(bounds) else np.full(k, np.nan)
+    right = np.fmin.reduce(bounds, axis=0) if len(bounds) else np.full(k, np.nan)
+    ahead = xs > 0.0
+    safe = np.where(ahead, xs, 1.0)
+    upper = np.where(ahead & ~np.isnan(left), (left + clearance) / safe, np.inf)
+    lower = np.where(ahead & ~np.isnan(right), (right - clearance) / safe, -np.inf)
+    upper_before = np.concatenate([[np.inf], np.minimum.accumulate(upper)[:-1]])
+    lower_before = np.concatenate([[-np.inf], np.maximum.accumulate(lower)[:-1]])
+    bearing = ys / safe
+    return ahead & ((bearing > upper_before) | (bearing < lower_before))
+
+
 # -------------------------------------------------------------------- overpass
 OVERPASS_Z_STEP = 0.25
 """Largest height step between joined bridge segments of one sensor row [m]."""

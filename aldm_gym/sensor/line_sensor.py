@@ -51,6 +51,7 @@ CONDITIONS_OFF: dict[str, Any] = {
     "worn_stretch_length": (20.0, 80.0),
     "lateral_noise_growth": 0.0,
     "visibility": None,
+    "sight_clearance": None,
     "seam_rate": 0.0,
     "old_marking_rate": 0.0,
     "speck_rate": 0.0,
@@ -144,6 +145,12 @@ class LineSensorConfig:
         ``lateral_noise + lateral_noise_growth * x`` [m/m].
     :ivar visibility: x beyond which nothing is seen [m] (fog, glare; ``None``:
         the range).
+    :ivar sight_clearance: distance of sight obstructions (barriers, cuttings,
+        vegetation) beyond the outermost markings in view [m]: a point whose sight line
+        from the sensor leaves that clear zone is hidden, so the range shrinks in bends
+        (about ``sqrt(8 R d)`` for radius R and the sensor d from the zone's inner
+        edge; :func:`~aldm_gym.sensor.conditions.sight_hidden`); ``None``: an open
+        roadside.
     :ivar seam_rate: tar seams per km of each painted marking [1/km] (fixed per road).
     :ivar old_marking_rate: old markings per km of each painted marking [1/km] (fixed
         per road).
@@ -179,6 +186,7 @@ class LineSensorConfig:
     wear_seed: int = setting(0, lo=0, hi=2**31 - 1, integer=True)
     lateral_noise_growth: float = setting(None, lo=0.0, hi=0.05, optional=True)
     visibility: float | None = setting(None, lo=0.0, lo_open=True, hi=1000.0, optional=True)
+    sight_clearance: float | None = setting(None, lo=0.0, hi=1000.0, optional=True)
     seam_rate: float = setting(None, lo=0.0, hi=1000.0 / CELL, optional=True)
     old_marking_rate: float = setting(None, lo=0.0, hi=1000.0 / CELL, optional=True)
     speck_rate: float = setting(None, lo=0.0, hi=100.0, optional=True)
@@ -236,6 +244,7 @@ class LineSensorConfig:
             or self.worn
             or self.lateral_noise_growth
             or self.visibility is not None
+            or self.sight_clearance is not None
             or self.seam_rate
             or self.old_marking_rate
             or self.speck_rate
@@ -513,6 +522,7 @@ class LineSensor:
         xs = self._xs
         k = len(xs)
         height = tab["height"]
+        road_ys = ys  # the markings' own positions, before wear (the roadside's bounds)
         ys = ys.copy()
         key = 0
         if c.worn or c.seam_rate or c.old_marking_rate:
@@ -566,6 +576,12 @@ class LineSensor:
                 draw = np.vstack([draw, gen.random((n_extra, k))])
         if c.visibility is not None:
             ys[:, xs > c.visibility] = np.nan
+        if c.sight_clearance is not None:
+            # The road's own markings set the clear zone; everything on the road (not
+            # a bridge) behind the roadside is hidden, on the noiseless positions.
+            ground = tab["height"][rows] <= cond.GROUND_BAND
+            hidden = cond.sight_hidden(xs, ys, road_ys, c.sight_clearance)
+            ys[hidden & ground[:, None]] = np.nan
         if c.occlusion and occluders is not None:
             world = cond.occluder_array(occluders)
             if len(world):
