@@ -246,3 +246,28 @@ def test_the_env_drives_under_the_bridge(maps: dict[str, Path]) -> None:
         assert high > 100  # the bridge was in view
     finally:
         env.close()
+
+
+def test_the_render_draws_the_bridge_overhead(maps: dict[str, Path]) -> None:
+    from aldm_gym.envs.rendering import BRIDGE_COLOUR
+
+    def bridge_pixels(path: Path) -> int:
+        config = {
+            "road": {"xodr": str(path)},
+            "scaling": 4.0,
+            "centering_position": [0.2, 0.5],
+            "vehicles_count": 3,
+        }
+        env = gym.make("ALDMHighway-v0", config=config, render_mode="rgb_array")
+        try:
+            env.reset(seed=0)
+            while env.unwrapped.vehicle.position[0] < 420.0:
+                env.step(1)
+            img = env.render()
+        finally:
+            env.close()
+        return int(np.all(img == np.array(BRIDGE_COLOUR), axis=2).sum())
+
+    # Three lines across the window's 75 m height, 2 px wide.
+    assert bridge_pixels(maps["bridge"]) > 3 * 2 * 200
+    assert bridge_pixels(maps["flat"]) == 0

@@ -7,6 +7,8 @@ The frame, bottom to top, in highway-env's world coordinates:
   widths, so the sensor's points sit on the drawn paint (highway-env's own lane lines,
   a straight chord per edge and generic 3 m stripes, are not drawn);
 * highway-env's road objects and vehicles;
+* bridges crossing overhead: their painted markings (the road's ``overpass_lines``) in
+  :data:`BRIDGE_COLOUR`, over the vehicles passing beneath;
 * the line sensor's points, one colour per line object (per-dash objects show as
   alternating colours along a dashed marking);
 * the detected lines (ego lines thick, adjacent lines thin) in the detector's colour;
@@ -87,6 +89,9 @@ DETECTOR_NAMES = {"naive": "naive", "aldm": "ALDM", "ground_truth": "ground trut
 PATH_COLOUR: Colour = (0, 200, 0)
 """Colour of the planned path [RGB]."""
 
+BRIDGE_COLOUR: Colour = (150, 160, 200)
+"""Colour of the markings of a bridge overhead [RGB] (none of the paint colours)."""
+
 SCALE_BAR = (200.0, 100.0, 50.0, 20.0, 10.0)
 """Lengths a scale bar may have [m]: the longest that fits a quarter of the width."""
 
@@ -119,6 +124,33 @@ def view_centre(surface: WorldSurface) -> FloatArray:
     return np.asarray(surface.origin, dtype=np.float64) + 0.5 * size / surface.scaling
 
 
+def draw_bridges(surface: WorldSurface, lines: FloatArray) -> bool:
+    """Draw the segments ``(x0, y0, x1, y1, z)`` [m] of bridge markings that reach into
+    the window, :data:`BRIDGE_COLOUR`, 0.15 m wide (at least :data:`MIN_PAINT_PX`).
+
+    :return: whether any was drawn.
+    """
+    if len(lines) == 0:
+        return False
+    centre, radius = view_centre(surface), view_radius(surface)
+    a, b = lines[:, 0:2], lines[:, 2:4]
+    # Distance from the window's centre to each segment.
+    d = b - a
+    t = np.clip(
+        np.einsum("ij,ij->i", centre - a, d) / np.maximum(np.einsum("ij,ij->i", d, d), 1e-12),
+        0.0,
+        1.0,
+    )
+    near = np.hypot(*(a + t[:, None] * d - centre).T) <= radius
+    if not near.any():
+        return False
+    width = max(MIN_PAINT_PX, round(0.15 * surface.scaling))
+    pa, pb = world_to_pixels(surface, a[near]), world_to_pixels(surface, b[near])
+    for p, q in zip(pa.tolist(), pb.tolist(), strict=True):
+        pygame.draw.line(surface, BRIDGE_COLOUR, p, q, width)
+    return True
+
+
 def draw_paint(surface: WorldSurface, pieces: list[PaintedPiece]) -> None:
     """Draw painted pieces as polylines of their own colour and width (at least
     :data:`MIN_PAINT_PX`)."""
@@ -141,7 +173,8 @@ class ALDMViewer(EnvViewer):
         if self.offscreen:
             self.enabled = True
         # Text is rendered once (pygame fonts die with the viewer's pygame.quit()).
-        self._legend: tuple[str, pygame.Surface] | None = None
+        self._legend: tuple[tuple[str, bool], pygame.Surface] | None = None
+        self._bridges_shown = False
         self._scale_labels: dict[float, pygame.Surface] = {}
 
     def display(self) -> None:
@@ -163,6 +196,9 @@ class ALDMViewer(EnvViewer):
             offscreen=self.offscreen,
         )
         ObservationGraphics.display(self.env.observation_type, surface)
+        road = self.env.highway
+        bridges = getattr(road, "overpass_lines", None)
+        self._bridges_shown = bridges is not None and draw_bridges(surface, bridges)
         self.draw_overlay(surface)
         self.draw_legend(surface)
         if not self.offscreen:
@@ -214,9 +250,9 @@ class ALDMViewer(EnvViewer):
 
     def draw_legend(self, surface: WorldSurface) -> None:
         """The legend (top left) and a scale bar (bottom left)."""
-        detector = str(self.env.config["detector"])
-        if self._legend is None or self._legend[0] != detector:
-            self._legend = (detector, _legend_surface(detector))
+        key = (str(self.env.config["detector"]), self._bridges_shown)
+        if self._legend is None or self._legend[0] != key:
+            self._legend = (key, _legend_surface(*key))
         surface.blit(self._legend[1], (6, 6))
         length = next(
             (m for m in SCALE_BAR if m * surface.scaling <= 0.25 * surface.get_width()),
@@ -233,8 +269,9 @@ def _font(size: int) -> pygame.font.Font:
     return pygame.font.Font(None, size)
 
 
-def _legend_surface(detector: str) -> pygame.Surface:
-    """The legend box: sensor points, the detector's lines, planned path, paint."""
+def _legend_surface(detector: str, bridges: bool = False) -> pygame.Surface:
+    """The legend box: sensor points, the detector's lines, planned path, paint, and
+    with ``bridges`` the markings of a bridge overhead."""
     font = _font(16)
     colour = DETECTOR_COLOURS.get(detector, DETECTOR_COLOURS["aldm"])
     name = DETECTOR_NAMES.get(detector, detector)
@@ -244,6 +281,8 @@ def _legend_surface(detector: str) -> pygame.Surface:
         ("path", "planned path"),
         ("paint", "road paint"),
     ]
+    if bridges:
+        rows.append(("bridge", "bridge overhead (its markings)"))
     height = 14 * len(rows) + 8
     width = 8 + 34 + max(font.size(text)[0] for _, text in rows) + 8
     box = pygame.Surface((width, height), pygame.SRCALPHA)
@@ -257,6 +296,8 @@ def _legend_surface(detector: str) -> pygame.Surface:
             pygame.draw.line(box, colour, (8, y), (36, y), 3)
         elif kind == "path":
             pygame.draw.line(box, PATH_COLOUR, (8, y), (36, y), 2)
+        elif kind == "bridge":
+            pygame.draw.line(box, BRIDGE_COLOUR, (8, y), (36, y), 2)
         else:
             pygame.draw.rect(box, ASPHALT, (6, y - 5, 32, 10))
             pygame.draw.line(box, PAINT_COLOURS[0], (10, y), (18, y), 2)
