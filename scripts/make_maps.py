@@ -15,6 +15,10 @@ Maps (right-hand traffic, lane width 3.75 m on the motorway, 3.5 m elsewhere):
 - ``two_plus_one.xodr``: a 2.1 km 2+1 road whose middle (passing) lane alternates
   direction; ``laneOffset`` keeps the outer edges fixed while the passing lane
   changes sides. Lane lines are ``broken`` without a pattern (the reader's default).
+- ``bridges.xodr``: a 2.1 km 3-lane carriageway (straight, a right bend of R = 900 m
+  between clothoids, straight) under two bridges: a level one crossing at 60°, 6.5 m
+  up, and one climbing at 2 % across at 75°, 7 m up where it crosses (the reader tells
+  them from flat crossings by their ``elevationProfile``).
 - ``features.xodr``: one 640 m road with spirals (including one between two curved
   arcs), ``paramPoly3``, a ``laneOffset`` shift, a lane-width change and double
   (``solid broken``) and ``botts dots`` marks.
@@ -25,6 +29,7 @@ the header's date so that the files are reproducible.
 
 from __future__ import annotations
 
+import math
 import sys
 from pathlib import Path
 
@@ -304,6 +309,58 @@ def features() -> xodr.OpenDrive:
     return odr
 
 
+def bridge(
+    road_id: int, centre: tuple[float, float], heading: float, z: tuple[float, float]
+) -> xodr.Road:
+    """A 160 m two-lane road crossing above, its middle at ``centre`` heading
+    ``heading``, at height ``z[0] + z[1] s`` (s along it)."""
+    lanes = xodr.Lanes()
+    lanes.add_lanesection(section(0.0, [lane(3.5, solid())], [lane(3.5, solid())], mark=broken()))
+    out = road(road_id, [xodr.Line(160.0)], lanes)
+    out.planview.set_start_point(
+        centre[0] - 80.0 * math.cos(heading), centre[1] - 80.0 * math.sin(heading), heading
+    )
+    out.add_elevation(0.0, z[0], z[1], 0.0, 0.0)
+    return out
+
+
+def bridges() -> xodr.OpenDrive:
+    """A 3-lane motorway carriageway (straight, a 900 m bend, straight) under two bridges."""
+
+    def carriageway() -> tuple[xodr.Road, xodr.Road]:
+        bend = [
+            xodr.Line(600.0),
+            xodr.Spiral(0.0, -1 / 900, 120.0),
+            xodr.Arc(-1 / 900, 400.0),
+            xodr.Spiral(-1 / 900, 0.0, 120.0),
+        ]
+        r1 = road(1, bend, simple_lanes(3))
+        r1.planview.set_start_point(0.0, 0.0, 0.0)
+        r2 = road(2, [xodr.Line(900.0)], simple_lanes(3))
+        r1.add_successor(xodr.ElementType.road, 2, xodr.ContactPoint.start)
+        r2.add_predecessor(xodr.ElementType.road, 1, xodr.ContactPoint.end)
+        return r1, r2
+
+    # Where the last straight starts: scenariogeneration places it (a scratch copy).
+    scratch = xodr.OpenDrive("scratch")
+    for r in carriageway():
+        scratch.add_road(r)
+    scratch.adjust_roads_and_lanes()
+    x, y, h = scratch.roads["2"].planview.get_start_point()
+    odr = xodr.OpenDrive("bridges")
+    for r in carriageway():
+        odr.add_road(r)
+    # A level bridge at 60° over the first straight, 6.5 m above it.
+    odr.add_road(bridge(3, (350.0, -1.5 * W), math.radians(60.0), (6.5, 0.0)))
+    # A climbing bridge (2 %) at 75° over the last straight, 7 m up where it crosses.
+    at = (
+        x + 400.0 * math.cos(h) + 1.5 * W * math.sin(h),
+        y + 400.0 * math.sin(h) - 1.5 * W * math.cos(h),
+    )
+    odr.add_road(bridge(4, at, h - math.radians(75.0), (7.0 - 0.02 * 80.0, 0.02)))
+    return odr
+
+
 def write(odr: xodr.OpenDrive, name: str) -> Path:
     """Adjust and write a map; fix the header date for reproducible files."""
     odr.adjust_roads_and_lanes()
@@ -322,6 +379,7 @@ def main() -> int:
         (motorway(), "motorway.xodr"),
         (two_plus_one(), "two_plus_one.xodr"),
         (features(), "features.xodr"),
+        (bridges(), "bridges.xodr"),
     ):
         print(write(odr, name))
     return 0

@@ -271,3 +271,24 @@ def test_the_render_draws_the_bridge_overhead(maps: dict[str, Path]) -> None:
     # Three lines across the window's 75 m height, 2 px wide.
     assert bridge_pixels(maps["bridge"]) > 3 * 2 * 200
     assert bridge_pixels(maps["flat"]) == 0
+
+
+def test_the_shipped_bridges_map() -> None:
+    path = Path(__file__).resolve().parents[1] / "aldm_gym" / "roads" / "maps" / "bridges.xodr"
+    road = OpenDriveRoad.from_file(path)
+    bridges = road.map.bridges
+    assert sorted(bridges) == ["3", "4"]
+    assert [c.lower for c in bridges["3"]] == ["1"] and [c.lower for c in bridges["4"]] == ["2"]
+    assert bridges["3"][0].z_upper - bridges["3"][0].z_lower == pytest.approx(6.5)
+    # The climbing bridge: 7 m up where it crosses the middle lane, 2 % grade.
+    climb = bridges["4"][0]
+    assert 6.7 < climb.z_upper - climb.z_lower < 7.0
+    # 100 m before the climbing bridge, in the bend's exit: the bridge is seen, the
+    # ALDM's lines are the true ones.
+    pose = road.lane_pose("2", -2, 300.0)
+    frame = LineSensor().measure(road, pose)
+    z = frame.all_points[:, 2]
+    assert np.sum((z > 6.5) & (z < 7.2)) > 20
+    lane = road.lane_position(pose[:2]).lane
+    score = score_detection(detect_lanes(frame), road, frame, lane)
+    assert score["ego_left"].correct and score["ego_right"].correct

@@ -271,7 +271,7 @@ def test_render_rgb_array_on_a_map(curved: Path) -> None:
 
 # ---------------------------------------------------------------- speed paths
 MAPS = Path(aldm_gym.__file__).parent / "roads" / "maps"
-SHIPPED = ("motorway", "two_plus_one", "features")
+SHIPPED = ("motorway", "two_plus_one", "features", "bridges")
 
 
 def _lane_table_args(lane: MapLane, points: np.ndarray) -> tuple:
