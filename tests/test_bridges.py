@@ -27,23 +27,33 @@ def _write(
     bridge_z: tuple[float, float] = (7.0, 0.0),
     bridge_length: float = 120.0,
     mark: str = "solid",
+    sections: int = 1,
 ) -> Path:
     """A 2 km three-lane one-way road (id 1, along +x from the origin, lanes to the
     right, level at 0 m) and an unlinked two-lane road (id 2) crossing it at 60° through
-    the middle of its lanes at x = 500 m, at height ``a + b s`` (``bridge_z = (a, b)``)."""
+    the middle of its lanes at x = 500 m, at height ``a + b s`` (``bridge_z = (a, b)``),
+    in ``sections`` equal lane sections."""
     road = xodr.create_road([xodr.Line(2000)], id=1, left_lanes=0, right_lanes=3, lane_width=3.75)
     road.planview.set_start_point(0.0, 0.0, 0.0)
     solid = xodr.RoadMark(xodr.RoadMarkType.solid, 0.15)
     centre_mark = xodr.RoadMark(xodr.RoadMarkType.broken, 0.15) if mark == "broken" else solid
-    centre = xodr.Lane(a=0.0)
-    centre.add_roadmark(centre_mark)
-    section = xodr.LaneSection(0.0, centre)
-    for add in (section.add_left_lane, section.add_right_lane):
-        side = xodr.Lane(xodr.LaneType.driving, a=3.5)
-        side.add_roadmark(solid)
-        add(side)
     lanes = xodr.Lanes()
-    lanes.add_lanesection(section)
+    before: list = []
+    for k in range(sections):
+        centre = xodr.Lane(a=0.0)
+        centre.add_roadmark(centre_mark)
+        section = xodr.LaneSection(k * bridge_length / sections, centre)
+        sides = []
+        for add in (section.add_left_lane, section.add_right_lane):
+            side = xodr.Lane(xodr.LaneType.driving, a=3.5)
+            side.add_roadmark(solid)
+            add(side)
+            sides.append(side)
+        linker = xodr.LaneLinker()
+        for old, new in zip(before, sides, strict=False):
+            linker.add_link(old, new)
+        lanes.add_lanesection(section, linker if before else None)
+        before = sides
     plan = xodr.PlanView()
     plan.add_geometry(xodr.Line(bridge_length))
     bridge = xodr.Road(2, plan, lanes)
@@ -69,6 +79,7 @@ def maps(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
         "flat": _write(d / "flat.xodr", bridge_z=(0.0, 0.0)),
         "low": _write(d / "low.xodr", bridge_z=(BRIDGE_CLEARANCE - 0.01, 0.0)),
         "broken": _write(d / "broken.xodr", mark="broken"),
+        "sections": _write(d / "sections.xodr", sections=3),
     }
 
 
@@ -114,6 +125,18 @@ def test_the_bridge_is_not_driven_and_its_paint_is_overpass(maps: dict[str, Path
     assert OpenDriveMap.from_file(maps["low"]).bridges == {}
 
 
+def test_a_line_across_lane_sections_is_one_stretch(maps: dict[str, Path]) -> None:
+    """Three lane sections on the bridge: still three lines of 120 m, one object each."""
+    one = OpenDriveMap.from_file(maps["bridge"]).overpass_lines
+    three = OpenDriveMap.from_file(maps["sections"]).overpass_lines
+    joined = np.all(three[1:, :2] == three[:-1, 2:4], axis=1)
+    assert np.count_nonzero(~joined) + 1 == 3
+    np.testing.assert_allclose(three, one, atol=1e-9)
+    road = OpenDriveRoad.from_file(maps["sections"])
+    frame = LineSensor().measure(road, road.lane_pose("1", -2, 400.0))
+    assert np.count_nonzero(frame.line_marking == -1) == 3
+
+
 def test_a_broken_line_on_the_bridge_is_dashes(maps: dict[str, Path]) -> None:
     odr = OpenDriveMap.from_file(maps["broken"])
     lines = odr.overpass_lines
@@ -157,6 +180,29 @@ def test_levels_drive_the_larger_network() -> None:
     # A tie drives the lower road.
     bridges, hidden = levels({"a": 10.0, "b": 10.0}, set(), [cross("a", "b")])
     assert set(bridges) == {"a"} and hidden == frozenset()
+
+
+def test_levels_within_one_network_drive_the_larger_road() -> None:
+    """An interchange: ramps join the motorway (m1, m2, up on its bridge) and the small
+    road (s) under it, so all are one network; the motorway's lane-metres win."""
+    lengths = {"s": 400.0, "m1": 1000.0, "m2": 1000.0, "ramp": 200.0}
+    linked = {frozenset(("m1", "m2")), frozenset(("ramp", "s")), frozenset(("ramp", "m2"))}
+    weights = {"s": 2 * 400.0, "m1": 3 * 1000.0, "m2": 3 * 1000.0, "ramp": 200.0}
+    over = Crossing("m1", 900.0, 7.0, "s", 200.0, 0.0)
+    bridges, hidden = levels(lengths, linked, [over], weights)
+    assert bridges == {} and hidden == frozenset({"s"})
+
+
+def test_a_road_under_only_a_bridge_is_driven() -> None:
+    """A bridge spans the motorway and a small road beside it: the small road is not
+    under anything driven, so it is driven, and the bridge is seen from both."""
+    lengths = {"m": 2000.0, "b": 160.0, "r3": 80.0, "r4": 80.0, "side": 200.0}
+    linked = {frozenset(("b", "r3")), frozenset(("b", "r4"))}
+    over_m = Crossing("b", 70.0, 7.0, "m", 500.0, 0.0)
+    over_side = Crossing("b", 110.0, 7.0, "side", 100.0, 0.0)
+    bridges, hidden = levels(lengths, linked, [over_m, over_side])
+    assert hidden == frozenset()
+    assert bridges == {"b": (over_m, over_side)}
 
 
 def test_merged_rows_follow_the_painted_line() -> None:

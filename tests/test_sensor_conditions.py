@@ -220,8 +220,8 @@ def test_visibility_shrinks_the_range(solid_road: HighwayRoad) -> None:
 def _sight_brute_force(xs, ys, bounds, clearance):
     """The definition of ``sight_hidden``, checked grid point by grid point."""
     hidden = np.zeros(ys.shape, dtype=bool)
-    left = [np.nanmax(c) if not np.isnan(c).all() else np.nan for c in bounds.T]
-    right = [np.nanmin(c) if not np.isnan(c).all() else np.nan for c in bounds.T]
+    left = [max(np.nanmax(c), 0.0) if not np.isnan(c).all() else np.nan for c in bounds.T]
+    right = [min(np.nanmin(c), 0.0) if not np.isnan(c).all() else np.nan for c in bounds.T]
     for r, k in zip(*np.nonzero(~np.isnan(ys)), strict=True):
         for j in range(k):
             line = ys[r, k] * xs[j] / xs[k]
@@ -236,7 +236,8 @@ def test_sight_hidden_is_its_definition() -> None:
     for _ in range(20):
         # Markings of a road bending either way (y = a + b x + c x^2), some gaps.
         c = rng.uniform(-1.0 / 500.0, 1.0 / 500.0)
-        offsets = np.array([-5.6, -1.9, 1.9, 5.6]) + rng.normal(0.0, 0.2)
+        # Sometimes every marking on one side (the sensor beside the road).
+        offsets = np.array([-5.6, -1.9, 1.9, 5.6]) + rng.choice([0.0, 8.0, -8.0])
         bounds = offsets[:, None] + 0.5 * c * xs[None] ** 2
         bounds[rng.random(bounds.shape) < 0.1] = np.nan
         ys = np.vstack([bounds, rng.uniform(-15.0, 15.0, (3, len(xs)))])
@@ -288,6 +289,14 @@ def test_sight_clearance_hides_nothing_on_a_straight_and_not_a_bridge(
     pose = pose_on_lane(solid_road, 300.0, 1)
     plain = LineSensor().measure(solid_road, pose)
     walled = LineSensor({"sight_clearance": 0.0}).measure(solid_road, pose)
+    np.testing.assert_array_equal(walled.all_points, plain.all_points)
+    # Beside the road (every marking to the left): the sensor's own axis is in the zone.
+    x, y, h = pose
+    assert h == 0.0  # highway-env's left is -y here
+    beside = (x, y + 12.0, h)
+    plain = LineSensor().measure(solid_road, beside)
+    walled = LineSensor({"sight_clearance": 0.0}).measure(solid_road, beside)
+    assert np.all(plain.all_points[:, 1] > 0.0) and plain.all_points[:, 0].max() > 195.0
     np.testing.assert_array_equal(walled.all_points, plain.all_points)
     bridged = HighwayRoad({"curved": False, "length": 1000.0, "overpasses": [400.0]})
     f = LineSensor({"sight_clearance": 0.0}).measure(bridged, pose)

@@ -501,7 +501,8 @@ def sight_hidden(
     Sight obstructions stand ``clearance`` beyond the outermost markings on either
     side: at grid x ``x_j`` the clear zone is ``right_j - clearance <= y <= left_j +
     clearance``, with ``left_j`` / ``right_j`` the largest / smallest y of the rows of
-    ``bounds`` there (no bound where they have none). A point ``(x_k, y_k)`` is hidden
+    ``bounds`` there and of the sensor's axis (y = 0), no bound where ``bounds`` has
+    none. A point ``(x_k, y_k)`` is hidden
     when the straight sight line from the sensor (the origin) to it leaves the zone at
     an earlier grid x: ``y_k x_j / x_k > left_j + clearance`` or ``< right_j -
     clearance`` for some ``x_j < x_k``, i.e. its bearing ``y_k / x_k`` lies beyond the
@@ -519,6 +520,10 @@ def sight_hidden(
     k = len(xs)
     left = np.fmax.reduce(bounds, axis=0) if len(bounds) else np.full(k, np.nan)
     right = np.fmin.reduce(bounds, axis=0) if len(bounds) else np.full(k, np.nan)
+    # The sensor's own axis is always in the zone (a car on a shoulder, a road
+    # painted on one side only).
+    left = np.where(np.isnan(left), np.nan, np.maximum(left, 0.0))
+    right = np.where(np.isnan(right), np.nan, np.minimum(right, 0.0))
     ahead = xs > 0.0
     safe = np.where(ahead, xs, 1.0)
     upper = np.where(ahead & ~np.isnan(left), (left + clearance) / safe, np.inf)

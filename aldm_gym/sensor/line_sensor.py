@@ -146,7 +146,7 @@ class LineSensorConfig:
     :ivar visibility: x beyond which nothing is seen [m] (fog, glare; ``None``:
         the range).
     :ivar sight_clearance: distance of sight obstructions (barriers, cuttings,
-        vegetation) beyond the outermost markings in view [m]: a point whose sight line
+        vegetation) beyond the road's outermost markings [m]: a point whose sight line
         from the sensor leaves that clear zone is hidden, so the range shrinks in bends
         (about ``sqrt(8 R d)`` for radius R and the sensor d from the zone's inner
         edge; :func:`~aldm_gym.sensor.conditions.sight_hidden`); ``None``: an open

@@ -3,22 +3,31 @@
 highway-env's roads are flat, so a map is driven on one level. Two roads whose
 reference lines cross without a link between them are a flat crossing when their
 heights there (``elevationProfile``) differ by less than :data:`BRIDGE_CLEARANCE`, and
-one road passing over the other otherwise. At such a crossing the road of the larger
-linked network (total reference-line length of the roads joined to it by road links
-and junction connections; on a tie, the lower road) is *driven*, and the other one is
-*off the level*:
+one road passing over the other otherwise. Which roads make up the driven level is
+decided road by road in order of rank (:func:`levels`): first the total
+reference-line length of the road's linked network (the roads joined to it by road
+links and junction connections), then its own lane-metres (within one network, e.g. an
+interchange whose ramps join both roads, the motorway before the road it crosses),
+then the lower road first. A road is
 
-- above the driven road it is a **bridge**: not driven, and its painted markings become
-  overpass lines (:attr:`~aldm_gym.roads.opendrive.OpenDriveMap.overpass_lines`) that
-  the line sensor reports at their height above the driven road (the ALDM's ``z_band``
-  ignores them, the naive detection does not);
-- below it, the road is **hidden**: not driven and not seen (the deck covers it).
+- **hidden** when it passes under a road already driven: not driven and not seen (the
+  deck covers it);
+- a **bridge** when it passes over a road already driven: not driven, and its painted
+  markings become overpass lines
+  (:attr:`~aldm_gym.roads.opendrive.OpenDriveMap.overpass_lines`) that the line sensor
+  reports at their height above the driven road (the ALDM's ``z_band`` ignores them,
+  the naive detection does not);
+- **driven** otherwise, also when it passes under a bridge (a road beside the motorway
+  that the same bridge spans).
 
-A road is off the level as soon as one crossing puts it there. Roads linked to a
-bridge (its ramps) stay on the driven level: they are flattened like every map road.
-The height of a bridge's paint is taken against the driven road at the nearest
-crossing along the bridge, so a bridge that climbs or falls keeps its true height
-over the road below it.
+Roads linked to a bridge (its ramps) stay on the driven level: they are flattened like
+every map road. The height of a bridge's paint is taken against the driven road at the
+nearest crossing along the bridge, so a bridge that climbs or falls keeps its true
+height over the road below it.
+
+Limitation: the sensor samples each line at its x grid, so a bridge marking at right
+angles to the sensor's axis (within about atan(dx / length) of it, under 1° for a 2 m
+grid and a 160 m bridge) has no point; at 75° a bridge gives about 15 points per line.
 """
 
 from __future__ import annotations
@@ -30,8 +39,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from aldm_gym.roads.opendrive.geometry import PlanView
-from aldm_gym.roads.opendrive.lanes import cubic_at
-from aldm_gym.roads.opendrive.marks import MarkPiece, piece_line
+from aldm_gym.roads.opendrive.lanes import cubic_at, section_end
+from aldm_gym.roads.opendrive.marks import MarkPiece, chain_pieces
 from aldm_gym.roads.opendrive.parse import Road
 from aldm_gym.types import FloatArray
 
@@ -174,16 +183,35 @@ def crossings(
     return out
 
 
+def lane_metres(road: Road, length: float) -> float:
+    """Sum over the road's lane sections of lanes (centre lane excluded) times length [m]."""
+    total = 0.0
+    for k, sec in enumerate(road.sections):
+        lanes = sum(1 for lane in sec.lanes if lane.id != 0)
+        total += lanes * max(0.0, section_end(road, k, length) - sec.s)
+    return total
+
+
 def levels(
     lengths: dict[str, float],
     linked: set[frozenset[str]],
     found: Sequence[Crossing],
+    weights: dict[str, float] | None = None,
 ) -> tuple[dict[str, tuple[Crossing, ...]], frozenset[str]]:
     """Which roads are bridges and which are hidden (see the module docstring).
 
-    :param lengths: road id -> reference-line length [m].
+    Roads are taken in order of rank: the total length of their linked network, then
+    their own ``weights`` (lane-metres, :func:`lane_metres`; default: their length),
+    then the lower one first (their least height at a crossing). A road passing under a
+    driven road is hidden, one passing over a driven road is a bridge, any other road
+    is driven. So a road of a small network under a bridge stays driven when that
+    bridge is not itself driven, and within one network (an interchange whose ramps
+    join both roads) the road with more lane-metres is driven.
+
+    :param lengths: road id -> reference-line length [m], in file order.
+    :param weights: road id -> the tie-break within a network (larger: driven first).
     :returns: ``(bridges, hidden)``: bridge road id -> the crossings where it passes
-        over a driven road; the ids of the roads passing under one.
+        over a driven road; the ids of the roads passing under a driven one.
     """
     parent = {rid: rid for rid in lengths}
 
@@ -200,47 +228,59 @@ def levels(
     size: dict[str, float] = {}
     for rid, length in lengths.items():
         size[root(rid)] = size.get(root(rid), 0.0) + length
+    weight = weights if weights is not None else lengths
+    by_road: dict[str, list[Crossing]] = {rid: [] for rid in lengths}
+    height: dict[str, float] = {rid: math.inf for rid in lengths}
+    for c in found:
+        by_road[c.upper].append(c)
+        by_road[c.lower].append(c)
+        height[c.upper] = min(height[c.upper], c.z_upper)
+        height[c.lower] = min(height[c.lower], c.z_lower)
+    order = sorted(
+        lengths, key=lambda r: (size[root(r)], weight.get(r, 0.0), -height[r]), reverse=True
+    )
+    driven: set[str] = set()
     bridges: dict[str, list[Crossing]] = {}
     hidden: set[str] = set()
-    for c in found:
-        if size[root(c.upper)] > size[root(c.lower)]:
-            hidden.add(c.lower)
+    for r in order:
+        if any(c.lower == r and c.upper in driven for c in by_road[r]):
+            hidden.add(r)
+        elif any(c.upper == r and c.lower in driven for c in by_road[r]):
+            bridges[r] = []
         else:
-            bridges.setdefault(c.upper, []).append(c)
-    # A road off the level is off it everywhere: a bridge crossing a hidden road, or
-    # a hidden road under a bridge, is not seen there either.
-    bridges = {
-        rid: [c for c in cs if c.lower not in hidden and c.lower not in bridges]
-        for rid, cs in bridges.items()
-        if rid not in hidden
-    }
-    return {rid: tuple(cs) for rid, cs in bridges.items() if cs}, frozenset(hidden)
+            driven.add(r)
+    for r in bridges:
+        bridges[r] = [c for c in by_road[r] if c.upper == r and c.lower in driven]
+    return {rid: tuple(cs) for rid, cs in bridges.items()}, frozenset(hidden)
 
 
 def overpass_segments(
-    pieces: Sequence[MarkPiece], road: Road, over: Sequence[Crossing]
+    pieces: Sequence[MarkPiece], road: Road, length: float, over: Sequence[Crossing]
 ) -> FloatArray:
     """A bridge road's painted markings as world segments at their height.
 
-    :param pieces: the bridge road's marking pieces.
+    :param pieces: the bridge road's marking pieces (chained here across its lane
+        sections and road-mark records, as the map chains its ground markings).
     :param road: the bridge road.
+    :param length: its reference-line length [m].
     :param over: the crossings where it passes over the driven level (at least one).
     :returns: ``(B, 5)`` rows ``(x0, y0, x1, y1, z)`` [m] in OpenDRIVE's frame; ``z`` is
         the segment's mean height above the driven road at the nearest crossing along
-        the bridge. Consecutive segments of one painted stretch share their end points.
+        the bridge. The segments of one painted stretch follow each other, each
+        starting where the one before ends.
     """
     s_cross = np.array([c.s_upper for c in over])
     z_cross = np.array([c.z_lower for c in over])
     rows = []
-    for p in pieces:
-        line = piece_line(p)
+    for line in chain_pieces(pieces, {road.id: length}, set())[0]:
+        s_line = np.asarray(line.s, dtype=np.float64)
         for u0, u1 in line.painted:
             n = max(1, math.ceil((u1 - u0) / OVERPASS_STEP))
             u = np.linspace(u0, u1, n + 1)
-            x = np.interp(u, p.u, p.xy[:, 0])
-            y = np.interp(u, p.u, p.xy[:, 1])
-            s = np.interp(u, p.u, p.s)
+            x = np.interp(u, line.u, line.xy[:, 0])
+            y = np.interp(u, line.u, line.xy[:, 1])
+            s = np.interp(u, line.u, s_line)
             near = np.abs(s[:, None] - s_cross[None]).argmin(axis=1)
-            z = elevation(road, s) + p.height - z_cross[near]
+            z = elevation(road, s) + line.height - z_cross[near]
             rows.append(np.stack([x[:-1], y[:-1], x[1:], y[1:], 0.5 * (z[:-1] + z[1:])], axis=1))
     return np.concatenate(rows) if rows else np.zeros((0, 5))

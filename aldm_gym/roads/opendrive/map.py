@@ -15,7 +15,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from aldm_gym.roads.opendrive.bridges import crossings, levels, overpass_segments
+from aldm_gym.roads.opendrive.bridges import (
+    crossings,
+    lane_metres,
+    levels,
+    overpass_segments,
+)
 from aldm_gym.roads.opendrive.geometry import PlanView
 from aldm_gym.roads.opendrive.lanes import (
     cubic_at,
@@ -32,7 +37,7 @@ from aldm_gym.roads.opendrive.marks import (
     chain_pieces,
     section_pieces,
 )
-from aldm_gym.roads.opendrive.parse import Header, Junction, Road, parse_file
+from aldm_gym.roads.opendrive.parse import Header, Junction, Lane, Road, parse_file
 from aldm_gym.types import FloatArray, IntArray
 
 LaneKey = tuple[str, int, int]
@@ -135,9 +140,9 @@ class OpenDriveMap:
         }
         self.lengths = {rid: pv.length for rid, pv in self.plan_views.items()}
         linked = _linked_roads(roads, junctions)
-        self.bridges, self.hidden = levels(
-            self.lengths, linked, crossings(roads, self.plan_views, linked)
-        )
+        found = crossings(roads, self.plan_views, linked)
+        weights = {rid: lane_metres(road, self.lengths[rid]) for rid, road in roads.items()}
+        self.bridges, self.hidden = levels(self.lengths, linked, found, weights)
         pieces: list[MarkPiece] = []
         samples = {}
         overpass = [np.zeros((0, 5))]
@@ -152,7 +157,7 @@ class OpenDriveMap:
                 if rid not in self.bridges:
                     samples[(rid, sec.index)] = sec
             if rid in self.bridges:
-                overpass.append(overpass_segments(own, road, self.bridges[rid]))
+                overpass.append(overpass_segments(own, road, plan.length, self.bridges[rid]))
             else:
                 pieces += own
         self.overpass_lines: FloatArray = np.concatenate(overpass)
@@ -311,7 +316,8 @@ class OpenDriveMap:
 
         Follows lane links to the next lane section, across road links (``contactPoint``
         decides the linked road's first or last section) and through junction
-        connections (``laneLink from -> to``). Only explicit links are followed.
+        connections (``laneLink from -> to``). Only explicit links are followed, and
+        only onto the driven level: a lane leading onto a bridge or a hidden road ends.
 
         :returns: lane keys ``(road id, section index, lane id)``; empty at a dead end.
         :raises ValueError: no such lane.
@@ -324,6 +330,11 @@ class OpenDriveMap:
             raise ValueError(
                 f"{self.path}: no lane {lane_id} in section {section} of road {road_id!r}"
             )
+        off = set(self.bridges) | self.hidden
+        return [key for key in self._successors(road, lane, section) if key[0] not in off]
+
+    def _successors(self, road: Road, lane: Lane, section: int) -> list[LaneKey]:
+        lane_id = lane.id
         forward = driving_direction(road, lane) > 0
         links = lane.successors if forward else lane.predecessors
         nxt = section + 1 if forward else section - 1

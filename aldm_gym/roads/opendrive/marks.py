@@ -120,6 +120,8 @@ class MarkingLine:
     :ivar height: height above the road [m] (> 0 for curbs).
     :ivar lane_change: ``laneChange`` of its first record or None.
     :ivar road_ids: roads it runs along, in order.
+    :ivar s: (N,) reference arc length of each vertex along the road it lies on [m]
+        (monotonic only within one road).
     """
 
     xy: FloatArray
@@ -131,6 +133,7 @@ class MarkingLine:
     height: float
     lane_change: str | None
     road_ids: tuple[str, ...]
+    s: FloatArray | None = None
 
 
 @dataclass(frozen=True)
@@ -367,7 +370,7 @@ def _merge(intervals: Sequence[FloatArray]) -> FloatArray:
 
 
 def _build(pieces: Sequence[MarkPiece], chain: Sequence[tuple[int, bool]]) -> MarkingLine:
-    xy_parts, u_parts, painted = [], [], []
+    xy_parts, u_parts, s_parts, painted = [], [], [], []
     u_end = 0.0
     carried: tuple[tuple[float, float], float] | None = None  # (pattern, origin in chain u)
     road_ids: list[str] = []
@@ -376,10 +379,13 @@ def _build(pieces: Sequence[MarkPiece], chain: Sequence[tuple[int, bool]]) -> Ma
         length = float(p.u[-1])
         xy = p.xy[::-1] if rev else p.xy
         u = (length - p.u[::-1]) if rev else p.u
+        s = p.s[::-1] if rev else p.s
         if n:
-            xy, u = xy[1:], u[1:]  # the first vertex repeats the previous piece's last
+            # the first vertex repeats the previous piece's last
+            xy, u, s = xy[1:], u[1:], s[1:]
         xy_parts.append(xy)
         u_parts.append(u_end + u)
+        s_parts.append(s)
         if not road_ids or road_ids[-1] != p.road_id:
             road_ids.append(p.road_id)
         lo, hi = u_end, u_end + length
@@ -411,12 +417,8 @@ def _build(pieces: Sequence[MarkPiece], chain: Sequence[tuple[int, bool]]) -> Ma
         height=first.height,
         lane_change=first.lane_change,
         road_ids=tuple(road_ids),
+        s=np.concatenate(s_parts),
     )
-
-
-def piece_line(piece: MarkPiece) -> MarkingLine:
-    """One piece alone as a marking line (its painted intervals from its own pattern)."""
-    return _build([piece], [(0, False)])
 
 
 def chain_pieces(
