@@ -223,8 +223,9 @@ def objects_from_world(
     """
     x, y, vx = _to_sensor(
         np.ascontiguousarray(xy, dtype=np.float64),
-        np.asarray(speed, dtype=np.float64),
-        np.asarray(heading, dtype=np.float64),
+        # contiguous (views of a state table are not): one compiled layout per kernel
+        np.ascontiguousarray(speed, dtype=np.float64),
+        np.ascontiguousarray(heading, dtype=np.float64),
         float(origin[0]),
         float(origin[1]),
         float(yaw),
@@ -236,8 +237,8 @@ def objects_from_world(
         x=x,
         y=y,
         vx=vx,
-        width=np.asarray(width, dtype=np.float64),
-        length=np.asarray(length, dtype=np.float64),
+        width=np.ascontiguousarray(width, dtype=np.float64),
+        length=np.ascontiguousarray(length, dtype=np.float64),
     )
 
 

@@ -311,12 +311,12 @@ def _steering_py(
     speed = f[i, F_SPEED]
     lane_future_heading = _heading_at(s_tab, h_tab, step, s[i] + speed * p[i, P_TAU_PURSUIT])
     lateral_speed_command = -p[i, P_KP_LATERAL] * r
-    heading_command = math.asin(_clip(lateral_speed_command / _not_zero(speed), -1, 1))
+    heading_command = math.asin(_clip(lateral_speed_command / _not_zero(speed), -1.0, 1.0))
     heading_ref = lane_future_heading + _clip(heading_command, -np.pi / 4, np.pi / 4)
     wrapped = ((heading_ref - f[i, F_HEADING] + np.pi) % (2 * np.pi)) - np.pi
     heading_rate_command = p[i, P_KP_HEADING] * wrapped
     slip_angle = math.asin(
-        _clip(f[i, F_LENGTH] / 2 / _not_zero(speed) * heading_rate_command, -1, 1)
+        _clip(f[i, F_LENGTH] / 2 / _not_zero(speed) * heading_rate_command, -1.0, 1.0)
     )
     steering_angle = math.atan(2 * math.tan(slip_angle))
     return _clip(steering_angle, -p[i, P_MAX_STEERING], p[i, P_MAX_STEERING])

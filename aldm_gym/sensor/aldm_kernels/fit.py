@@ -179,7 +179,7 @@ def _smooth_at_py(lx, ly, xq, h, a0, b0, lam_a, lam_b, a_max):
                 a -= 1
             else:
                 bnd += 1
-        nf = 0
+        nf = np.int64(0)  # int64, not a literal: one compiled callee (numba)
         for j in range(a, bnd):
             us[nf] = lx[j] - x0
             vs[nf] = ly[j]

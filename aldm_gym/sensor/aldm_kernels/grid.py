@@ -279,7 +279,7 @@ def _grid_search_py(
     # pass 2: smallest residual among gated points within tie_dx of x_first
     x_tie = min(x_first + tie_dx, x_hi)
     bx2 = min(int((x_tie - x0) * igx), nx - 1)
-    best = -1
+    best = np.int64(-1)  # int64, not a literal: one compiled callee (numba)
     best_r = np.inf
     for bx in range(bx_first, bx2 + 1):
         xa = max(x0 + bx * gx, x_last)

@@ -80,7 +80,7 @@ def _seed_chains_py(xs, ys, m, link_dx, link_dy):
     for q in range(m):
         pos[yo[q]] = q
     for i in range(m):
-        best = -1
+        best = np.int64(-1)  # int64, not a literal: one compiled callee (numba)
         best_d = np.inf
         for direction in (-1, 1):
             q = pos[i] + direction
@@ -370,7 +370,7 @@ def _robust_seeds_py(xs, ys, m, fp, ip, lam_a, lam_b, label, offsets):
     group = np.full(m, -1, dtype=np.int64)  # chain root -> marking index
     g_off = np.zeros(nroot)
     g_cnt = np.zeros(nroot)
-    ng = 0
+    ng = np.int64(0)  # int64, not a literal: one compiled callee (numba)
     prev = -np.inf
     for q in range(nroot):
         r = srt[q]
