@@ -24,6 +24,7 @@ the class's ``__post_init__``, after :func:`validate`.
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import math
 import numbers
 from collections.abc import Mapping
@@ -210,9 +211,17 @@ def build_config(cls: type[T], overrides: Mapping[str, Any] | T | None, *, where
     unknown = sorted(str(k) for k in overrides if k not in allowed)
     if unknown:
         raise ValueError(
-            f"unknown {where} config key(s) {unknown}; allowed keys: {sorted(allowed)}"
+            f"unknown {where} config key(s) {unknown}{close_match(unknown, allowed)}; "
+            f"allowed keys: {sorted(allowed)}"
         )
     return cls(**dict(overrides))
+
+
+def close_match(unknown: list[str], allowed: Any) -> str:
+    """``" (did you mean 'key'?)"`` for the first unknown key's closest allowed key,
+    or ``""`` when none is close (for error messages naming unknown keys)."""
+    close = difflib.get_close_matches(unknown[0], list(allowed), n=1) if unknown else []
+    return f" (did you mean {close[0]!r}?)" if close else ""
 
 
 def check_range(

@@ -59,6 +59,7 @@ def test_camera_preset_sets_values_and_explicit_values_win() -> None:
         ({"speck_rate": 1000.0}, r"sensor\.speck_rate"),
         ({"occlusion": 1}, r"sensor\.occlusion must be a bool"),
         ({"ocllusion": True}, r"ocllusion.*allowed keys.*occlusion"),
+        ({"sight_clearence": 2.0}, r"did you mean 'sight_clearance'"),
     ],
 )
 def test_bad_condition_settings_are_named(cfg: dict, match: str) -> None:

@@ -69,7 +69,11 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         type=existing_file,
         help="an OpenDRIVE map to compare on (instead of generated roads)",
     )
-    parser.add_argument("--frames", type=positive_int, help="frames per road and model")
+    parser.add_argument(
+        "--frames",
+        type=positive_int,
+        help="frames per road and marking model (with --xodr: times --roads, on the one map)",
+    )
     parser.add_argument(
         "--noise", type=non_negative_float, help="lateral noise σ [m] (sensor lateral_noise: 0)"
     )
@@ -215,7 +219,8 @@ def _compare_frames(args: argparse.Namespace, out: Path) -> list[Path]:
     print(format_table(rows, COLUMNS))
     print(
         f"{'map ' + str(args.xodr) + ', ' if args.xodr else ''}"
-        f"{len(roads)} roads x {n_frames} frames, sensor {_describe(args.sensor_settings)}, "
+        f"{len(base)} road(s) x {len(MARKING_MODELS)} marking models x {n_frames} frames, "
+        f"sensor {_describe(args.sensor_settings)}, "
         f"{time.perf_counter() - t0:.1f} s. both_correct: both ego lines within 0.3 m of "
         "the true markings, starting <= 25 m and reaching >= 60 m.\n"
     )

@@ -33,13 +33,12 @@ from __future__ import annotations
 
 import copy
 import dataclasses
-import difflib
 import importlib
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from aldm_gym.config import build_config, rules, setting, validate
+from aldm_gym.config import build_config, close_match, rules, setting, validate
 from aldm_gym.envs.actions import ACTION_TYPES, ActionConfig
 from aldm_gym.envs.control import LKAConfig
 from aldm_gym.envs.longitudinal import ACCConfig
@@ -241,11 +240,10 @@ def _unknown(where: str, keys: Any, allowed: tuple[str, ...]) -> None:
         raise ValueError(f"{where} keys must be strings, got {bad!r}")
     unknown = sorted(k for k in keys if k not in allowed)
     if unknown:
-        hint = ""
-        close = difflib.get_close_matches(unknown[0], allowed, n=1)
-        if close:
-            hint = f" (did you mean {close[0]!r}?)"
-        raise ValueError(f"unknown {where} key(s) {unknown}{hint}; allowed keys: {sorted(allowed)}")
+        raise ValueError(
+            f"unknown {where} key(s) {unknown}{close_match(unknown, allowed)}; "
+            f"allowed keys: {sorted(allowed)}"
+        )
 
 
 def merge_config(base: Mapping[str, Any], update: Mapping[str, Any] | None) -> dict[str, Any]:

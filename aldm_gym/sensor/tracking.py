@@ -36,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from aldm_gym.config import build_config, setting, validate
+from aldm_gym.config import build_config, close_match, setting, validate
 from aldm_gym.sensor.aldm import ALDMParams, _detect_lanes, as_points, make_params
 from aldm_gym.sensor.aldm_kernels.track import _consensus, _hold, _match, _prior, _table
 from aldm_gym.sensor.detection import LINE_NAMES, LaneDetection
@@ -142,7 +142,10 @@ def split_params(params: dict[str, Any]) -> tuple[bool, TrackerParams, ALDMParam
     allowed = sorted({*ALDMParams.__dataclass_fields__, *TRACKER_KEYS})
     unknown = sorted(str(k) for k in params if k not in allowed)
     if unknown:
-        raise ValueError(f"unknown aldm config key(s) {unknown}; allowed keys: {allowed}")
+        raise ValueError(
+            f"unknown aldm config key(s) {unknown}{close_match(unknown, allowed)}; "
+            f"allowed keys: {allowed}"
+        )
     tracking = params.get("tracking", False)
     if not isinstance(tracking, (bool, np.bool_)):
         raise ValueError(f"aldm.tracking must be true or false, got {tracking!r}")
