@@ -116,10 +116,10 @@ class OpenDriveRoad(PolylineRoad):
             raise ValueError(f"{odr.path}: no driving lane")
         widths = np.concatenate([odr.lanes[k].width for k in self.lanes])
         super().__init__(curves, marking_model, float(np.median(widths)))
-        bridges = np.array(odr.overpass_lines, dtype=np.float64, copy=True)
-        bridges[:, 1] = -bridges[:, 1]  # _flip, for both end points
-        bridges[:, 3] = -bridges[:, 3]
-        self.overpass_lines = bridges
+        ends = odr.overpass_lines
+        self.overpass_lines = np.column_stack(
+            [_flip(ends[:, 0:2]), _flip(ends[:, 2:4]), ends[:, 4]]
+        )
         self._build_lane_index()
 
     @classmethod

@@ -273,13 +273,12 @@ def overpass_segments(
     z_cross = np.array([c.z_lower for c in over])
     rows = []
     for line in chain_pieces(pieces, {road.id: length}, set())[0]:
-        s_line = np.asarray(line.s, dtype=np.float64)
         for u0, u1 in line.painted:
             n = max(1, math.ceil((u1 - u0) / OVERPASS_STEP))
             u = np.linspace(u0, u1, n + 1)
             x = np.interp(u, line.u, line.xy[:, 0])
             y = np.interp(u, line.u, line.xy[:, 1])
-            s = np.interp(u, line.u, s_line)
+            s = np.interp(u, line.u, line.s)
             near = np.abs(s[:, None] - s_cross[None]).argmin(axis=1)
             z = elevation(road, s) + line.height - z_cross[near]
             rows.append(np.stack([x[:-1], y[:-1], x[1:], y[1:], 0.5 * (z[:-1] + z[1:])], axis=1))

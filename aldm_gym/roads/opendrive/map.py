@@ -143,6 +143,7 @@ class OpenDriveMap:
         found = crossings(roads, self.plan_views, linked)
         weights = {rid: lane_metres(road, self.lengths[rid]) for rid, road in roads.items()}
         self.bridges, self.hidden = levels(self.lengths, linked, found, weights)
+        self._off_level = frozenset(self.bridges) | self.hidden
         pieces: list[MarkPiece] = []
         samples = {}
         overpass = [np.zeros((0, 5))]
@@ -330,8 +331,8 @@ class OpenDriveMap:
             raise ValueError(
                 f"{self.path}: no lane {lane_id} in section {section} of road {road_id!r}"
             )
-        off = set(self.bridges) | self.hidden
-        return [key for key in self._successors(road, lane, section) if key[0] not in off]
+        keys = self._successors(road, lane, section)
+        return [key for key in keys if key[0] not in self._off_level]
 
     def _successors(self, road: Road, lane: Lane, section: int) -> list[LaneKey]:
         lane_id = lane.id

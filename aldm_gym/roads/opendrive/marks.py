@@ -133,7 +133,7 @@ class MarkingLine:
     height: float
     lane_change: str | None
     road_ids: tuple[str, ...]
-    s: FloatArray | None = None
+    s: FloatArray
 
 
 @dataclass(frozen=True)
