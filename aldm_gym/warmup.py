@@ -10,11 +10,13 @@ once.
 numba compiles in one thread per process, and the robust ALDM alone takes over half
 of the time. With two or more CPUs the warm-up therefore compiles in two processes:
 a helper process takes the kernels the robust ALDM does not use (the sensor, paper
-mode, the naive detector, the traffic and the env with the naive and ground-truth
-detectors) while this process compiles the robust ALDM; then this process runs
-everything once more, now from the cache. Both write the same on-disk cache (numba
-replaces its index files atomically; a kernel both happen to need is compiled twice,
-not corrupted).
+mode, the naive detector, the traffic, the env with the naive and ground-truth
+detectors, the camera preset's conditions and a shipped OpenDRIVE map) while this
+process compiles the robust ALDM and then the tracking ALDM; then this process runs
+everything once more, now from the cache, and steps the env with the ALDM, with the
+tracking ALDM under the camera preset and on a map (the README's examples). Both
+write the same on-disk cache (numba replaces its index files atomically; a kernel both
+happen to need is compiled twice, not corrupted).
 
 Run: ``python -m aldm_gym.warmup [--serial]`` (prints what it did and how long it took).
 """
@@ -39,6 +41,22 @@ def _robust_aldm() -> None:
     y = (1.5, 0.5, -0.5, -1.5)
     points = np.concatenate([np.column_stack([x, np.full_like(x, 3.75 * c)]) for c in y])
     detect_lanes(points, mode="robust")
+
+
+def _tracking() -> None:
+    """The tracking ALDM (``detector_params={"tracking": True}``) on the same synthetic
+    points, three frames, so its kernels compile beside the robust ALDM's."""
+    import numpy as np
+
+    from aldm_gym.sensor.tracking import EgoMotion, LaneTracker
+
+    x = np.arange(0.0, 150.0, 0.5)
+    tracker = LaneTracker()
+    for k in range(3):
+        lines = [np.column_stack([x, np.full_like(x, 3.75 * c)]) for c in (1.5, 0.5, -0.5, -1.5)]
+        points = np.concatenate(lines)
+        points = points[(points[:, 0] < 40.0 + 10.0 * k) | (points[:, 0] > 70.0 + 10.0 * k)]
+        tracker.update(points, None if k == 0 else EgoMotion(25.0, 0.0, 0.1))
 
 
 def _the_rest() -> None:
@@ -67,6 +85,45 @@ def _the_rest() -> None:
         env.reset(seed=0)
         env.step(1)
         env.close()
+    _env_steps(_HELPER_ENVS)
+
+
+_HELPER_ENVS: tuple[dict, ...] = (
+    {"detector": "naive", "vehicles_count": 5, "sensor": {"preset": "camera"}},
+    {"detector": "naive", "vehicles_count": 5, "road": {"xodr": "motorway"}},
+)
+"""Envs of the README's examples the helper runs (with the naive detector, so that it
+compiles nothing the robust ALDM's process does): the camera preset (occlusion, wear,
+noise, clutter) and a shipped map (``"motorway"`` stands for its path)."""
+
+_FINAL_ENVS: tuple[dict, ...] = (
+    {"detector": "aldm", "vehicles_count": 5},
+    {
+        "detector": "aldm",
+        "detector_params": {"tracking": True},
+        "vehicles_count": 5,
+        "sensor": {"preset": "camera"},
+    },
+    {"detector": "aldm", "vehicles_count": 5, "road": {"xodr": "motorway"}},
+)
+"""Envs the final pass runs: the default, the tracking ALDM under the camera preset,
+and the ALDM on a shipped map."""
+
+
+def _env_steps(configs: tuple[dict, ...]) -> None:
+    """``gym.make`` + ``reset`` + one ``step`` of each config."""
+    import gymnasium as gym
+
+    from aldm_gym.roads import shipped_map
+
+    for config in configs:
+        road = config.get("road")
+        if road is not None:
+            config = {**config, "road": {"xodr": str(shipped_map(road["xodr"]))}}
+        env = gym.make("ALDMHighway-v0", config=config)
+        env.reset(seed=0)
+        env.step(1)
+        env.close()
 
 
 def warm_up(parallel: bool | None = None) -> float:
@@ -77,10 +134,10 @@ def warm_up(parallel: bool | None = None) -> float:
         machine has two CPUs or more.
     :return: the wall time it took [s].
     """
-    import gymnasium as gym
-
     import aldm_gym  # noqa: F401  (registers the env)
+    from aldm_gym import _numba
 
+    _numba._announced = True  # the warm-up says itself that it compiles
     if parallel is None:
         parallel = (os.cpu_count() or 1) >= 2
     start = time.perf_counter()
@@ -93,14 +150,12 @@ def warm_up(parallel: bool | None = None) -> float:
         )
     try:
         _robust_aldm()
+        _tracking()
     finally:
         if helper is not None:
             helper.wait()  # its failure is not fatal: the serial pass below compiles it
     _the_rest()  # from the cache when the helper ran
-    env = gym.make("ALDMHighway-v0", config={"detector": "aldm", "vehicles_count": 5})
-    env.reset(seed=0)
-    env.step(1)
-    env.close()
+    _env_steps(_FINAL_ENVS)
     return time.perf_counter() - start
 
 

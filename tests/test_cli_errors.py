@@ -30,6 +30,7 @@ def paths(tmp_path: Path) -> dict[str, str]:
         "MISSING": str(tmp_path / "missing.xodr"),
         "NOT_OPENDRIVE": str(not_opendrive),
         "NOT_XML": str(afile),
+        "MAP": str(MAP),
     }
 
 
@@ -58,6 +59,26 @@ CASES = [
     (["compare", "--xodr", "DIR"], "--xodr", "is not a file"),
     (["compare", "--xodr", "NOT_OPENDRIVE", "--out", "DIR"], "--xodr", "not <OpenDRIVE>"),
     (["compare", "--xodr", "NOT_XML", "--out", "DIR"], "--xodr", "malformed XML"),
+    (["compare", "--xodr", "DIR/motorway.xodr"], "--xodr", "give just its name: --xodr motorway"),
+    (
+        ["compare", "--xodr", "MAP", "--min-radius", "300", "--out", "DIR"],
+        "--min-radius",
+        "applies to generated roads only, not with --xodr",
+    ),
+    (["compare", "--xodr", "MAP", "--scenes", "5", "--out", "DIR"], "--scenes", "generated roads"),
+    (
+        ["compare", "--no-closed-loop", "--episodes", "3", "--out", "DIR"],
+        "--episodes",
+        "applies to the closed loop, not with --no-closed-loop",
+    ),
+    (["compare", "--no-closed-loop", "--trucks", "0.2", "--out", "DIR"], "--trucks", "closed loop"),
+    (["compare", "--no-closed-loop", "--tracking", "--out", "DIR"], "--tracking", "closed loop"),
+    (
+        ["compare", "--noise", "0.1", "--sensor", "lateral_noise=0.2", "--out", "DIR"],
+        "--noise",
+        "sets lateral_noise, and so does --sensor lateral_noise=...: give one",
+    ),
+    (["compare", "--dropout", "0.1", "--sensor", "dropout=0", "--out", "DIR"], "--dropout", "one"),
     # plot
     (["plot", "--out", "DIR"], "--out", "is a folder"),
     (["plot", "--out", "FILE"], "--out", "unknown image type"),
@@ -70,6 +91,15 @@ CASES = [
     (["plot", "--shift", "100", "--out", "DIR/p.png"], "--shift", "a lane width"),
     (["plot", "--xodr", "MISSING"], "--xodr", "does not exist"),
     (["plot", "--xodr", "NOT_OPENDRIVE", "--out", "DIR/p.png"], "--xodr", "not <OpenDRIVE>"),
+    (["plot", "--road-id", "3", "--out", "DIR/p.png"], "--road-id", "applies to --xodr maps only"),
+    (["plot", "--lane-id", "-2", "--out", "DIR/p.png"], "--lane-id", "applies to --xodr maps"),
+    (
+        ["plot", "--xodr", "MAP", "--seed", "3", "--out", "DIR/p.png"],
+        "--seed",
+        "applies to generated roads only; on a map use --road-id/--lane-id",
+    ),
+    (["plot", "--xodr", "MAP", "--lane", "2", "--out", "DIR/p.png"], "--lane", "generated roads"),
+    (["plot", "--xodr", "MAP", "--lane-id", "-2", "--out", "DIR/p.png"], "--lane-id", "--road-id"),
     # train (all found before stable-baselines3 is imported)
     (["train", "--out", "FILE"], "--out", "exists and is not a folder"),
     (["train", "--seed", "-1"], "--seed", "must be in [0, 2**31 - 1]"),
@@ -197,3 +227,15 @@ def test_resuming_with_the_other_backend_is_refused(
     (tmp_path / "training.json").write_text(json.dumps({**record, "backend": "rllib"}))
     line = usage_error(["train", "--resume", "--n-envs", "2", "--out", str(tmp_path)], capsys)
     assert "argument --n-envs: applies to --backend sb3 only" in line
+
+
+def test_xodr_takes_a_shipped_map_by_name(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """``--xodr motorway`` (or ``motorway.xodr``) is the shipped map from any folder, but
+    a file of that name in the working folder wins."""
+    from aldm_gym.cli.argtypes import xodr_file
+
+    monkeypatch.chdir(tmp_path)
+    assert xodr_file("motorway") == MAP.resolve()
+    assert xodr_file("motorway.xodr") == MAP.resolve()
+    (tmp_path / "motorway.xodr").write_text("<OpenDRIVE/>")
+    assert xodr_file("motorway.xodr") == Path("motorway.xodr")

@@ -206,6 +206,30 @@ def test_missing_file(tmp_path: Path) -> None:
         parse_file(path)
 
 
+def test_shipped_maps_by_name_from_anywhere(tmp_path: Path) -> None:
+    """``shipped_map`` names every ``.xodr`` of the package's maps folder (the tuple
+    stays in step with the files), and a missing path whose file name is a shipped
+    map's says where that map is."""
+    from aldm_gym.roads import SHIPPED_MAPS, OpenDriveRoad, shipped_map
+    from aldm_gym.roads.opendrive.parse import MAPS_DIR
+
+    assert sorted(SHIPPED_MAPS) == sorted(p.stem for p in MAPS_DIR.glob("*.xodr"))
+    for name in SHIPPED_MAPS:
+        assert shipped_map(name) == shipped_map(name + ".xodr")
+        assert shipped_map(name).is_absolute() and shipped_map(name).is_file()
+    with pytest.raises(ValueError, match=r"no shipped map 'motorways'.*'motorway'"):
+        shipped_map("motorways")
+    elsewhere = tmp_path / "aldm_gym" / "roads" / "maps" / "motorway.xodr"
+    for load in (parse_file, OpenDriveRoad.from_file):
+        with pytest.raises(FileNotFoundError) as err:
+            load(elsewhere)
+        assert str(elsewhere) in str(err.value)
+        assert str(shipped_map("motorway")) in str(err.value)
+    with pytest.raises(FileNotFoundError) as err:
+        parse_file(tmp_path / "nothere.xodr")
+    assert "the shipped map" not in str(err.value)
+
+
 def test_malformed_xml_names_file_and_line(tmp_path: Path) -> None:
     path = tmp_path / "broken.xodr"
     path.write_text('<?xml version="1.0"?>\n<OpenDRIVE>\n<header/>\n<road id="1">\n</OpenDRIVE>\n')

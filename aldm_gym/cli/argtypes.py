@@ -215,6 +215,27 @@ def existing_file(text: str) -> Path:
     return path
 
 
+def xodr_file(text: str) -> Path:
+    """An OpenDRIVE file that exists, or the name of a shipped example map
+    (``motorway`` or ``motorway.xodr``: :func:`aldm_gym.roads.shipped_map`) when no
+    such file is here."""
+    from aldm_gym.roads.opendrive.parse import SHIPPED_MAPS, not_found, shipped_map
+
+    path = Path(text)
+    if not path.exists():
+        stem = path.name.removesuffix(".xodr")
+        if path.name == text and stem in SHIPPED_MAPS:
+            return shipped_map(stem)
+        if stem in SHIPPED_MAPS:
+            raise argparse.ArgumentTypeError(
+                f"{not_found(text)}; or give just its name: --xodr {stem}"
+            )
+        raise argparse.ArgumentTypeError(
+            f"{path} does not exist (shipped maps by name: {', '.join(SHIPPED_MAPS)})"
+        )
+    return existing_file(text)
+
+
 def model_path(text: str) -> Path:
     """A trained model: a readable ``.zip`` file (stable-baselines3) or a folder (an
     RLlib checkpoint, checked when the command loads it)."""

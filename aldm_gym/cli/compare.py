@@ -32,7 +32,6 @@ import numpy as np
 
 from aldm_gym.cli.argtypes import (
     BadArgument,
-    existing_file,
     finite_float,
     fraction,
     key_value,
@@ -41,6 +40,7 @@ from aldm_gym.cli.argtypes import (
     output_dir,
     positive_int,
     seed,
+    xodr_file,
 )
 from aldm_gym.cli.report import format_table, write_csv
 from aldm_gym.config import defaults, rules
@@ -63,16 +63,20 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     parser.add_argument("--quick", action="store_true", help="small run (about a minute)")
     parser.add_argument("--seed", type=seed, default=0, help="seed of roads and poses")
     parser.add_argument("--out", type=output_dir, default=Path("out/compare"), help="output folder")
-    parser.add_argument("--roads", type=positive_int, help="number of seeded roads")
+    parser.add_argument(
+        "--roads", type=positive_int, help="number of seeded roads (default: 5; 2 with --quick)"
+    )
     parser.add_argument(
         "--xodr",
-        type=existing_file,
-        help="an OpenDRIVE map to compare on (instead of generated roads)",
+        type=xodr_file,
+        help="an OpenDRIVE map to compare on (instead of generated roads): a path, or the "
+        "name of a shipped map (bridges, features, motorway, two_plus_one)",
     )
     parser.add_argument(
         "--frames",
         type=positive_int,
-        help="frames per road and marking model (with --xodr: times --roads, on the one map)",
+        help="frames per road and marking model (with --xodr: times --roads, on the one map; "
+        "default: 400; 100 with --quick)",
     )
     parser.add_argument(
         "--noise", type=non_negative_float, help="lateral noise σ [m] (sensor lateral_noise: 0)"
@@ -95,8 +99,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     parser.add_argument(
         "--trucks",
         type=fraction,
-        default=0.0,
-        help="share of trucks in the closed loop's traffic (traffic.truck_share)",
+        help="share of trucks in the closed loop's traffic (traffic.truck_share; default: 0)",
     )
     parser.add_argument(
         "--tracking",
@@ -104,20 +107,53 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         help="add the tracking ALDM to the closed loop (on with sensor conditions)",
     )
     parser.add_argument(
-        "--min-radius", type=min_radius, default=500.0, help="smallest curve radius [m]"
+        "--min-radius",
+        type=min_radius,
+        help=f"smallest curve radius of the generated roads [m] (default: {MIN_RADIUS:g})",
     )
     parser.add_argument(
-        "--episodes", type=positive_int, help="closed-loop episodes per detector and policy"
+        "--episodes",
+        type=positive_int,
+        help="closed-loop episodes per detector and policy (default: 10; 2 with --quick)",
     )
     parser.add_argument(
         "--no-closed-loop", action="store_true", help="only the frame-level comparison"
     )
     parser.add_argument(
-        "--scenes", type=positive_int, help="target-selection scenes per road (generated roads)"
+        "--scenes",
+        type=positive_int,
+        help="target-selection scenes per road, generated roads only (default: 200; 50 with "
+        "--quick)",
     )
-    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parser.add_argument(
+        "--no-progress",
+        action="store_true",
+        help="no progress bar (there is none either when the output is not a terminal)",
+    )
     parser.set_defaults(func=run)
     return parser
+
+
+CONSOLE_COLUMNS: dict[str, str] = {
+    "marking_model": "model",
+    "detector": "detector",
+    "departures_per_km": "dep/km",
+    "rms_offset_m": "rms off",
+    "max_offset_m": "max off",
+    "both_correct": "both ok",
+    "mean_preview_m": "preview",
+    "collisions": "collisions",
+    "success_rate": "success",
+    "target_accuracy": "target ok",
+}
+"""The closed-loop columns printed (with their short headers); ``compare.csv`` has all
+of :data:`~aldm_gym.agents.comparison.CLOSED_LOOP_COLUMNS`."""
+
+
+def _no_bar(args: argparse.Namespace) -> bool | None:
+    """tqdm's ``disable``: True with ``--no-progress``, else None (tqdm leaves the bar
+    out when stderr is not a terminal, so a log or a pipe gets no ``\\r`` lines)."""
+    return True if args.no_progress else None
 
 
 def _presets() -> list[str]:
@@ -166,8 +202,45 @@ def _describe(settings: dict[str, Any]) -> str:
     return ", ".join(f"{k} {v}" for k, v in settings.items())
 
 
+MIN_RADIUS = 500.0
+"""Default smallest curve radius of the generated roads [m]."""
+
+
+def check_applicable(args: argparse.Namespace) -> None:
+    """Arguments that would have no effect in this run are errors, not ignored.
+
+    :raises BadArgument: a generated-road argument with ``--xodr``, a closed-loop
+        argument with ``--no-closed-loop``, or ``--noise``/``--dropout`` and a
+        ``--sensor`` pair setting the same value.
+    """
+    if args.xodr is not None:
+        for flag, value in (("--min-radius", args.min_radius), ("--scenes", args.scenes)):
+            if value is not None:
+                raise BadArgument(flag, "applies to generated roads only, not with --xodr")
+    if args.no_closed_loop:
+        for flag, given in (
+            ("--episodes", args.episodes is not None),
+            ("--trucks", args.trucks is not None),
+            ("--tracking", args.tracking),
+        ):
+            if given:
+                raise BadArgument(flag, "applies to the closed loop, not with --no-closed-loop")
+    pairs = dict(args.sensor)
+    for flag, key, value in (
+        ("--noise", "lateral_noise", args.noise),
+        ("--dropout", "dropout", args.dropout),
+    ):
+        if value is not None and key in pairs:
+            raise BadArgument(flag, f"sets {key}, and so does --sensor {key}=...: give one")
+
+
 def run(args: argparse.Namespace) -> int:
     """``aldm-gym compare``: frame-level comparison, then closed-loop episodes."""
+    check_applicable(args)
+    if args.min_radius is None:
+        args.min_radius = MIN_RADIUS
+    if args.trucks is None:
+        args.trucks = 0.0
     args.sensor_settings = sensor_settings(args)
     if args.xodr is not None:
         from aldm_gym.roads import OpenDriveRoad
@@ -209,7 +282,7 @@ def _compare_frames(args: argparse.Namespace, out: Path) -> list[Path]:
     roads = [r.with_marking_model(m) for m in MARKING_MODELS for r in base]
     t0 = time.perf_counter()
     with tqdm(
-        total=len(roads) * n_frames, desc="frames", unit="frame", disable=args.no_progress
+        total=len(roads) * n_frames, desc="frames", unit="frame", disable=_no_bar(args)
     ) as bar:
         rows = compare_detectors(
             roads, frames_per_road=n_frames, sensor=sensor, seed=args.seed, progress=bar.update
@@ -320,7 +393,7 @@ def _compare_closed_loop(args: argparse.Namespace, out: Path) -> list[Path]:
     traffic = {"truck_share": args.trucks} if args.trucks else None
     t0 = time.perf_counter()
     total = len(MARKING_MODELS) * len(detectors) * 2 * n_ep
-    with tqdm(total=total, desc="episodes", unit="ep", disable=args.no_progress) as bar:
+    with tqdm(total=total, desc="episodes", unit="ep", disable=_no_bar(args)) as bar:
         rows, traces = compare_closed_loop(
             seeds,
             detectors=detectors,
@@ -332,10 +405,14 @@ def _compare_closed_loop(args: argparse.Namespace, out: Path) -> list[Path]:
         )
     write_csv(out / "compare.csv", rows, CLOSED_LOOP_COLUMNS)
     print("Closed loop (LKA with IDLE and the rule-based LCA, same seeds):")
-    print(format_table(rows, CLOSED_LOOP_COLUMNS))
+    print(format_table(rows, list(CONSOLE_COLUMNS), CONSOLE_COLUMNS))
     print(
-        f"{n_ep} episodes per policy and row, {time.perf_counter() - t0:.1f} s. Offsets exclude "
-        "lane changes; a departure is a wheel over a marking without a lane change.\n"
+        f"{n_ep} seeds × 2 policies per row, {time.perf_counter() - t0:.1f} s. dep/km: a "
+        "wheel over a marking without a lane change, per km; rms/max offset from the lane "
+        "centre [m] without lane changes; both ok: share of steps with both ego lines "
+        "correct; preview [m]; success: episodes without collision or departure; target "
+        f"ok: the ACC's target right. All {len(CLOSED_LOOP_COLUMNS)} columns: "
+        f"{out / 'compare.csv'}\n"
     )
     plot_offsets(traces, out / "offset.png", crashed=_crashed(traces, args))
     written = [out / "compare.csv", out / "offset.png"]
@@ -398,7 +475,7 @@ def _compare_targets(args: argparse.Namespace, out: Path) -> list[Path]:
     seeds = [args.seed + i for i in range(n_roads)]
     t0 = time.perf_counter()
     total = n_roads * per_road * len(MARKING_MODELS) * len(DETECTORS)
-    with tqdm(total=total, desc="target scenes", unit="scene", disable=args.no_progress) as bar:
+    with tqdm(total=total, desc="target scenes", unit="scene", disable=_no_bar(args)) as bar:
         rows, curves = compare_target_selection(seeds, per_road, progress=bar.update)
     write_csv(out / "compare_targets.csv", rows, TARGET_COLUMNS)
     print("ACC target selection (curves R 500-1500 m, one vehicle ahead per scene):")

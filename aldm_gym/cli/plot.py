@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from aldm_gym.cli.argtypes import BadArgument, existing_file, finite_float, image_file, seed
+from aldm_gym.cli.argtypes import BadArgument, finite_float, image_file, seed, xodr_file
 from aldm_gym.roads.highway import MARKING_MODELS
 
 CURVE_AHEAD = 80.0
@@ -26,24 +26,41 @@ CURVE_AHEAD = 80.0
 def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     """Declare ``aldm-gym plot`` and its arguments."""
     parser = subparsers.add_parser("plot", help="draw one frame with naive and ALDM detections")
-    parser.add_argument("--seed", type=seed, default=0, help="road seed")
+    parser.add_argument("--seed", type=seed, help="generated road: its seed (default: 0)")
     parser.add_argument(
         "--s", type=finite_float, default=None, help="arc length of the car [m] (default 1000)"
     )
-    parser.add_argument("--lane", type=int, default=1, help="lane id (0 = leftmost)")
+    parser.add_argument(
+        "--lane", type=int, help="generated road: the car's lane, 0 = leftmost (default: 1)"
+    )
     parser.add_argument(
         "--shift", type=finite_float, default=0.0, help="left shift in the lane [m]"
     )
     parser.add_argument(
-        "--marking-model", choices=MARKING_MODELS, default="per_dash", help="road model"
+        "--marking-model",
+        choices=MARKING_MODELS,
+        default="per_dash",
+        help="road model",
     )
     parser.add_argument(
-        "--xodr", type=existing_file, help="an OpenDRIVE map instead of a generated road"
+        "--xodr",
+        type=xodr_file,
+        help="an OpenDRIVE map instead of a generated road: a path, or the name of a "
+        "shipped map (bridges, features, motorway, two_plus_one)",
     )
-    parser.add_argument("--road-id", help="map: the OpenDRIVE road id of the car's lane")
-    parser.add_argument("--lane-id", type=int, default=-1, help="map: the OpenDRIVE lane id")
     parser.add_argument(
-        "--out", type=image_file, default=Path("out/frame.png"), help="image path (.png, .pdf, ...)"
+        "--road-id",
+        help="map: the OpenDRIVE road id of the car's lane (with --s; default: the map's "
+        "most curved lane)",
+    )
+    parser.add_argument(
+        "--lane-id", type=int, help="map, with --road-id: the OpenDRIVE lane id (default: -1)"
+    )
+    parser.add_argument(
+        "--out",
+        type=image_file,
+        default=Path("out/frame.png"),
+        help="image path (.png, .pdf, ...)",
     )
     parser.set_defaults(func=run)
     return parser
@@ -55,6 +72,7 @@ def run(args: argparse.Namespace) -> int:
     from aldm_gym.sensor.detectors import make_detector
     from aldm_gym.sensor.plot import plot_frames
 
+    _check_applicable(args)
     if args.xodr is not None:
         road, pose, lane, where = _map_pose(args)
         title = f"{args.marking_model} map {args.xodr.name}, {where}"
@@ -74,6 +92,29 @@ def run(args: argparse.Namespace) -> int:
         raise BadArgument("--out", f"cannot write {args.out}: {exc.strerror or exc}") from None
     print(f"wrote {args.out}")
     return 0
+
+
+def _check_applicable(args: argparse.Namespace) -> None:
+    """Arguments of the other road source are errors, not ignored; then the defaults.
+
+    :raises BadArgument: ``--road-id``/``--lane-id`` without ``--xodr``, ``--lane-id``
+        without ``--road-id``, or ``--seed``/``--lane`` with ``--xodr``.
+    """
+    if args.xodr is None:
+        for flag, value in (("--road-id", args.road_id), ("--lane-id", args.lane_id)):
+            if value is not None:
+                raise BadArgument(flag, "applies to --xodr maps only")
+    else:
+        for flag, value in (("--seed", args.seed), ("--lane", args.lane)):
+            if value is not None:
+                raise BadArgument(
+                    flag, "applies to generated roads only; on a map use --road-id/--lane-id"
+                )
+        if args.lane_id is not None and args.road_id is None:
+            raise BadArgument("--lane-id", "needs --road-id (and --s)")
+    args.seed = 0 if args.seed is None else args.seed
+    args.lane = 1 if args.lane is None else args.lane
+    args.lane_id = -1 if args.lane_id is None else args.lane_id
 
 
 def _generated_pose(args: argparse.Namespace) -> tuple[Any, tuple[float, float, float], int]:

@@ -17,12 +17,14 @@ from aldm_gym.roads.highway import (
 from aldm_gym.roads.lane import ReferenceLane
 from aldm_gym.roads.map_road import OpenDriveRoad
 from aldm_gym.roads.markings import Marking, MarkingRole, MarkingType
+from aldm_gym.roads.opendrive.parse import SHIPPED_MAPS, shipped_map
 from aldm_gym.roads.polyline import MarkingCurve, PolylineMarkings, PolylineRoad
 
 __all__ = [
     "EDGE",
     "MARKING_MODELS",
     "MIN_RADIUS_BY_SPEED",
+    "SHIPPED_MAPS",
     "HighwayRoad",
     "Marking",
     "MarkingCurve",
@@ -37,4 +39,5 @@ __all__ = [
     "Segment",
     "curvature_profile",
     "generate_highway",
+    "shipped_map",
 ]

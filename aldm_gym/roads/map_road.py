@@ -35,6 +35,7 @@ import numpy as np
 from aldm_gym.roads.cache import LRUCache
 from aldm_gym.roads.opendrive import OpenDriveMap
 from aldm_gym.roads.opendrive.map import LaneKey, LaneRecord
+from aldm_gym.roads.opendrive.parse import not_found
 from aldm_gym.roads.polyline import MarkingCurve, PolylineMarkings, PolylineRoad
 from aldm_gym.roads.position import LanePosition, world_point
 from aldm_gym.types import FloatArray
@@ -77,7 +78,7 @@ def load_map(path: str | os.PathLike[str], **options: Any) -> OpenDriveMap:
         with open(path, "rb") as fh:
             digest = hashlib.sha256(fh.read()).hexdigest()
     except FileNotFoundError:
-        raise FileNotFoundError(f"OpenDRIVE file not found: {os.fspath(path)!r}") from None
+        raise not_found(path) from None
     key = (digest, tuple(sorted((k, repr(v)) for k, v in options.items())))
     return _MAPS.get(key, lambda: OpenDriveMap.from_file(path, **options))
 

@@ -9,11 +9,17 @@ from __future__ import annotations
 from aldm_gym.roads.opendrive.geometry import PlanView
 from aldm_gym.roads.opendrive.map import DEFAULT_SAMPLE_STEP, LaneKey, LaneRecord, OpenDriveMap
 from aldm_gym.roads.opendrive.marks import DEFAULT_BROKEN_PATTERN, MarkingLine
-from aldm_gym.roads.opendrive.parse import OpenDriveFile, parse_file
+from aldm_gym.roads.opendrive.parse import (
+    SHIPPED_MAPS,
+    OpenDriveFile,
+    parse_file,
+    shipped_map,
+)
 
 __all__ = [
     "DEFAULT_BROKEN_PATTERN",
     "DEFAULT_SAMPLE_STEP",
+    "SHIPPED_MAPS",
     "LaneKey",
     "LaneRecord",
     "MarkingLine",
@@ -21,4 +27,5 @@ __all__ = [
     "OpenDriveMap",
     "PlanView",
     "parse_file",
+    "shipped_map",
 ]

@@ -54,6 +54,39 @@ ROAD_MARK_COLOURS = (
 )
 """``roadMark/@color`` values of ASAM OpenDRIVE 1.4-1.8 (``standard`` is white)."""
 
+MAPS_DIR = Path(__file__).resolve().parents[1] / "maps"
+"""The folder of the example maps that ship inside the package."""
+
+SHIPPED_MAPS: tuple[str, ...] = ("bridges", "features", "motorway", "two_plus_one")
+"""Names of the shipped example maps (``docs/roads.md``, "Example maps")."""
+
+
+def shipped_map(name: str) -> Path:
+    """The absolute path of a shipped example map, from any working directory.
+
+    :param name: one of :data:`SHIPPED_MAPS`, with or without ``.xodr``.
+    :raises ValueError: not a shipped map (naming the shipped ones).
+    """
+    stem = str(name).removesuffix(".xodr")
+    if stem not in SHIPPED_MAPS:
+        raise ValueError(f"no shipped map {name!r}; shipped maps: {list(SHIPPED_MAPS)}")
+    return MAPS_DIR / f"{stem}.xodr"
+
+
+def not_found(path: str | os.PathLike[str]) -> FileNotFoundError:
+    """The error for a missing OpenDRIVE file; when its file name is a shipped map's,
+    the message says where that map is (a relative path from the clone's README read
+    in another folder)."""
+    name = os.fspath(path)
+    message = f"OpenDRIVE file not found: {name!r}"
+    stem = Path(name).name.removesuffix(".xodr")
+    if stem in SHIPPED_MAPS:
+        message += (
+            f" (relative to {os.getcwd()!r}); the shipped map {stem!r} is "
+            f"{str(shipped_map(stem))!r}, also aldm_gym.roads.shipped_map({stem!r})"
+        )
+    return FileNotFoundError(message)
+
 
 @dataclass(frozen=True)
 class Header:
@@ -728,7 +761,7 @@ def parse_file(path: str | os.PathLike[str], *, warn: bool = True) -> OpenDriveF
     """
     name = os.fspath(path)
     if not Path(name).is_file():
-        raise FileNotFoundError(f"OpenDRIVE file not found: {name}")
+        raise not_found(name)
     try:
         root = etree.parse(name, etree.XMLParser(remove_blank_text=True)).getroot()
     except etree.XMLSyntaxError as exc:
