@@ -79,6 +79,10 @@ def plot_offsets(
     models = sorted({m for m, _ in traces}, reverse=True)
     order = list(_TRACES)
     fig, axes = plt.subplots(len(models), 1, figsize=(8, 3.0 * len(models)), squeeze=False)
+    # one symmetric range for all panels, the lane edges always inside it
+    offsets = [np.abs(np.asarray(t)[:, 1]) for t in traces.values() if t]
+    worst = max((float(np.max(o)) for o in offsets), default=0.0)
+    limit = max(2.4, 1.1 * worst)
     for ax, model in zip(axes[:, 0], models, strict=True):
         dets = sorted(
             (d for m, d in traces if m == model and traces[(m, d)]),
@@ -110,8 +114,9 @@ def plot_offsets(
                 )
         for y in (-1.875, 1.875):  # lane edges of the default 3.75 m lane
             ax.axhline(y, color="0.55", lw=0.9, ls=":", zorder=1)
+        ax.set_ylim(-limit, limit)
         ax.set_title(f"{model} road: LKA (IDLE), first episode", fontsize=11)
-        ax.set_ylabel("lateral offset [m]", fontsize=10)
+        ax.set_ylabel("lateral offset [m], left +", fontsize=10)
         ax.tick_params(labelsize=9)
         ax.grid(alpha=0.3)
         ax.legend(fontsize=9, loc="center left", bbox_to_anchor=(1.01, 0.5), frameon=False)
@@ -135,6 +140,8 @@ def plot_target_selection(
     matplotlib.use("Agg", force=False)
     import matplotlib.pyplot as plt
 
+    from aldm_gym.agents.target_comparison import CUT_IN_RANGE
+
     centres = 0.5 * (np.asarray(edges[:-1]) + np.asarray(edges[1:]))
     fig, axes = plt.subplots(1, 2, figsize=(10, 4), sharey=True)
     models = sorted({m for m, _ in curves}, key=lambda m: m != "per_dash")
@@ -145,8 +152,15 @@ def plot_target_selection(
             style = dict(_TRACES.get(det, {"color": "grey", "label": det}))
             style.pop("alpha", None)
             ax.plot(centres, 100.0 * np.asarray(acc), marker="o", **style)
+        ax.axvspan(*CUT_IN_RANGE, color="0.9", zorder=0)
+        ax.text(
+            0.5 * sum(CUT_IN_RANGE), 2, "cut-ins", ha="center", va="bottom", fontsize=9, color="0.3"
+        )
+        ax.text(
+            CUT_IN_RANGE[1] + 3, 2, "in the ego or a\nneighbouring lane", fontsize=9, color="0.3"
+        )
         ax.set_title(f"{model} road")
-        ax.set_xlabel("distance of the vehicle ahead [m]")
+        ax.set_xlabel("distance of the vehicle ahead [m] (grey: cut-in scenes)")
         ax.set_ylim(-5, 105)
         ax.grid(alpha=0.3)
     axes[0].set_ylabel("target selection correct [%]")

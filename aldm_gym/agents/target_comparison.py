@@ -37,6 +37,11 @@ from aldm_gym.sensor.line_sensor import LineSensor
 SCENE_KINDS: tuple[str, ...] = ("ego_lane", "adjacent", "cut_in")
 """The scene kinds (module docstring)."""
 
+CUT_IN_RANGE: tuple[float, float] = (20.0, 60.0)
+"""Distance of a cutting-in vehicle ahead [m] (the other scene kinds: :data:`FAR_RANGE`)."""
+FAR_RANGE: tuple[float, float] = (60.0, 150.0)
+"""Distance of a vehicle in the ego or an adjacent lane [m]."""
+
 DISTANCE_BINS: tuple[float, ...] = (20.0, 40.0, 60.0, 80.0, 100.0, 120.0, 150.0)
 """Edges of the distance bins of :func:`accuracy_by_distance` [m]."""
 
@@ -116,7 +121,7 @@ def make_scenes(
             s = float(rng.uniform(250.0, road.length - 450.0))
             kind = SCENE_KINDS[int(rng.integers(len(SCENE_KINDS)))]
             near = kind == "cut_in"
-            d = float(rng.uniform(20.0, 60.0) if near else rng.uniform(60.0, 150.0))
+            d = float(rng.uniform(*CUT_IN_RANGE) if near else rng.uniform(*FAR_RANGE))
             if abs(float(road.curvature_at(s + 0.5 * d))) < 1.0 / (MAX_RADIUS + 1.0):
                 continue  # a straight: not a hard scene
             lane = int(rng.integers(1, road.lanes_count - 1))

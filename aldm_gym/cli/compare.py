@@ -368,7 +368,8 @@ def _plot_naive_failure(road: Any, sensor: Any, n_frames: int, seed: int, out: P
             out / f"frame_{model}.png",
             suptitle=(
                 f"{model} road, seed {seed}, lane {lane}: the comparison's frame where naive "
-                f"errs most on per_dash ({error:.1f} m); points labelled side,index"
+                f"errs most on per_dash (an ego line {error:.1f} m off the true marking); "
+                "points labelled side,index"
             ),
         )
         written.append(out / f"frame_{model}.png")

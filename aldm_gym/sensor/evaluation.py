@@ -132,7 +132,7 @@ COLUMNS: tuple[str, ...] = (
     "mean_abs_error_m",
     "p95_abs_error_m",
     "mean_preview_m",
-    "adjacent_found",
+    "adjacent_correct",
 )
 """Columns of :func:`compare_detectors` rows."""
 
@@ -201,7 +201,7 @@ def compare_detectors(
                 "mean_abs_error_m": float(err.mean()) if len(err) else float("nan"),
                 "p95_abs_error_m": float(np.percentile(err, 95)) if len(err) else float("nan"),
                 "mean_preview_m": float(np.mean(a["preview"])),
-                "adjacent_found": float(np.mean(a["adj"])) if a.get("adj") else float("nan"),
+                "adjacent_correct": float(np.mean(a["adj"])) if a.get("adj") else float("nan"),
             }
         )
     return rows

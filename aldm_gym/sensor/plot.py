@@ -29,6 +29,22 @@ _LINE_STYLE = {
     "right_adjacent": ("tab:olive", "--", 1.6),
 }
 
+POINT_COLOURS = {"left": "0.3", "right": "tab:brown"}
+"""Colours of the sensor points of the left and the right side's line objects (neither
+the trajectory's green nor the red that stands for the naive detector elsewhere)."""
+
+
+def point_handles() -> dict[str, Any]:
+    """Legend entries of the two sides' sensor points and the sensor, by label."""
+    from matplotlib.lines import Line2D
+
+    return {
+        f"points, {side} objects": Line2D(
+            [], [], ls="", marker="+", color=colour, label=f"points, {side} objects"
+        )
+        for side, colour in POINT_COLOURS.items()
+    } | {"sensor": Line2D([], [], ls="", marker="x", color="black", label="sensor")}
+
 
 def draw_frame(
     ax: Axes,
@@ -53,8 +69,8 @@ def draw_frame(
         figure instead, below the panels, off the data).
     """
     for side, lo, hi, colour in (
-        ("left", 0, frame.n_left, "tab:green"),
-        ("right", frame.n_left, frame.n_lines, "tab:red"),
+        ("left", 0, frame.n_left, POINT_COLOURS["left"]),
+        ("right", frame.n_left, frame.n_lines, POINT_COLOURS["right"]),
     ):
         for n in range(lo, hi):
             pts = frame.line_points(n)
@@ -88,7 +104,12 @@ def draw_frame(
     ax.set_ylabel("longitudinal distance x [m]", fontsize=10)
     ax.tick_params(labelsize=9)
     ax.set_ylim(0.0, x_max if x_max is not None else frame.range)
-    ax.set_xlim(15.0, -15.0)
+    # at least ±15 m, wider when the points in view reach farther (a bend)
+    pts = frame.all_points
+    top = x_max if x_max is not None else frame.range
+    seen = pts[(pts[:, 0] >= 0.0) & (pts[:, 0] <= top), 1] if len(pts) else pts[:0, 1]
+    half = max(15.0, float(np.ceil(np.max(np.abs(seen)) + 1.0))) if len(seen) else 15.0
+    ax.set_xlim(half, -half)
     ax.grid(alpha=0.3)
     if title:
         ax.set_title(title, fontsize=11)
@@ -125,17 +146,22 @@ def plot_frames(
     order = [*LINE_NAMES, "trajectory"]
     labels = sorted(handles, key=lambda k: order.index(k) if k in order else len(order))
     if labels:
+        handles.update(point_handles())
+        labels += list(point_handles())
         fig.legend(
             [handles[k] for k in labels],
             labels,
             loc="lower center",
-            ncol=len(labels),
-            fontsize=10,
+            ncol=len(labels) if n > 2 else (len(labels) + 1) // 2,
+            fontsize=9.5,
             frameon=False,
+            handlelength=1.8,
+            columnspacing=1.2,
         )
     if suptitle:
         fig.suptitle(suptitle, fontsize=11)
-    fig.tight_layout(rect=(0.0, 0.04 if labels else 0.0, 1.0, 1.0))
+    bottom = 0.0 if not labels else 0.05 if n > 2 else 0.09
+    fig.tight_layout(rect=(0.0, bottom, 1.0, 1.0))
     if path is not None:
         Path(path).parent.mkdir(parents=True, exist_ok=True)
         fig.savefig(path, dpi=130)
@@ -308,8 +334,7 @@ def plot_conditions_frame(scene: Mapping[str, Any], path: str | Path, *, title: 
         *lines.values(),
         Patch(color="0.35", label="vehicle"),
         Patch(color="0.85", label="its shadow"),
-        Line2D([], [], ls="", marker="+", color="tab:green", label="points, left"),
-        Line2D([], [], ls="", marker="+", color="tab:red", label="points, right"),
+        *point_handles().values(),
         Line2D([], [], ls="", marker="x", color="black", label="clutter (not a marking)"),
     ]
     for legend in list(fig.legends):
