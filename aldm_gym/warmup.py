@@ -137,7 +137,7 @@ def warm_up(parallel: bool | None = None) -> float:
     import aldm_gym  # noqa: F401  (registers the env)
     from aldm_gym import _numba
 
-    _numba._announced = True  # the warm-up says itself that it compiles
+    announced, _numba._announced = _numba._announced, True  # the warm-up says it compiles
     if parallel is None:
         parallel = (os.cpu_count() or 1) >= 2
     start = time.perf_counter()
@@ -149,13 +149,16 @@ def warm_up(parallel: bool | None = None) -> float:
             stderr=subprocess.DEVNULL,  # its errors surface in the serial pass below
         )
     try:
-        _robust_aldm()
-        _tracking()
+        try:
+            _robust_aldm()
+            _tracking()
+        finally:
+            if helper is not None:
+                helper.wait()  # its failure is not fatal: the serial pass compiles it
+        _the_rest()  # from the cache when the helper ran
+        _env_steps(_FINAL_ENVS)
     finally:
-        if helper is not None:
-            helper.wait()  # its failure is not fatal: the serial pass below compiles it
-    _the_rest()  # from the cache when the helper ran
-    _env_steps(_FINAL_ENVS)
+        _numba._announced = announced
     return time.perf_counter() - start
 
 

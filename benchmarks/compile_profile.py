@@ -129,6 +129,8 @@ FRONT_END = (
     "preserve_ir",
     "find_branches",
 )
+"""numba's passes before lowering (bytecode to typed IR); any other pass but
+``native_lowering`` is reported and counted with them."""
 
 
 def main(argv: list[str] | None = None) -> None:

@@ -100,6 +100,7 @@ CASES = [
     ),
     (["plot", "--xodr", "MAP", "--lane", "2", "--out", "DIR/p.png"], "--lane", "generated roads"),
     (["plot", "--xodr", "MAP", "--lane-id", "-2", "--out", "DIR/p.png"], "--lane-id", "--road-id"),
+    (["plot", "--xodr", "MAP", "--s", "120", "--out", "DIR/p.png"], "--s", "needs --road-id"),
     # train (all found before stable-baselines3 is imported)
     (["train", "--out", "FILE"], "--out", "exists and is not a folder"),
     (["train", "--seed", "-1"], "--seed", "must be in [0, 2**31 - 1]"),
@@ -231,7 +232,7 @@ def test_resuming_with_the_other_backend_is_refused(
 
 def test_xodr_takes_a_shipped_map_by_name(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """``--xodr motorway`` (or ``motorway.xodr``) is the shipped map from any folder, but
-    a file of that name in the working folder wins."""
+    a file of the working folder wins (``motorway.xodr`` for the bare name too)."""
     from aldm_gym.cli.argtypes import xodr_file
 
     monkeypatch.chdir(tmp_path)
@@ -239,3 +240,4 @@ def test_xodr_takes_a_shipped_map_by_name(tmp_path: Path, monkeypatch: pytest.Mo
     assert xodr_file("motorway.xodr") == MAP.resolve()
     (tmp_path / "motorway.xodr").write_text("<OpenDRIVE/>")
     assert xodr_file("motorway.xodr") == Path("motorway.xodr")
+    assert xodr_file("motorway") == Path("motorway.xodr")

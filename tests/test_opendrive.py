@@ -225,6 +225,9 @@ def test_shipped_maps_by_name_from_anywhere(tmp_path: Path) -> None:
             load(elsewhere)
         assert str(elsewhere) in str(err.value)
         assert str(shipped_map("motorway")) in str(err.value)
+        assert "relative to" not in str(err.value)  # an absolute path
+    with pytest.raises(FileNotFoundError, match="relative to"):
+        parse_file("no/such/folder/motorway.xodr")
     with pytest.raises(FileNotFoundError) as err:
         parse_file(tmp_path / "nothere.xodr")
     assert "the shipped map" not in str(err.value)

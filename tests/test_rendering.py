@@ -197,3 +197,65 @@ def test_offset_figure_marks_a_collision(tmp_path: Path) -> None:
     assert _crashed(traces, Namespace(xodr="map.xodr")) == {}
     plot_offsets(traces, tmp_path / "offset.png", crashed=crashed)
     assert (tmp_path / "offset.png").stat().st_size > 10_000
+
+
+def test_offset_figure_survives_an_episode_that_leaves_the_map(tmp_path: Path) -> None:
+    """An episode that leaves a map ends in an infinite offset: the figure is still
+    written, with one symmetric range from the finite offsets that keeps the lane
+    edges (±1.875 m) inside."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from aldm_gym.agents.plot import plot_offsets
+
+    traces = {
+        ("editor", "naive"): [(0.0, -math.inf)],
+        ("editor", "aldm"): [(0.0, 0.0), (25.0, 2.9)],
+        ("per_dash", "aldm"): [(0.0, 0.1), (25.0, -0.2)],
+    }
+    seen: list[tuple[float, float]] = []
+    real_savefig = plt.Figure.savefig
+
+    def savefig(fig: plt.Figure, *args: object, **kwargs: object) -> None:
+        seen.extend(ax.get_ylim() for ax in fig.axes)
+        real_savefig(fig, *args, **kwargs)
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(plt.Figure, "savefig", savefig)
+        plot_offsets(traces, tmp_path / "offset.png")
+    assert (tmp_path / "offset.png").stat().st_size > 10_000
+    assert seen == [(-2.9 * 1.1, 2.9 * 1.1)] * 2
+
+
+def test_frame_panels_are_as_wide_as_their_lines(tmp_path: Path) -> None:
+    """The frame figure's lateral range follows the drawn lines (2 m beyond them, at
+    least ±15 m, at most ±40 m), the same for every panel; points alone (a bridge's, a
+    far road's) do not widen it."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from aldm_gym.sensor import LineSensor, detect_lanes
+    from aldm_gym.sensor.detection import LaneDetection
+    from aldm_gym.sensor.plot import plot_frames
+
+    road = HighwayRoad({"seed": 0, "min_radius": 500.0})
+    x, y = road.reference.position(1000.0, road.lane_offset(1))
+    heading = float(road.reference.heading_at(1000.0))
+    frame = LineSensor().measure(road, (float(x), float(y), heading))
+    wide = LaneDetection(ego_left=np.array([[0.0, 1.8], [150.0, 24.3]]))
+    for panels, half in (
+        ({"none": (frame, None)}, 15.0),
+        ({"wide": (frame, wide), "none": (frame, None)}, 27.0),
+    ):
+        fig = plot_frames(panels, None)
+        assert [ax.get_xlim() for ax in fig.axes] == [(half, -half)] * len(panels)
+        plt.close(fig)
+    det = detect_lanes(frame)
+    widest = max(float(np.max(np.abs(det.line(n)[:, 1]))) for n in ("ego_left", "ego_right"))
+    fig = plot_frames({"ALDM": (frame, det)}, None)
+    assert fig.axes[0].get_xlim()[0] >= min(max(15.0, widest + 2.0), 40.0)
+    plt.close(fig)

@@ -80,8 +80,9 @@ def plot_offsets(
     order = list(_TRACES)
     fig, axes = plt.subplots(len(models), 1, figsize=(8, 3.0 * len(models)), squeeze=False)
     # one symmetric range for all panels, the lane edges always inside it
-    offsets = [np.abs(np.asarray(t)[:, 1]) for t in traces.values() if t]
-    worst = max((float(np.max(o)) for o in offsets), default=0.0)
+    # (an episode that leaves a map ends in an infinite offset: not a limit)
+    offsets = [np.abs(np.asarray(t, dtype=float)[:, 1]) for t in traces.values() if t]
+    worst = max((float(np.max(o[np.isfinite(o)], initial=0.0)) for o in offsets), default=0.0)
     limit = max(2.4, 1.1 * worst)
     for ax, model in zip(axes[:, 0], models, strict=True):
         dets = sorted(

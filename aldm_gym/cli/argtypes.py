@@ -217,13 +217,16 @@ def existing_file(text: str) -> Path:
 
 def xodr_file(text: str) -> Path:
     """An OpenDRIVE file that exists, or the name of a shipped example map
-    (``motorway`` or ``motorway.xodr``: :func:`aldm_gym.roads.shipped_map`) when no
-    such file is here."""
+    (``motorway`` or ``motorway.xodr``: :func:`aldm_gym.roads.shipped_map`). A file
+    of the working folder wins: ``motorway`` is ``./motorway`` or ``./motorway.xodr``
+    when either exists, else the shipped map."""
     from aldm_gym.roads.opendrive.parse import SHIPPED_MAPS, not_found, shipped_map
 
     path = Path(text)
     if not path.exists():
         stem = path.name.removesuffix(".xodr")
+        if path.name == text and Path(stem + ".xodr").exists():
+            return existing_file(stem + ".xodr")
         if path.name == text and stem in SHIPPED_MAPS:
             return shipped_map(stem)
         if stem in SHIPPED_MAPS:

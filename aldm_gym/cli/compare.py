@@ -45,6 +45,7 @@ from aldm_gym.cli.argtypes import (
 from aldm_gym.cli.report import format_table, write_csv
 from aldm_gym.config import defaults, rules
 from aldm_gym.roads.highway import RoadConfig
+from aldm_gym.roads.opendrive.parse import SHIPPED_MAPS
 
 
 def min_radius(text: str) -> float:
@@ -70,7 +71,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         "--xodr",
         type=xodr_file,
         help="an OpenDRIVE map to compare on (instead of generated roads): a path, or the "
-        "name of a shipped map (bridges, features, motorway, two_plus_one)",
+        f"name of a shipped map ({', '.join(SHIPPED_MAPS)})",
     )
     parser.add_argument(
         "--frames",

@@ -18,6 +18,7 @@ import numpy as np
 
 from aldm_gym.cli.argtypes import BadArgument, finite_float, image_file, seed, xodr_file
 from aldm_gym.roads.highway import MARKING_MODELS
+from aldm_gym.roads.opendrive.parse import SHIPPED_MAPS
 
 CURVE_AHEAD = 80.0
 """The default pose on a map keeps this much lane chain ahead of the car [m]."""
@@ -46,7 +47,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         "--xodr",
         type=xodr_file,
         help="an OpenDRIVE map instead of a generated road: a path, or the name of a "
-        "shipped map (bridges, features, motorway, two_plus_one)",
+        f"shipped map ({', '.join(SHIPPED_MAPS)})",
     )
     parser.add_argument(
         "--road-id",
@@ -110,8 +111,10 @@ def _check_applicable(args: argparse.Namespace) -> None:
                 raise BadArgument(
                     flag, "applies to generated roads only; on a map use --road-id/--lane-id"
                 )
-        if args.lane_id is not None and args.road_id is None:
-            raise BadArgument("--lane-id", "needs --road-id (and --s)")
+        if args.road_id is None:
+            for flag, value in (("--lane-id", args.lane_id), ("--s", args.s)):
+                if value is not None:
+                    raise BadArgument(flag, "on a map needs --road-id (and --s)")
     args.seed = 0 if args.seed is None else args.seed
     args.lane = 1 if args.lane is None else args.lane
     args.lane_id = -1 if args.lane_id is None else args.lane_id

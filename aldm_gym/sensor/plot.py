@@ -34,16 +34,40 @@ POINT_COLOURS = {"left": "0.3", "right": "tab:brown"}
 the trajectory's green nor the red that stands for the naive detector elsewhere)."""
 
 
-def point_handles() -> dict[str, Any]:
-    """Legend entries of the two sides' sensor points and the sensor, by label."""
+def point_handles(sensor: bool = True) -> dict[str, Any]:
+    """Legend entries of the two sides' sensor points and (``sensor``) of the sensor's
+    own mark, by label."""
     from matplotlib.lines import Line2D
 
-    return {
+    handles = {
         f"points, {side} objects": Line2D(
             [], [], ls="", marker="+", color=colour, label=f"points, {side} objects"
         )
         for side, colour in POINT_COLOURS.items()
-    } | {"sensor": Line2D([], [], ls="", marker="x", color="black", label="sensor")}
+    }
+    if sensor:
+        handles["sensor"] = Line2D([], [], ls="", marker="x", color="black", label="sensor")
+    return handles
+
+
+HALF_WIDTH = (15.0, 40.0)
+"""Lateral half-width of a frame panel [m]: at least the first, wider to show the
+drawn lines in a bend (2 m beyond them), at most the second."""
+
+
+def _half_width(detection: LaneDetection | None) -> float:
+    """The panel's lateral half-width [m] for the lines of ``detection``
+    (:data:`HALF_WIDTH`); points alone do not widen it (a bridge's or a far road's
+    markings would squeeze the lanes into a few pixels)."""
+    lo, hi = HALF_WIDTH
+    if detection is None:
+        return lo
+    ys = [np.abs(detection.line(n)[:, 1]) for n in LINE_NAMES if len(detection.line(n))]
+    if len(detection.trajectory):
+        ys.append(np.abs(detection.trajectory[:, 1]))
+    if not ys:
+        return lo
+    return float(np.clip(np.ceil(max(float(np.max(y)) for y in ys) + 2.0), lo, hi))
 
 
 def draw_frame(
@@ -104,12 +128,7 @@ def draw_frame(
     ax.set_ylabel("longitudinal distance x [m]", fontsize=10)
     ax.tick_params(labelsize=9)
     ax.set_ylim(0.0, x_max if x_max is not None else frame.range)
-    # at least ±15 m, wider when the points in view reach farther (a bend)
-    pts = frame.all_points
-    top = x_max if x_max is not None else frame.range
-    seen = pts[(pts[:, 0] >= 0.0) & (pts[:, 0] <= top), 1] if len(pts) else pts[:0, 1]
-    half = max(15.0, float(np.ceil(np.max(np.abs(seen)) + 1.0))) if len(seen) else 15.0
-    ax.set_xlim(half, -half)
+    ax.set_xlim(_half_width(detection), -_half_width(detection))
     ax.grid(alpha=0.3)
     if title:
         ax.set_title(title, fontsize=11)
@@ -138,6 +157,9 @@ def plot_frames(
     fig, axes = plt.subplots(1, n, figsize=(4.2 * n, 7.4), squeeze=False)
     for ax, (title, (frame, det)) in zip(axes[0], panels.items(), strict=True):
         draw_frame(ax, frame, det, title=title, x_max=x_max, legend=False)
+    half = max(ax.get_xlim()[0] for ax in axes[0])  # one lateral range for all panels
+    for ax in axes[0]:
+        ax.set_xlim(half, -half)
     # One legend for the figure, below the panels: every line kind any panel drew.
     handles: dict[str, Any] = {}
     for ax in axes[0]:
@@ -334,7 +356,7 @@ def plot_conditions_frame(scene: Mapping[str, Any], path: str | Path, *, title: 
         *lines.values(),
         Patch(color="0.35", label="vehicle"),
         Patch(color="0.85", label="its shadow"),
-        *point_handles().values(),
+        *point_handles(sensor=False).values(),
         Line2D([], [], ls="", marker="x", color="black", label="clutter (not a marking)"),
     ]
     for legend in list(fig.legends):

@@ -81,9 +81,11 @@ def not_found(path: str | os.PathLike[str]) -> FileNotFoundError:
     message = f"OpenDRIVE file not found: {name!r}"
     stem = Path(name).name.removesuffix(".xodr")
     if stem in SHIPPED_MAPS:
+        if not Path(name).is_absolute():
+            message += f" (relative to {os.getcwd()!r})"
         message += (
-            f" (relative to {os.getcwd()!r}); the shipped map {stem!r} is "
-            f"{str(shipped_map(stem))!r}, also aldm_gym.roads.shipped_map({stem!r})"
+            f"; the shipped map {stem!r} is {str(shipped_map(stem))!r}, also "
+            f"aldm_gym.roads.shipped_map({stem!r})"
         )
     return FileNotFoundError(message)
 
