@@ -231,7 +231,7 @@ def test_offset_figure_survives_an_episode_that_leaves_the_map(tmp_path: Path) -
 
 def test_frame_panels_are_as_wide_as_their_lines(tmp_path: Path) -> None:
     """The frame figure's lateral range follows the drawn lines (2 m beyond them, at
-    least ±15 m, at most ±40 m), the same for every panel; points alone (a bridge's, a
+    least ±15 m, at most ±30 m), the same for every panel; points alone (a bridge's, a
     far road's) do not widen it."""
     import matplotlib
 
@@ -257,5 +257,5 @@ def test_frame_panels_are_as_wide_as_their_lines(tmp_path: Path) -> None:
     det = detect_lanes(frame)
     widest = max(float(np.max(np.abs(det.line(n)[:, 1]))) for n in ("ego_left", "ego_right"))
     fig = plot_frames({"ALDM": (frame, det)}, None)
-    assert fig.axes[0].get_xlim()[0] >= min(max(15.0, widest + 2.0), 40.0)
+    assert fig.axes[0].get_xlim()[0] >= min(max(15.0, widest + 2.0), 30.0)
     plt.close(fig)

@@ -50,7 +50,7 @@ def point_handles(sensor: bool = True) -> dict[str, Any]:
     return handles
 
 
-HALF_WIDTH = (15.0, 40.0)
+HALF_WIDTH = (15.0, 30.0)
 """Lateral half-width of a frame panel [m]: at least the first, wider to show the
 drawn lines in a bend (2 m beyond them), at most the second."""
 
