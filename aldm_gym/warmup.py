@@ -51,19 +51,18 @@ def _tracking() -> None:
     from aldm_gym.sensor.tracking import EgoMotion, LaneTracker
 
     x = np.arange(0.0, 150.0, 0.5)
+    lines = [np.column_stack([x, np.full_like(x, 3.75 * c)]) for c in (1.5, 0.5, -0.5, -1.5)]
+    every = np.concatenate(lines)
     tracker = LaneTracker()
     for k in range(3):
-        lines = [np.column_stack([x, np.full_like(x, 3.75 * c)]) for c in (1.5, 0.5, -0.5, -1.5)]
-        points = np.concatenate(lines)
-        points = points[(points[:, 0] < 40.0 + 10.0 * k) | (points[:, 0] > 70.0 + 10.0 * k)]
+        points = every[(every[:, 0] < 40.0 + 10.0 * k) | (every[:, 0] > 70.0 + 10.0 * k)]
         tracker.update(points, None if k == 0 else EgoMotion(25.0, 0.0, 0.1))
 
 
 def _the_rest() -> None:
     """Every kernel the robust ALDM does not use: the sensor with noise on a generated
     and a polyline road, paper mode, the naive detector, the env (traffic, observation,
-    ACC) with the naive and ground-truth detectors."""
-    import gymnasium as gym
+    ACC) with the naive and ground-truth detectors, the camera preset and a map."""
     import numpy as np
 
     import aldm_gym  # noqa: F401  (registers the env)
@@ -80,21 +79,19 @@ def _the_rest() -> None:
     xy = np.column_stack([np.arange(0.0, 300.0, 1.0), np.zeros(300)])
     poly = PolylineRoad([MarkingCurve(xy, np.array([[0.0, 6.0], [18.0, 24.0]]))])
     LineSensor().measure(poly, (10.0, 0.0, 0.0))
-    for detector in ("naive", "ground_truth"):
-        env = gym.make("ALDMHighway-v0", config={"detector": detector, "vehicles_count": 5})
-        env.reset(seed=0)
-        env.step(1)
-        env.close()
     _env_steps(_HELPER_ENVS)
 
 
 _HELPER_ENVS: tuple[dict, ...] = (
+    {"detector": "naive", "vehicles_count": 5},
+    {"detector": "ground_truth", "vehicles_count": 5},
     {"detector": "naive", "vehicles_count": 5, "sensor": {"preset": "camera"}},
     {"detector": "naive", "vehicles_count": 5, "road": {"xodr": "motorway"}},
 )
-"""Envs of the README's examples the helper runs (with the naive detector, so that it
-compiles nothing the robust ALDM's process does): the camera preset (occlusion, wear,
-noise, clutter) and a shipped map (``"motorway"`` stands for its path)."""
+"""Envs the helper runs, with detectors that compile nothing the robust ALDM's process
+does: the naive and the ground-truth detector, and with the naive one the README's
+examples, the camera preset (occlusion, wear, noise, clutter) and a shipped map
+(``"motorway"`` stands for its path)."""
 
 _FINAL_ENVS: tuple[dict, ...] = (
     {"detector": "aldm", "vehicles_count": 5},

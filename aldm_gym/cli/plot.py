@@ -98,8 +98,8 @@ def run(args: argparse.Namespace) -> int:
 def _check_applicable(args: argparse.Namespace) -> None:
     """Arguments of the other road source are errors, not ignored; then the defaults.
 
-    :raises BadArgument: ``--road-id``/``--lane-id`` without ``--xodr``, ``--lane-id``
-        without ``--road-id``, or ``--seed``/``--lane`` with ``--xodr``.
+    :raises BadArgument: ``--road-id``/``--lane-id`` without ``--xodr``, ``--seed``/``--lane``
+        with ``--xodr``, or ``--lane-id``/``--s`` on a map without ``--road-id``.
     """
     if args.xodr is None:
         for flag, value in (("--road-id", args.road_id), ("--lane-id", args.lane_id)):

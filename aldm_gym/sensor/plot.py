@@ -128,7 +128,8 @@ def draw_frame(
     ax.set_ylabel("longitudinal distance x [m]", fontsize=10)
     ax.tick_params(labelsize=9)
     ax.set_ylim(0.0, x_max if x_max is not None else frame.range)
-    ax.set_xlim(_half_width(detection), -_half_width(detection))
+    half = _half_width(detection)
+    ax.set_xlim(half, -half)
     ax.grid(alpha=0.3)
     if title:
         ax.set_title(title, fontsize=11)
@@ -168,8 +169,9 @@ def plot_frames(
     order = [*LINE_NAMES, "trajectory"]
     labels = sorted(handles, key=lambda k: order.index(k) if k in order else len(order))
     if labels:
-        handles.update(point_handles())
-        labels += list(point_handles())
+        points = point_handles()
+        handles.update(points)
+        labels += list(points)
         fig.legend(
             [handles[k] for k in labels],
             labels,
