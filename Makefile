@@ -9,7 +9,7 @@ PIP    := $(BIN)/python -m pip
 # pip resolves an unpinned torch to a multi-GB CUDA build.
 TORCH  := torch==2.13.0
 
-.PHONY: demo test test-ray bench lint clean setup setup-dev setup-ray
+.PHONY: demo test test-avx2 test-ray bench lint clean setup setup-dev setup-ray
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -44,6 +44,21 @@ demo: $(VENV)/.stamp-base $(VENV)/.stamp-kernels
 test: $(VENV)/.stamp-dev $(VENV)/.stamp-kernels
 	$(BIN)/ruff check aldm_gym tests benchmarks
 	MPLBACKEND=Agg SDL_VIDEODRIVER=dummy $(BIN)/python -m pytest -n 2 -q
+
+## The suite again on numpy's and OpenBLAS's AVX2 paths. On an AVX-512 CPU numpy's
+## scalar math differs from libm's in last bits and the traffic engine's contract takes
+## its other branch (docs/env.md, "The traffic engine"); this run takes the first one.
+## On a CPU without AVX-512, `make test` already ran those paths.
+AVX2_ENV = $(BIN)/python -c "from aldm_gym.envs.traffic.scalar import avx2_dispatch_env as e; \
+	v = e(); print(' '.join(f'{k}=\'{x}\'' for k, x in v.items()) if v else '')"
+test-avx2: $(VENV)/.stamp-dev $(VENV)/.stamp-kernels
+	@vars="$$($(AVX2_ENV))"; \
+	if [ -z "$$vars" ]; then \
+		echo "no AVX-512 on this CPU: make test ran numpy's AVX2 paths already"; \
+	else \
+		echo "the test suite under $$vars"; \
+		eval "env $$vars MPLBACKEND=Agg SDL_VIDEODRIVER=dummy $(BIN)/python -m pytest -n 2 -q"; \
+	fi
 
 # The [ray] extra in a venv of its own: ray[rllib] pins gymnasium 1.2.2 where the
 # default install resolves the newest, so the package is tested under both.

@@ -107,12 +107,15 @@ _FINAL_ENVS: tuple[dict, ...] = (
 and the ALDM on a shipped map."""
 
 
-def _env_steps(configs: tuple[dict, ...]) -> None:
-    """``gym.make`` + ``reset`` + one ``step`` of each config."""
+def _env_steps(configs: tuple[dict, ...]) -> int:
+    """``gym.make`` + ``reset`` + one ``step`` of each config; the simulation steps the
+    compiled traffic engine ran (its kernels compile on every CPU)."""
     import gymnasium as gym
 
+    from aldm_gym.envs.traffic.compiled import COMPILED
     from aldm_gym.roads import shipped_map
 
+    compiled = 0
     for config in configs:
         road = config.get("road")
         if road is not None:
@@ -120,7 +123,11 @@ def _env_steps(configs: tuple[dict, ...]) -> None:
         env = gym.make("ALDMHighway-v0", config=config)
         env.reset(seed=0)
         env.step(1)
+        engine = env.unwrapped.road.engine
+        if engine is not None:
+            compiled += engine.steps[COMPILED]
         env.close()
+    return compiled
 
 
 def warm_up(parallel: bool | None = None) -> float:

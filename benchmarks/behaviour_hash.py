@@ -11,7 +11,10 @@ Three sha256 digests:
   per-dash and editor, straight and curved roads) — the four lines, and separately
   the trajectories.
 
-Run it before and after a change; equal digests mean bit-identical behaviour.
+Run it before and after a change; equal digests mean bit-identical behaviour. The
+digests are defined per kind of CPU: numpy's scalar math (and so the env's Python paths)
+differs from libm's in last bits on AVX-512 CPUs, so compare digests printed under the
+same first line (the functions that differ; docs/env.md, "The traffic engine").
 
 Run: ``.venv/bin/python -m benchmarks.behaviour_hash [--quick]``
 """
@@ -143,6 +146,10 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--quick", action="store_true", help="fewer episodes and frames")
     args = parser.parse_args(argv)
     episodes, steps, frames = (1, 10, 10) if args.quick else (3, 40, 40)
+    from aldm_gym.envs.traffic import scalar
+
+    differ = [name for name, same in scalar.NUMPY_AGREES_WITH_LIBM.items() if not same]
+    print(f"numpy differs from libm in: {', '.join(differ) or 'nothing'}")
     lines, trajectories = detect_digest(frames)
     print(f"lines  {lines}  ({frames} poses x 3 roads x 2 models x 3 noises x 4 detectors)")
     print(f"paths  {trajectories}  (the same detections' trajectories)")

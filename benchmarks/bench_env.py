@@ -30,6 +30,7 @@ import time
 from collections.abc import Callable
 
 import gymnasium as gym
+import numpy as np
 
 import aldm_gym  # noqa: F401  (registers ALDMHighway-v0)
 
@@ -85,6 +86,48 @@ def steps_per_second(
     return steps / elapsed
 
 
+def _cpu_model() -> str:
+    """The CPU's model name (Linux), else the platform's processor string."""
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8") as info:
+            for line in info:
+                if line.startswith("model name"):
+                    return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or "unknown CPU"
+
+
+def _numerics_line() -> str:
+    """The CPU, numpy's SIMD dispatch and which elementary functions agree with libm."""
+    from aldm_gym.envs.traffic import scalar
+
+    simd = scalar.numpy_simd_features()
+    differ = [name for name, same in scalar.NUMPY_AGREES_WITH_LIBM.items() if not same]
+    disabled = f" (disabled: {' '.join(simd['disabled'])})" if simd["disabled"] else ""
+    blas = os.environ.get("OPENBLAS_CORETYPE")
+    return (
+        f"CPU: {_cpu_model()}; numpy {np.__version__} SIMD found: "
+        f"{' '.join(simd['found']) or 'baseline only'}{disabled}"
+        + (f"; OPENBLAS_CORETYPE={blas}" if blas else "")
+        + "; numpy differs from libm in: "
+        + (", ".join(differ) if differ else "nothing (engine = Python path bit for bit)")
+    )
+
+
+def _engine_line(env: gym.Env) -> str:
+    """Which traffic engine ran the ALDM env's simulation steps (and why not, if not)."""
+    engine = env.unwrapped.road.engine
+    if engine is None:
+        return "traffic engine: python (not configured)"
+    from aldm_gym.envs.traffic.compiled import COMPILED
+
+    total = sum(engine.steps.values())
+    parts = [f"compiled {engine.steps[COMPILED]}/{total} simulation steps"]
+    parts += [f"Python ({reason}) {n}" for reason, n in engine.steps.items() if reason != COMPILED]
+    return "traffic engine: " + ", ".join(parts)
+
+
 def main() -> None:
     """Run the alternating benchmark and print a Markdown table."""
     parser = argparse.ArgumentParser(description=__doc__)
@@ -108,8 +151,10 @@ def main() -> None:
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     print(
         f"machine: {platform.machine()}, nproc={os.cpu_count()}, "
-        f"Python {platform.python_version()}, load average {load:.1f}, {args.clock} clock\n"
+        f"Python {platform.python_version()}, load average {load:.1f}, {args.clock} clock"
     )
+    print(_numerics_line())
+    print(_engine_line(envs["ALDMHighway-v0 (20 veh)"]) + "\n")
     print("| env | median steps/s | rounds |")
     print("|---|---|---|")
     for name, v in rates.items():
@@ -117,7 +162,16 @@ def main() -> None:
     hf = med["highway-fast-v0 (20 veh)"]
     a20 = med["ALDMHighway-v0 (20 veh)"]
     a40 = med["ALDMHighway-v0 (40 veh)"]
-    print(f"\nspeed-up ALDMHighway-v0 / highway-fast-v0 (20 veh): {a20 / hf:.2f}x (target >= 8x)")
+    paired_speedup = statistics.median(
+        a / h
+        for a, h in zip(
+            rates["ALDMHighway-v0 (20 veh)"], rates["highway-fast-v0 (20 veh)"], strict=True
+        )
+    )
+    print(
+        f"\nspeed-up ALDMHighway-v0 / highway-fast-v0 (20 veh): {a20 / hf:.2f}x, "
+        f"median of per-round ratios {paired_speedup:.2f}x (target >= 8x)"
+    )
     print(f"cost ratio ALDMHighway-v0 40 / 20 vehicles: {a20 / a40:.2f}x (target <= 2.1x)")
     off = rates[ACC_OFF_ENV]
     paired_acc = statistics.median(

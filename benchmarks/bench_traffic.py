@@ -33,7 +33,7 @@ import gymnasium as gym
 import highway_env  # noqa: F401  (registers highway-v0 / highway-fast-v0)
 import numpy as np
 
-from aldm_gym.envs.traffic import FAST_MATH_MATCHES_NUMPY, use_fast_road
+from aldm_gym.envs.traffic import LIBM_MATCHES_NUMPY, use_fast_road
 
 IDLE = 1
 """``DiscreteMetaAction`` index of IDLE."""
@@ -139,7 +139,7 @@ def machine_note() -> str:
         + f", nproc={usable} (cpu_count={cores}), load avg={_load_average()}"
         + f", Python {platform.python_version()}, numpy {np.__version__}"
         + f", highway-env {_version('highway-env')}, gymnasium {gym.__version__}"
-        + f", math-matches-numpy={FAST_MATH_MATCHES_NUMPY}"
+        + f", libm-matches-numpy={LIBM_MATCHES_NUMPY}"
     )
 
 

@@ -37,3 +37,10 @@ def test_serial_flag_runs_without_a_helper(
         warmup.main()
         assert seen[-1] is expected
     assert "kernels ready in 1 s" in capsys.readouterr().out
+
+
+def test_the_warm_up_runs_the_compiled_traffic_engine() -> None:
+    """The warm-up's envs step the traffic in the compiled engine on every CPU, so its
+    kernels are in the cache before a test worker or a progress bar needs them."""
+    assert warmup._env_steps(warmup._HELPER_ENVS[:1]) == 10  # one env step, 10 simulation steps
+    assert warmup._env_steps(warmup._FINAL_ENVS[:1]) == 10

@@ -7,7 +7,8 @@ keeps the exact answers (checked bit for bit in ``tests/test_traffic.py``) and r
 that work. One job per module:
 
 - :mod:`~aldm_gym.envs.traffic.scalar` -- scalar float math with numpy's results
-  (``clip_scalar``, ``power_scalar``, ``sin_scalar``, ...).
+  (``clip_scalar``, ``power_scalar``, ``sin_scalar``, ...) and the probe of where numpy
+  agrees with libm (``NUMPY_AGREES_WITH_LIBM``).
 - :mod:`~aldm_gym.envs.traffic.straight_lanes` -- plain ``StraightLane`` constants as
   floats, cached per lane.
 - :mod:`~aldm_gym.envs.traffic.network` -- :class:`FastRoadNetwork`, the closest-lane
@@ -46,7 +47,7 @@ from __future__ import annotations
 from aldm_gym.envs.traffic.network import FastRoadNetwork
 from aldm_gym.envs.traffic.patch import use_fast_road
 from aldm_gym.envs.traffic.road import FastRoad
-from aldm_gym.envs.traffic.scalar import FAST_MATH_MATCHES_NUMPY, clip_scalar
+from aldm_gym.envs.traffic.scalar import FAST_MATH_MATCHES_NUMPY, LIBM_MATCHES_NUMPY, clip_scalar
 from aldm_gym.envs.traffic.vehicles import (
     BatchedLaneUpdate,
     FastBicycleStep,
@@ -56,6 +57,7 @@ from aldm_gym.envs.traffic.vehicles import (
 
 __all__ = [
     "FAST_MATH_MATCHES_NUMPY",
+    "LIBM_MATCHES_NUMPY",
     "BatchedLaneUpdate",
     "FastBicycleStep",
     "FastControlledVehicle",

@@ -14,10 +14,16 @@ may collide in a third (:func:`~aldm_gym.envs.traffic.kernels.collision_pairs`; 
 vehicle objects, so everything else (the ego, the sensor, observations,
 collisions, rendering) sees highway-env's vehicles as before.
 
-The kernels repeat highway-env's operations in the same order, so the episode is the
-same bit for bit as with the Python path (``traffic.engine = "python"``; checked on
-whole episodes in ``tests/test_traffic_compiled.py``). A step runs on the Python path
-whenever the engine cannot promise that, decided per simulation step:
+The kernels repeat highway-env's operations in the same order with libm's elementary
+functions, so the episode is the same bit for bit as with the Python path
+(``traffic.engine = "python"``) wherever numpy's scalar math agrees with libm
+(:data:`~aldm_gym.envs.traffic.scalar.LIBM_MATCHES_NUMPY`), and the same bit for bit
+as the Python path computed with libm's functions on every CPU; where numpy differs by
+last bits the two engines agree to rounding over short horizons and statistically
+(docs/env.md, "The traffic engine"; ``tests/test_traffic_compiled.py`` checks all
+three). A step runs on the Python path whenever the engine cannot run it, decided per
+simulation step (the reason is counted in :attr:`CompiledTraffic.steps`, and a whole
+env step on the Python path is warned about once per reason):
 
 - the network must be the road's own one-edge network, with no road objects, no
   trajectory recording and no search across connected lanes;
@@ -43,6 +49,8 @@ the Python path. Code that changes vehicles *during* a block (between ``road.act
 
 from __future__ import annotations
 
+import warnings
+from collections import Counter
 from collections.abc import Iterator
 from contextlib import contextmanager
 from functools import cache
@@ -58,7 +66,7 @@ from highway_env.vehicle.objects import RoadObject
 
 from aldm_gym.envs.traffic import kernels as K
 from aldm_gym.envs.traffic.collisions import _uses_base_box, resolve_collisions
-from aldm_gym.envs.traffic.scalar import _NUMPY_POWER_SPECIAL, FAST_MATH_MATCHES_NUMPY
+from aldm_gym.envs.traffic.scalar import _NUMPY_POWER_SPECIAL
 from aldm_gym.envs.traffic.vehicles import (
     STEPS_ENDING_WITH_UPDATE,
     BatchedLaneUpdate,
@@ -67,10 +75,22 @@ from aldm_gym.envs.traffic.vehicles import (
     _uses_base_kinematics,
 )
 
-__all__ = ["ENGINES", "CompiledTraffic"]
+__all__ = ["COMPILED", "ENGINES", "CompiledTraffic"]
 
 ENGINES = ("compiled", "python")
 """Values of the env's ``traffic.engine`` setting."""
+
+COMPILED = "compiled"
+"""The key of :attr:`CompiledTraffic.steps` counting the steps the kernels decided."""
+
+_OFF_LANES = (
+    "a vehicle is off the highway's lanes, its position is not a float64 pair or its "
+    "IDM constants make the desired gap's square root fail"
+)
+_NOT_FINITE = "a vehicle's position is not finite"
+
+_WARNED: set[str] = set()
+"""Reasons already warned about in this process (:meth:`CompiledTraffic.holding`)."""
 
 _COORD_LIMIT = 1e12
 """Largest coordinate [m] the compiled projection takes (its int64 cell keys)."""
@@ -198,6 +218,11 @@ class CompiledTraffic:
         self._first = 0
         self._params: tuple[int, list[tuple[float, ...]]] | None = None
         self._boxes = False
+        self.declined: str | None = None
+        """Why the last declined step ran on the Python path."""
+        self.steps: Counter[str] = Counter()
+        """Simulation steps decided so far: ``steps[COMPILED]`` by the kernels, and per
+        reason (a sentence) those that ran on the Python path."""
 
     def _tabulate_lanes(self) -> bool:
         """(Re)build the lane arrays when a lane's geometry, speed limit or
@@ -262,45 +287,61 @@ class CompiledTraffic:
         ``f, k, p``, the projection memo and ``dt``."""
 
     # ----------------------------------------------------------------- eligibility
-    def _road_ok(self, road: Road) -> bool:
-        """The road-level conditions of the module docstring."""
+    def _road_ok(self, road: Road) -> str | None:
+        """The road-level conditions of the module docstring: None when they hold, else
+        the reason the step runs on the Python path."""
         graph = road.network.graph
-        return (
-            road.network is self.network
-            and not road.objects
-            and not getattr(road, "_record_history", True)
-            and not road.neighbour_vehicles_connected_lanes
-            and len(graph) == 1
+        if road.network is not self.network:
+            return "the road's network is not the generated highway's"
+        if road.objects:
+            return "road objects (obstacles, landmarks) are on the road"
+        if getattr(road, "_record_history", True):
+            return "the road records trajectories (record_history)"
+        if road.neighbour_vehicles_connected_lanes:
+            return "neighbours are searched across connected lanes"
+        if not (
+            len(graph) == 1
             and len(graph.get(self.edge[0], {})) == 1
             and len(graph[self.edge[0]].get(self.edge[1], ())) == len(self.lanes)
             and all(map(is_, graph[self.edge[0]][self.edge[1]], self.lanes))
-            and FAST_MATH_MATCHES_NUMPY
-        )
+        ):
+            return "the network has lanes other than the generated highway's"
+        return None
 
     def _split(self, road: Road) -> int | None:
         """Index of the first compiled vehicle in ``road.vehicles`` (every later one is
-        compiled, every earlier one is not), or None if this step must run in Python."""
-        if not self._road_ok(road):
-            return None
+        compiled, every earlier one is not), or None if this step must run in Python
+        (the reason is left in :attr:`declined`)."""
+        reason = self._road_ok(road)
+        if reason is not None:
+            return self._decline(reason)
         vehicles = road.vehicles
         types = list(map(type, vehicles))
         try:
             first = types.index(FastIDMVehicle)
         except ValueError:
-            return None
+            return self._decline("no FastIDMVehicle on the road")
         if types.count(FastIDMVehicle) != len(types) - first:
-            return None  # a Python vehicle after a compiled one
+            return self._decline("a vehicle of another class comes after a FastIDMVehicle")
         kinds = frozenset(types)
         ok = _CLASS_OK.get(kinds)
         if ok is None:
             ok = _CLASS_OK[kinds] = _classes_ok(kinds)
         if not ok[0]:
-            return None
+            return self._decline(
+                "a vehicle class overrides highway-env's kinematics, lane distance or step"
+            )
         compiled = vehicles[first:]
-        if any(map(_ROUTE, compiled)) or not _NUMPY_POWER_SPECIAL.isdisjoint(map(_DELTA, compiled)):
-            return None
+        if any(map(_ROUTE, compiled)):
+            return self._decline("a FastIDMVehicle follows a planned route")
+        if not _NUMPY_POWER_SPECIAL.isdisjoint(map(_DELTA, compiled)):
+            return self._decline("an IDM exponent (DELTA) that numpy special-cases")
         self._boxes = ok[1]
         return first
+
+    def _decline(self, reason: str) -> None:
+        """Record why a step runs on the Python path (for :meth:`act`'s report)."""
+        self.declined = reason
 
     # ----------------------------------------------------------------- state
     def _gather(self, road: Road, first: int) -> bool:
@@ -445,11 +486,29 @@ class CompiledTraffic:
         """
         self._held = True
         self._current = None
+        before = self.steps.copy()
         try:
             yield
         finally:
             self._held = False
             self._current = None
+            self._warn_if_declined(self.steps - before)
+
+    @staticmethod
+    def _warn_if_declined(block: Counter[str]) -> None:
+        """Warn (once per reason and process) when a whole block ran on the Python path."""
+        if block[COMPILED] or not block:
+            return
+        for reason in block:
+            if reason not in _WARNED:
+                _WARNED.add(reason)
+                warnings.warn(
+                    "traffic.engine='compiled': the traffic ran on the Python path for a "
+                    f"whole env step because {reason} (same behaviour, slower; "
+                    "docs/env.md, 'The traffic engine')",
+                    RuntimeWarning,
+                    stacklevel=4,
+                )
 
     def forget(self) -> None:
         """Drop the state gathered by :meth:`act` (call after moving vehicles by hand;
@@ -479,6 +538,7 @@ class CompiledTraffic:
         else:
             split = self._split(road)
             if split is None:
+                self.steps[self.declined or "unknown"] += 1
                 return False
             first = self._first = split
             for v in vehicles[:first]:
@@ -486,6 +546,7 @@ class CompiledTraffic:
             gathered = self._gather(road, first)
         if not gathered:
             # The Python vehicles have acted: the rest act in Python too (same order).
+            self.steps[_OFF_LANES] += 1
             for v in vehicles[first:]:
                 v.act()
             return True
@@ -493,9 +554,11 @@ class CompiledTraffic:
         assert f is not None and k is not None and p is not None
         if not K.traffic_act(f, k, p, self._memo, *self.act_tables):
             # A position not finite (or huge): the rest act in Python (same order).
+            self.steps[_NOT_FINITE] += 1
             for v in vehicles[first:]:
                 v.act()
             return True
+        self.steps[COMPILED] += 1
         steer = f[first:, K.F_STEERING].tolist()
         accel = f[first:, K.F_ACCELERATION].tolist()
         timer = f[first:, K.F_TIMER].tolist()
@@ -504,13 +567,15 @@ class CompiledTraffic:
         indices = self.lane_indices
         # step() moves them from this state (positions do not change in between).
         self._acted = (list(vehicles), first)
-        for n, v in enumerate(vehicles[first:]):
-            if crashed[n]:
+        for v, hit, steering, acceleration, time, lane in zip(
+            vehicles[first:], crashed, steer, accel, timer, target, strict=True
+        ):
+            if hit:
                 continue  # IDMVehicle.act does nothing for a crashed vehicle
-            v.action = {"steering": steer[n], "acceleration": accel[n]}
-            v.timer = timer[n]
-            if v.target_lane_index[2] != target[n]:
-                v.target_lane_index = indices[target[n]]
+            v.action = {"steering": steering, "acceleration": acceleration}
+            v.timer = time
+            if v.target_lane_index[2] != lane:
+                v.target_lane_index = indices[lane]
         return True
 
     def step(self, road: Road, dt: float) -> int | None:
@@ -535,31 +600,37 @@ class CompiledTraffic:
             self._memo = np.full((len(f), 4), np.nan)
         if not K.traffic_step(f, k, p, self._memo, float(dt), *self.step_tables):
             return None  # a position not finite: the Python path (and its errors)
-        rows = f[first:].tolist()
+        # Columns F_X .. F_ACCELERATION, one list per vehicle (a slice: no index array;
+        # unpacked below in the kernels' column order F_X, F_Y, F_HEADING, F_SPEED,
+        # three unused, F_TIMER, F_STEERING, F_ACCELERATION).
+        rows = f[first:, : K.F_ACCELERATION + 1].tolist()
         lane = k[first:, K.K_LANE].tolist()
         crashed = k[first:, K.K_CRASHED].tolist()
         lanes = self.lanes
         indices = self.lane_indices
         limits = self.lane_speed_limit
-        for n, v in enumerate(road.vehicles[first:]):
-            row = rows[n]
+        row_index = first
+        for v, (x, y, heading, speed, *_, timer, steering, acceleration), hit, pending, new in zip(
+            road.vehicles[first:], rows, crashed, impact, lane, strict=True
+        ):
             position = v.position
-            position[0] = row[K.F_X]
-            position[1] = row[K.F_Y]
-            v.heading = row[K.F_HEADING]
-            v.speed = row[K.F_SPEED]
-            v.timer = row[K.F_TIMER]
+            position[0] = x
+            position[1] = y
+            v.heading = heading
+            v.speed = speed
+            v.timer = timer
             action = v.action
-            action["steering"] = row[K.F_STEERING]
-            action["acceleration"] = row[K.F_ACCELERATION]
-            if crashed[n] and not v.crashed:
+            action["steering"] = steering
+            action["acceleration"] = acceleration
+            if hit and not v.crashed:
                 v.crashed = True
-            if impact[n]:
+            if pending:
                 v.impact = None  # applied by the kernel
-            if v.lane_index[2] != lane[n]:
-                v.lane_index = indices[lane[n]]
-                v.lane = lanes[lane[n]]
-                f[first + n, K.F_SPEED_LIMIT] = limits[lane[n]]  # the new lane's
+            if v.lane_index[2] != new:
+                v.lane_index = indices[new]
+                v.lane = lanes[new]
+                f[row_index, K.F_SPEED_LIMIT] = limits[new]  # the new lane's
+            row_index += 1
         return first
 
     def collide(self, road: Road, dt: float, first: int) -> None:

@@ -32,6 +32,7 @@ from aldm_gym.envs.traffic.collisions import resolve_collisions
 from aldm_gym.envs.traffic.compiled import CompiledTraffic
 from aldm_gym.envs.traffic.neighbours import NeighbourCache
 from aldm_gym.envs.traffic.network import FastRoadNetwork
+from aldm_gym.envs.traffic.scalar import PLAIN_DOT_MATCHES_NUMPY
 from aldm_gym.envs.traffic.vehicles import STEPS_ENDING_WITH_UPDATE
 from aldm_gym.types import FloatArray
 
@@ -189,8 +190,14 @@ class FastRoad(Road):
                 return []
             positions = np.array([o.position for o in population], dtype=np.float64)
             delta = positions.reshape(-1, 2) - origin
-            # np.linalg.norm of a length-2 vector is sqrt(x*x + y*y).
+            # np.linalg.norm of a length-2 vector is sqrt(x*x + y*y) where the BLAS dot
+            # is not fused; where it is, the two differ by rounding only, so the few
+            # distances that close to the radius are taken from np.linalg.norm itself.
             dist = np.sqrt(delta[:, 0] * delta[:, 0] + delta[:, 1] * delta[:, 1])
+            if not PLAIN_DOT_MATCHES_NUMPY:
+                close = np.flatnonzero(np.abs(dist - distance) <= 1e-9 * (1.0 + distance))
+                for i in close.tolist():
+                    dist[i] = np.linalg.norm(delta[i])
             return [population[i] for i in np.flatnonzero(dist < distance).tolist()]
 
         vehicles = [

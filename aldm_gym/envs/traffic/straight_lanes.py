@@ -2,7 +2,11 @@
 
 The network's closest-lane search, the neighbour tables and the vehicles' lane
 following take a float-arithmetic fast path on lanes that use ``StraightLane``'s own
-geometry; every other lane class goes through its own methods.
+geometry; every other lane class goes through its own methods. The fast path spells
+``StraightLane.local_coordinates``'s ``np.dot`` as ``a*b + c*d``, which is numpy's
+result only where the BLAS kernel does not fuse it
+(:data:`~aldm_gym.envs.traffic.scalar.PLAIN_DOT_MATCHES_NUMPY`); elsewhere no lane
+takes it.
 """
 
 from __future__ import annotations
@@ -10,6 +14,8 @@ from __future__ import annotations
 import weakref
 
 from highway_env.road.lane import AbstractLane, StraightLane
+
+from aldm_gym.envs.traffic.scalar import PLAIN_DOT_MATCHES_NUMPY
 
 __all__ = ["StraightGeometry", "is_plain_straight", "straight_geometry"]
 
@@ -23,17 +29,19 @@ _STRAIGHT_GEOMETRY: dict[int, tuple[weakref.ref[AbstractLane], StraightGeometry]
 
 
 def is_plain_straight(lane: AbstractLane) -> bool:
-    """Whether ``lane`` uses ``StraightLane``'s own geometry (no overridden methods)."""
-    return type(lane) is StraightLane
+    """Whether ``lane`` uses ``StraightLane``'s own geometry (no overridden methods) and
+    the float fast path gives its results here (module docstring)."""
+    return PLAIN_DOT_MATCHES_NUMPY and type(lane) is StraightLane
 
 
 def straight_geometry(lane: AbstractLane) -> StraightGeometry | None:
     """The :data:`StraightGeometry` of a plain StraightLane.
 
     None for any other lane class (including StraightLane subclasses, which may
-    override the geometry).
+    override the geometry), and for every lane where the fast path would not give
+    numpy's results (module docstring).
     """
-    if type(lane) is not StraightLane:
+    if not is_plain_straight(lane):
         return None
     key = id(lane)
     entry = _STRAIGHT_GEOMETRY.get(key)

@@ -28,6 +28,7 @@ from highway_env.vehicle.kinematics import Vehicle
 from highway_env.vehicle.objects import RoadObject
 
 from aldm_gym.envs.traffic.scalar import (
+    PLAIN_DOT_MATCHES_NUMPY,
     asin_scalar,
     atan_scalar,
     clip_scalar,
@@ -294,7 +295,12 @@ class FastIDMVehicle(FastControlledVehicle, IDMVehicle):
         # Annotated: mypy does not see type[Any] as Hashable (the cache's argument).
         ego_cls: type = type(ego_vehicle)
         front_cls: type = type(front_vehicle)
-        if projected and not (_uses_base_kinematics(ego_cls) and _uses_base_kinematics(front_cls)):
+        if projected and not (
+            PLAIN_DOT_MATCHES_NUMPY
+            and _uses_base_kinematics(ego_cls)
+            and _uses_base_kinematics(front_cls)
+        ):
+            # highway-env's np.dot, where plain arithmetic would not give its result.
             return float(super().desired_gap(ego_vehicle, front_vehicle, projected))
         d0 = self.DISTANCE_WANTED
         tau = self.TIME_WANTED
