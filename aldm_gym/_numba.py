@@ -40,6 +40,8 @@ import warnings
 from pathlib import Path
 from typing import Any
 
+from aldm_gym.errors import NumbaCacheWarning
+
 PACKAGE = "aldm_gym"
 """Functions of modules under this package are guarded."""
 
@@ -47,10 +49,6 @@ _installed = False
 _warned_no_cache = False
 _announced = False
 _digest: str | None = None
-
-
-class NumbaCacheWarning(UserWarning):
-    """numba's cache of a kernel was unusable; the kernel was (re)compiled."""
 
 
 def _ours(py_func: Any) -> bool:

@@ -33,6 +33,8 @@ from typing import Any, TypeVar
 
 import numpy as np
 
+from aldm_gym.errors import ConfigError
+
 T = TypeVar("T")
 
 Bound = float | str | None
@@ -113,7 +115,7 @@ def check_value(where: str, name: str, value: Any, rule: Rule, obj: Any = None) 
     """Check ``value`` against ``rule``; return it normalised (numpy scalars made plain).
 
     :param obj: the config holding the field, to resolve bounds that name fields.
-    :raises ValueError: naming ``where.name``, what is allowed and what was given.
+    :raises ConfigError: naming ``where.name``, what is allowed and what was given.
     """
     if value is None and rule.optional:
         return None
@@ -126,14 +128,14 @@ def check_value(where: str, name: str, value: Any, rule: Rule, obj: Any = None) 
             return value
         if isinstance(value, np.bool_):
             return bool(value)
-        raise ValueError(f"{where}.{name} must be a bool, got {value!r}")
+        raise ConfigError(f"{where}.{name} must be a bool, got {value!r}")
     if kind == "choice":
         if isinstance(value, str | numbers.Number) and value in rule.choices:
             return _plain(value)
-        raise ValueError(f"{where}.{name} must be one of {list(rule.choices)}, got {value!r}")
+        raise ConfigError(f"{where}.{name} must be one of {list(rule.choices)}, got {value!r}")
     if kind == "str":
         if not isinstance(value, str):
-            raise ValueError(f"{where}.{name} must be a string, got {value!r}")
+            raise ConfigError(f"{where}.{name} must be a string, got {value!r}")
         return value
     if kind == "number":
         value = _plain(value)
@@ -141,20 +143,20 @@ def check_value(where: str, name: str, value: Any, rule: Rule, obj: Any = None) 
         return int(value) if rule.integer else value
     if kind in ("pair", "numbers"):
         if isinstance(value, str | bytes) or not hasattr(value, "__len__"):
-            raise ValueError(f"{where}.{name} must be a sequence of numbers, got {value!r}")
+            raise ConfigError(f"{where}.{name} must be a sequence of numbers, got {value!r}")
         items = [_plain(v) for v in value]
         if kind == "pair" and len(items) != 2:
-            raise ValueError(f"{where}.{name} must be a (min, max) pair, got {value!r}")
+            raise ConfigError(f"{where}.{name} must be a (min, max) pair, got {value!r}")
         if not items:
-            raise ValueError(f"{where}.{name} must be a non-empty list, got {value!r}")
+            raise ConfigError(f"{where}.{name} must be a non-empty list, got {value!r}")
         for k, v in enumerate(items):
             check_range(
                 where, f"{name}[{k}]", v, lo, hi, lo_open=rule.lo_open, integer=rule.integer
             )
         if kind == "pair" and items[1] < items[0]:
-            raise ValueError(f"{where}.{name} must be (min, max) with min <= max, got {value!r}")
+            raise ConfigError(f"{where}.{name} must be (min, max) with min <= max, got {value!r}")
         if rule.increasing and items != sorted(items):
-            raise ValueError(f"{where}.{name} must be increasing, got {value!r}")
+            raise ConfigError(f"{where}.{name} must be increasing, got {value!r}")
         items = [int(v) if rule.integer else float(v) for v in items]
         return tuple(items) if kind == "pair" else items
     raise TypeError(f"unknown rule kind {kind!r} for {where}.{name}")
@@ -168,7 +170,7 @@ def validate(obj: Any, where: str) -> None:
     also on frozen dataclasses.
 
     :param where: the section name for messages (``"road"``, ``"sensor"``, ...).
-    :raises ValueError: naming ``where.key`` and the rule it breaks.
+    :raises ConfigError: naming ``where.key`` and the rule it breaks.
     """
     for f in dataclasses.fields(obj):
         rule = f.metadata.get("rule")
@@ -197,7 +199,7 @@ def build_config(cls: type[T], overrides: Mapping[str, Any] | T | None, *, where
     :param overrides: a mapping of keys to values, an instance of ``cls``, or ``None``.
     :param where: the component's name, used in error messages (e.g. ``"sensor"``).
     :raises TypeError: when ``overrides`` is neither a mapping nor a ``cls``.
-    :raises ValueError: naming the unknown key(s) and the allowed ones.
+    :raises ConfigError: naming the unknown key(s) and the allowed ones.
     """
     if overrides is None:
         return cls()
@@ -210,7 +212,7 @@ def build_config(cls: type[T], overrides: Mapping[str, Any] | T | None, *, where
     allowed = [f.name for f in dataclasses.fields(cls)]  # type: ignore[arg-type]
     unknown = sorted(str(k) for k in overrides if k not in allowed)
     if unknown:
-        raise ValueError(
+        raise ConfigError(
             f"unknown {where} config key(s) {unknown}{close_match(unknown, allowed)}; "
             f"allowed keys: {sorted(allowed)}"
         )
@@ -242,17 +244,17 @@ def check_range(
     :param integer: require an integral value.
     """
     if not is_number(value) or not math.isfinite(float(value)):
-        raise ValueError(f"{where}.{name} must be a finite number, got {value!r}")
+        raise ConfigError(f"{where}.{name} must be a finite number, got {value!r}")
     if integer and float(value) != math.floor(value):
-        raise ValueError(f"{where}.{name} must be an integer, got {value!r}")
+        raise ConfigError(f"{where}.{name} must be an integer, got {value!r}")
     if lo is not None and (value <= lo if lo_open else value < lo):
         op = ">" if lo_open else ">="
-        raise ValueError(f"{where}.{name} must be {op} {lo}, got {value!r}")
+        raise ConfigError(f"{where}.{name} must be {op} {lo}, got {value!r}")
     if hi is not None and value > hi:
-        raise ValueError(f"{where}.{name} must be <= {hi}, got {value!r}")
+        raise ConfigError(f"{where}.{name} must be <= {hi}, got {value!r}")
 
 
 def check_choice(where: str, name: str, value: Any, choices: tuple[Any, ...]) -> None:
     """Raise ``ValueError`` unless ``value`` is one of ``choices``."""
     if value not in choices:
-        raise ValueError(f"{where}.{name} must be one of {list(choices)}, got {value!r}")
+        raise ConfigError(f"{where}.{name} must be one of {list(choices)}, got {value!r}")

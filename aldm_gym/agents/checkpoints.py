@@ -51,6 +51,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from aldm_gym.errors import OutputLocked, TrainingWarning
+
 TRAINING_FILE = "training.json"
 """Metadata written next to the model: env config, detector, hyperparameters."""
 
@@ -83,15 +85,6 @@ TENSORBOARD_DIR = "tb"
 
 _CHECKPOINT_RE = re.compile(r"model_(\d+)_steps\.zip$")
 _TEMP_MARK = ".tmp"
-
-
-class TrainingWarning(UserWarning):
-    """Something in a training's output folder was repaired or skipped (a stale lock,
-    a corrupt checkpoint)."""
-
-
-class OutputLocked(RuntimeError):
-    """Another training holds the output folder's lock."""
 
 
 def checkpoint_paths(out: Path, steps: int) -> tuple[Path, Path]:

@@ -19,6 +19,7 @@ import gymnasium as gym
 from aldm_gym import ENV_ID
 from aldm_gym.agents.evaluation import run_episodes, summarize
 from aldm_gym.agents.policies import IdlePolicy, RuleBasedLCA
+from aldm_gym.errors import ConfigError
 from aldm_gym.roads.highway import MARKING_MODELS
 from aldm_gym.sensor.detectors import DETECTORS
 
@@ -92,11 +93,11 @@ def compare_closed_loop(
         ``(marking model, detector)``.
     """
     if xodr is not None and min_radius is not None:
-        raise ValueError("min_radius applies to generated roads, not to a map (xodr)")
+        raise ConfigError("min_radius applies to generated roads, not to a map (xodr)")
     detectors = list(detectors)
     unknown = [d for d in detectors if d not in DETECTOR_VARIANTS]
     if unknown:
-        raise ValueError(f"unknown detector(s) {unknown}; allowed: {list(DETECTOR_VARIANTS)}")
+        raise ConfigError(f"unknown detector(s) {unknown}; allowed: {list(DETECTOR_VARIANTS)}")
     rows: list[dict[str, Any]] = []
     traces: dict[tuple[str, str], Trace] = {}
     for model in marking_models:

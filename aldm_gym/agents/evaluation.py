@@ -14,6 +14,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from aldm_gym.envs.actions import MetaAction
+from aldm_gym.errors import InputError
 
 
 class Policy(Protocol):
@@ -203,7 +204,7 @@ def summarize(episodes: list[EpisodeStats]) -> dict[str, float]:
         smallest over all episodes).
     """
     if not episodes:
-        raise ValueError("summarize needs at least one episode")
+        raise InputError("summarize needs at least one episode")
     km = sum(e.distance for e in episodes) / 1000.0
     nan = float("nan")
     offsets = np.concatenate([np.asarray(e.offsets, dtype=float) for e in episodes])

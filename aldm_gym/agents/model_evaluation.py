@@ -28,6 +28,7 @@ from typing import Any
 from aldm_gym import ENV_ID
 from aldm_gym.agents.checkpoints import load_policy
 from aldm_gym.agents.training import env_config
+from aldm_gym.errors import ConfigError, InputError
 
 EVALUATION_SEED = 10_000
 """First seed of the evaluation episodes (training envs use ``0 ..``, validation 20000..)."""
@@ -124,7 +125,7 @@ def paired_difference(
     from scipy import stats
 
     if len(a) != len(b) or not a:
-        raise ValueError(f"paired_difference needs equally many values, got {len(a)}, {len(b)}")
+        raise InputError(f"paired_difference needs equally many values, got {len(a)}, {len(b)}")
     d = [x - y for x, y in zip(a, b, strict=True)]
     mean = _mean(d)
     if len(d) < 2:
@@ -161,7 +162,7 @@ def verdict(info: dict[str, Any], baseline: str = "idle") -> str:
     :raises ValueError: an unknown baseline (naming the allowed ones).
     """
     if baseline not in BASELINES:
-        raise ValueError(f"unknown baseline {baseline!r}; allowed: {sorted(BASELINES)}")
+        raise ConfigError(f"unknown baseline {baseline!r}; allowed: {sorted(BASELINES)}")
     name = BASELINES[baseline]
     model, base = info["per_episode"]["model"], info["per_episode"][baseline]
     n = len(model["mean_speed"])

@@ -77,7 +77,6 @@ from aldm_gym.agents.checkpoints import (
     remove_temporary_files,
     write_json,
 )
-from aldm_gym.agents.sb3 import MissingRLDependencies
 from aldm_gym.agents.training import (
     DEFAULT_CHECKPOINT_FREQ,
     DEFAULT_COLLISION_REWARD,
@@ -85,6 +84,7 @@ from aldm_gym.agents.training import (
     PPOParams,
     env_config,
 )
+from aldm_gym.errors import ClusterError, MissingRLDependencies, ResumeError
 
 RLLIB_ENV_ID = f"aldm_gym:{ENV_ID}"
 """The env as RLlib's workers make it: gymnasium imports ``aldm_gym`` first."""
@@ -452,22 +452,6 @@ def train_rllib(
             **run,
         }
         return _train_locked(out, meta, params, address, saved is not None, progress)
-
-
-class ClusterError(ValueError):
-    """No Ray cluster at the address, a token it refuses, or too few CPUs.
-
-    :ivar argument: the command-line flag to blame (``--address`` or
-        ``--num-env-runners``).
-    """
-
-    def __init__(self, message: str, argument: str = "--address") -> None:
-        super().__init__(message)
-        self.argument = argument
-
-
-class ResumeError(ValueError):
-    """What ``--resume`` found in the output folder cannot be resumed by this backend."""
 
 
 class _StopRequest:

@@ -9,9 +9,7 @@ from __future__ import annotations
 
 from typing import Any
 
-
-class MissingRLDependencies(ImportError):
-    """stable-baselines3 or torch is not installed."""
+from aldm_gym.errors import MissingRLDependencies
 
 
 def import_sb3() -> Any:

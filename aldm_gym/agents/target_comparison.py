@@ -30,6 +30,7 @@ import numpy as np
 from aldm_gym.envs.longitudinal import ACCConfig
 from aldm_gym.envs.observation import to_sensor_frame
 from aldm_gym.envs.targets import NO_TARGET, Objects, TargetSelector
+from aldm_gym.errors import ConfigError
 from aldm_gym.roads.highway import MARKING_MODELS, HighwayRoad
 from aldm_gym.sensor.detectors import DETECTORS, make_detector
 from aldm_gym.sensor.line_sensor import LineSensor
@@ -114,7 +115,7 @@ def make_scenes(
     scenes = []
     for k, road in enumerate(roads):
         if road.lanes_count < 3:
-            raise ValueError("target scenes need roads with at least 3 lanes")
+            raise ConfigError("target scenes need roads with at least 3 lanes")
         rng = np.random.default_rng([seed, k])
         w = road.lane_width
         while sum(sc.road == k for sc in scenes) < per_road:

@@ -16,6 +16,7 @@ import numpy as np
 from gymnasium import spaces
 
 from aldm_gym.config import setting, validate
+from aldm_gym.errors import InputError
 
 if TYPE_CHECKING:
     from highway_env.vehicle.kinematics import Vehicle
@@ -50,18 +51,18 @@ def meta_action_index(action: Any) -> int:
     arrays are accepted; floats (1.5, but also 1.0), strings, bools, ``None`` and
     longer arrays are not, so a wrong action is never silently rounded.
 
-    :raises ValueError: saying what was given.
+    :raises InputError: saying what was given.
     """
     a = action
     if isinstance(a, np.ndarray) and a.size == 1 and np.issubdtype(a.dtype, np.integer):
         a = a.reshape(-1)[0]
     if isinstance(a, bool | np.bool_) or not isinstance(a, int | np.integer):
-        raise ValueError(
+        raise InputError(
             f"meta action must be an integer in [0, {len(MetaAction) - 1}] "
             f"({', '.join(f'{m.value} {m.name}' for m in MetaAction)}), got {action!r}"
         )
     if not 0 <= int(a) < len(MetaAction):
-        raise ValueError(f"meta action must be in [0, {len(MetaAction) - 1}], got {action!r}")
+        raise InputError(f"meta action must be in [0, {len(MetaAction) - 1}], got {action!r}")
     return int(a)
 
 
@@ -123,7 +124,7 @@ class ALDMAction:
     def act(self, action: Any) -> None:
         """Pass an agent action to the ego (once per policy step).
 
-        :raises ValueError: a meta action that is not an integer in ``[0, 4]`` (Python
+        :raises InputError: a meta action that is not an integer in ``[0, 4]`` (Python
             or numpy integers, or a one-element integer array), or a continuous action
             that is not exactly 2 finite numbers (shape ``(2,)``).
         """
@@ -140,7 +141,7 @@ class ALDMAction:
         except (TypeError, ValueError):
             a = np.zeros(0)
         if a.shape != (2,) or not np.all(np.isfinite(a)):
-            raise ValueError(
+            raise InputError(
                 "continuous action must be 2 finite numbers of shape (2,) "
                 f"(steering [rad], acceleration [m/s²]), got {action!r}"
             )

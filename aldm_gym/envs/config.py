@@ -44,6 +44,7 @@ from aldm_gym.envs.control import LKAConfig
 from aldm_gym.envs.longitudinal import ACCConfig
 from aldm_gym.envs.observation import ObservationConfig
 from aldm_gym.envs.traffic.mix import TrafficConfig
+from aldm_gym.errors import ConfigError
 from aldm_gym.roads.highway import MARKING_MODELS, RoadConfig
 from aldm_gym.roads.map_road import OpenDriveRoad
 from aldm_gym.roads.opendrive import DEFAULT_BROKEN_PATTERN, DEFAULT_SAMPLE_STEP
@@ -151,23 +152,23 @@ class EnvConfig:
     def __post_init__(self) -> None:
         validate(self, "config")
         if self.simulation_frequency % self.policy_frequency != 0:
-            raise ValueError(
+            raise ConfigError(
                 "config.simulation_frequency must be a multiple of config.policy_frequency, "
                 f"got {self.simulation_frequency} and {self.policy_frequency}"
             )
         if self.initial_lane_id is not None and self.initial_lane_id >= self.lanes_count:
-            raise ValueError(
+            raise ConfigError(
                 f"config.initial_lane_id must be < lanes_count ({self.lanes_count}), "
                 f"got {self.initial_lane_id!r}"
             )
         lo, hi = self.reward_speed_range
         if len(self.reward_speed_range) != 2 or hi - lo < 0.1:
-            raise ValueError(
+            raise ConfigError(
                 "config.reward_speed_range must be (min, max) with max >= min + 0.1 [m/s], "
                 f"got {self.reward_speed_range!r}"
             )
         if len(self.centering_position) != 2:
-            raise ValueError(
+            raise ConfigError(
                 f"config.centering_position must be 2 fractions, got {self.centering_position!r}"
             )
 
@@ -192,9 +193,9 @@ class MapConfig:
     def __post_init__(self) -> None:
         validate(self, "road")
         if not self.xodr:
-            raise ValueError("road.xodr must be the path of an OpenDRIVE file, got ''")
+            raise ConfigError("road.xodr must be the path of an OpenDRIVE file, got ''")
         if len(self.broken_pattern) != 2:
-            raise ValueError(
+            raise ConfigError(
                 f"road.broken_pattern must be (dash, gap) [m], got {self.broken_pattern!r}"
             )
 
@@ -237,10 +238,10 @@ def default_config() -> dict[str, Any]:
 def _unknown(where: str, keys: Any, allowed: tuple[str, ...]) -> None:
     bad = [k for k in keys if not isinstance(k, str)]
     if bad:
-        raise ValueError(f"{where} keys must be strings, got {bad!r}")
+        raise ConfigError(f"{where} keys must be strings, got {bad!r}")
     unknown = sorted(k for k in keys if k not in allowed)
     if unknown:
-        raise ValueError(
+        raise ConfigError(
             f"unknown {where} key(s) {unknown}{close_match(unknown, allowed)}; "
             f"allowed keys: {sorted(allowed)}"
         )
@@ -249,17 +250,17 @@ def _unknown(where: str, keys: Any, allowed: tuple[str, ...]) -> None:
 def merge_config(base: Mapping[str, Any], update: Mapping[str, Any] | None) -> dict[str, Any]:
     """``base`` updated with ``update``, section dicts merged key by key, then validated.
 
-    :raises ValueError: naming any unknown key (with the allowed ones) or bad value.
+    :raises ConfigError: naming any unknown key (with the allowed ones) or bad value.
     """
     out = copy.deepcopy(dict(base))
     if update is not None:
         if not isinstance(update, Mapping):
-            raise ValueError(f"config must be a mapping, got {type(update).__name__}")
+            raise ConfigError(f"config must be a mapping, got {type(update).__name__}")
         _unknown("config", list(update), ALLOWED_KEYS)
         for key, value in update.items():
             if key in (*SECTIONS, "detector_params"):
                 if not isinstance(value, Mapping):
-                    raise ValueError(
+                    raise ConfigError(
                         f"config[{key!r}] must be a mapping, got {type(value).__name__}"
                     )
                 merged = dict(out.get(key) or {})
@@ -273,21 +274,21 @@ def merge_config(base: Mapping[str, Any], update: Mapping[str, Any] | None) -> d
 def validate_config(config: Mapping[str, Any]) -> dict[str, Any]:
     """Check a complete configuration; return it (values and sections normalised).
 
-    :raises ValueError: unknown keys (top level or in a section), naming the allowed
+    :raises ConfigError: unknown keys (top level or in a section), naming the allowed
         ones, or a value out of its range / not among its choices.
     """
     cfg = dict(config)
     _unknown("config", list(cfg), ALLOWED_KEYS)
     missing = sorted(k for k in ALLOWED_KEYS if k not in cfg)
     if missing:
-        raise ValueError(f"config is missing key(s) {missing}")
+        raise ConfigError(f"config is missing key(s) {missing}")
     top = EnvConfig(**cfg)
     out = {f.name: getattr(top, f.name) for f in dataclasses.fields(EnvConfig)}
     _check_vehicle_class(top.other_vehicles_type)
     for name, cls in SECTIONS.items():
         section = cfg[name]
         if not isinstance(section, Mapping):
-            raise ValueError(f"config[{name!r}] must be a mapping, got {type(section).__name__}")
+            raise ConfigError(f"config[{name!r}] must be a mapping, got {type(section).__name__}")
         allowed = tuple(f.name for f in dataclasses.fields(cls))
         _unknown(name, list(section), allowed + MAP_KEYS if name == "road" else allowed)
         if name in _FULL_SECTIONS:
@@ -296,7 +297,7 @@ def validate_config(config: Mapping[str, Any]) -> dict[str, Any]:
             out[name] = dict(section)
     for key in ("lanes_count", "marking_model"):
         if key in out["road"] and out["road"][key] != out[key]:
-            raise ValueError(
+            raise ConfigError(
                 f"config['road'][{key!r}] ({out['road'][key]!r}) contradicts config[{key!r}] "
                 f"({out[key]!r}); set the top-level key only"
             )
@@ -310,12 +311,12 @@ def validate_config(config: Mapping[str, Any]) -> dict[str, Any]:
     LineSensorConfig(**out["sensor"])
     params = cfg["detector_params"]
     if not isinstance(params, Mapping):
-        raise ValueError("config['detector_params'] must be a mapping")
+        raise ConfigError("config['detector_params'] must be a mapping")
     if params and out["detector"] != "aldm":
-        raise ValueError("config['detector_params'] is only used with detector='aldm'")
+        raise ConfigError("config['detector_params'] is only used with detector='aldm'")
     bad = [k for k in params if not isinstance(k, str)]
     if bad:
-        raise ValueError(f"detector_params keys must be strings, got {bad!r}")
+        raise ConfigError(f"detector_params keys must be strings, got {bad!r}")
     if params:
         make_detector(out["detector"], params)
     out["detector_params"] = dict(params)
@@ -325,7 +326,7 @@ def validate_config(config: Mapping[str, Any]) -> dict[str, Any]:
 def _check_vehicle_class(path: str) -> None:
     """``other_vehicles_type`` names an importable highway-env vehicle class.
 
-    :raises ValueError: naming the key, when the path does not resolve to a subclass
+    :raises ConfigError: naming the key, when the path does not resolve to a subclass
         of highway-env's ``Vehicle`` with ``create_random`` and ``randomize_behavior``.
     """
     from highway_env.vehicle.kinematics import Vehicle
@@ -334,12 +335,12 @@ def _check_vehicle_class(path: str) -> None:
     try:
         cls = getattr(importlib.import_module(module), name) if module else None
     except (ImportError, AttributeError, ValueError) as exc:
-        raise ValueError(
+        raise ConfigError(
             f"config.other_vehicles_type {path!r} cannot be imported ({exc})"
         ) from None
     ok = isinstance(cls, type) and issubclass(cls, Vehicle)
     if not ok or not all(hasattr(cls, m) for m in ("create_random", "randomize_behavior")):
-        raise ValueError(
+        raise ConfigError(
             f"config.other_vehicles_type must name a highway-env vehicle class with "
             f"create_random and randomize_behavior (e.g. "
             f"{EnvConfig.other_vehicles_type!r}), got {path!r}"
@@ -363,7 +364,7 @@ def road_config(cfg: Mapping[str, Any], seed: int) -> RoadConfig:
 def map_config(cfg: Mapping[str, Any]) -> MapConfig | None:
     """The :class:`MapConfig` of a config whose ``road.xodr`` is set, else ``None``.
 
-    :raises ValueError: naming a generator key given with ``road.xodr`` (it does not
+    :raises ConfigError: naming a generator key given with ``road.xodr`` (it does not
         apply to maps), or a map key given without it.
     """
     road = dict(cfg["road"])
@@ -371,12 +372,12 @@ def map_config(cfg: Mapping[str, Any]) -> MapConfig | None:
         road.pop("xodr", None)
         stray = sorted(k for k in road if k in MAP_KEYS)
         if stray:
-            raise ValueError(f"road key(s) {stray} apply only to maps: set road.xodr too")
+            raise ConfigError(f"road key(s) {stray} apply only to maps: set road.xodr too")
         return None
     road.pop("marking_model", None)  # the top-level key's value (checked to agree)
     generator = sorted(k for k in road if k not in MAP_KEYS)
     if generator:
-        raise ValueError(
+        raise ConfigError(
             f"road key(s) {generator} do not apply to maps (road.xodr is set); "
             f"a map takes only {list(MAP_KEYS)} (and the top-level marking_model)"
         )
@@ -387,7 +388,7 @@ def map_road(cfg: Mapping[str, Any]) -> OpenDriveRoad | None:
     """The map road of a config with ``road.xodr`` (cached per file content), else ``None``.
 
     :raises FileNotFoundError: naming the file.
-    :raises ValueError: as :func:`map_config`, or the reader's error naming file, road
+    :raises ConfigError: as :func:`map_config`, or the reader's error naming file, road
         and element.
     """
     mc = map_config(cfg)

@@ -27,6 +27,7 @@ import numpy as np
 
 from aldm_gym.config import setting, validate
 from aldm_gym.envs.traffic.scalar import clip_scalar
+from aldm_gym.errors import ConfigError
 from aldm_gym.sensor.line_sensor import LineSensorConfig
 from aldm_gym.types import FloatArray
 
@@ -96,9 +97,9 @@ class LKAController:
         ):
             ok = isinstance(value, int | float) and not isinstance(value, bool)
             if not ok or not math.isfinite(float(value)) or float(value) < lo:
-                raise ValueError(f"lka.{name} must be a finite number >= {lo}, got {value!r}")
+                raise ConfigError(f"lka.{name} must be a finite number >= {lo}, got {value!r}")
         if max_steering > math.pi / 2:
-            raise ValueError(f"lka.max_steering must be <= pi/2, got {max_steering!r}")
+            raise ConfigError(f"lka.max_steering must be <= pi/2, got {max_steering!r}")
         self.lookahead_time = float(lookahead_time)
         self.min_lookahead = float(min_lookahead)
         self.max_steering = float(max_steering)

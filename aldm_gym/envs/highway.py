@@ -40,6 +40,7 @@ from aldm_gym.envs.traffic.mix import Spawner, TrafficConfig, make_truck
 from aldm_gym.envs.traffic.scalar import cos_scalar, sin_scalar
 from aldm_gym.envs.traffic.vehicles import _uses_base_kinematics
 from aldm_gym.envs.vehicle import MapIDMVehicle, SensorVehicle
+from aldm_gym.errors import ConfigError
 from aldm_gym.roads.cache import cached_road
 from aldm_gym.roads.highway import HighwayRoad
 from aldm_gym.roads.map_road import OpenDriveRoad
@@ -178,11 +179,11 @@ class ALDMHighwayEnv(AbstractEnv):
     def __init__(self, config: Mapping[str, Any] | None = None, render_mode: str | None = None):
         # AbstractEnv.__init__ calls reset(): everything reset needs is set first.
         if config is not None and not isinstance(config, Mapping):
-            raise ValueError(
+            raise ConfigError(
                 f"config must be a mapping of settings (a dict), got {type(config).__name__}"
             )
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(
+            raise ConfigError(
                 f"render_mode must be one of {self.metadata['render_modes']} or None, "
                 f"got {render_mode!r}"
             )
@@ -392,7 +393,7 @@ class ALDMHighwayEnv(AbstractEnv):
         if cfg["initial_lane_id"] is not None:
             lanes = [k for k in lanes if road.siblings(k).index(k) == cfg["initial_lane_id"]]
             if not lanes:
-                raise ValueError(
+                raise ConfigError(
                     f"config.initial_lane_id {cfg['initial_lane_id']} : the map "
                     f"{road.map.path!r} has no driving lane with that index from the left"
                 )

@@ -46,6 +46,7 @@ import numpy as np
 from gymnasium import spaces
 
 from aldm_gym.config import setting, validate
+from aldm_gym.errors import InputError
 from aldm_gym.sensor.detection import LINE_NAMES, LaneDetection, resample_line
 from aldm_gym.types import FloatArray
 
@@ -206,22 +207,22 @@ def lane_gaps(
         :data:`VEHICLE_LENGTH`, as is the ego).
     :return: ``(3, 4)``: front gap [m], front relative vx [m/s], rear gap [m], rear
         relative vx [m/s]; gaps ``perception_distance`` and speeds 0 where no vehicle.
-    :raises ValueError: arrays of different shapes, or non-finite x / vx.
+    :raises InputError: arrays of different shapes, or non-finite x / vx.
     """
     codes, x, vx = (np.asarray(a, dtype=np.float64) for a in (codes, x, vx))
     if not (codes.ndim == 1 and codes.shape == x.shape == vx.shape):
-        raise ValueError(
+        raise InputError(
             f"codes, x and vx must be 1-D of one length, got {codes.shape}, {x.shape}, {vx.shape}"
         )
     if not (np.all(np.isfinite(x)) and np.all(np.isfinite(vx))):
-        raise ValueError("x and vx must be finite")
+        raise InputError("x and vx must be finite")
     # Centre to bumper: half of each length (5.0 exactly between two cars).
     if lengths is None:
         reach = np.full(x.shape, VEHICLE_LENGTH)
     else:
         lengths = np.asarray(lengths, dtype=np.float64)
         if lengths.shape != x.shape or not np.all(np.isfinite(lengths)):
-            raise ValueError(f"lengths must be finite of shape {x.shape}, got {lengths.shape}")
+            raise InputError(f"lengths must be finite of shape {x.shape}, got {lengths.shape}")
         reach = 0.5 * (lengths + VEHICLE_LENGTH)
     pd = perception_distance
     out = np.tile(np.array([pd, 0.0, pd, 0.0]), (3, 1))

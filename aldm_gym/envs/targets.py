@@ -34,6 +34,7 @@ from dataclasses import dataclass, field
 import numba
 import numpy as np
 
+from aldm_gym.errors import InputError
 from aldm_gym.sensor.detection import LaneDetection
 from aldm_gym.types import FloatArray, IntArray
 
@@ -69,9 +70,9 @@ class Objects:
         for name in ("x", "y", "vx", "width", "length"):
             arr = np.asarray(getattr(self, name), dtype=np.float64)
             if arr.shape != (n,):
-                raise ValueError(f"Objects.{name} must have shape ({n},) like ids, got {arr.shape}")
+                raise InputError(f"Objects.{name} must have shape ({n},) like ids, got {arr.shape}")
             if not np.all(np.isfinite(arr)):
-                raise ValueError(f"Objects.{name} must be finite")
+                raise InputError(f"Objects.{name} must be finite")
             object.__setattr__(self, name, arr)
         object.__setattr__(self, "ids", np.asarray(self.ids, dtype=np.int64))
 

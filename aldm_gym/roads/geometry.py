@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
+from aldm_gym.errors import InputError
 from aldm_gym.types import BoolArray, FloatArray
 
 _F64 = np.dtype(np.float64)
@@ -82,10 +83,10 @@ class ReferenceLine:
         max_offset: float = 40.0,
     ) -> None:
         if not segments:
-            raise ValueError("a reference line needs at least one segment")
+            raise InputError("a reference line needs at least one segment")
         for seg in segments:
             if not (np.isfinite(seg.length) and seg.length > 0):
-                raise ValueError(f"segment length must be > 0, got {seg.length}")
+                raise InputError(f"segment length must be > 0, got {seg.length}")
         self.segments = tuple(segments)
         self.step = float(step)
         bounds = np.concatenate([[0.0], np.cumsum([seg.length for seg in segments])])
@@ -153,7 +154,7 @@ class ReferenceLine:
         u = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))])
         length = float(u[-1])
         if not length > 0.0:
-            raise ValueError("a line from points needs a positive length")
+            raise InputError("a line from points needs a positive length")
         n = max(int(np.ceil(length / step)) + 1, 2)
         s = np.linspace(0.0, length, n)
         table = np.column_stack([np.interp(s, u, pts[:, 0]), np.interp(s, u, pts[:, 1])])

@@ -31,6 +31,7 @@ from highway_env.road.lane import LineType
 from highway_env.road.road import RoadNetwork
 
 from aldm_gym.config import build_config, check_choice, check_range, setting, validate
+from aldm_gym.errors import ConfigError, InputError
 from aldm_gym.roads.geometry import ReferenceLine, Segment
 from aldm_gym.roads.lane import ReferenceLane
 from aldm_gym.roads.markings import MARKING_MODELS, Marking, MarkingRole, MarkingType
@@ -123,15 +124,15 @@ class RoadConfig:
 def _segments(value: Any) -> tuple[tuple[float, float, float], ...]:
     """``road.segments`` checked and normalised to a tuple of float triples."""
     if isinstance(value, str | bytes) or not hasattr(value, "__len__"):
-        raise ValueError(
+        raise ConfigError(
             f"road.segments must be a sequence of (length, kappa_start, kappa_end), got {value!r}"
         )
     if len(value) == 0:
-        raise ValueError("road.segments must not be empty")
+        raise ConfigError("road.segments must not be empty")
     out = []
     for k, seg in enumerate(value):
         if isinstance(seg, str | bytes) or not hasattr(seg, "__len__") or len(seg) != 3:
-            raise ValueError(f"road.segments[{k}] must be (length, kappa_start, kappa_end)")
+            raise ConfigError(f"road.segments[{k}] must be (length, kappa_start, kappa_end)")
         check_range("road", f"segments[{k}].length", seg[0], 0.0, 1e5, lo_open=True)
         for kk in seg[1:]:
             check_range("road", f"segments[{k}].kappa", kk, -1.0 / 100.0, 1.0 / 100.0)
@@ -295,7 +296,7 @@ class HighwayRoad:
         rows = []
         for s in cfg.overpasses or ():
             if s > self.length:
-                raise ValueError(f"road.overpasses: {s} is beyond the road ({self.length:.0f} m)")
+                raise ConfigError(f"road.overpasses: {s} is beyond the road ({self.length:.0f} m)")
             left = self.marking_position(0, s)
             right = self.marking_position(len(self.markings) - 1, s)
             half = 0.5 * float(np.hypot(*(np.asarray(left) - np.asarray(right))))
@@ -380,7 +381,7 @@ class HighwayRoad:
     def _check_hint(self, origin: FloatArray, s_origin: float) -> None:
         """Reject an ``s_origin`` hint that does not belong to ``origin`` (never silent)."""
         if not math.isfinite(s_origin):
-            raise ValueError(f"s_origin (s_hint) must be finite, got {s_origin!r}")
+            raise InputError(f"s_origin (s_hint) must be finite, got {s_origin!r}")
         ref = self.reference
         k = min(max(int(s_origin / ref.step + 0.5), 0), len(ref.s) - 1)
         h = float(ref.heading[k])
@@ -392,7 +393,7 @@ class HighwayRoad:
         along = abs(dx * math.cos(h) + dy * math.sin(h))
         allowed = 20.0 + ref.step + max(0.0, -s_origin, s_origin - self.length)
         if along > allowed:
-            raise ValueError(
+            raise InputError(
                 f"s_hint {s_origin:.1f} m is {along:.1f} m along the road from the sensor's "
                 f"position ({origin[0]:.1f}, {origin[1]:.1f}); it must be the sensor's arc "
                 "length along the road (or None)"
@@ -419,13 +420,13 @@ class HighwayRoad:
     def _check_lane(self, lane_id: int) -> None:
         ok = isinstance(lane_id, int | np.integer) and not isinstance(lane_id, bool)
         if not ok or not 0 <= int(lane_id) < self.lanes_count:
-            raise ValueError(
+            raise InputError(
                 f"lane_id must be an integer in [0, {self.lanes_count - 1}], got {lane_id!r}"
             )
 
     def _check_marking(self, j: int) -> None:
         if not 0 <= int(j) < len(self.markings):
-            raise ValueError(f"marking index must be in [0, {len(self.markings) - 1}], got {j}")
+            raise InputError(f"marking index must be in [0, {len(self.markings) - 1}], got {j}")
 
     def marking_position(self, j: int, s: FloatArray | float) -> FloatArray:
         """World position of marking ``j`` at reference arc length ``s`` [m], shape ``(..., 2)``."""
@@ -490,7 +491,7 @@ class HighwayRoad:
         ref = self.reference
         origin = world_point("origin", origin)
         if not math.isfinite(yaw):
-            raise ValueError(f"yaw must be finite, got {yaw!r}")
+            raise InputError(f"yaw must be finite, got {yaw!r}")
         if s_origin is None:
             s_origin, _ = ref.project(origin)
         else:
@@ -539,7 +540,7 @@ def _check_finite(name: str, value: Any) -> None:
     else:
         ok = bool(np.all(np.isfinite(np.asarray(value, dtype=np.float64))))
     if not ok:
-        raise ValueError(f"{name} must be finite, got {value!r}")
+        raise InputError(f"{name} must be finite, got {value!r}")
 
 
 class HighwayNetwork(RoadNetwork):

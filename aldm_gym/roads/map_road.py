@@ -32,6 +32,7 @@ from typing import TYPE_CHECKING, Any
 import numba
 import numpy as np
 
+from aldm_gym.errors import InputError, MapError, OffRoadError
 from aldm_gym.roads.cache import LRUCache
 from aldm_gym.roads.opendrive import OpenDriveMap
 from aldm_gym.roads.opendrive.map import LaneKey, LaneRecord
@@ -114,7 +115,7 @@ class OpenDriveRoad(PolylineRoad):
             key for key, rec in odr.lanes.items() if rec.type in DRIVING_TYPES
         ]
         if not self.lanes:
-            raise ValueError(f"{odr.path}: no driving lane")
+            raise MapError(f"{odr.path}: no driving lane")
         widths = np.concatenate([odr.lanes[k].width for k in self.lanes])
         super().__init__(curves, marking_model, float(np.median(widths)))
         ends = odr.overpass_lines
@@ -136,8 +137,8 @@ class OpenDriveRoad(PolylineRoad):
         :param options: :meth:`OpenDriveMap.from_file
             <aldm_gym.roads.opendrive.OpenDriveMap.from_file>` options
             (``broken_pattern``, ``sample_step``).
-        :raises FileNotFoundError: naming the path.
-        :raises ValueError: a malformed or unusable file (naming file, road, element).
+        :raises MapNotFoundError: naming the path (a ``FileNotFoundError``).
+        :raises MapError: a malformed or unusable file (naming file, road, element).
         """
         odr = load_map(path, **options)
         # The road (marking tables, lane index, traffic network) is cached with its map:
@@ -299,13 +300,14 @@ class OpenDriveRoad(PolylineRoad):
         position wherever lanes do not overlap); ``s`` runs along the chain of lanes
         that continue each other (lane links across sections, roads and junctions).
 
-        :raises ValueError: naming ``position`` unless it is 2 finite numbers, or when no
+        :raises InputError: naming ``position`` unless it is 2 finite numbers;
+            :class:`~aldm_gym.errors.OffRoadError` when no
             driving lane passes within :data:`LOCATE_REACH` of it.
         """
         p = world_point("position", position)
         row, seg, offset, u = self._project(p)
         if row < 0:
-            raise ValueError(
+            raise OffRoadError(
                 f"position ({p[0]:.1f}, {p[1]:.1f}) is more than {LOCATE_REACH} m from any "
                 "driving lane of the map"
             )
@@ -347,7 +349,7 @@ class OpenDriveRoad(PolylineRoad):
         ``None`` where the lane does not exist or the border is not painted.
         """
         if lane not in self._key_index:
-            raise ValueError(f"unknown driving lane {lane!r}")
+            raise InputError(f"unknown driving lane {lane!r}")
         siblings = self._siblings[lane]
         i = siblings.index(lane)
         p = None if position is None else world_point("position", position)
@@ -412,10 +414,10 @@ class OpenDriveRoad(PolylineRoad):
         :param s: arc length along the road's reference line [m].
         :return: ``(x [m], y [m], heading [rad])`` facing the lane's direction of travel,
             ready for :meth:`LineSensor.measure <aldm_gym.sensor.LineSensor.measure>`.
-        :raises ValueError: no such road or lane at ``s``.
+        :raises MapError: no such road or lane at ``s``.
         """
         if not math.isfinite(float(s)):
-            raise ValueError(f"s must be finite, got {s!r}")
+            raise InputError(f"s must be finite, got {s!r}")
         x, y, h = self.map.lane_pose(str(road_id), int(lane_id), float(s))
         return (x, -y, -h)
 

@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from aldm_gym.errors import InputError
 from aldm_gym.roads.highway import HighwayRoad
 from aldm_gym.roads.polyline import PolylineRoad
 from aldm_gym.roads.position import world_point
@@ -62,12 +63,12 @@ def painted_pieces(road: Any, around: FloatArray, radius: float) -> list[Painted
     """
     around = world_point("around", around)
     if not (math.isfinite(radius) and radius > 0.0):
-        raise ValueError(f"radius must be a finite number > 0, got {radius!r}")
+        raise InputError(f"radius must be a finite number > 0, got {radius!r}")
     if isinstance(road, HighwayRoad):
         return _highway_pieces(road, around, float(radius))
     if isinstance(road, PolylineRoad):
         return _polyline_pieces(road, around, float(radius))
-    raise ValueError(f"painted_pieces: unsupported road type {type(road).__name__}")
+    raise InputError(f"painted_pieces: unsupported road type {type(road).__name__}")
 
 
 def _cut(xy: FloatArray, u: FloatArray, a: FloatArray, b: FloatArray) -> list[FloatArray]:

@@ -27,6 +27,7 @@ import numba
 import numpy as np
 
 from aldm_gym.config import check_range
+from aldm_gym.errors import InputError
 from aldm_gym.roads.markings import MARKING_MODELS
 from aldm_gym.roads.overpass import overpass_lines
 from aldm_gym.roads.position import world_point
@@ -75,20 +76,20 @@ class PolylineMarkings:
 
     def __init__(self, curves: Sequence[MarkingCurve]) -> None:
         if not curves:
-            raise ValueError("a road needs at least one marking")
+            raise InputError("a road needs at least one marking")
         xys, us, paints = [], [], []
         for j, c in enumerate(curves):
             xy = np.asarray(c.xy, dtype=np.float64)
             if xy.ndim != 2 or xy.shape[0] < 2 or xy.shape[1] != 2:
-                raise ValueError(f"marking {j}: xy must be (N >= 2, 2), got {xy.shape}")
+                raise InputError(f"marking {j}: xy must be (N >= 2, 2), got {xy.shape}")
             if not np.all(np.isfinite(xy)):
-                raise ValueError(f"marking {j}: xy holds NaN or inf")
+                raise InputError(f"marking {j}: xy holds NaN or inf")
             u = arc_length(xy)
             if not np.all(np.diff(u) > 0.0):
-                raise ValueError(f"marking {j}: repeated vertices")
+                raise InputError(f"marking {j}: repeated vertices")
             p = np.asarray(c.painted, dtype=np.float64).reshape(-1, 2)
             if len(p) and (np.any(p[:, 1] <= p[:, 0]) or np.any(p[1:, 0] < p[:-1, 1])):
-                raise ValueError(f"marking {j}: painted intervals must be sorted and disjoint")
+                raise InputError(f"marking {j}: painted intervals must be sorted and disjoint")
             xys.append(xy)
             us.append(u)
             paints.append(p)
@@ -316,7 +317,7 @@ class PolylineRoad:
         reach: float = 260.0,
     ) -> None:
         if marking_model not in MARKING_MODELS:
-            raise ValueError(
+            raise InputError(
                 f"marking_model must be one of {list(MARKING_MODELS)}, got {marking_model!r}"
             )
         self.markings = curves if isinstance(curves, PolylineMarkings) else PolylineMarkings(curves)
@@ -369,7 +370,7 @@ class PolylineRoad:
         :param height: height of the bridge's markings [m], in [0.5, 50].
         :param half_width: half the lower road's width there [m] (its markings run 30 m
             beyond it).
-        :raises ValueError: naming the argument out of its range.
+        :raises InputError: naming the argument out of its range.
         """
         check_range("overpass", "angle", angle, math.radians(10.0), math.pi / 2)
         check_range("overpass", "height", height, 0.5, 50.0)
@@ -378,7 +379,7 @@ class PolylineRoad:
         for place in places:
             x, y, h = (float(v) for v in place)
             if not all(math.isfinite(v) for v in (x, y, h)):
-                raise ValueError(f"overpass places must be finite (x, y, heading), got {place!r}")
+                raise InputError(f"overpass places must be finite (x, y, heading), got {place!r}")
             rows.append(overpass_lines(np.array([x, y]), h, half_width, angle, height))
         twin = copy.copy(self)
         twin.overpass_lines = np.concatenate([self.overpass_lines, *rows])
@@ -387,7 +388,7 @@ class PolylineRoad:
     def with_marking_model(self, marking_model: str) -> PolylineRoad:
         """The same road with another marking model (shares the geometry)."""
         if marking_model not in MARKING_MODELS:
-            raise ValueError(
+            raise InputError(
                 f"marking_model must be one of {list(MARKING_MODELS)}, got {marking_model!r}"
             )
         twin = copy.copy(self)
@@ -402,7 +403,7 @@ class PolylineRoad:
         protocol and not needed here."""
         origin = world_point("origin", origin)
         if not math.isfinite(yaw):
-            raise ValueError(f"yaw must be finite, got {yaw!r}")
+            raise InputError(f"yaw must be finite, got {yaw!r}")
         return self.markings.sample(origin, yaw, xs, self.reach)
 
     def sample_markings(

@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from aldm_gym.errors import InputError
 from aldm_gym.types import FloatArray
 
 
@@ -58,7 +59,7 @@ MAX_COORDINATE = 1e9
 def world_point(name: str, value: Any) -> FloatArray:
     """``value`` as a float64 ``(2,)`` world point [m] (a 3rd coordinate is dropped).
 
-    :raises ValueError: naming ``name`` unless ``value`` holds 2 (or 3) finite numbers
+    :raises InputError: naming ``name`` unless ``value`` holds 2 (or 3) finite numbers
         within :data:`MAX_COORDINATE` of the origin on each axis.
     """
     try:
@@ -66,7 +67,7 @@ def world_point(name: str, value: Any) -> FloatArray:
     except (TypeError, ValueError):
         arr = np.zeros(0)
     if arr.shape not in ((2,), (3,)) or not (math.isfinite(arr[0]) and math.isfinite(arr[1])):
-        raise ValueError(f"{name} must be 2 finite numbers (x, y) [m], got {value!r}")
+        raise InputError(f"{name} must be 2 finite numbers (x, y) [m], got {value!r}")
     check_within_world(name, float(arr[0]), float(arr[1]), value)
     return arr[:2]
 
@@ -75,10 +76,10 @@ def check_within_world(name: str, x: float, y: float, value: Any) -> None:
     """Raise unless the world point ``(x, y)`` [m] lies within :data:`MAX_COORDINATE`
     of the origin on each axis.
 
-    :raises ValueError: naming ``name`` and quoting ``value`` (what the caller got).
+    :raises InputError: naming ``name`` and quoting ``value`` (what the caller got).
     """
     if abs(x) > MAX_COORDINATE or abs(y) > MAX_COORDINATE:
-        raise ValueError(
+        raise InputError(
             f"{name} must lie within ±{MAX_COORDINATE:g} m of the origin on each axis, "
             f"got {value!r}"
         )

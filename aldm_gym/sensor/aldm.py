@@ -45,6 +45,7 @@ from typing import Any
 import numpy as np
 
 from aldm_gym.config import build_config, setting, validate
+from aldm_gym.errors import ConfigError, InputError
 from aldm_gym.sensor.aldm_kernels.layout import FloatParams, IntParams
 from aldm_gym.sensor.aldm_kernels.output import _detect
 from aldm_gym.sensor.detection import LINE_NAMES, LaneDetection
@@ -177,7 +178,7 @@ class ALDMParams:
     def __post_init__(self) -> None:
         validate(self, "aldm")
         if self.n_points == 1:
-            raise ValueError("aldm.n_points must be 0 (every traced point) or >= 2, got 1")
+            raise ConfigError("aldm.n_points must be 0 (every traced point) or >= 2, got 1")
 
     @property
     def smooth(self) -> bool:
@@ -294,7 +295,7 @@ def as_points(points: Any) -> FloatArray:
             f"detect_lanes: points must be a float (or integer) array, got dtype {points.dtype}"
         )
     if points.ndim != 2 or points.shape[1] not in (2, 3):
-        raise ValueError(
+        raise InputError(
             f"detect_lanes expects points of shape (N, 2) or (N, 3), got {points.shape}"
         )
     return np.ascontiguousarray(points, dtype=np.float64)

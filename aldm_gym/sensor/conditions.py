@@ -33,6 +33,7 @@ from typing import Any
 import numba
 import numpy as np
 
+from aldm_gym.errors import ConfigError
 from aldm_gym.types import FloatArray, IntArray
 
 CELL = 100.0
@@ -349,12 +350,12 @@ def occluder_array(vehicles: Any) -> FloatArray:
     :return: ``(V, 6)`` rows ``(x, y, heading, length, width, height)``. A vehicle
         without ``HEIGHT`` is :data:`TRUCK_HEIGHT` tall when 10 m or longer, else
         :data:`CAR_HEIGHT`.
-    :raises ValueError: an array of another shape or with non-finite values.
+    :raises ConfigError: an array of another shape or with non-finite values.
     """
     if isinstance(vehicles, np.ndarray):
         arr = np.asarray(vehicles, dtype=np.float64)
         if arr.ndim != 2 or arr.shape[1] != 6 or not np.isfinite(arr).all():
-            raise ValueError(
+            raise ConfigError(
                 "occluders must be vehicles or a (V, 6) array of finite "
                 f"(x, y, heading, length, width, height), got shape {arr.shape}"
             )

@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 
+from aldm_gym.errors import InputError
 from aldm_gym.sensor.trajectory import DEFAULT_LANE_WIDTH, driving_trajectory, fit_cubic
 from aldm_gym.types import FloatArray
 
@@ -31,9 +32,9 @@ def _as_line(points: FloatArray | None, name: str) -> FloatArray:
     if arr.size == 0:
         return _EMPTY.copy()
     if arr.ndim != 2 or arr.shape[1] != 2:
-        raise ValueError(f"LaneDetection.{name} must have shape (K, 2), got {arr.shape}")
+        raise InputError(f"LaneDetection.{name} must have shape (K, 2), got {arr.shape}")
     if not np.all(np.isfinite(arr)):
-        raise ValueError(f"LaneDetection.{name} contains NaN or inf")
+        raise InputError(f"LaneDetection.{name} contains NaN or inf")
     order = np.argsort(arr[:, 0], kind="stable")
     return np.ascontiguousarray(arr[order])
 
@@ -50,7 +51,7 @@ def resample_line(points: FloatArray, n: int) -> FloatArray:
     :return: ``(n, 2)`` points, or ``(0, 2)``.
     """
     if n < 2:
-        raise ValueError(f"resample needs n >= 2, got {n}")
+        raise InputError(f"resample needs n >= 2, got {n}")
     if len(points) < 2 or points[-1, 0] <= points[0, 0]:
         return _EMPTY.copy()
     xs = np.linspace(points[0, 0], points[-1, 0], n)
@@ -124,7 +125,7 @@ class LaneDetection:
         """
         unknown = set(lines) - {*LINE_NAMES, "trajectory"}
         if unknown:
-            raise ValueError(f"unknown LaneDetection field(s) {sorted(unknown)}")
+            raise InputError(f"unknown LaneDetection field(s) {sorted(unknown)}")
         det = object.__new__(cls)
         for name in (*LINE_NAMES, "trajectory"):
             object.__setattr__(det, name, lines[name] if name in lines else _EMPTY.copy())
@@ -134,7 +135,7 @@ class LaneDetection:
     def line(self, name: str) -> FloatArray:
         """One line by name (one of :data:`LINE_NAMES`)."""
         if name not in LINE_NAMES:
-            raise ValueError(f"unknown line {name!r}; allowed: {list(LINE_NAMES)}")
+            raise InputError(f"unknown line {name!r}; allowed: {list(LINE_NAMES)}")
         return getattr(self, name)
 
     def found(self, name: str) -> bool:

@@ -26,6 +26,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any, ClassVar, Protocol
 
+from aldm_gym.errors import ConfigError
 from aldm_gym.sensor.aldm import detect_lanes
 from aldm_gym.sensor.detection import LaneDetection
 from aldm_gym.sensor.frame import SensorFrame
@@ -205,17 +206,17 @@ def make_detector(
     :param path_range: every detector's trajectory fits each ego line on its points
         with x <= this (at least 4 points) [m]; ``None``: the whole line. With 80 it is
         the path the environment's lane keeping follows.
-    :raises ValueError: unknown name, parameters the detector does not take (naming
+    :raises ConfigError: unknown name, parameters the detector does not take (naming
         them and the allowed ones), or ``path_range`` not > 0.
     """
     entry = REGISTRY.get(name) if isinstance(name, str) else None
     if entry is None:
-        raise ValueError(f"unknown detector {name!r}; allowed: {list(DETECTORS)}")
+        raise ConfigError(f"unknown detector {name!r}; allowed: {list(DETECTORS)}")
     params = dict(params or {})
     if entry.params is not None:
         unknown = sorted(str(k) for k in params if k not in entry.params)
         if unknown:
-            raise ValueError(
+            raise ConfigError(
                 f"detector {name!r} takes no parameter(s) {unknown}; allowed: {list(entry.params)}"
             )
     fit_reach(path_range)  # validates

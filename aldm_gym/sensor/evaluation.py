@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from aldm_gym.errors import InputError, MapError
 from aldm_gym.roads.highway import HighwayRoad
 from aldm_gym.roads.map_road import OpenDriveRoad
 from aldm_gym.sensor.detectors import DETECTORS, make_detector
@@ -65,7 +66,7 @@ def sample_poses(
     if isinstance(road, OpenDriveRoad):
         return _sample_map_poses(road, n, rng, max_shift, heading_jitter)
     if road.length <= 2 * margin:
-        raise ValueError(f"road too short ({road.length:.0f} m) for a {margin} m margin")
+        raise InputError(f"road too short ({road.length:.0f} m) for a {margin} m margin")
     out = []
     for _ in range(n):
         s = float(rng.uniform(margin, road.length - margin))
@@ -118,7 +119,7 @@ def _sample_map_poses(
             )
         )
     if len(out) < n:
-        raise ValueError(f"{road.map.path}: too few places where a driving lane is wide enough")
+        raise MapError(f"{road.map.path}: too few places where a driving lane is wide enough")
     return out
 
 

@@ -20,6 +20,7 @@ from functools import cached_property
 
 import numpy as np
 
+from aldm_gym.errors import InputError
 from aldm_gym.roads.markings import MarkingType
 from aldm_gym.types import FloatArray
 
@@ -201,7 +202,7 @@ class SensorFrame:
     def side(self, name: str) -> SideLines:
         """``"left"`` or ``"right"`` side."""
         if name not in ("left", "right"):
-            raise ValueError(f"side must be 'left' or 'right', got {name!r}")
+            raise InputError(f"side must be 'left' or 'right', got {name!r}")
         return self.left if name == "left" else self.right
 
     def side_offsets(self) -> FloatArray:
@@ -214,7 +215,7 @@ class SensorFrame:
     def relevant_line_points(self, name: str) -> FloatArray:
         """All points of the relevant line of side ``name`` (``(K, 3)``, empty if none)."""
         if name not in ("left", "right"):
-            raise ValueError(f"side must be 'left' or 'right', got {name!r}")
+            raise InputError(f"side must be 'left' or 'right', got {name!r}")
         rel = self.relevant_left if name == "left" else self.relevant_right
         if rel < 0:
             return _EMPTY3.copy()

@@ -29,6 +29,7 @@ import numba
 import numpy as np
 
 from aldm_gym.config import build_config, setting, validate
+from aldm_gym.errors import ConfigError, InputError
 from aldm_gym.roads.highway import HighwayRoad
 from aldm_gym.roads.position import check_within_world
 from aldm_gym.sensor import conditions as cond
@@ -194,16 +195,16 @@ class LineSensorConfig:
     def __post_init__(self) -> None:
         preset = self.preset
         if preset is not None and (not isinstance(preset, str) or preset not in PRESETS):
-            raise ValueError(f"sensor.preset must be one of {list(PRESETS)}, got {preset!r}")
+            raise ConfigError(f"sensor.preset must be one of {list(PRESETS)}, got {preset!r}")
         values = PRESETS[preset] if preset is not None else {}
         for name, off in CONDITIONS_OFF.items():
             if getattr(self, name) is None:
                 object.__setattr__(self, name, values.get(name, off))
         validate(self, "sensor")
         if self.fov_start >= self.range:
-            raise ValueError(f"sensor.fov_start ({self.fov_start}) must be < range ({self.range})")
+            raise ConfigError(f"sensor.fov_start ({self.fov_start}) must be < range ({self.range})")
         if self.dropout >= 1.0:
-            raise ValueError("sensor.dropout must be < 1 (1 would drop every point)")
+            raise ConfigError("sensor.dropout must be < 1 (1 would drop every point)")
 
     @property
     def x_grid(self) -> FloatArray:
@@ -259,9 +260,9 @@ def _vec3(value: Any, name: str) -> FloatArray:
     try:
         arr = np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError):
-        raise ValueError(f"{name} must be 3 finite numbers, got {value!r}") from None
+        raise InputError(f"{name} must be 3 finite numbers, got {value!r}") from None
     if arr.shape != (3,) or not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name} must be 3 finite numbers, got {value!r}")
+        raise InputError(f"{name} must be 3 finite numbers, got {value!r}")
     return arr
 
 
@@ -272,7 +273,7 @@ def _pose(pose: Any) -> tuple[float, float, float]:
     except (TypeError, ValueError) as exc:
         if str(exc).startswith("pose"):
             raise
-        raise ValueError(f"pose must be (x [m], y [m], heading [rad]), got {pose!r}") from None
+        raise InputError(f"pose must be (x [m], y [m], heading [rad]), got {pose!r}") from None
 
 
 def _pose_numbers(pose: Any) -> tuple[float, float, float]:
@@ -284,10 +285,10 @@ def _pose_numbers(pose: Any) -> tuple[float, float, float]:
     else:
         arr = np.asarray(pose, dtype=np.float64)
         if arr.shape != (3,):
-            raise ValueError(f"pose must be (x [m], y [m], heading [rad]), got shape {arr.shape}")
+            raise InputError(f"pose must be (x [m], y [m], heading [rad]), got shape {arr.shape}")
         x, y, h = arr
     if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(h)):
-        raise ValueError(f"pose must be finite, got {(x, y, h)}")
+        raise InputError(f"pose must be finite, got {(x, y, h)}")
     check_within_world("pose", x, y, (x, y, h))
     return float(x), float(y), float(h)
 
@@ -400,9 +401,9 @@ class LineSensor:
         if not hasattr(road, "sample_visible"):
             raise TypeError(f"road must be a HighwayRoad or a map road, got {type(road).__name__}")
         if not (_is_number(t) and math.isfinite(t)):
-            raise ValueError(f"t must be a finite number [s], got {t!r}")
+            raise InputError(f"t must be a finite number [s], got {t!r}")
         if s_hint is not None and not _is_number(s_hint):
-            raise ValueError(f"s_hint must be a number [m] or None, got {s_hint!r}")
+            raise InputError(f"s_hint must be a number [m] or None, got {s_hint!r}")
         if rng is not None and not isinstance(rng, np.random.Generator):
             raise TypeError(f"rng must be a numpy Generator or None, got {type(rng).__name__}")
         c = self.config

@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from aldm_gym.errors import InputError
 from aldm_gym.sensor.detection import LINE_NAMES, LaneDetection
 from aldm_gym.sensor.detectors import DETECTORS
 from aldm_gym.sensor.frame import SensorFrame
@@ -154,7 +155,7 @@ def plot_frames(
 
     n = len(panels)
     if n == 0:
-        raise ValueError("plot_frames needs at least one panel")
+        raise InputError("plot_frames needs at least one panel")
     fig, axes = plt.subplots(1, n, figsize=(4.2 * n, 7.4), squeeze=False)
     for ax, (title, (frame, det)) in zip(axes[0], panels.items(), strict=True):
         draw_frame(ax, frame, det, title=title, x_max=x_max, legend=False)

@@ -37,6 +37,7 @@ from typing import Any
 import numpy as np
 
 from aldm_gym.config import build_config, close_match, setting, validate
+from aldm_gym.errors import ConfigError
 from aldm_gym.sensor.aldm import ALDMParams, _detect_lanes, as_points, make_params
 from aldm_gym.sensor.aldm_kernels.track import _consensus, _hold, _match, _prior, _table
 from aldm_gym.sensor.detection import LINE_NAMES, LaneDetection
@@ -118,12 +119,12 @@ class TrackerParams:
     def __post_init__(self) -> None:
         validate(self, "tracker")
         if 0.0 < self.tail_length <= self.bridge_gap:
-            raise ValueError(
+            raise ConfigError(
                 f"tracker.tail_length must be 0 (no continuation) or > bridge_gap "
                 f"({self.bridge_gap}), got {self.tail_length}: a shorter tail is never filled"
             )
         if self.consensus_tol == 0.0 and self.consensus_tol_slope > 0.0:
-            raise ValueError(
+            raise ConfigError(
                 "tracker.consensus_tol_slope needs consensus_tol > 0 "
                 "(consensus_tol=0 turns the lanes' common shape off)"
             )
@@ -136,22 +137,22 @@ TRACKER_KEYS: tuple[str, ...] = ("tracking", *TrackerParams.__dataclass_fields__
 def split_params(params: dict[str, Any]) -> tuple[bool, TrackerParams, ALDMParams]:
     """``detector_params`` of ``"aldm"`` -> ``(tracking, tracker params, ALDM params)``.
 
-    :raises ValueError: an unknown key (naming the allowed ones), a bad value, a
+    :raises ConfigError: an unknown key (naming the allowed ones), a bad value, a
         non-boolean ``tracking``, or tracker settings without ``tracking=True``.
     """
     allowed = sorted({*ALDMParams.__dataclass_fields__, *TRACKER_KEYS})
     unknown = sorted(str(k) for k in params if k not in allowed)
     if unknown:
-        raise ValueError(
+        raise ConfigError(
             f"unknown aldm config key(s) {unknown}{close_match(unknown, allowed)}; "
             f"allowed keys: {allowed}"
         )
     tracking = params.get("tracking", False)
     if not isinstance(tracking, (bool, np.bool_)):
-        raise ValueError(f"aldm.tracking must be true or false, got {tracking!r}")
+        raise ConfigError(f"aldm.tracking must be true or false, got {tracking!r}")
     track = {k: v for k, v in params.items() if k in TrackerParams.__dataclass_fields__}
     if track and not tracking:
-        raise ValueError(f"aldm settings {sorted(track)} need tracking=True")
+        raise ConfigError(f"aldm settings {sorted(track)} need tracking=True")
     aldm = {k: v for k, v in params.items() if k not in TRACKER_KEYS}
     return (
         bool(tracking),

@@ -32,6 +32,7 @@ import warnings
 import numba
 import numpy as np
 
+from aldm_gym.errors import ConfigError
 from aldm_gym.types import FloatArray
 
 DEFAULT_LANE_WIDTH = 3.75
@@ -72,13 +73,13 @@ def fit_cubic(points: FloatArray) -> np.polynomial.Polynomial | None:
 def fit_reach(path_range: float | None) -> float:
     """``path_range`` as the float the kernels take: ``inf`` for ``None`` [m].
 
-    :raises ValueError: ``path_range`` is not a number > 0 (NaN included).
+    :raises ConfigError: ``path_range`` is not a number > 0 (NaN included).
     """
     if path_range is None:
         return math.inf
     reach = float(path_range)
     if not reach > 0.0:
-        raise ValueError(f"path_range must be > 0 or None, got {path_range!r}")
+        raise ConfigError(f"path_range must be > 0 or None, got {path_range!r}")
     return reach
 
 
@@ -102,7 +103,7 @@ def driving_trajectory(
     :param path_range: fit each line on its points with x <= this (at least its first
         4 points) [m]; ``None``: the whole line.
     :return: ``(M, 2)`` path points (x, y) [m], or ``(0, 2)``.
-    :raises ValueError: ``path_range`` is not > 0.
+    :raises ConfigError: ``path_range`` is not > 0.
     """
     left = np.asarray(left, dtype=np.float64)
     right = np.asarray(right, dtype=np.float64)

@@ -30,6 +30,7 @@ from highway_env.vehicle.kinematics import Vehicle
 
 from aldm_gym.config import setting, validate
 from aldm_gym.envs.traffic.compiled import ENGINES
+from aldm_gym.errors import ConfigError
 from aldm_gym.sensor.conditions import TRUCK_HEIGHT
 
 __all__ = ["CAR_LENGTH", "Spawner", "TrafficConfig", "TruckSpec", "make_truck"]
@@ -68,7 +69,7 @@ class TrafficConfig:
         for name in ("truck_length", "truck_speed"):
             lo, hi = getattr(self, name)
             if hi < lo:
-                raise ValueError(
+                raise ConfigError(
                     f"traffic.{name} must be (min, max) with min <= max, got {(lo, hi)}"
                 )
 

@@ -13,6 +13,7 @@ from highway_env.road.lane import AbstractLane
 from highway_env.road.road import LaneIndex, RoadNetwork
 
 from aldm_gym.envs.traffic.straight_lanes import straight_geometry
+from aldm_gym.errors import InputError
 
 __all__ = ["FastRoadNetwork"]
 
@@ -115,5 +116,5 @@ class FastRoadNetwork(RoadNetwork):
                 best_index = index
                 best = d
         if best_index is None:
-            raise ValueError("get_closest_lane_index called on a network without lanes")
+            raise InputError("get_closest_lane_index called on a network without lanes")
         return best_index

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.special import fresnel
 
+from aldm_gym.errors import MapError
 from aldm_gym.roads.opendrive.parse import (
     Arc,
     Geometry,
@@ -173,7 +174,7 @@ class PlanView:
 
     def __init__(self, geometries: Sequence[Geometry], where: str = "") -> None:
         if not geometries:
-            raise ValueError(f"{where}: a plan view needs at least one geometry")
+            raise MapError(f"{where}: a plan view needs at least one geometry")
         self.geometries = tuple(geometries)
         self.where = where
         self.starts = np.array([g.s for g in geometries], dtype=np.float64)
@@ -193,7 +194,7 @@ class PlanView:
     def _evaluate(self, s: FloatArray) -> tuple[FloatArray, ...]:
         s = np.asarray(s, dtype=np.float64)
         if s.size and (s.min() < -_S_TOLERANCE or s.max() > self.length + _S_TOLERANCE):
-            raise ValueError(
+            raise MapError(
                 f"{self.where}: s in [{s.min():.3f}, {s.max():.3f}] m is outside the plan "
                 f"view [0, {self.length:.3f}] m"
             )
@@ -219,7 +220,7 @@ class PlanView:
 
         :returns: ``(x [m], y [m], heading [rad])``, each shaped like ``s``. Headings are
             continuous within a geometry, not wrapped.
-        :raises ValueError: ``s`` is outside ``[0, length]`` (by more than 1 mm).
+        :raises MapError: ``s`` is outside ``[0, length]`` (by more than 1 mm).
         """
         x, y, hdg, _ = self._evaluate(s)
         return x, y, hdg

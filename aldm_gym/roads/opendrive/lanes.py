@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from aldm_gym.errors import MapError
 from aldm_gym.roads.opendrive.geometry import PlanView
 from aldm_gym.roads.opendrive.parse import Cubic, Lane, LaneSection, Road
 from aldm_gym.types import FloatArray
@@ -62,7 +63,7 @@ def outer_borders(
     :param s: (N,) reference arc lengths inside the section [m].
     :param where: text naming the file in errors.
     :returns: lane id -> ``(t (N,) [m], dt/ds (N,) [1])``.
-    :raises ValueError: a lane has neither width nor border records.
+    :raises MapError: a lane has neither width nor border records.
     """
     offset = cubic_at(road.lane_offsets, s)
     borders = {0: offset}
@@ -77,7 +78,7 @@ def outer_borders(
             elif lane.borders:
                 outer = cubic_at(lane.borders, s, section.s)
             else:
-                raise ValueError(
+                raise MapError(
                     f"{where}, road {road.id!r}, laneSection s={section.s}: lane {lane.id} has "
                     "neither <width> nor <border> records"
                 )

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from aldm_gym.errors import ConfigError, MapError
 from aldm_gym.roads.opendrive.bridges import (
     crossings,
     lane_metres,
@@ -83,9 +84,9 @@ class LaneRecord:
 def _check_options(broken_pattern: Sequence[float], sample_step: float) -> tuple[float, float]:
     pattern = tuple(float(v) for v in broken_pattern)
     if len(pattern) != 2 or not all(math.isfinite(v) and v > 0.0 for v in pattern):
-        raise ValueError(f"broken_pattern must be (dash > 0, gap > 0) [m], got {broken_pattern!r}")
+        raise ConfigError(f"broken_pattern must be (dash > 0, gap > 0) [m], got {broken_pattern!r}")
     if not (math.isfinite(sample_step) and 0.0 < sample_step <= 10.0):
-        raise ValueError(f"sample_step must be in (0, 10] m, got {sample_step!r}")
+        raise ConfigError(f"sample_step must be in (0, 10] m, got {sample_step!r}")
     return pattern[0], pattern[1]
 
 
@@ -185,8 +186,8 @@ class OpenDriveMap:
             ``<type><line>`` pattern.
         :param sample_step: sampling step along the reference lines [m]; record starts
             are always sampled exactly.
-        :raises FileNotFoundError: the file does not exist.
-        :raises ValueError: malformed XML, a record that cannot be evaluated (the error
+        :raises MapNotFoundError: the file does not exist (a ``FileNotFoundError``).
+        :raises MapError: malformed XML, a record that cannot be evaluated (the error
             names file, road and element), or a bad option.
         """
         pattern = _check_options(broken_pattern, sample_step)
@@ -199,7 +200,7 @@ class OpenDriveMap:
                     continue
                 known = roads if link.element_type == "road" else junctions
                 if link.element_id not in known:
-                    raise ValueError(
+                    raise MapError(
                         f"{parsed.path}, road {road.id!r}: link to unknown {link.element_type} "
                         f"{link.element_id!r}"
                     )
@@ -276,7 +277,7 @@ class OpenDriveMap:
 
         :returns: ``(x [m], y [m], heading [rad])``, heading along the lane's direction of
             travel, in (-pi, pi].
-        :raises ValueError: no such road, or the lane does not exist at ``s``.
+        :raises MapError: no such road, or the lane does not exist at ``s``.
         """
         road = self.roads.get(str(road_id))
         length = self.lengths.get(str(road_id), 0.0)
@@ -284,7 +285,7 @@ class OpenDriveMap:
         if road is not None and lane_id != 0 and -1e-9 <= s <= length + 1e-9:
             k = self._section_of(road, lane_id, s)
         if road is None or k is None:
-            raise ValueError(f"{self.path}: no lane {lane_id} on road {road_id!r} at s={s} m")
+            raise MapError(f"{self.path}: no lane {lane_id} on road {road_id!r} at s={s} m")
         sec = road.sections[k]
         at = np.array([min(max(s, 0.0), length)])
         borders = outer_borders(road, sec, at, self.path)
@@ -321,14 +322,14 @@ class OpenDriveMap:
         only onto the driven level: a lane leading onto a bridge or a hidden road ends.
 
         :returns: lane keys ``(road id, section index, lane id)``; empty at a dead end.
-        :raises ValueError: no such lane.
+        :raises MapError: no such lane.
         """
         road = self.roads.get(str(road_id))
         lane = None
         if road is not None and 0 <= section < len(road.sections):
             lane = road.sections[section].lane(lane_id)
         if road is None or lane is None or lane_id == 0:
-            raise ValueError(
+            raise MapError(
                 f"{self.path}: no lane {lane_id} in section {section} of road {road_id!r}"
             )
         keys = self._successors(road, lane, section)

@@ -22,6 +22,8 @@ from pathlib import Path
 
 from lxml import etree
 
+from aldm_gym.errors import MapError, MapNotFoundError
+
 GEOMETRY_KINDS = ("line", "arc", "spiral", "poly3", "paramPoly3")
 """Plan-view geometry element names this reader evaluates."""
 
@@ -65,15 +67,15 @@ def shipped_map(name: str) -> Path:
     """The absolute path of a shipped example map, from any working directory.
 
     :param name: one of :data:`SHIPPED_MAPS`, with or without ``.xodr``.
-    :raises ValueError: not a shipped map (naming the shipped ones).
+    :raises MapError: not a shipped map (naming the shipped ones).
     """
     stem = str(name).removesuffix(".xodr")
     if stem not in SHIPPED_MAPS:
-        raise ValueError(f"no shipped map {name!r}; shipped maps: {list(SHIPPED_MAPS)}")
+        raise MapError(f"no shipped map {name!r}; shipped maps: {list(SHIPPED_MAPS)}")
     return MAPS_DIR / f"{stem}.xodr"
 
 
-def not_found(path: str | os.PathLike[str]) -> FileNotFoundError:
+def not_found(path: str | os.PathLike[str]) -> MapNotFoundError:
     """The error for a missing OpenDRIVE file; when its file name is a shipped map's,
     the message says where that map is (a relative path from the clone's README read
     in another folder)."""
@@ -87,7 +89,7 @@ def not_found(path: str | os.PathLike[str]) -> FileNotFoundError:
             f"; the shipped map {stem!r} is {str(shipped_map(stem))!r}, also "
             f"aldm_gym.roads.shipped_map({stem!r})"
         )
-    return FileNotFoundError(message)
+    return MapNotFoundError(message)
 
 
 @dataclass(frozen=True)
@@ -427,11 +429,11 @@ class _Reader:
         self.road = ""
         self.skipped: Counter[str] = Counter()
 
-    def fail(self, el: etree._Element, message: str) -> ValueError:
+    def fail(self, el: etree._Element, message: str) -> MapError:
         where = f"{self.path}"
         if self.road:
             where += f", road {self.road!r}"
-        return ValueError(f"{where}, <{el.tag}> at line {el.sourceline}: {message}")
+        return MapError(f"{where}, <{el.tag}> at line {el.sourceline}: {message}")
 
     def text(self, el: etree._Element, name: str, default: str | None = None) -> str:
         value = el.get(name)
@@ -758,7 +760,7 @@ def parse_file(path: str | os.PathLike[str], *, warn: bool = True) -> OpenDriveF
     :param path: the ``.xodr`` file.
     :param warn: issue one :class:`UserWarning` summarising skipped elements.
     :raises FileNotFoundError: the file does not exist.
-    :raises ValueError: malformed XML (file and line named) or a record that cannot be
+    :raises MapError: malformed XML (file and line named) or a record that cannot be
         evaluated (file, road id, element and line named).
     """
     name = os.fspath(path)
@@ -768,7 +770,7 @@ def parse_file(path: str | os.PathLike[str], *, warn: bool = True) -> OpenDriveF
         root = etree.parse(name, etree.XMLParser(remove_blank_text=True)).getroot()
     except etree.XMLSyntaxError as exc:
         line = exc.lineno if exc.lineno is not None else "?"
-        raise ValueError(f"{name}: malformed XML at line {line}: {exc.msg}") from None
+        raise MapError(f"{name}: malformed XML at line {line}: {exc.msg}") from None
     r = _Reader(name)
     if root.tag != "OpenDRIVE":
         raise r.fail(root, "the root element is not <OpenDRIVE>")
@@ -792,7 +794,7 @@ def parse_file(path: str | os.PathLike[str], *, warn: bool = True) -> OpenDriveF
     ids = [road.id for road in roads]
     if len(set(ids)) != len(ids):
         dup = sorted({i for i in ids if ids.count(i) > 1})
-        raise ValueError(f"{name}: duplicate road ids {dup}")
+        raise MapError(f"{name}: duplicate road ids {dup}")
     skipped = tuple(sorted(r.skipped.items()))
     if warn and skipped:
         listing = ", ".join(f"{k} x{n}" for k, n in skipped)

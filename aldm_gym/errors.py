@@ -1,0 +1,113 @@
+"""The exceptions and warnings aldm-gym raises on purpose, by kind.
+
+A caller can tell a typo in a setting from a corrupt map or a broken checkpoint by the
+class it catches. Every class also derives from the built-in exception it replaced
+(``ValueError``, ``FileNotFoundError``, ``RuntimeError``, ``ImportError``), so code
+that caught those keeps working::
+
+    AldmGymError
+    ├── ConfigError (ValueError)        an unknown setting or a value out of its rules
+    ├── InputError (ValueError)         unusable data: wrong shape, NaN/inf, empty
+    │   └── OffRoadError                a world position on no lane of the road
+    ├── MapError (ValueError)           an OpenDRIVE file that cannot be read or used
+    ├── MapNotFoundError (FileNotFoundError)
+    ├── CheckpointError (ValueError)    a training output or checkpoint that cannot be used
+    │   └── ResumeError                 ... cannot be resumed by this backend
+    ├── ClusterError (ValueError)       no Ray cluster at the address, or too few CPUs
+    ├── OutputLocked (RuntimeError)     another training holds the output folder
+    └── MissingRLDependencies (ImportError)
+
+    AldmGymWarning (UserWarning)
+    ├── NumbaCacheWarning               a kernel's cache was unusable: recompiled
+    └── TrainingWarning                 a training output was repaired or skipped
+
+Messages name what is wrong: the setting and the allowed values, the file, road,
+element and line of a map, the argument to blame.
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "AldmGymError",
+    "AldmGymWarning",
+    "CheckpointError",
+    "ClusterError",
+    "ConfigError",
+    "InputError",
+    "MapError",
+    "MapNotFoundError",
+    "MissingRLDependencies",
+    "NumbaCacheWarning",
+    "OffRoadError",
+    "OutputLocked",
+    "ResumeError",
+    "TrainingWarning",
+]
+
+
+class AldmGymError(Exception):
+    """Base of every exception aldm-gym raises on purpose."""
+
+
+class ConfigError(AldmGymError, ValueError):
+    """A setting is unknown (the message names it, the allowed ones and the nearest
+    match) or its value breaks the setting's rule (range, choices, type)."""
+
+
+class InputError(AldmGymError, ValueError):
+    """Data given to a function cannot be used: wrong shape or type, NaN or inf,
+    an empty frame where points are needed, a pose outside the world."""
+
+
+class OffRoadError(InputError):
+    """A world position lies on no lane of the road (off a map's lanes)."""
+
+
+class MapError(AldmGymError, ValueError):
+    """An OpenDRIVE file cannot be read or driven on: malformed XML, a record that
+    cannot be evaluated, no driving lane (naming file, road, element and line)."""
+
+
+class MapNotFoundError(AldmGymError, FileNotFoundError):
+    """The OpenDRIVE file does not exist (the message says where shipped maps are)."""
+
+
+class CheckpointError(AldmGymError, ValueError):
+    """A training output, model or checkpoint is missing, corrupt or incompatible."""
+
+
+class ResumeError(CheckpointError):
+    """What ``--resume`` found in the output folder cannot be resumed by this backend."""
+
+
+class ClusterError(AldmGymError, ValueError):
+    """No Ray cluster at the address, a token it refuses, or too few CPUs.
+
+    :ivar argument: the command-line flag to blame (``--address`` or
+        ``--num-env-runners``).
+    """
+
+    def __init__(self, message: str, argument: str = "--address") -> None:
+        super().__init__(message)
+        self.argument = argument
+
+
+class OutputLocked(AldmGymError, RuntimeError):
+    """Another training holds the output folder's lock."""
+
+
+class MissingRLDependencies(AldmGymError, ImportError):
+    """stable-baselines3, torch or Ray RLlib is not installed (the message says how)."""
+
+
+class AldmGymWarning(UserWarning):
+    """Base of the warnings aldm-gym issues."""
+
+
+class NumbaCacheWarning(AldmGymWarning):
+    """numba's cache of a kernel was unusable; the kernel was (re)compiled."""
+
+
+class TrainingWarning(AldmGymWarning):
+    """Something in a training's output folder was repaired or skipped (a stale lock,
+    a corrupt checkpoint)."""
