@@ -92,6 +92,12 @@ def setting(default: Any = dataclasses.MISSING, **rule: Any) -> Any:
     return dataclasses.field(default=default, metadata=meta)
 
 
+def section(cls: type) -> Any:
+    """A dataclass field holding a nested config dataclass ``cls`` (its defaults when
+    not given). The owner validates a mapping given for it into a ``cls``."""
+    return dataclasses.field(default_factory=cls, metadata={"rule": Rule(kind="any")})
+
+
 def is_number(value: Any) -> bool:
     """A real number (Python or numpy), not a bool."""
     return isinstance(value, numbers.Real) and not isinstance(value, bool | np.bool_)
@@ -209,14 +215,29 @@ def build_config(cls: type[T], overrides: Mapping[str, Any] | T | None, *, where
         raise TypeError(
             f"{where} config must be a mapping or {cls.__name__}, got {type(overrides).__name__}"
         )
-    allowed = [f.name for f in dataclasses.fields(cls)]  # type: ignore[arg-type]
-    unknown = sorted(str(k) for k in overrides if k not in allowed)
+    check_keys(f"{where} config", overrides, [f.name for f in dataclasses.fields(cls)])  # type: ignore[arg-type]
+    return cls(**dict(overrides))
+
+
+def check_keys(where: str, keys: Any, allowed: Any) -> None:
+    """Raise :class:`ConfigError` unless every key of ``keys`` is a string among ``allowed``.
+
+    The one unknown-key check of every configurable component: the message names the
+    unknown keys, the nearest allowed one and all allowed ones, e.g. ``unknown acc
+    key(s) ['time_gapp'] (did you mean 'time_gap'?); allowed keys: [...]``.
+
+    :param where: what the keys configure (``"config"``, ``"acc"``, ``"sensor config"``).
+    """
+    bad = [k for k in keys if not isinstance(k, str)]
+    if bad:
+        raise ConfigError(f"{where} keys must be strings, got {bad!r}")
+    allowed = list(allowed)
+    unknown = sorted(k for k in keys if k not in allowed)
     if unknown:
         raise ConfigError(
-            f"unknown {where} config key(s) {unknown}{close_match(unknown, allowed)}; "
+            f"unknown {where} key(s) {unknown}{close_match(unknown, allowed)}; "
             f"allowed keys: {sorted(allowed)}"
         )
-    return cls(**dict(overrides))
 
 
 def close_match(unknown: list[str], allowed: Any) -> str:

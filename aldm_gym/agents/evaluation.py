@@ -111,7 +111,7 @@ def run_episode(env: Any, policy: Policy, seed: int, max_steps: int | None = Non
     if hasattr(policy, "reset"):
         policy.reset()
     stats = EpisodeStats(seed=seed)
-    dt = 1.0 / float(env.unwrapped.config["policy_frequency"])
+    dt = 1.0 / float(env.unwrapped.config["policy_frequency"])  # highway-env's key
     s_start = float(info["arc_length"])
     pending: tuple[int, int, int] | None = None  # (direction, start lane, completed count)
     aborted = int(info.get("lane_changes_aborted", 0))

@@ -96,10 +96,10 @@ class ALDMAction:
 
     def __init__(self, env: ALDMHighwayEnv) -> None:
         self.env = env
-        cfg = env.config
-        self.continuous = cfg["action"]["type"] == "ContinuousAction"
+        action = env.settings.action
+        self.continuous = action.type == "ContinuousAction"
         self.max_steering = float(env.lka.max_steering)
-        self.max_acceleration = float(cfg["action"]["max_acceleration"])
+        self.max_acceleration = float(action.max_acceleration)
         self.last_action: Any = None
 
     def space(self) -> spaces.Space:

@@ -361,7 +361,7 @@ class ALDMObservation:
 
     def __init__(self, env: ALDMHighwayEnv) -> None:
         self.env = env
-        self.config = ObservationConfig(**env.config["observation"])
+        self.config: ObservationConfig = env.settings.observation
         self.observer_vehicle = env.vehicle
 
     def space(self) -> spaces.Space:

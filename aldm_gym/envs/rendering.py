@@ -192,7 +192,7 @@ class ALDMViewer(EnvViewer):
         RoadGraphics.display_traffic(
             self.env.road,
             surface,
-            simulation_frequency=self.env.config["simulation_frequency"],
+            simulation_frequency=self.env.settings.simulation_frequency,
             offscreen=self.offscreen,
         )
         ObservationGraphics.display(self.env.observation_type, surface)
@@ -203,8 +203,8 @@ class ALDMViewer(EnvViewer):
         self.draw_legend(surface)
         if not self.offscreen:
             self.screen.blit(surface, (0, 0))
-            if self.env.config["real_time_rendering"]:
-                self.clock.tick(self.env.config["simulation_frequency"])
+            if self.env.settings.real_time_rendering:
+                self.clock.tick(self.env.settings.simulation_frequency)
             pygame.display.flip()
 
     def draw_road(self, surface: WorldSurface) -> None:
@@ -221,7 +221,7 @@ class ALDMViewer(EnvViewer):
         if frame is None:
             return
         origin, yaw = frame.origin, frame.yaw
-        colour = DETECTOR_COLOURS.get(env.config["detector"], DETECTOR_COLOURS["aldm"])
+        colour = DETECTOR_COLOURS.get(env.settings.detector, DETECTOR_COLOURS["aldm"])
         det = env.detection
         if det is not None:
             for name in LINE_NAMES:
@@ -250,7 +250,7 @@ class ALDMViewer(EnvViewer):
 
     def draw_legend(self, surface: WorldSurface) -> None:
         """The legend (top left) and a scale bar (bottom left)."""
-        key = (str(self.env.config["detector"]), self._bridges_shown)
+        key = (str(self.env.settings.detector), self._bridges_shown)
         if self._legend is None or self._legend[0] != key:
             self._legend = (key, _legend_surface(*key))
         surface.blit(self._legend[1], (6, 6))

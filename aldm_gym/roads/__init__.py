@@ -1,5 +1,6 @@
 """Roads: painted-marking geometry and ground truth, generated (HighwayRoad) or read
-from an OpenDRIVE map (OpenDriveRoad)."""
+from an OpenDRIVE map (OpenDriveRoad); both are a :class:`Road`, the protocol the rest
+of the package asks (:mod:`aldm_gym.roads.protocol`)."""
 
 from __future__ import annotations
 
@@ -19,6 +20,8 @@ from aldm_gym.roads.map_road import OpenDriveRoad
 from aldm_gym.roads.markings import Marking, MarkingRole, MarkingType
 from aldm_gym.roads.opendrive.parse import SHIPPED_MAPS, shipped_map
 from aldm_gym.roads.polyline import MarkingCurve, PolylineMarkings, PolylineRoad
+from aldm_gym.roads.position import LanePosition, Pose
+from aldm_gym.roads.protocol import MarkedRoad, Road
 
 __all__ = [
     "EDGE",
@@ -26,6 +29,8 @@ __all__ = [
     "MIN_RADIUS_BY_SPEED",
     "SHIPPED_MAPS",
     "HighwayRoad",
+    "LanePosition",
+    "MarkedRoad",
     "Marking",
     "MarkingCurve",
     "MarkingRole",
@@ -33,8 +38,10 @@ __all__ = [
     "OpenDriveRoad",
     "PolylineMarkings",
     "PolylineRoad",
+    "Pose",
     "ReferenceLane",
     "ReferenceLine",
+    "Road",
     "RoadConfig",
     "Segment",
     "curvature_profile",

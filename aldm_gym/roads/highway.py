@@ -36,7 +36,7 @@ from aldm_gym.roads.geometry import ReferenceLine, Segment
 from aldm_gym.roads.lane import ReferenceLane
 from aldm_gym.roads.markings import MARKING_MODELS, Marking, MarkingRole, MarkingType
 from aldm_gym.roads.overpass import overpass_lines
-from aldm_gym.roads.position import LanePosition, world_point
+from aldm_gym.roads.position import LanePosition, Pose, world_point
 from aldm_gym.types import FloatArray
 
 MIN_RADIUS_BY_SPEED = {130: 800.0, 120: 600.0, 110: 500.0, 100: 400.0}
@@ -75,7 +75,8 @@ class RoadConfig:
     :ivar guard_rail_offset: lateral distance of a guard rail outside its edge line [m].
     :ivar guard_rail_height: guard-rail height [m] (> 0).
     :ivar speed_limit: speed limit of every lane [m/s].
-    :ivar seed: seed of the curvature profile.
+    :ivar seed: seed of the curvature profile (``None``: a fresh random one; the env
+        draws it from its own generator at each reset, so seeded episodes repeat).
     :ivar overpasses: reference arc lengths where a bridge crosses above the road [m]
         (``None``: none); the sensor reports the bridge's markings at ``z > 0``
         (:mod:`aldm_gym.roads.overpass`).
@@ -107,7 +108,7 @@ class RoadConfig:
     guard_rail_offset: float = setting(1.0, lo=0.0, hi=10.0)
     guard_rail_height: float = setting(0.75, lo=0.0, lo_open=True, hi=3.0)
     speed_limit: float = setting(36.0, lo=0.0, lo_open=True, hi=100.0)
-    seed: int = setting(0, lo=0, hi=2**63 - 1, integer=True)
+    seed: int | None = setting(0, lo=0, hi=2**63 - 1, integer=True, optional=True)
     marking_model: str = setting("per_dash", choices=MARKING_MODELS)
     overpasses: tuple[float, ...] | None = setting(None, kind="numbers", lo=0.0, optional=True)
     overpass_angle: float = setting(math.radians(45.0), lo=math.radians(10.0), hi=math.pi / 2)
@@ -444,6 +445,47 @@ class HighwayRoad:
         """Reference-line curvature at ``s`` [1/m], positive = left curve."""
         _check_finite("s", s)
         return self.reference.curvature_at(s)
+
+    def lateral_offsets(self, xy: FloatArray, pos: LanePosition) -> FloatArray:
+        """Lateral position [m] (> 0 left) of world points ``xy`` ``(N, 2)`` relative to
+        the centre of lane ``pos.lane``, along the reference line (one compiled batch
+        projection)."""
+        _, d = self.reference.project_many(xy)
+        return d - self.lane_offset(pos.lane)
+
+    def ends_within(self, pos: LanePosition, distance: float) -> bool:
+        """Whether the road ends within ``distance`` [m] ahead of ``pos``."""
+        return pos.s > pos.end - distance
+
+    def lane_ends_in(self, pos: LanePosition) -> None:
+        """``None``: the lanes of a generated highway run to the road's end."""
+        return None
+
+    def sample_poses(
+        self,
+        n: int,
+        rng: np.random.Generator,
+        max_shift: float = 0.875,
+        heading_jitter: float = 0.01,
+        margin: float = 250.0,
+    ) -> list[Pose]:
+        """``n`` seeded poses: arc length uniform in ``[margin, length - margin]``, a
+        random lane, a lateral shift uniform in ``±max_shift`` [m], the heading with a
+        normal jitter of ``heading_jitter`` [rad].
+
+        :raises InputError: the road is not longer than ``2 margin``.
+        """
+        if self.length <= 2 * margin:
+            raise InputError(f"road too short ({self.length:.0f} m) for a {margin} m margin")
+        out = []
+        for _ in range(n):
+            s = float(rng.uniform(margin, self.length - margin))
+            lane = int(rng.integers(self.lanes_count))
+            shift = float(rng.uniform(-max_shift, max_shift))
+            p = self.reference.position(s, self.lane_offset(lane) + shift)
+            h = float(self.reference.heading_at(s)) + float(rng.normal(0.0, heading_jitter))
+            out.append(Pose(s, lane, shift, (float(p[0]), float(p[1]), h), lane, self.lanes_count))
+        return out
 
     def sample_visible(
         self,

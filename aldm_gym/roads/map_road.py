@@ -38,7 +38,7 @@ from aldm_gym.roads.opendrive import OpenDriveMap
 from aldm_gym.roads.opendrive.map import LaneKey, LaneRecord
 from aldm_gym.roads.opendrive.parse import not_found
 from aldm_gym.roads.polyline import MarkingCurve, PolylineMarkings, PolylineRoad
-from aldm_gym.roads.position import LanePosition, world_point
+from aldm_gym.roads.position import LanePosition, Pose, world_point
 from aldm_gym.types import FloatArray
 
 if TYPE_CHECKING:
@@ -51,6 +51,10 @@ DRIVING_TYPES = frozenset(
 
 LOCATE_REACH = 15.0
 """A position is located on lanes whose centre passes within this distance [m]."""
+
+MIN_POSE_WIDTH = 2.5
+"""Seeded poses (:meth:`OpenDriveRoad.sample_poses`) are drawn where their lane is at
+least this wide [m] (not in tapers)."""
 
 BOUNDARY_REACH = 260.0
 """Ground-truth lines follow a lane's borders this far ahead [m] (the sensor sees 200 m)."""
@@ -251,6 +255,73 @@ class OpenDriveRoad(PolylineRoad):
         lane = pos.lane
         rest = self.lane_length(lane) - (pos.s - self._start[lane])
         return rest + max(self._beyond(k) for k in self._siblings[lane])
+
+    def ends_within(self, pos: LanePosition, distance: float) -> bool:
+        """Whether the road ahead of ``pos`` (:meth:`road_left`: the farthest-reaching
+        lane beside it; its own may end sooner and merge out) ends within ``distance`` [m]."""
+        return self.road_left(pos) < distance
+
+    def lateral_offsets(self, xy: FloatArray, pos: LanePosition) -> FloatArray:
+        """Lateral position [m] (> 0 left) of world points ``xy`` ``(N, 2)`` relative to
+        the centre of the lane at ``pos``: ``(its lane index - theirs) · width + their
+        offset``; ``inf`` for a point on no driving lane."""
+        y = np.full(len(xy), math.inf)
+        for k in range(len(xy)):
+            try:
+                p = self.lane_position(xy[k])
+            except InputError:
+                continue  # off the map's lanes: in no lane
+            y[k] = (pos.index - p.index) * pos.width + p.offset
+        return y
+
+    def sample_poses(
+        self,
+        n: int,
+        rng: np.random.Generator,
+        max_shift: float = 0.875,
+        heading_jitter: float = 0.01,
+        margin: float = 250.0,
+    ) -> list[Pose]:
+        """``n`` seeded poses on the driving lanes, each lane weighted by its length,
+        where it is at least :data:`MIN_POSE_WIDTH` wide; shift and heading jitter as
+        :meth:`HighwayRoad.sample_poses <aldm_gym.roads.HighwayRoad.sample_poses>`
+        (``margin`` does not apply: lanes are drawn as they are).
+
+        :raises MapError: too few such places (100 draws per pose).
+        """
+        net = self.network
+        keys = list(self.lanes)
+        lengths = np.array([self.lane_length(k) for k in keys])
+        cum = np.cumsum(lengths)
+        out: list[Pose] = []
+        for _ in range(100 * n):
+            if len(out) == n:
+                break
+            i = min(
+                int(np.searchsorted(cum, rng.uniform(0.0, cum[-1]), side="right")), len(keys) - 1
+            )
+            key = keys[i]
+            lane = net.get_lane(net.index_of[key])
+            u = float(rng.uniform(0.0, lane.length))
+            shift = float(rng.uniform(-max_shift, max_shift))
+            h = float(lane.heading_at(u)) + float(rng.normal(0.0, heading_jitter))
+            if lane.width_at(u) < MIN_POSE_WIDTH:
+                continue
+            p = lane.position(u, -shift)  # lane coordinates: r positive to the right
+            siblings = self.siblings(key)
+            out.append(
+                Pose(
+                    self.chain_start(key) + u,
+                    key,
+                    shift,
+                    (float(p[0]), float(p[1]), h),
+                    siblings.index(key),
+                    len(siblings),
+                )
+            )
+        if len(out) < n:
+            raise MapError(f"{self.map.path}: too few places where a driving lane is wide enough")
+        return out
 
     def lane_ends_in(self, pos: LanePosition) -> float:
         """Distance [m] to the end of the position's lane chain if it ends before the road

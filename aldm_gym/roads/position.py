@@ -51,6 +51,28 @@ class LanePosition:
         return self.index in (0, self.lanes - 1)
 
 
+@dataclass(frozen=True)
+class Pose:
+    """A sampled vehicle pose on a road (:meth:`Road.sample_poses
+    <aldm_gym.roads.protocol.Road.sample_poses>`).
+
+    :ivar s: reference arc length [m] (on a map: along the lane's chain).
+    :ivar lane_id: true lane (the road's lane key: an int on a generated highway, a
+        ``(road id, section, lane id)`` on a map).
+    :ivar shift: left offset from the lane centre [m].
+    :ivar pose: world ``(x [m], y [m], heading [rad])``.
+    :ivar index: the lane's number from the left among the lanes of its direction.
+    :ivar lanes: how many such lanes there are.
+    """
+
+    s: float
+    lane_id: Any
+    shift: float
+    pose: tuple[float, float, float]
+    index: int = 0
+    lanes: int = 1
+
+
 #: Largest world coordinate accepted [m]: far beyond any map (UTM northings stay
 #: below 1e7 m), small enough that projections stay exact in float64.
 MAX_COORDINATE = 1e9

@@ -121,7 +121,7 @@ def road_key(road: Any, seed: int = 0) -> int:
     worn stretches and clutter, and a road and its twin with the other marking model
     (same geometry) do too. Cached per road object.
 
-    :param road: a :class:`~aldm_gym.roads.HighwayRoad` or a map road.
+    :param road: the marked road (:class:`~aldm_gym.roads.MarkedRoad`).
     :param seed: the sensor's ``wear_seed``: another seed wears other stretches.
     """
     try:

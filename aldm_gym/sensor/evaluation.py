@@ -11,116 +11,37 @@ the registry :mod:`aldm_gym.sensor.detectors`.
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from aldm_gym.errors import InputError, MapError
-from aldm_gym.roads.highway import HighwayRoad
-from aldm_gym.roads.map_road import OpenDriveRoad
+from aldm_gym.roads.position import Pose
+from aldm_gym.roads.protocol import Road
 from aldm_gym.sensor.detectors import DETECTORS, make_detector
 from aldm_gym.sensor.frame import SensorFrame
 from aldm_gym.sensor.ground_truth import score_detection
 from aldm_gym.sensor.line_sensor import LineSensor
 
 
-@dataclass(frozen=True)
-class Pose:
-    """A sampled vehicle pose on a road.
-
-    :ivar s: reference arc length [m] (on a map: along the lane's chain).
-    :ivar lane_id: true lane (the road's lane key: an int on a generated highway, a
-        ``(road id, section, lane id)`` on a map).
-    :ivar shift: left offset from the lane centre [m].
-    :ivar pose: world ``(x [m], y [m], heading [rad])``.
-    :ivar index: the lane's number from the left among the lanes of its direction.
-    :ivar lanes: how many such lanes there are.
-    """
-
-    s: float
-    lane_id: Any
-    shift: float
-    pose: tuple[float, float, float]
-    index: int = 0
-    lanes: int = 1
-
-
 def sample_poses(
-    road: HighwayRoad | OpenDriveRoad,
+    road: Road,
     n: int,
     rng: np.random.Generator,
     max_shift: float = 0.875,
     heading_jitter: float = 0.01,
     margin: float = 250.0,
 ) -> list[Pose]:
-    """``n`` seeded poses: uniform arc length, lane, lateral shift within the lane, yaw jitter.
+    """``n`` seeded poses: uniform arc length, lane, lateral shift within the lane, yaw
+    jitter (:meth:`Road.sample_poses <aldm_gym.roads.protocol.Road.sample_poses>`).
 
     :param max_shift: largest lateral shift from the lane centre [m] (0.875 m: a 2 m
         wide car with its tyres on the lines of a 3.75 m lane).
     :param heading_jitter: standard deviation of the heading error [rad].
     :param margin: distance kept from both road ends [m] (a generated road; on a map
         poses are drawn on every driving lane, weighted by its length, where it is at
-        least :data:`MIN_MAP_WIDTH` wide).
+        least :data:`~aldm_gym.roads.map_road.MIN_POSE_WIDTH` wide).
     """
-    if isinstance(road, OpenDriveRoad):
-        return _sample_map_poses(road, n, rng, max_shift, heading_jitter)
-    if road.length <= 2 * margin:
-        raise InputError(f"road too short ({road.length:.0f} m) for a {margin} m margin")
-    out = []
-    for _ in range(n):
-        s = float(rng.uniform(margin, road.length - margin))
-        lane = int(rng.integers(road.lanes_count))
-        shift = float(rng.uniform(-max_shift, max_shift))
-        p = road.reference.position(s, road.lane_offset(lane) + shift)
-        h = float(road.reference.heading_at(s)) + float(rng.normal(0.0, heading_jitter))
-        out.append(Pose(s, lane, shift, (float(p[0]), float(p[1]), h), lane, road.lanes_count))
-    return out
-
-
-MIN_MAP_WIDTH = 2.5
-"""Map poses are drawn where their lane is at least this wide [m] (not in tapers)."""
-
-
-def _sample_map_poses(
-    road: OpenDriveRoad,
-    n: int,
-    rng: np.random.Generator,
-    max_shift: float,
-    heading_jitter: float,
-) -> list[Pose]:
-    """:func:`sample_poses` on a map's driving lanes (see there)."""
-    net = road.network
-    keys = list(road.lanes)
-    lengths = np.array([road.lane_length(k) for k in keys])
-    cum = np.cumsum(lengths)
-    out: list[Pose] = []
-    for _ in range(100 * n):
-        if len(out) == n:
-            break
-        i = min(int(np.searchsorted(cum, rng.uniform(0.0, cum[-1]), side="right")), len(keys) - 1)
-        key = keys[i]
-        lane = net.get_lane(net.index_of[key])
-        u = float(rng.uniform(0.0, lane.length))
-        shift = float(rng.uniform(-max_shift, max_shift))
-        h = float(lane.heading_at(u)) + float(rng.normal(0.0, heading_jitter))
-        if lane.width_at(u) < MIN_MAP_WIDTH:
-            continue
-        p = lane.position(u, -shift)  # lane coordinates: r positive to the right
-        siblings = road.siblings(key)
-        out.append(
-            Pose(
-                road.chain_start(key) + u,
-                key,
-                shift,
-                (float(p[0]), float(p[1]), h),
-                siblings.index(key),
-                len(siblings),
-            )
-        )
-    if len(out) < n:
-        raise MapError(f"{road.map.path}: too few places where a driving lane is wide enough")
-    return out
+    return road.sample_poses(n, rng, max_shift, heading_jitter, margin)
 
 
 COLUMNS: tuple[str, ...] = (
@@ -139,7 +60,7 @@ COLUMNS: tuple[str, ...] = (
 
 
 def compare_detectors(
-    roads: Iterable[HighwayRoad | OpenDriveRoad],
+    roads: Iterable[Road],
     detectors: Iterable[str] = DETECTORS,
     frames_per_road: int = 100,
     sensor: LineSensor | None = None,
@@ -208,7 +129,7 @@ def compare_detectors(
     return rows
 
 
-def remeasure(road: HighwayRoad | OpenDriveRoad, frame: SensorFrame) -> SensorFrame:
+def remeasure(road: Road, frame: SensorFrame) -> SensorFrame:
     """Measure ``road`` from the sensor pose of an earlier ``frame`` (same place, e.g.
     the other marking model of the same road)."""
     # The frame's origin is the sensor itself: a sensor mounted at the vehicle's
@@ -218,7 +139,7 @@ def remeasure(road: HighwayRoad | OpenDriveRoad, frame: SensorFrame) -> SensorFr
 
 
 def find_frame(
-    road: HighwayRoad | OpenDriveRoad,
+    road: Road,
     sensor: LineSensor,
     want: Callable[[SensorFrame, Any], bool],
     rng: np.random.Generator,

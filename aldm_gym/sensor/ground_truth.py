@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from aldm_gym.roads.highway import HighwayRoad
+from aldm_gym.roads.protocol import Road
 from aldm_gym.sensor.detection import LINE_NAMES, LaneDetection
 from aldm_gym.sensor.frame import SensorFrame
 from aldm_gym.types import FloatArray
@@ -24,7 +24,7 @@ another along its course (on maps a border changes marking, e.g. broken to solid
 
 
 def line_markings(
-    road: HighwayRoad, lane_id: Any, position: FloatArray | None = None
+    road: Road, lane_id: Any, position: FloatArray | None = None
 ) -> dict[str, Boundary | None]:
     """The true line (:data:`Boundary`) of each of the four lines (:data:`LINE_NAMES`).
 
@@ -49,9 +49,7 @@ def boundary_y(y: FloatArray, line: Boundary) -> FloatArray:
     return out
 
 
-def true_line(
-    road: HighwayRoad, frame: SensorFrame, marking: Boundary, xs: FloatArray
-) -> FloatArray:
+def true_line(road: Road, frame: SensorFrame, marking: Boundary, xs: FloatArray) -> FloatArray:
     """True lateral position [m] of a line at sensor x positions ``xs`` (NaN where unseen).
 
     :param marking: a marking index, or a chain of them (:data:`Boundary`).
@@ -73,7 +71,7 @@ def true_line(
 
 
 def ground_truth_detect(
-    road: HighwayRoad,
+    road: Road,
     frame: SensorFrame,
     lane_id: int,
     dx: float | None = None,
@@ -123,7 +121,7 @@ class LineScore:
 
 def score_line(
     line: FloatArray,
-    road: HighwayRoad,
+    road: Road,
     frame: SensorFrame,
     marking: Boundary | None,
     tol: float = 0.3,
@@ -145,7 +143,7 @@ def score_line(
 
 def score_detection(
     detection: LaneDetection,
-    road: HighwayRoad,
+    road: Road,
     frame: SensorFrame,
     lane_id: int,
     **kwargs: float,

@@ -1,4 +1,4 @@
-"""Emulation of IPG CarMaker's line sensor on a :class:`~aldm_gym.roads.HighwayRoad`.
+"""Emulation of IPG CarMaker's line sensor on any marked road (:class:`~aldm_gym.roads.MarkedRoad`).
 
 The sensor samples every painted marking (and barrier) at fixed x positions of its
 own frame, from the field-of-view start (5.52 m) every ``dx`` (2 m) up to the range
@@ -11,7 +11,7 @@ marking model: one object per marking (``"editor"``) or one per dash
 (``"per_dash"``), then assigned to a side by their first point, as CarMaker does:
 right when it lies right of the car's middle axis, otherwise left.
 
-Sampling the markings is a numba kernel of the road (``HighwayRoad.sample_markings``);
+Sampling the markings is a numba kernel of the road (``road.sample_visible``);
 everything after it (paint pattern, noise, objects, sides, order, caps) is one numba
 kernel here, ``_assemble`` (plain-Python reference ``_assemble_py``, umap habit). The
 noise and dropout draws come from the generator as whole-grid arrays and enter the
@@ -30,8 +30,8 @@ import numpy as np
 
 from aldm_gym.config import build_config, setting, validate
 from aldm_gym.errors import ConfigError, InputError
-from aldm_gym.roads.highway import HighwayRoad
 from aldm_gym.roads.position import check_within_world
+from aldm_gym.roads.protocol import MarkedRoad
 from aldm_gym.sensor import conditions as cond
 from aldm_gym.sensor.conditions import CELL, MAX_STRETCH
 from aldm_gym.sensor.frame import SensorFrame
@@ -370,7 +370,7 @@ class LineSensor:
 
     def measure(
         self,
-        road: HighwayRoad,
+        road: MarkedRoad,
         pose: Any,
         t: float = 0.0,
         *,
@@ -399,7 +399,10 @@ class LineSensor:
         :return: the frame.
         """
         if not hasattr(road, "sample_visible"):
-            raise TypeError(f"road must be a HighwayRoad or a map road, got {type(road).__name__}")
+            raise TypeError(
+                f"road must be a marked road (HighwayRoad, OpenDriveRoad, PolylineRoad), "
+                f"got {type(road).__name__}"
+            )
         if not (_is_number(t) and math.isfinite(t)):
             raise InputError(f"t must be a finite number [s], got {t!r}")
         if s_hint is not None and not _is_number(s_hint):

@@ -36,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from aldm_gym.config import build_config, close_match, setting, validate
+from aldm_gym.config import build_config, check_keys, setting, validate
 from aldm_gym.errors import ConfigError
 from aldm_gym.sensor.aldm import ALDMParams, _detect_lanes, as_points, make_params
 from aldm_gym.sensor.aldm_kernels.track import _consensus, _hold, _match, _prior, _table
@@ -140,13 +140,7 @@ def split_params(params: dict[str, Any]) -> tuple[bool, TrackerParams, ALDMParam
     :raises ConfigError: an unknown key (naming the allowed ones), a bad value, a
         non-boolean ``tracking``, or tracker settings without ``tracking=True``.
     """
-    allowed = sorted({*ALDMParams.__dataclass_fields__, *TRACKER_KEYS})
-    unknown = sorted(str(k) for k in params if k not in allowed)
-    if unknown:
-        raise ConfigError(
-            f"unknown aldm config key(s) {unknown}{close_match(unknown, allowed)}; "
-            f"allowed keys: {allowed}"
-        )
+    check_keys("aldm config", params, {*ALDMParams.__dataclass_fields__, *TRACKER_KEYS})
     tracking = params.get("tracking", False)
     if not isinstance(tracking, (bool, np.bool_)):
         raise ConfigError(f"aldm.tracking must be true or false, got {tracking!r}")

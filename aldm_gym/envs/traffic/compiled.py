@@ -72,7 +72,7 @@ from aldm_gym.envs.traffic.vehicles import (
     BatchedLaneUpdate,
     FastControlledVehicle,
     FastIDMVehicle,
-    _uses_base_kinematics,
+    uses_base_kinematics,
 )
 
 __all__ = ["COMPILED", "ENGINES", "CompiledTraffic"]
@@ -153,7 +153,7 @@ def _classes_ok(kinds: frozenset[type]) -> tuple[bool, bool]:
     collide as highway-env's plain boxes."""
     ok = all(
         issubclass(cls, Vehicle)
-        and _uses_base_kinematics(cls)
+        and uses_base_kinematics(cls)
         and cls.lane_distance_to in _BASE_LANE_DISTANCE
         # Moves that read only the vehicle itself: the compiled vehicles may then move
         # before the Python ones ahead of them in the list.

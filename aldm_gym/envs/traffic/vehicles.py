@@ -46,11 +46,12 @@ __all__ = [
     "FastBicycleStep",
     "FastControlledVehicle",
     "FastIDMVehicle",
+    "uses_base_kinematics",
 ]
 
 
 @cache
-def _uses_base_kinematics(cls: type) -> bool:
+def uses_base_kinematics(cls: type) -> bool:
     """Whether ``cls.velocity`` / ``cls.direction`` are highway-env's own properties."""
     return getattr(cls, "direction", None) is RoadObject.direction and (
         getattr(cls, "velocity", None) in (Vehicle.velocity, RoadObject.velocity)
@@ -297,8 +298,8 @@ class FastIDMVehicle(FastControlledVehicle, IDMVehicle):
         front_cls: type = type(front_vehicle)
         if projected and not (
             PLAIN_DOT_MATCHES_NUMPY
-            and _uses_base_kinematics(ego_cls)
-            and _uses_base_kinematics(front_cls)
+            and uses_base_kinematics(ego_cls)
+            and uses_base_kinematics(front_cls)
         ):
             # highway-env's np.dot, where plain arithmetic would not give its result.
             return float(super().desired_gap(ego_vehicle, front_vehicle, projected))

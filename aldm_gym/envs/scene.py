@@ -1,0 +1,255 @@
+"""Scene building of ``ALDMHighway-v0``: the road, the traffic's road and the vehicles.
+
+One builder per road source, chosen by the settings (``road.xodr`` set or not), each
+answering the same three questions (:class:`Scene`): the :class:`~aldm_gym.roads.Road`
+the ego drives on, the highway-env road (:class:`~aldm_gym.envs.traffic.FastRoad`) over
+its lanes, and the vehicles on it, the ego first and the traffic after it.
+
+- :class:`GeneratedScene`: a seeded generated highway (cached across resets), traffic
+  placed as in ``highway-v0``, run by the compiled engine (``traffic.engine``).
+- :class:`MapScene`: an OpenDRIVE map; the ego starts on a seeded lane and position
+  with enough lane chain ahead, traffic ahead of it along the chain (IDM/MOBIL with a
+  mandatory merge out of ending lanes).
+
+The random draws keep their order (the road's seed, then the vehicles'), so a seed
+gives the same scene bit for bit.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+from highway_env import utils
+from highway_env.vehicle.kinematics import Vehicle
+
+from aldm_gym.envs.config import EnvConfig
+from aldm_gym.envs.traffic import FastRoad
+from aldm_gym.envs.traffic.compiled import CompiledTraffic
+from aldm_gym.envs.traffic.mix import Spawner, make_truck
+from aldm_gym.envs.vehicle import MapIDMVehicle, SensorVehicle
+from aldm_gym.errors import ConfigError
+from aldm_gym.roads.cache import cached_road
+from aldm_gym.roads.highway import HighwayRoad
+from aldm_gym.roads.map_road import OpenDriveRoad
+from aldm_gym.roads.protocol import Road
+
+__all__ = [
+    "MAP_MIN_AHEAD",
+    "MAP_TRAFFIC_ROOM",
+    "ROAD_END_MARGIN",
+    "GeneratedScene",
+    "MapScene",
+    "Scene",
+    "make_scene",
+]
+
+ROAD_END_MARGIN = 250.0
+"""The episode is truncated when the ego is this close to the end of the road [m]."""
+
+MAP_MIN_AHEAD = 500.0
+"""On a map the ego starts with at least ``max(this, initial_speed · duration)`` of its
+lane chain ahead, plus :data:`ROAD_END_MARGIN` [m]."""
+
+MAP_TRAFFIC_ROOM = 200.0
+"""Traffic is not placed on a lane whose chain ends within this distance [m]."""
+
+MakeEgo = Callable[[FastRoad, Any, float, float], SensorVehicle]
+"""``make_ego(traffic_road, position [m], heading [rad], speed [m/s])``: the ego."""
+
+
+class Scene:
+    """A scene builder: the road, the traffic's road and the vehicles of an episode
+    (:meth:`road`, :meth:`traffic_road`, :meth:`place_vehicles`, in that order)."""
+
+    CONNECTED_LANES = False
+    """Whether neighbours are always searched across connected lanes."""
+
+    def __init__(self, settings: EnvConfig) -> None:
+        """Hold the settings the scene is built from."""
+        self.settings = settings
+
+    def road(self, rng: np.random.Generator) -> Road:
+        """The road of the next episode (draws from ``rng`` only where the road does)."""
+        raise NotImplementedError
+
+    def traffic_road(self, road: Road, rng: np.random.Generator) -> FastRoad:
+        """highway-env's road over ``road``'s lane network, for the vehicles."""
+        s = self.settings
+        return FastRoad(
+            network=road.network,
+            np_random=rng,
+            record_history=s.show_trajectories,
+            neighbour_vehicles_connected_lanes=(
+                s.neighbour_vehicles_connected_lanes or self.CONNECTED_LANES
+            ),
+        )
+
+    def place_vehicles(
+        self, road: Road, traffic: FastRoad, rng: np.random.Generator, make_ego: MakeEgo
+    ) -> SensorVehicle:
+        """Add the ego, then the traffic, to ``traffic.vehicles``; return the ego."""
+        raise NotImplementedError
+
+
+class GeneratedScene(Scene):
+    """A generated highway (``road`` settings without ``xodr``)."""
+
+    def road(self, rng: np.random.Generator) -> HighwayRoad:
+        """The seeded highway of :meth:`EnvConfig.road_config` (a ``None`` seed drawn from
+        ``rng`` at every episode), built once per process for each config."""
+        seed = int(rng.integers(0, 2**31 - 1)) if self.settings.road.seed is None else 0
+        return cached_road(self.settings.road_config(seed))
+
+    def traffic_road(self, road: Road, rng: np.random.Generator) -> FastRoad:
+        """highway-env's road; its traffic runs in the compiled engine unless
+        ``traffic.engine = "python"``."""
+        traffic = super().traffic_road(road, rng)
+        if self.settings.traffic.engine == "compiled":
+            traffic.engine = CompiledTraffic(road)  # this scene's generated highway
+        return traffic
+
+    def place_vehicles(
+        self, road: Road, traffic: FastRoad, rng: np.random.Generator, make_ego: MakeEgo
+    ) -> SensorVehicle:
+        """Ego then ``vehicles_count`` IDM vehicles ahead of it, as in ``highway-v0``."""
+        s = self.settings
+        other_type = utils.class_from_path(s.other_vehicles_type)
+        seed_vehicle = Vehicle.create_random(
+            traffic,
+            speed=float(s.initial_speed),
+            lane_id=s.initial_lane_id,
+            spacing=float(s.ego_spacing),
+        )
+        ego = make_ego(traffic, seed_vehicle.position, seed_vehicle.heading, seed_vehicle.speed)
+        traffic.vehicles.append(ego)
+        spawner = Spawner(s.traffic, rng)
+        for _ in range(int(s.vehicles_count)):
+            v = other_type.create_random(traffic, spacing=1.0 / float(s.vehicles_density))
+            v.randomize_behavior()
+            spawner.place(v, spawner.draw())
+            traffic.vehicles.append(v)
+        return ego
+
+
+class MapScene(Scene):
+    """An OpenDRIVE map (``road.xodr``), read when the env is configured.
+
+    :param settings: the env's settings.
+    :param road: the map, as :func:`~aldm_gym.envs.config.load_map` read it.
+    """
+
+    CONNECTED_LANES = True
+    """A map's lanes end at every lane section: look across to see the leader."""
+
+    def __init__(self, settings: EnvConfig, road: OpenDriveRoad) -> None:
+        """Hold the settings and the map."""
+        super().__init__(settings)
+        self.map = road
+
+    def road(self, rng: np.random.Generator) -> OpenDriveRoad:
+        """The map (the same every episode)."""
+        return self.map
+
+    def place_vehicles(
+        self, road: Road, traffic: FastRoad, rng: np.random.Generator, make_ego: MakeEgo
+    ) -> SensorVehicle:
+        """Ego on a seeded lane and position of the map, then IDM/MOBIL traffic ahead.
+
+        The ego starts on a driving lane (of index ``initial_lane_id`` from the left, if
+        set) at a position drawn uniformly among those with at least
+        ``max(MAP_MIN_AHEAD, initial_speed · duration) + ROAD_END_MARGIN`` of lane chain
+        ahead (the longest available, with a warning, on a short map). Traffic is placed
+        ahead of it along its lane chain, highway-env's way (gaps shrinking with the
+        lane count and ``vehicles_density``), each vehicle on a random lane of the
+        ego's direction there, never on a lane that ends within ``MAP_TRAFFIC_ROOM``.
+
+        :raises ConfigError: ``initial_lane_id`` names no driving lane of the map.
+        """
+        s = self.settings
+        road = self.map
+        net = road.network
+        speed = float(s.initial_speed)
+        need = max(MAP_MIN_AHEAD, speed * float(s.duration)) + ROAD_END_MARGIN
+        lanes = list(road.lanes)
+        if s.initial_lane_id is not None:
+            lanes = [k for k in lanes if road.siblings(k).index(k) == s.initial_lane_id]
+            if not lanes:
+                raise ConfigError(
+                    f"config.initial_lane_id {s.initial_lane_id} : the map "
+                    f"{road.map.path!r} has no driving lane with that index from the left"
+                )
+        # Start u along lane k such that chain_end - (chain_start + u) >= need.
+        room = np.array(
+            [
+                min(road.lane_length(k), road.chain_end(k) - road.chain_start(k) - need)
+                for k in lanes
+            ]
+        )
+        weights = np.maximum(room, 0.0)
+        if weights.sum() > 0.0:
+            cum = np.cumsum(weights)
+            i = min(
+                int(np.searchsorted(cum, rng.uniform(0.0, cum[-1]), side="right")), len(lanes) - 1
+            )
+            u = float(rng.uniform(0.0, weights[i]))
+        else:
+            ahead = [road.chain_end(k) - road.chain_start(k) for k in lanes]
+            i = int(np.argmax(ahead))
+            u = 0.0
+            warnings.warn(
+                f"{road.map.path}: no driving lane has {need:.0f} m ahead; the ego starts "
+                f"with the longest ({ahead[i]:.0f} m) and the episode may end early",
+                stacklevel=2,
+            )
+        key = lanes[i]
+        lane = net.get_lane(net.index_of[key])
+        ego = make_ego(traffic, lane.position(u, 0.0), lane.heading_at(u), speed)
+        traffic.vehicles.append(ego)
+        other_type = utils.class_from_path(s.other_vehicles_type)
+        if other_type.__name__ == "FastIDMVehicle" and s.other_vehicles_type == (
+            EnvConfig.other_vehicles_type
+        ):
+            other_type = MapIDMVehicle  # the default traffic, with the mandatory merge
+        spacing = 1.0 / float(s.vehicles_density)
+        spawner = Spawner(s.traffic, rng)
+        cur, cur_u = key, u
+        for _ in range(int(s.vehicles_count)):
+            siblings = road.siblings(cur)
+            v_speed = float(rng.uniform(0.7 * lane.speed_limit, 0.8 * lane.speed_limit))
+            offset = spacing * (12.0 + v_speed) * math.exp(-5.0 / 40.0 * len(siblings))
+            cur_u += offset * float(rng.uniform(0.9, 1.1))
+            truck = spawner.draw()
+            cur_u += spawner.extra_shift(truck)
+            while cur is not None and cur_u > road.lane_length(cur):
+                cur_u -= road.lane_length(cur)
+                cur = road.successor(cur)
+            if cur is None:
+                break  # the ego's lane chain ends: no more room ahead
+            siblings = road.siblings(cur)
+            target = siblings[int(rng.integers(len(siblings)))]
+            point = net.get_lane(net.index_of[cur]).position(cur_u, 0.0)
+            other = net.get_lane(net.index_of[target])
+            s_other, _ = other.local_coordinates(point)
+            left = road.chain_end(target) - road.chain_start(target) - s_other
+            if not (0.0 <= s_other <= other.length) or left < MAP_TRAFFIC_ROOM:
+                continue
+            v = other_type(
+                traffic, other.position(s_other, 0.0), other.heading_at(s_other), v_speed
+            )
+            v.randomize_behavior()
+            if truck is not None:
+                make_truck(v, truck, spawner.config)
+            traffic.vehicles.append(v)
+        return ego
+
+
+def make_scene(settings: EnvConfig, map_road: OpenDriveRoad | None) -> Scene:
+    """The scene builder of ``settings``: a :class:`MapScene` with the map read for
+    ``road.xodr``, else a :class:`GeneratedScene`."""
+    if map_road is not None:
+        return MapScene(settings, map_road)
+    return GeneratedScene(settings)
