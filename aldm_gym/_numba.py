@@ -2,22 +2,21 @@
 
 The kernels are compiled with ``numba.njit(cache=True)``, which stores machine code in
 a ``__pycache__`` folder next to each module (or the user's cache folder, or
-``NUMBA_CACHE_DIR``). Two faults of that cache used to stop the package:
+``NUMBA_CACHE_DIR``). Two faults of that cache would stop the package, and are handled:
 
 * a corrupt entry (a truncated ``*.nbi`` index or ``*.nbc`` data file, e.g. after a
-  full disk) made every later run fail in ``pickle`` (``UnpicklingError``,
-  ``EOFError``) until deleted by hand: now the entry is removed and the kernel
-  recompiled (and cached again), with a one-line :class:`NumbaCacheWarning` naming the
-  file;
+  full disk) makes numba fail in ``pickle`` (``UnpicklingError``, ``EOFError``) on every
+  run: the entry is removed and the kernel recompiled (and cached again), with a
+  one-line :class:`NumbaCacheWarning` naming the file;
 * with no writable cache location (read-only package folder and user cache folder,
   no ``NUMBA_CACHE_DIR``), numba refuses to decorate a kernel (``cannot cache function
-  ...: no locator available``), so importing the env failed: now the kernels compile
+  ...: no locator available``) and importing the env would fail: the kernels compile
   in memory (each run) with a one-line warning saying how to cache them.
 
 numba keys a cached kernel by its own file's modification time and size only, so a
-kernel that calls a kernel of another module kept the callee's *old* machine code
-after the callee's file changed (an edit, or a ``git pull`` that touches only that
-file): silently stale behaviour. Every kernel of this package is therefore keyed by
+kernel that calls a kernel of another module would keep the callee's *old* machine
+code after the callee's file changed (an edit, or a ``git pull`` that touches only
+that file): silently stale behaviour. Every kernel of this package is therefore keyed by
 one digest of the source of all the package's modules that define kernels: any change
 to any of them recompiles them all (a minute), and an unchanged checkout keeps its
 cache whatever the files' times.
@@ -37,6 +36,8 @@ from __future__ import annotations
 import hashlib
 import sys
 import warnings
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -78,6 +79,18 @@ def _corrupt_files(cache: Any, sig: Any, target_context: Any) -> list[Path]:
     if name is None:
         return [index]
     return [Path(cache_file._data_path(name)), index]
+
+
+@contextmanager
+def notice_given() -> Iterator[None]:
+    """No compile notice inside this block: its caller says itself that it compiles
+    (the warm-up)."""
+    global _announced
+    saved, _announced = _announced, True
+    try:
+        yield
+    finally:
+        _announced = saved
 
 
 def _announce_compile() -> None:

@@ -139,9 +139,8 @@ def warm_up(parallel: bool | None = None) -> float:
     :return: the wall time it took [s].
     """
     import aldm_gym  # noqa: F401  (registers the env)
-    from aldm_gym import _numba
+    from aldm_gym._numba import notice_given
 
-    announced, _numba._announced = _numba._announced, True  # the warm-up says it compiles
     if parallel is None:
         parallel = (os.cpu_count() or 1) >= 2
     start = time.perf_counter()
@@ -152,7 +151,7 @@ def warm_up(parallel: bool | None = None) -> float:
             stdout=subprocess.DEVNULL,
             stderr=subprocess.DEVNULL,  # its errors surface in the serial pass below
         )
-    try:
+    with notice_given():  # the warm-up says itself that it compiles
         try:
             _robust_aldm()
             _tracking()
@@ -161,8 +160,6 @@ def warm_up(parallel: bool | None = None) -> float:
                 helper.wait()  # its failure is not fatal: the serial pass compiles it
         _the_rest()  # from the cache when the helper ran
         _env_steps(_FINAL_ENVS)
-    finally:
-        _numba._announced = announced
     return time.perf_counter() - start
 
 

@@ -25,9 +25,9 @@ import numpy as np
 from aldm_gym.roads import HighwayRoad
 from aldm_gym.sensor import LineSensor
 from aldm_gym.sensor.aldm import detect_lanes
-from aldm_gym.sensor.evaluation import sample_poses
 from aldm_gym.sensor.ground_truth import line_markings, score_detection, true_line
 from aldm_gym.sensor.naive import naive_detect
+from aldm_gym.sensor.open_loop import sample_poses
 
 ROADS: dict[str, dict[str, Any]] = {
     "straight": {"curved": False},

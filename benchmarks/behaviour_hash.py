@@ -108,7 +108,7 @@ def detect_digest(frames_per_road: int) -> tuple[str, str]:
     """sha256 over every detector's lines, and over their trajectories, on seeded frames."""
     from aldm_gym.roads import HighwayRoad
     from aldm_gym.sensor import LineSensor, detect_lanes, ground_truth_detect, naive_detect
-    from aldm_gym.sensor.evaluation import sample_poses
+    from aldm_gym.sensor.open_loop import sample_poses
 
     h = hashlib.sha256()
     ht = hashlib.sha256()

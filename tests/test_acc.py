@@ -19,7 +19,7 @@ from aldm_gym.envs.longitudinal import (
     time_to_collision,
 )
 from aldm_gym.envs.targets import NO_TARGET, Objects, TargetSelector, corridor_bounds
-from aldm_gym.sensor.detection import LaneDetection
+from aldm_gym.sensor.lane_detection import LaneDetection
 
 W = 3.75  # lane width [m]
 MAPS = Path(aldm_gym.__file__).parent / "roads" / "maps"
@@ -366,8 +366,8 @@ def test_kernels_match_their_python_twins() -> None:
     ids = rng.permutation(n).astype(np.int64)
     det = curve_detection(700.0)
     args = (x, y, width, det.ego_left, 0.0, det.ego_right, -0.2)
-    assert np.array_equal(tg._overlaps(*args), tg._overlaps_py(*args))
-    ov = tg._overlaps(*args)
+    assert np.array_equal(tg.corridor_overlaps(*args), tg.corridor_overlaps_py(*args))
+    ov = tg.corridor_overlaps(*args)
     for prev in (-1, int(ids[3])):
         a = tg._select(ids, x, ov, prev, 150.0, 0.5, 0.1)
         b = tg._select_py(ids, x, ov, prev, 150.0, 0.5, 0.1)

@@ -16,7 +16,7 @@ from hypothesis import strategies as st
 
 from aldm_gym.sensor.aldm import ALDMParams, _packed, detect_lanes, make_params
 from aldm_gym.sensor.aldm_kernels import fit, grid, layout, output, robust, sort
-from aldm_gym.sensor.detection import LINE_NAMES, LaneDetection, driving_trajectory
+from aldm_gym.sensor.lane_detection import LINE_NAMES, LaneDetection, driving_trajectory
 
 EGO = ("ego_left", "ego_right")
 
@@ -226,7 +226,7 @@ def test_one_line_trajectory_uses_lane_width_from_adjacent_line() -> None:
     # The same function as every detector, given the kernel's width estimate.
     fp, ip = _packed(make_params(None))
     for reach in (np.inf, 80.0):
-        width = output._detect(pts, fp, ip, reach)[-1]
+        width = output.detect_frame(pts, fp, ip, reach)[-1]
         assert 3.2 < width < 3.3
         got = detect_lanes(pts, path_range=reach).trajectory
         want = driving_trajectory(det.ego_left, det.ego_right, width, path_range=reach)
@@ -548,23 +548,23 @@ def _kernel_inputs(seed: int, mode: str):  # type: ignore[no-untyped-def]
 def test_python_and_numba_pipeline_agree_exactly(mode: str, reach: float) -> None:
     """The top-level kernel as Python (its helpers compiled) vs fully compiled."""
     pts, fp, ip = _kernel_inputs(13, mode)
-    got_py = output._detect_py(pts, fp, ip, reach)
-    got_nb = output._detect(pts, fp, ip, reach)
+    got_py = output.detect_frame_py(pts, fp, ip, reach)
+    got_nb = output.detect_frame(pts, fp, ip, reach)
     for a, b in zip(got_py, got_nb, strict=True):
         np.testing.assert_array_equal(a, b)
 
 
 def test_leaf_kernels_python_and_numba_agree_exactly() -> None:
     pts, _fp, _ip = _kernel_inputs(14, "robust")
-    xs, ys = sort._gather_py(pts, True, 0.5, 500.0)
-    xs2, ys2 = sort._gather(pts, True, 0.5, 500.0)
+    xs, ys = sort.gather_py(pts, True, 0.5, 500.0)
+    xs2, ys2 = sort.gather(pts, True, 0.5, 500.0)
     np.testing.assert_array_equal(xs, xs2)
     np.testing.assert_array_equal(ys, ys2)
     m = int(np.searchsorted(xs, 23.52, side="right"))
     np.testing.assert_array_equal(
         robust._seed_chains_py(xs, ys, m, 4.5, 1.5), robust._seed_chains(xs, ys, m, 4.5, 1.5)
     )
-    g_py, g_nb = grid._build_grid_py(xs, ys, 1.2), grid._build_grid(xs, ys, 1.2)
+    g_py, g_nb = grid.build_grid_py(xs, ys, 1.2), grid.build_grid(xs, ys, 1.2)
     for a, b in zip(g_py, g_nb, strict=True):
         np.testing.assert_array_equal(a, b)
     us, vs = xs[:20] - xs[19], ys[:20]
@@ -588,7 +588,7 @@ def test_start_region_y_order_is_a_sort(kind: str) -> None:
     elif kind == "constant":
         ys[:] = -0.0
     m = 0 if kind == "empty" else 1000  # only ys[:m] counts
-    for order in (sort._bucket_order, sort._bucket_order_py):
+    for order in (sort.bucket_order, sort.bucket_order_py):
         yo = order(ys[:m], ys[:m])
         np.testing.assert_array_equal(np.sort(yo), np.arange(m))
         np.testing.assert_array_equal(ys[yo], np.sort(ys[:m]))
@@ -608,7 +608,7 @@ def test_bucket_order_is_the_lexicographic_order(kind: str) -> None:
     elif kind == "subnormal_range":
         k1 = np.where(rng.random(2000) < 0.5, 0.0, 5e-324)
     want = np.lexsort((k2, k1))
-    for order in (sort._bucket_order, sort._bucket_order_py):
+    for order in (sort.bucket_order, sort.bucket_order_py):
         with np.errstate(over="ignore"):  # plain Python: m / (sub-normal range) is inf
             got = order(k1, k2)
         np.testing.assert_array_equal(np.sort(got), np.arange(len(k1)))
@@ -617,7 +617,7 @@ def test_bucket_order_is_the_lexicographic_order(kind: str) -> None:
 
 
 def test_fit_sums_update_adds_and_drops_exactly() -> None:
-    """``_update_sums`` with w = ±1 is the former add/drop pair bit for bit (frozen copy),
+    """``update_sums`` with w = ±1 is the former add/drop pair bit for bit (frozen copy),
     and the sums it builds are the normal equations of the true quadratic."""
 
     def add_drop(sums: tuple, u: float, y: float, sign: float) -> tuple:
@@ -651,16 +651,16 @@ def test_fit_sums_update_adds_and_drops_exactly() -> None:
     sums_py = sums_nb = frozen = (0.0,) * 8
     for k in range(60):
         for w in (1.0, -1.0) if k % 7 == 3 else (1.0,):  # some points added and dropped
-            sums_py = fit._update_sums_py(*sums_py, us[k], ys[k], w)
-            sums_nb = fit._update_sums(*sums_nb, us[k], ys[k], w)
+            sums_py = fit.update_sums_py(*sums_py, us[k], ys[k], w)
+            sums_nb = fit.update_sums(*sums_nb, us[k], ys[k], w)
             frozen = add_drop(frozen, us[k], ys[k], w)
             assert sums_py == frozen and sums_nb == frozen
     for w in (1.0,):  # the dropped points back, then the fit of the true quadratic
         for k in range(3, 60, 7):
-            sums_nb = fit._update_sums(*sums_nb, us[k], ys[k], w)
+            sums_nb = fit.update_sums(*sums_nb, us[k], ys[k], w)
     want = [np.sum(us**j) for j in range(5)] + [np.sum(ys * us**j) for j in range(3)]
     np.testing.assert_allclose(sums_nb, want, rtol=1e-12)
-    a, b, c, _ = fit._ridge_solve(*sums_nb, 0.0, 0.0, 0.0, 0.0, 1.0, np.empty((2, 3, 3)))
+    a, b, c, _ = fit.ridge_solve(*sums_nb, 0.0, 0.0, 0.0, 0.0, 1.0, np.empty((2, 3, 3)))
     np.testing.assert_allclose([a, b, c], [1e-3, 0.02, 1.8], rtol=1e-8)
 
 
@@ -679,8 +679,8 @@ def test_trace_fit_window_dense_line_and_gap(fit_length: float) -> None:
     # The trace kernel alone, plain Python vs compiled, on a noisy copy.
     noisy = pts + np.random.default_rng(3).normal(0.0, 0.05, pts.shape)
     fp, _ip = _packed(params)
-    xs, ys = sort._gather(noisy, False, 0.5, 500.0)
-    cells = grid._build_grid(xs, ys, fp[layout.P.gate_max])
+    xs, ys = sort.gather(noisy, False, 0.5, 500.0)
+    cells = grid.build_grid(xs, ys, fp[layout.P.gate_max])
     seed = (xs <= 23.52) & (ys > 0.0)
     first, last = np.flatnonzero(seed)[[0, -1]]
     masks, bit = [], np.uint8(2)
@@ -729,7 +729,7 @@ def test_fully_plain_python_run_agrees_with_numba(tmp_path: Path) -> None:
 def _road_frames(noise: float, dropout: float, n: int = 12):  # type: ignore[no-untyped-def]
     from aldm_gym.roads import HighwayRoad
     from aldm_gym.sensor import LineSensor
-    from aldm_gym.sensor.evaluation import sample_poses
+    from aldm_gym.sensor.open_loop import sample_poses
 
     road = HighwayRoad({"min_radius": 400.0, "max_radius": 1500.0, "seed": 3})
     sensor = LineSensor({"lateral_noise": noise, "dropout": dropout})
@@ -780,7 +780,7 @@ def test_gather_is_the_lexicographic_sort_of_the_valid_points(kind: str) -> None
     keep &= np.abs(pts[:, 2]) <= 0.5
     q = pts[keep] + 0.0
     o = np.lexsort((q[:, 1], q[:, 0]))
-    for gather in (sort._gather, sort._gather_py):
+    for gather in (sort.gather, sort.gather_py):
         xs, ys = gather(pts[rng.permutation(len(pts))], True, 0.5, 500.0)
         np.testing.assert_array_equal(xs, q[o, 0])
         np.testing.assert_array_equal(ys, q[o, 1])
@@ -896,7 +896,7 @@ def test_diverging_exit_edges_do_not_tilt_the_seed_shape() -> None:
     assert det.left_adjacent[0, 1] == pytest.approx(5.61)
     # The mechanism: one shape fitted to every chain puts the right line at x = 0 > 0.
     fp, _ = _packed(ALDMParams())
-    xs, ys = sort._gather(
+    xs, ys = sort.gather(
         np.column_stack([pts, np.zeros(len(pts))]), False, fp[layout.P.z_band], 200.0
     )
     m = int(np.searchsorted(xs, fp[layout.P.start_x_max], side="right"))

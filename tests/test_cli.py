@@ -12,7 +12,7 @@ from aldm_gym.agents.comparison import CLOSED_LOOP_COLUMNS
 from aldm_gym.cli import main
 from aldm_gym.roads import HighwayRoad
 from aldm_gym.sensor.detectors import make_detector
-from aldm_gym.sensor.evaluation import COLUMNS, compare_detectors
+from aldm_gym.sensor.open_loop import COLUMNS, compare_detectors
 
 
 @pytest.mark.slow

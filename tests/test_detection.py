@@ -177,8 +177,8 @@ def test_path_kernels_match_their_python_references() -> None:
             x = np.sort(rng.uniform(5.0, 200.0, k))
             lines.append(np.column_stack([x, side * 1.8 + 2e-3 * x**2 + rng.normal(0, 0.1, k)]))
         reach = (np.inf, 80.0, 20.0)[trial % 3]
-        ok_c, got = t._path(lines[0], lines[1], 3.75, 2.0, reach)
-        ok_p, want = t._path_py(lines[0], lines[1], 3.75, 2.0, reach)
+        ok_c, got = t.fit_path(lines[0], lines[1], 3.75, 2.0, reach)
+        ok_p, want = t.fit_path_py(lines[0], lines[1], 3.75, 2.0, reach)
         assert ok_c == ok_p
         assert got.tobytes() == want.tobytes()
         for line in lines:
@@ -271,7 +271,7 @@ def _detector_frames():  # type: ignore[no-untyped-def]
     """Seeded frames (road, frame, true lane) on a tight and a gentle road, noisy too."""
     from aldm_gym.roads import HighwayRoad
     from aldm_gym.sensor import LineSensor
-    from aldm_gym.sensor.evaluation import sample_poses
+    from aldm_gym.sensor.open_loop import sample_poses
 
     for seed, rcfg in ((3, {"min_radius": 100.0, "max_radius": 250.0}), (2, {})):
         base = HighwayRoad({**rcfg, "seed": seed, "length": 3000.0})

@@ -265,7 +265,7 @@ def test_render_rgb_array_shape_and_record_video(tmp_path: object) -> None:
 
 def test_the_lka_follows_the_detections_own_trajectory() -> None:
     """One trajectory: the ego follows ``detection.trajectory``, fitted up to ``path_range``."""
-    from aldm_gym.sensor.detection import driving_trajectory
+    from aldm_gym.sensor.lane_detection import driving_trajectory
 
     for path_range in (80.0, 40.0):
         env = make({"vehicles_count": 5, "detector": "naive", "lka": {"path_range": path_range}})

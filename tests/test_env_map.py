@@ -16,7 +16,6 @@ import aldm_gym  # also registers the env
 from aldm_gym.envs.traffic.vehicles import STEPS_ENDING_WITH_UPDATE
 from aldm_gym.envs.vehicle import MapIDMVehicle
 from aldm_gym.roads import OpenDriveRoad
-from aldm_gym.roads.geometry import ReferenceLine, _project_near, _project_near_py
 from aldm_gym.roads.map_network import (
     CentreLine,
     MapLane,
@@ -28,6 +27,7 @@ from aldm_gym.roads.map_network import (
     _neighbour_table,
     _neighbour_table_py,
 )
+from aldm_gym.roads.reference_line import ReferenceLine, project_point_near, project_point_near_py
 
 xodr = pytest.importorskip("scenariogeneration.xodr")
 
@@ -362,7 +362,7 @@ def test_project_near_projects_only_within_reach() -> None:
         2 * line._STRIDE,
         points,
     )
-    for got, want in zip(_project_near(*args), _project_near_py(*args), strict=True):
+    for got, want in zip(project_point_near(*args), project_point_near_py(*args), strict=True):
         assert np.array_equal(got, want, equal_nan=True)
 
 

@@ -12,7 +12,6 @@ from scipy.integrate import quad
 
 from aldm_gym.roads.markings import MarkingType
 from aldm_gym.roads.opendrive import MarkingLine, OpenDriveMap
-from aldm_gym.roads.opendrive.geometry import PlanView
 from aldm_gym.roads.opendrive.parse import (
     Arc,
     Geometry,
@@ -22,6 +21,7 @@ from aldm_gym.roads.opendrive.parse import (
     Spiral,
     parse_file,
 )
+from aldm_gym.roads.opendrive.plan_view import PlanView
 
 # ---------------------------------------------------------------- tiny file writer
 

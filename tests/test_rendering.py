@@ -156,7 +156,7 @@ def test_frame_has_a_legend_and_is_drawn_at_a_range_view() -> None:
 
 
 def test_bar_labels_are_percentages_and_zero_reads_zero() -> None:
-    from aldm_gym.sensor.plot import percent
+    from aldm_gym.sensor.frame_plot import percent
 
     assert [percent(v) for v in (0.0, 0.004, 0.145, 1.0)] == ["0 %", "<1 %", "14 %", "100 %"]
 
@@ -239,8 +239,8 @@ def test_frame_panels_are_as_wide_as_their_lines(tmp_path: Path) -> None:
     import matplotlib.pyplot as plt
 
     from aldm_gym.sensor import LineSensor, detect_lanes
-    from aldm_gym.sensor.detection import LaneDetection
-    from aldm_gym.sensor.plot import plot_frames
+    from aldm_gym.sensor.frame_plot import plot_frames
+    from aldm_gym.sensor.lane_detection import LaneDetection
 
     road = HighwayRoad({"seed": 0, "min_radius": 500.0})
     x, y = road.reference.position(1000.0, road.lane_offset(1))

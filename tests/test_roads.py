@@ -107,13 +107,13 @@ _PROJ_ROAD = HighwayRoad({"min_radius": 100.0, "max_radius": 400.0, "seed": 11})
 
 
 def test_projection_kernel_matches_plain_python() -> None:
-    from aldm_gym.roads.geometry import _project, _project_py
+    from aldm_gym.roads.reference_line import project_point, project_point_py
 
     ref = _PROJ_ROAD.reference
     for s, d in [(10.0, 3.0), (2500.0, -12.0), (5900.0, 20.0)]:
         p = ref.position(s, d)
         args = (ref.xy, ref.heading, ref.step, ref._coarse, 20, float(p[0]), float(p[1]))
-        assert _project(*args) == _project_py(*args)
+        assert project_point(*args) == project_point_py(*args)
 
 
 def test_dash_length_and_gap_along_the_marking() -> None:

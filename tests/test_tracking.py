@@ -163,20 +163,20 @@ def test_kernels_match_plain_python() -> None:
     motion = EgoMotion(SPEED, SPEED / 800.0, DT)
     disp = motion.displacement()
     args = (tracker._lines, tracker._ls, *disp)
-    for a, b in zip(K._table(*args), K._table_py(*args), strict=True):
+    for a, b in zip(K.track_table(*args), K.track_table_py(*args), strict=True):
         np.testing.assert_array_equal(a, b)
-    table = K._table(*args)[0]
+    table = K.track_table(*args)[0]
     pargs = (pts, table, np.ones(4, dtype=bool), 0.25, 0.001, 20.0, 4.0, 5.0, 0.5, 60.0)
-    for got, want in zip(K._prior(*pargs), K._prior_py(*pargs), strict=True):
+    for got, want in zip(K.track_prior(*pargs), K.track_prior_py(*pargs), strict=True):
         np.testing.assert_array_equal(got, want)
     # a frame whose hidden line is continued beside its neighbour
     tracker = LaneTracker()
     for k, _road, pts in _hidden_frames(8):
         if k < 7:
             tracker.update(pts, None if k == 0 else HIDDEN_MOTION)
-    table = K._table(tracker._lines, tracker._ls, *HIDDEN_MOTION.displacement())[0]
+    table = K.track_table(tracker._lines, tracker._ls, *HIDDEN_MOTION.displacement())[0]
     pargs = (pts, table, np.ones(4, dtype=bool), 0.25, 0.001, 20.0, 4.0, 5.0, 0.5, 60.0)
-    got, want = K._prior(*pargs), K._prior_py(*pargs)
+    got, want = K.track_prior(*pargs), K.track_prior_py(*pargs)
     assert np.count_nonzero(got[1] > 60.0) >= 5
     for a, b in zip(got, want, strict=True):
         np.testing.assert_array_equal(a, b)
@@ -282,7 +282,7 @@ def test_env_odometry_carries_the_last_frame_onto_this_one() -> None:
                 continue
             a = ground_truth_detect(base.highway, f0, lane0).ego_left
             b = ground_truth_detect(base.highway, f1, lane1).ego_left
-            moved = K._table(a, np.array([0, len(a)]), *motion.displacement())[0][0]
+            moved = K.track_table(a, np.array([0, len(a)]), *motion.displacement())[0][0]
             xs = np.arange(20.0, 121.0, 10.0)
             grid = np.arange(len(moved)) * K.TABLE_STEP
             err = np.interp(xs, grid, moved) - np.interp(xs, *b.T)
@@ -364,7 +364,7 @@ def test_old_marking_branching_off_is_not_followed() -> None:
 
 
 def test_consensus_pulls_a_straying_track_back() -> None:
-    """_consensus on tabulated tracks: four parallel lines of a 600 m bend (farther
+    """consensus on tabulated tracks: four parallel lines of a 600 m bend (farther
     apart in y where they turn: not moved), one bent 0.8 m off beyond 100 m, is set
     back onto the common shape (the others untouched); of two lines parting, nothing
     says which strays: both end where they part; one line alone stays."""
@@ -373,27 +373,27 @@ def test_consensus_pulls_a_straying_track_back() -> None:
     table = np.array(
         [radius - np.sqrt((radius - off) ** 2 - x**2) for off in (5.6, 1.9, -1.9, -5.6)]
     )
-    assert K._consensus(table.copy(), np.zeros(4), 0.05, 0.0) == 0
+    assert K.consensus(table.copy(), np.zeros(4), 0.05, 0.0) == 0
     bent = table.copy()
     bent[1, x > 100.0] += 0.8
     want = bent.copy()
-    assert K._consensus(bent, np.zeros(4), 0.2, 0.0) == np.count_nonzero(x > 100.0)
+    assert K.consensus(bent, np.zeros(4), 0.2, 0.0) == np.count_nonzero(x > 100.0)
     np.testing.assert_allclose(bent[1], table[1], atol=0.01)
     np.testing.assert_array_equal(bent[[0, 2, 3]], want[[0, 2, 3]])
     two = want[:2].copy()  # two lines part beyond 100 m: which one strays? both end
     far = x > 100.0
-    assert K._consensus(two, np.zeros(2), 0.2, 0.0) == 2 * np.count_nonzero(far)
+    assert K.consensus(two, np.zeros(2), 0.2, 0.0) == 2 * np.count_nonzero(far)
     assert np.isnan(two[:, far]).all()
     np.testing.assert_array_equal(two[:, ~far], want[:2, ~far])
     one = want[1:2].copy()
-    assert K._consensus(one, np.zeros(1), 0.2, 0.0) == 0
+    assert K.consensus(one, np.zeros(1), 0.2, 0.0) == 0
     again = want.copy()
-    assert K._consensus_py(again, np.zeros(4), 0.2, 0.0) == np.count_nonzero(x > 100.0)
+    assert K.consensus_py(again, np.zeros(4), 0.2, 0.0) == np.count_nonzero(x > 100.0)
     np.testing.assert_array_equal(again, bent)
 
 
 def test_hold_sets_or_ends_straying_lines() -> None:
-    """_hold on detected lines (13 vertices each, as the ALDM returns them): a line
+    """hold_to_consensus on detected lines (13 vertices each, as the ALDM returns them): a line
     bent 0.8 m off beyond 100 m among three takes the common shape there; of two
     lines parting, both lose their vertices beyond; compiled and plain Python agree."""
     x = np.linspace(6.0, 150.0, 13)
@@ -401,7 +401,7 @@ def test_hold_sets_or_ends_straying_lines() -> None:
     lines[1][x > 100.0, 1] += 0.8
     cat = np.concatenate(lines)
     ls = np.array([0, 13, 26, 39])
-    out, out_ls, moved = K._hold(cat, ls, 0.2, 0.0)
+    out, out_ls, moved = K.hold_to_consensus(cat, ls, 0.2, 0.0)
     assert moved
     np.testing.assert_array_equal(out_ls, ls)
     np.testing.assert_allclose(out[13:26, 1], 1.9, atol=1e-12)
@@ -409,18 +409,18 @@ def test_hold_sets_or_ends_straying_lines() -> None:
         out[[*range(13), *range(26, 39)]], cat[[*range(13), *range(26, 39)]]
     )
     two = np.concatenate(lines[1:])
-    out2, ls2, moved2 = K._hold(two, np.array([0, 13, 26]), 0.2, 0.0)
+    out2, ls2, moved2 = K.hold_to_consensus(two, np.array([0, 13, 26]), 0.2, 0.0)
     assert moved2 and list(ls2) == [0, 8, 16]  # the vertices up to 90 m
     assert out2[:, 0].max() < 100.0
     for args in ((cat, ls, 0.2, 0.0), (two, np.array([0, 13, 26]), 0.2, 0.0)):
-        for a, b in zip(K._hold(*args), K._hold_py(*args), strict=True):
+        for a, b in zip(K.hold_to_consensus(*args), K.hold_to_consensus_py(*args), strict=True):
             np.testing.assert_array_equal(a, b)
-    same = K._hold(cat[:13].copy(), np.array([0, 13]), 0.2, 0.0)
+    same = K.hold_to_consensus(cat[:13].copy(), np.array([0, 13]), 0.2, 0.0)
     assert not same[2]
 
 
 def test_table_samples_the_lines_parabolas() -> None:
-    """_table (Newton's form, once per segment) gives _interp_line_py's parabola at
+    """track_table (Newton's form, once per segment) gives _interp_line_py's parabola at
     every sample, for a curved line starting 17 m ahead (extrapolated to x = 0), a
     two-vertex line and a moved frame; NaN beyond each line's end."""
     x = np.linspace(17.0, 190.0, 13)
@@ -429,9 +429,9 @@ def test_table_samples_the_lines_parabolas() -> None:
     lines = np.concatenate([curved, short])
     ls = np.array([0, 13, 15])
     for motion in ((0.0, 0.0, 0.0), (2.5, 0.01, 0.003)):
-        table, first = K._table(lines, ls, *motion)
-        np.testing.assert_array_equal(table, K._table_py(lines, ls, *motion)[0])
-        np.testing.assert_array_equal(first, K._table_py(lines, ls, *motion)[1])
+        table, first = K.track_table(lines, ls, *motion)
+        np.testing.assert_array_equal(table, K.track_table_py(lines, ls, *motion)[0])
+        np.testing.assert_array_equal(first, K.track_table_py(lines, ls, *motion)[1])
         c, s = math.cos(motion[2]), math.sin(motion[2])
         for t in range(2):
             seg = lines[ls[t] : ls[t + 1]] - motion[:2]
@@ -454,7 +454,7 @@ def test_consensus_offsets_from_own_samples() -> None:
     third = np.column_stack([far, np.full(13, -5.6)])
     third[0, 1] += 0.08
     cat = np.concatenate([*lines, third])
-    out, _, moved = K._hold(cat, np.array([0, 13, 26, 39]), 0.2, 0.0)
+    out, _, moved = K.hold_to_consensus(cat, np.array([0, 13, 26, 39]), 0.2, 0.0)
     assert not moved and out is cat
 
 
@@ -473,10 +473,10 @@ def test_continuation_is_not_carried_by_a_stray_point() -> None:
     pts.append(np.array([[170.0, 0.0]]))
     cloud = np.concatenate(pts)
     args = (cloud, table, np.ones(3, dtype=bool), 0.25, 0.001, 20.0, 4.0, 5.0, 0.5, 60.0)
-    _, vx, vy, _ = K._prior(*args)
+    _, vx, vy, _ = K.track_prior(*args)
     mid = np.abs(vy) < 0.5
     assert vx[mid].min() > 39.0 and 95.0 <= vx[mid].max() <= 39.0 + 60.0 + 1e-9
-    for a, b in zip(K._prior(*args), K._prior_py(*args), strict=True):
+    for a, b in zip(K.track_prior(*args), K.track_prior_py(*args), strict=True):
         np.testing.assert_array_equal(a, b)
 
 

@@ -340,8 +340,8 @@ def test_reference_edge_neighbours_match_base_every_step() -> None:
 
 def test_project_many_kernel_matches_plain_python_and_project() -> None:
     """The batch projection equals its plain-Python reference and the scalar projection."""
-    from aldm_gym.roads.geometry import _project_many, _project_many_py
     from aldm_gym.roads.highway import HighwayRoad
+    from aldm_gym.roads.reference_line import _project_many, _project_many_py
 
     ref = HighwayRoad({"min_radius": 100.0, "max_radius": 400.0, "seed": 11}).reference
     rng = np.random.default_rng(3)
@@ -432,7 +432,7 @@ def test_aldm_env_fast_paths_change_nothing(monkeypatch: pytest.MonkeyPatch) -> 
     from aldm_gym.envs.traffic import collisions, neighbours
     from aldm_gym.envs.traffic import road as road_module
     from aldm_gym.envs.vehicle import SensorVehicle
-    from aldm_gym.roads import geometry
+    from aldm_gym.roads import reference_line
     from aldm_gym.roads.lane import ReferenceLane
 
     actions = [1, 0, 1, 3, 2, 1, 4, 1, 1, 2, 1, 0]
@@ -456,14 +456,14 @@ def test_aldm_env_fast_paths_change_nothing(monkeypatch: pytest.MonkeyPatch) -> 
         px, py = float(point[0]), float(point[1])
         cell = math.floor(px / self._CELL) * 1_000_003 + math.floor(py / self._CELL)
         cand = self._hash.get(cell, self._coarse)
-        return geometry._project(self.xy, self.heading, self.step, cand, 20, px, py)
+        return reference_line.project_point(self.xy, self.heading, self.step, cand, 20, px, py)
 
     def plain_project_many(self: Any, points: Any) -> tuple[Any, Any]:
         out = np.array([plain_project(self, p) for p in np.reshape(points, (-1, 2))])
         return out[:, 0].copy(), out[:, 1].copy()
 
-    monkeypatch.setattr(geometry.ReferenceLine, "project", plain_project)
-    monkeypatch.setattr(geometry.ReferenceLine, "project_many", plain_project_many)
+    monkeypatch.setattr(reference_line.ReferenceLine, "project", plain_project)
+    monkeypatch.setattr(reference_line.ReferenceLine, "project_many", plain_project_many)
     monkeypatch.setattr(
         neighbours.NeighbourCache, "_build_reference_edge", lambda self, index: False
     )

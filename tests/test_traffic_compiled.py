@@ -30,7 +30,7 @@ from highway_env.vehicle.objects import Obstacle
 import aldm_gym  # noqa: F401  (registers ALDMHighway-v0)
 from aldm_gym.envs.traffic import compiled, kernels, scalar, vehicles
 from aldm_gym.envs.traffic.compiled import COMPILED, CompiledTraffic
-from aldm_gym.roads import geometry
+from aldm_gym.roads import reference_line
 
 _LIBM = {
     "sin_scalar": math.sin,
@@ -319,7 +319,7 @@ def _plain_python_kernels(monkeypatch: pytest.MonkeyPatch) -> int:
     """Replace every numba kernel of the engine (and of the reference line it projects
     on) by its plain-Python twin; the number replaced."""
     replaced = 0
-    for module in (kernels, geometry):
+    for module in (kernels, reference_line):
         for name, value in list(vars(module).items()):
             if isinstance(value, numba.core.registry.CPUDispatcher):
                 monkeypatch.setattr(module, name, value.py_func)

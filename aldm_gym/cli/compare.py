@@ -1,7 +1,7 @@
 """``aldm-gym compare``: naive vs ALDM vs ground truth, frame by frame and in closed loop.
 
 Open loop: the same seeded frames of both road models (``per_dash``, ``editor``)
-through every detector (:func:`~aldm_gym.sensor.evaluation.compare_detectors`),
+through every detector (:func:`~aldm_gym.sensor.open_loop.compare_detectors`),
 written to ``compare_frames.csv`` with the figures ``compare_frames.png``,
 ``frame_per_dash.png`` and ``frame_editor.png``. Closed loop: the LKA (IDLE) and the
 rule-based LCA on the same seeded episodes
@@ -266,8 +266,8 @@ def _compare_frames(args: argparse.Namespace, out: Path) -> list[Path]:
 
     from aldm_gym.roads import MARKING_MODELS, HighwayRoad, OpenDriveRoad
     from aldm_gym.sensor import LineSensor
-    from aldm_gym.sensor.evaluation import COLUMNS, compare_detectors
-    from aldm_gym.sensor.plot import plot_detector_bars
+    from aldm_gym.sensor.frame_plot import plot_detector_bars
+    from aldm_gym.sensor.open_loop import COLUMNS, compare_detectors
 
     n_roads = args.roads or (2 if args.quick else 5)
     n_frames = args.frames or (100 if args.quick else 400)
@@ -310,7 +310,7 @@ def worst_naive_frame(
 ) -> tuple[Any, Any, float] | None:
     """The frame of the comparison's first road where the naive detection errs most.
 
-    The frames are those :func:`~aldm_gym.sensor.evaluation.compare_detectors` scores
+    The frames are those :func:`~aldm_gym.sensor.open_loop.compare_detectors` scores
     for road index 0 (same poses, same noise seeds), measured on the road's
     ``per_dash`` model. A frame's naive error is the largest |lateral error| of its ego
     lines (:class:`~aldm_gym.sensor.ground_truth.LineScore`'s ``max_abs_error``) where
@@ -320,7 +320,7 @@ def worst_naive_frame(
     """
     from aldm_gym.sensor import score_detection
     from aldm_gym.sensor.detectors import make_detector
-    from aldm_gym.sensor.evaluation import sample_poses
+    from aldm_gym.sensor.open_loop import sample_poses
 
     road = road.with_marking_model("per_dash")
     naive = make_detector("naive")
@@ -348,8 +348,8 @@ def _plot_naive_failure(road: Any, sensor: Any, n_frames: int, seed: int, out: P
     errs)."""
     from aldm_gym.roads import MARKING_MODELS
     from aldm_gym.sensor.detectors import make_detector
-    from aldm_gym.sensor.evaluation import remeasure
-    from aldm_gym.sensor.plot import plot_frames
+    from aldm_gym.sensor.frame_plot import plot_frames
+    from aldm_gym.sensor.open_loop import remeasure
 
     titles = {"naive": "naive", "aldm": "ALDM", "ground_truth": "ground truth"}
     detectors = {name: make_detector(name) for name in titles}
@@ -427,7 +427,7 @@ def _plot_conditions(args: argparse.Namespace, traffic: dict[str, Any] | None, o
     """``frame_conditions.png``: a closed-loop frame of the first seed under the
     conditions, with vehicles, shadows and clutter, under every detector's lines."""
     from aldm_gym.agents.comparison import conditions_scene
-    from aldm_gym.sensor.plot import plot_conditions_frame
+    from aldm_gym.sensor.frame_plot import plot_conditions_frame
 
     scene = conditions_scene(
         args.seed,

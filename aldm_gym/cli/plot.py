@@ -71,7 +71,7 @@ def run(args: argparse.Namespace) -> int:
     """``aldm-gym plot``."""
     from aldm_gym.sensor import LineSensor
     from aldm_gym.sensor.detectors import make_detector
-    from aldm_gym.sensor.plot import plot_frames
+    from aldm_gym.sensor.frame_plot import plot_frames
 
     _check_applicable(args)
     if args.xodr is not None:

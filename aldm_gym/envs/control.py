@@ -13,7 +13,7 @@ point at ``(x, y)`` (rear-axle frame, y left) lies on the arc of curvature
 distance grows with speed (``lookahead_time * v``, at least ``min_lookahead``).
 
 Signs: ISO 8855 throughout (y left, steering > 0 turns left). highway-env's world
-steers the other way round (see :mod:`aldm_gym.roads.geometry`); the environment
+steers the other way round (see :mod:`aldm_gym.roads.reference_line`); the environment
 converts.
 """
 

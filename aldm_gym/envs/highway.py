@@ -52,9 +52,9 @@ from aldm_gym.envs.vehicle import SensorVehicle
 from aldm_gym.errors import ConfigError
 from aldm_gym.roads.position import LanePosition
 from aldm_gym.roads.protocol import Road
-from aldm_gym.sensor.detection import LaneDetection
 from aldm_gym.sensor.detectors import Detector
 from aldm_gym.sensor.frame import SensorFrame
+from aldm_gym.sensor.lane_detection import LaneDetection
 from aldm_gym.sensor.line_sensor import LineSensor
 
 __all__ = ["MAP_MIN_AHEAD", "MAP_TRAFFIC_ROOM", "ROAD_END_MARGIN", "ALDMHighwayEnv"]

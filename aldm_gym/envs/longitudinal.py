@@ -1,7 +1,7 @@
 """The highway chauffeur's longitudinal half: ACC (constant time gap) and AEB.
 
 :class:`LongitudinalController` runs once per simulation step on what the ego
-perceives: the detected lanes (:class:`~aldm_gym.sensor.detection.LaneDetection`) and
+perceives: the detected lanes (:class:`~aldm_gym.sensor.lane_detection.LaneDetection`) and
 the other road users in the sensor frame (:class:`~aldm_gym.envs.targets.Objects`).
 
 * **Target selection** (:mod:`aldm_gym.envs.targets`): the nearest vehicle ahead that
@@ -37,8 +37,15 @@ import numba
 import numpy as np
 
 from aldm_gym.config import setting, validate
-from aldm_gym.envs.targets import NO_TARGET, Objects, TargetSelector, _arc, _line_y, _overlaps
-from aldm_gym.sensor.detection import LaneDetection
+from aldm_gym.envs.targets import (
+    NO_TARGET,
+    Objects,
+    TargetSelector,
+    arc_line,
+    corridor_overlaps,
+    line_y,
+)
+from aldm_gym.sensor.lane_detection import LaneDetection
 from aldm_gym.types import FloatArray
 
 EGO_LENGTH = 5.0
@@ -142,7 +149,7 @@ def time_to_collision(gap: FloatArray, relative_speed: FloatArray) -> FloatArray
 
 def _path_line(path: FloatArray, curvature: float, reach: float) -> FloatArray:
     """The planned path, or the arc of ``curvature`` when it has fewer than 2 points."""
-    return path if len(path) >= 2 else _arc(curvature, reach)
+    return path if len(path) >= 2 else arc_line(curvature, reach)
 
 
 def driving_corridor_overlap(
@@ -156,7 +163,7 @@ def driving_corridor_overlap(
     """
     line = _path_line(path, curvature, 250.0)
     half = 0.5 * ego_width
-    return _overlaps(objects.x, objects.y, objects.width, line, half, line, -half)
+    return corridor_overlaps(objects.x, objects.y, objects.width, line, half, line, -half)
 
 
 def _min_ttc_py(
@@ -177,7 +184,7 @@ def _min_ttc_py(
     for i in range(x.shape[0]):
         if x[i] <= ego_x or vx[i] >= 0.0:
             continue
-        centre = _line_y(path, 0.0, x[i])
+        centre = line_y(path, 0.0, x[i])
         w = 0.5 * width[i]
         if min(y[i] + w, centre + half) - max(y[i] - w, centre - half) <= 0.0:
             continue

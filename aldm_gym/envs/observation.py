@@ -47,7 +47,7 @@ from gymnasium import spaces
 
 from aldm_gym.config import setting, validate
 from aldm_gym.errors import InputError
-from aldm_gym.sensor.detection import LINE_NAMES, LaneDetection, resample_line
+from aldm_gym.sensor.lane_detection import LINE_NAMES, LaneDetection, resample_line
 from aldm_gym.types import FloatArray
 
 if TYPE_CHECKING:
@@ -335,7 +335,7 @@ def to_sensor_frame(
     :param velocities: ``(N, 2)`` world velocities relative to the ego [m/s].
     :param origin: the sensor's world position [m].
     :param yaw: the sensor's world heading [rad] (highway-env's convention: the
-        driver's left is ``(sin yaw, -cos yaw)``, see :mod:`aldm_gym.roads.geometry`).
+        driver's left is ``(sin yaw, -cos yaw)``, see :mod:`aldm_gym.roads.reference_line`).
     :return: ``(N, 4)``: x forward, y left [m], vx, vy [m/s] (ISO 8855).
     """
     cy, sy = math.cos(yaw), math.sin(yaw)

@@ -21,9 +21,9 @@ from aldm_gym.envs.traffic import kernels as K
 from aldm_gym.envs.traffic.scalar import cos_scalar, sin_scalar
 from aldm_gym.envs.traffic.vehicles import uses_base_kinematics
 from aldm_gym.roads.protocol import Road
-from aldm_gym.sensor.detection import LaneDetection
 from aldm_gym.sensor.detectors import Detector, make_detector
 from aldm_gym.sensor.frame import SensorFrame
+from aldm_gym.sensor.lane_detection import LaneDetection
 from aldm_gym.sensor.line_sensor import LineSensor
 from aldm_gym.sensor.tracking import EgoMotion
 

@@ -23,9 +23,9 @@ from aldm_gym.envs.targets import NO_TARGET, Objects, TargetSelector, lane_overl
 from aldm_gym.errors import OffRoadError
 from aldm_gym.roads.position import LanePosition
 from aldm_gym.roads.protocol import Road
-from aldm_gym.sensor.detection import LaneDetection
 from aldm_gym.sensor.frame import SensorFrame
 from aldm_gym.sensor.ground_truth import score_detection
+from aldm_gym.sensor.lane_detection import LaneDetection
 
 __all__ = ["NO_TARGET_INFO", "Referee", "collision_kind"]
 

@@ -31,7 +31,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from aldm_gym.roads.paint import PaintedPiece, painted_pieces
-from aldm_gym.sensor.detection import LINE_NAMES
+from aldm_gym.sensor.lane_detection import LINE_NAMES
 from aldm_gym.types import FloatArray
 
 os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
@@ -100,7 +100,7 @@ def sensor_to_world(points: FloatArray, origin: FloatArray, yaw: float) -> Float
     """Sensor-frame points ``(N, 2)`` (x forward, y left) to world ``(N, 2)`` [m].
 
     The driver's left in highway-env's world is ``(sin h, -cos h)`` (see
-    :mod:`aldm_gym.roads.geometry`).
+    :mod:`aldm_gym.roads.reference_line`).
     """
     c, s = math.cos(yaw), math.sin(yaw)
     x, y = points[:, 0], points[:, 1]

@@ -21,7 +21,7 @@ truth (the env's ``info["target"]``), so perception and truth differ only by wha
 detector gets wrong.
 
 Everything here takes arrays in the sensor frame and a
-:class:`~aldm_gym.sensor.detection.LaneDetection`: no env, no road. It runs at every
+:class:`~aldm_gym.sensor.lane_detection.LaneDetection`: no env, no road. It runs at every
 simulation step, so the per-object loops are small numba kernels (the package habit:
 ``_name_py`` is the plain-Python reference, ``_name`` its compiled twin): with numpy a
 step's few dozen tiny array operations cost a quarter of an env step.
@@ -35,7 +35,7 @@ import numba
 import numpy as np
 
 from aldm_gym.errors import InputError
-from aldm_gym.sensor.detection import LaneDetection
+from aldm_gym.sensor.lane_detection import LaneDetection
 from aldm_gym.types import FloatArray, IntArray
 
 NO_TARGET = -1
@@ -102,7 +102,7 @@ class Objects:
         return int(rows[0]) if len(rows) else -1
 
 
-def _line_y_py(line: FloatArray, offset: float, x: float) -> float:
+def line_y_py(line: FloatArray, offset: float, x: float) -> float:
     """y [m] of ``line`` shifted by ``offset`` at ``x``: linear interpolation inside,
     linear extrapolation beyond its ends (the observation's ``eval_line`` rule).
 
@@ -123,10 +123,10 @@ def _line_y_py(line: FloatArray, offset: float, x: float) -> float:
     return y0 + offset
 
 
-_line_y = numba.njit(cache=True)(_line_y_py)
+line_y = numba.njit(cache=True)(line_y_py)
 
 
-def _overlaps_py(
+def corridor_overlaps_py(
     x: FloatArray,
     y: FloatArray,
     width: FloatArray,
@@ -139,14 +139,14 @@ def _overlaps_py(
     n = x.shape[0]
     out = np.empty(n)
     for i in range(n):
-        yl = _line_y(left, left_offset, x[i])
-        yr = _line_y(right, right_offset, x[i])
+        yl = line_y(left, left_offset, x[i])
+        yr = line_y(right, right_offset, x[i])
         half = 0.5 * width[i]
         out[i] = min(y[i] + half, yl) - max(y[i] - half, yr)
     return out
 
 
-_overlaps = numba.njit(cache=True)(_overlaps_py)
+corridor_overlaps = numba.njit(cache=True)(corridor_overlaps_py)
 
 
 def _select_py(
@@ -247,7 +247,7 @@ ARC_STEP = 5.0
 """x step of the arc that stands in for missing lines (the curvature fallback) [m]."""
 
 
-def _arc(curvature: float, reach: float) -> FloatArray:
+def arc_line(curvature: float, reach: float) -> FloatArray:
     """``(K, 2)`` points of ``y = curvature x² / 2`` from x = 0 to ``reach`` [m]."""
     x = np.arange(0.0, reach + ARC_STEP, ARC_STEP)
     return np.column_stack([x, 0.5 * curvature * x * x])
@@ -277,7 +277,7 @@ def corridor_lines(
     el = detection.ego_left if detection is not None else empty
     er = detection.ego_right if detection is not None else empty
     if len(el) < 2 and len(er) < 2:
-        arc = _arc(curvature, reach)
+        arc = arc_line(curvature, reach)
         left, lo, right, ro = arc, 0.5 * lane_width, arc, -0.5 * lane_width
     elif len(el) < 2:
         left, lo, right, ro = er, lane_width, er, 0.0
@@ -314,8 +314,8 @@ def corridor_bounds(
     left, lo, right, ro = corridor_lines(
         detection, side=side, lane_width=lane_width, curvature=curvature, reach=reach
     )
-    yl = np.array([_line_y(left, lo, float(v)) for v in x])
-    yr = np.array([_line_y(right, ro, float(v)) for v in x])
+    yl = np.array([line_y(left, lo, float(v)) for v in x])
+    yr = np.array([line_y(right, ro, float(v)) for v in x])
     return yl, yr
 
 
@@ -410,7 +410,7 @@ class TargetSelector:
             curvature=curvature,
             reach=self.max_range + 10.0,
         )
-        return _overlaps(objects.x, objects.y, objects.width, left, lo, right, ro)
+        return corridor_overlaps(objects.x, objects.y, objects.width, left, lo, right, ro)
 
     def select(
         self,

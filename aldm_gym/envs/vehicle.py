@@ -23,7 +23,7 @@ from aldm_gym.envs.actions import ActionConfig, MetaAction
 from aldm_gym.envs.control import LKAConfig, LKAController
 from aldm_gym.envs.traffic import BatchedLaneUpdate, FastBicycleStep, FastIDMVehicle, clip_scalar
 from aldm_gym.roads.highway import RoadConfig
-from aldm_gym.sensor.detection import LaneDetection, driving_trajectory
+from aldm_gym.sensor.lane_detection import LaneDetection, driving_trajectory
 from aldm_gym.types import FloatArray
 
 _ACTION = ActionConfig()

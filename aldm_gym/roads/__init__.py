@@ -5,7 +5,6 @@ of the package asks (:mod:`aldm_gym.roads.protocol`)."""
 from __future__ import annotations
 
 import aldm_gym._numba  # noqa: F401  (numba cache guards, before any kernel is compiled)
-from aldm_gym.roads.geometry import ReferenceLine, Segment
 from aldm_gym.roads.highway import (
     EDGE,
     MARKING_MODELS,
@@ -22,6 +21,7 @@ from aldm_gym.roads.opendrive.parse import SHIPPED_MAPS, shipped_map
 from aldm_gym.roads.polyline import MarkingCurve, PolylineMarkings, PolylineRoad
 from aldm_gym.roads.position import LanePosition, Pose
 from aldm_gym.roads.protocol import MarkedRoad, Road
+from aldm_gym.roads.reference_line import ReferenceLine, Segment
 
 __all__ = [
     "EDGE",

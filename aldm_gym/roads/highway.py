@@ -32,11 +32,11 @@ from highway_env.road.road import RoadNetwork
 
 from aldm_gym.config import build_config, check_choice, check_range, setting, validate
 from aldm_gym.errors import ConfigError, InputError
-from aldm_gym.roads.geometry import ReferenceLine, Segment
 from aldm_gym.roads.lane import ReferenceLane
 from aldm_gym.roads.markings import MARKING_MODELS, Marking, MarkingRole, MarkingType
 from aldm_gym.roads.overpass import overpass_lines
 from aldm_gym.roads.position import LanePosition, Pose, world_point
+from aldm_gym.roads.reference_line import ReferenceLine, Segment
 from aldm_gym.types import FloatArray
 
 MIN_RADIUS_BY_SPEED = {130: 800.0, 120: 600.0, 110: 500.0, 100: 400.0}

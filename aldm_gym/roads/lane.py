@@ -7,7 +7,7 @@ import math
 import numpy as np
 from highway_env.road.lane import AbstractLane, LineType
 
-from aldm_gym.roads.geometry import ReferenceLine
+from aldm_gym.roads.reference_line import ReferenceLine
 from aldm_gym.types import FloatArray
 
 

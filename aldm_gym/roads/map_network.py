@@ -14,7 +14,7 @@ looks at ids ``± 1``). :class:`MapNetwork` builds one from the driving lanes of
   merged with a union-find, so splits and merges give nodes with several edges);
 * every lane a :class:`MapLane`: highway-env's lane interface on the lane's centre
   line, resampled at a constant step into a :class:`CentreLine` (a
-  :class:`~aldm_gym.roads.geometry.ReferenceLine` built from points), so lane
+  :class:`~aldm_gym.roads.reference_line.ReferenceLine` built from points), so lane
   coordinates come from its compiled, spatially hashed projection (highway-env's
   ``PolyLane`` searches the whole polyline in Python at every call).
 
@@ -36,8 +36,8 @@ import numpy as np
 from highway_env.road.lane import LineType
 from highway_env.road.road import LaneIndex, RoadNetwork
 
-from aldm_gym.roads.geometry import ReferenceLine, _project_near
 from aldm_gym.roads.lane import ReferenceLane
+from aldm_gym.roads.reference_line import ReferenceLine, project_point_near
 from aldm_gym.types import BoolArray, FloatArray
 
 if TYPE_CHECKING:
@@ -57,7 +57,7 @@ HEADING_WEIGHT = 1.0
 class CentreLine(ReferenceLine):
     """A lane's centre: a :class:`ReferenceLine` tabulated from a polyline.
 
-    :meth:`ReferenceLine.from_points <aldm_gym.roads.geometry.ReferenceLine.from_points>`
+    :meth:`ReferenceLine.from_points <aldm_gym.roads.reference_line.ReferenceLine.from_points>`
     with the map lanes' step and reach; everything else (``pose_at``, ``position``,
     ``project``, ``project_many``, ``project_near``) is the reference line's.
 
@@ -123,7 +123,7 @@ class MapLane(ReferenceLane):
         For the traffic's neighbour queries: ``s`` is every position's
         ``local_coordinates`` ``s`` [m], except NaN for a position beyond the centre
         line's fast reach (see :meth:`ReferenceLine.project_near
-        <aldm_gym.roads.geometry.ReferenceLine.project_near>`; such a position is not
+        <aldm_gym.roads.reference_line.ReferenceLine.project_near>`; such a position is not
         on the lane); ``on`` the ``on_lane(margin=margin)`` mask; ``order`` the indices
         of the on-lane positions sorted by ``s`` (stable: ties in index order). The
         answers are those of ``local_coordinates`` and ``AbstractLane.on_lane``.
@@ -584,14 +584,14 @@ def _neighbour_table_py(
 ) -> tuple[FloatArray, FloatArray, BoolArray, np.ndarray]:
     """``(s, d, on, order)`` for :meth:`MapLane.neighbour_table` (plain-Python reference).
 
-    ``s`` from :func:`~aldm_gym.roads.geometry._project_near_py` (NaN off reach), the
+    ``s`` from :func:`~aldm_gym.roads.reference_line.project_point_near_py` (NaN off reach), the
     lateral coordinate ``r = 0 - d`` (``ReferenceLane.local_coordinates`` at offset
     0), the width ``w[0]`` or interpolated at ``s`` (``MapLane.width_at``), then
     ``AbstractLane.on_lane``'s comparisons; ``order`` sorts the on-lane indices by
     ``s`` with a stable sort. ``s``, ``d`` (left offset [m]), ``on`` have shape
     ``(N,)``, ``order`` ``(M,)``.
     """
-    s, d, near = _project_near(
+    s, d, near = project_point_near(
         xy, heading, step, cell, hash_keys, hash_ptr, hash_idx, window, points
     )
     n = points.shape[0]

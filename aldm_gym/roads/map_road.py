@@ -16,7 +16,7 @@ what the line sensor, the detectors, the ground truth and the environment use:
 World frame. OpenDRIVE's inertial frame is right-handed (x east, y north, heading
 counter-clockwise). highway-env's world, in which vehicles, the sensor and the
 renderer work, has y pointing down the screen: the driver's left of heading ``h`` is
-``(sin h, -cos h)`` (see :mod:`aldm_gym.roads.geometry`). A map enters that world
+``(sin h, -cos h)`` (see :mod:`aldm_gym.roads.reference_line`). A map enters that world
 mirrored in y: ``(x, y) -> (x, -y)`` and ``heading -> -heading``; lengths, dashes and
 left/right are unchanged, so the sensor frame (ISO 8855, y left) is the same.
 """
@@ -343,7 +343,7 @@ class OpenDriveRoad(PolylineRoad):
         """The first driving lane continuing ``lane`` in its direction, or ``None``."""
         return self._succ.get(lane)
 
-    def _project(self, position: FloatArray, only: int = -1) -> tuple[int, int, float, float]:
+    def _nearest_lane(self, position: FloatArray, only: int = -1) -> tuple[int, int, float, float]:
         """Nearest driving-lane centre: ``(lane row, segment, offset [m] > 0 left, u [m])``.
 
         ``segment`` counts from the lane's first vertex (-1 when nothing is near).
@@ -359,7 +359,7 @@ class OpenDriveRoad(PolylineRoad):
                 hi = c.start[only + 1 : only + 2].copy()
         if len(rows) == 0:
             return -1, -1, math.nan, math.nan
-        row, i, offset, u = _project_near(
+        row, i, offset, u = _nearest_centre(
             c.xy, c.u, rows, lo, hi, float(position[0]), float(position[1])
         )
         return row, i - int(c.start[row]), offset, u
@@ -376,7 +376,7 @@ class OpenDriveRoad(PolylineRoad):
             driving lane passes within :data:`LOCATE_REACH` of it.
         """
         p = world_point("position", position)
-        row, seg, offset, u = self._project(p)
+        row, seg, offset, u = self._nearest_lane(p)
         if row < 0:
             raise OffRoadError(
                 f"position ({p[0]:.1f}, {p[1]:.1f}) is more than {LOCATE_REACH} m from any "
@@ -454,7 +454,7 @@ class OpenDriveRoad(PolylineRoad):
     ) -> int | tuple[int, ...] | None:
         """The markings along one border of ``lane`` from ``position`` on (see above)."""
         row = self._key_index[lane]
-        seg = 0 if position is None else max(self._project(position, only=row)[1], 0)
+        seg = 0 if position is None else max(self._nearest_lane(position, only=row)[1], 0)
         chain: list[int] = []
         covered = 0.0
         key: LaneKey | None = lane
@@ -497,7 +497,7 @@ class OpenDriveRoad(PolylineRoad):
         return self.map.lanes[lane]
 
 
-def _project_near_py(
+def _nearest_centre_py(
     xy: FloatArray,
     u: FloatArray,
     rows: np.ndarray,
@@ -534,4 +534,4 @@ def _project_near_py(
     return best
 
 
-_project_near = numba.njit(cache=True)(_project_near_py)
+_nearest_centre = numba.njit(cache=True)(_nearest_centre_py)

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import aldm_gym._numba  # noqa: F401  (numba cache guards, before any kernel is compiled)
 from aldm_gym.sensor.aldm import ALDMParams, detect_lanes
-from aldm_gym.sensor.detection import LINE_NAMES, LaneDetection, driving_trajectory
 from aldm_gym.sensor.frame import LineObject, SensorFrame, SideLines
 from aldm_gym.sensor.ground_truth import (
     LineScore,
@@ -18,6 +17,7 @@ from aldm_gym.sensor.ground_truth import (
     score_detection,
     score_line,
 )
+from aldm_gym.sensor.lane_detection import LINE_NAMES, LaneDetection, driving_trajectory
 from aldm_gym.sensor.line_sensor import LineSensor, LineSensorConfig
 from aldm_gym.sensor.naive import naive_detect
 

@@ -47,8 +47,8 @@ import numpy as np
 from aldm_gym.config import build_config, setting, validate
 from aldm_gym.errors import ConfigError, InputError
 from aldm_gym.sensor.aldm_kernels.layout import FloatParams, IntParams
-from aldm_gym.sensor.aldm_kernels.output import _detect
-from aldm_gym.sensor.detection import LINE_NAMES, LaneDetection
+from aldm_gym.sensor.aldm_kernels.output import detect_frame
+from aldm_gym.sensor.lane_detection import LINE_NAMES, LaneDetection
 from aldm_gym.sensor.trajectory import DEFAULT_LANE_WIDTH, PATH_STEP, driving_trajectory, fit_reach
 from aldm_gym.types import FloatArray, IntArray
 
@@ -140,7 +140,8 @@ class ALDMParams:
     start_points: int = setting(3, lo=3, hi=1000, integer=True)
     start_spacing: float = setting(1.8, lo=0.0, lo_open=True, hi=100.0)
     # Search windows are bounded: the grid kernel turns them into cell counts, and
-    # nothing beyond the 200 m range of view is meaningful (1e20 used to crash it).
+    # nothing beyond the 200 m range of view is meaningful (a huge window would
+    # overflow its cell count).
     search_length: float = setting(18.0, lo=0.0, lo_open=True, hi=1000.0)
     adjacent_offset: float = setting(2.0, lo=0.0, lo_open=True, hi=50.0)
     n_points: int = setting(13, lo=0, hi=100_000, integer=True)
@@ -331,15 +332,15 @@ def detect_lanes(
     :param path_range: the trajectory fits each ego line on its points with x <= this
         (at least 4 points) [m]; ``None`` (default): the whole line.
     :param overrides: individual :class:`ALDMParams` fields, e.g. ``mode="paper"``.
-    :return: a :class:`~aldm_gym.sensor.detection.LaneDetection` with ``source="aldm"``.
+    :return: a :class:`~aldm_gym.sensor.lane_detection.LaneDetection` with ``source="aldm"``.
     :raises TypeError: ``points`` is not an array or frame, or has a bad dtype.
     :raises ValueError: bad shape, unknown parameter or impossible value.
     """
     p = params if type(params) is ALDMParams and not overrides else make_params(params, **overrides)
-    return _detect_lanes(as_points(points), p, path_range)[0]
+    return detect_lanes_checked(as_points(points), p, path_range)[0]
 
 
-def _detect_lanes(
+def detect_lanes_checked(
     pts: FloatArray, p: ALDMParams, path_range: float | None
 ) -> tuple[LaneDetection, float, FloatArray, IntArray]:
     """:func:`detect_lanes` on checked points and parameters; also the lane width
@@ -348,7 +349,7 @@ def _detect_lanes(
     it)."""
     reach = fit_reach(path_range)
     fp, ip = _packed(p)
-    lines, starts, _offsets, ok, traj, width = _detect(pts, fp, ip, reach)
+    lines, starts, _offsets, ok, traj, width = detect_frame(pts, fp, ip, reach)
     fields = {name: lines[starts[s] : starts[s + 1]] for s, name in enumerate(LINE_NAMES)}
     if not ok:  # lines of < 4 points (n_points 2 or 3) or repeated x: numpy's fit
         traj = driving_trajectory(fields["ego_left"], fields["ego_right"], width, PATH_STEP, reach)

@@ -1,7 +1,7 @@
 """The detector registry: every lane detector by name, behind one signature.
 
 A detector turns a :class:`~aldm_gym.sensor.frame.SensorFrame` into a
-:class:`~aldm_gym.sensor.detection.LaneDetection`. Everything that chooses a detector
+:class:`~aldm_gym.sensor.lane_detection.LaneDetection`. Everything that chooses a detector
 by name — the environment's ``detector`` key, ``aldm-gym compare``/``train``
 choices, the frame-level comparison — goes through :func:`make_detector`, so adding
 a detector is one entry in :data:`REGISTRY`.
@@ -28,9 +28,9 @@ from typing import Any, ClassVar, Protocol
 
 from aldm_gym.errors import ConfigError
 from aldm_gym.sensor.aldm import detect_lanes
-from aldm_gym.sensor.detection import LaneDetection
 from aldm_gym.sensor.frame import SensorFrame
 from aldm_gym.sensor.ground_truth import ground_truth_detect
+from aldm_gym.sensor.lane_detection import LaneDetection
 from aldm_gym.sensor.naive import naive_detect
 from aldm_gym.sensor.tracking import EgoMotion, LaneTracker, split_params
 from aldm_gym.sensor.trajectory import fit_reach

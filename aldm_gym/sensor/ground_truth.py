@@ -14,8 +14,8 @@ from typing import Any
 import numpy as np
 
 from aldm_gym.roads.protocol import Road
-from aldm_gym.sensor.detection import LINE_NAMES, LaneDetection
 from aldm_gym.sensor.frame import SensorFrame
+from aldm_gym.sensor.lane_detection import LINE_NAMES, LaneDetection
 from aldm_gym.types import FloatArray
 
 Boundary = int | tuple[int, ...]

@@ -88,13 +88,12 @@ class LineSensorConfig:
     and ``|y| <= x tan(fov_half_angle)`` (the horizontal angle of view of the paper's
     Fig. 1), optionally also ``|y| <= max_lateral``. The paper gives no value for the
     angle. The default half angle, 80°, sees 31 m to either side already at the
-    field-of-view start (so it hides no point the earlier 30 m band showed) and
-    widens from there, so the markings of a curve stay in view out to the full
-    range: in the paper's worst case (R = 500 m right curve) the ego lines are ~42 m
-    to the right at x = 200 m. The 30 m lateral band it replaces cut those lines off
-    at x ~ 170 m, where paper mode, having no gate, jumped to other markings;
-    ``{"fov_half_angle": math.pi / 2, "max_lateral": 30.0}`` restores the band (bit
-    for bit the frames of before). Visibility is decided on the noiseless position.
+    field-of-view start and widens from there, so the markings of a curve stay in
+    view out to the full range: in the paper's worst case (R = 500 m right curve) the
+    ego lines are ~42 m to the right at x = 200 m. A fixed 30 m lateral band
+    (``{"fov_half_angle": math.pi / 2, "max_lateral": 30.0}``) would cut those lines
+    off at x ~ 170 m, where paper mode, having no gate, jumps to other markings.
+    Visibility is decided on the noiseless position.
 
     Point ``p`` of a line lies at ``x = fov_start + p dx``, so ``p`` runs
     ``0 … ⌊(range − fov_start) / dx⌋`` (97 for the defaults; at most

@@ -12,8 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from aldm_gym.sensor.detection import LaneDetection
 from aldm_gym.sensor.frame import SensorFrame
+from aldm_gym.sensor.lane_detection import LaneDetection
 from aldm_gym.sensor.trajectory import DEFAULT_LANE_WIDTH
 from aldm_gym.types import FloatArray
 

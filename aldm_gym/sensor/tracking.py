@@ -38,9 +38,15 @@ import numpy as np
 
 from aldm_gym.config import build_config, check_keys, setting, validate
 from aldm_gym.errors import ConfigError
-from aldm_gym.sensor.aldm import ALDMParams, _detect_lanes, as_points, make_params
-from aldm_gym.sensor.aldm_kernels.track import _consensus, _hold, _match, _prior, _table
-from aldm_gym.sensor.detection import LINE_NAMES, LaneDetection
+from aldm_gym.sensor.aldm import ALDMParams, as_points, detect_lanes_checked, make_params
+from aldm_gym.sensor.aldm_kernels.track import (
+    consensus,
+    hold_to_consensus,
+    match_tracks,
+    track_prior,
+    track_table,
+)
+from aldm_gym.sensor.lane_detection import LINE_NAMES, LaneDetection
 from aldm_gym.sensor.trajectory import PATH_STEP, driving_trajectory, fit_reach
 
 MIN_SUPPORT = 3
@@ -214,7 +220,7 @@ class LaneTracker:
         if motion is not None and not isinstance(motion, EgoMotion):
             raise TypeError(f"motion must be EgoMotion or None, got {type(motion).__name__}")
         if motion is None or self._ls[-1] == 0:
-            det, _, lines, ls = _detect_lanes(pts, self.params, self.path_range)
+            det, _, lines, ls = detect_lanes_checked(pts, self.params, self.path_range)
             self.n_prior = self.n_rejected = 0
             self._lines, self._ls = lines.copy(), ls
             self._ids = np.full(len(LINE_NAMES), -1, dtype=np.int64)
@@ -226,10 +232,10 @@ class LaneTracker:
             return det
         tp = self.tracker
         travel = motion.travel
-        table, first = _table(self._lines, self._ls, *motion.displacement())
+        table, first = track_table(self._lines, self._ls, *motion.displacement())
         if tp.consensus_tol > 0.0:
-            _consensus(table, first, tp.consensus_tol, tp.consensus_tol_slope)
-        keep, vx, vy, support = _prior(
+            consensus(table, first, tp.consensus_tol, tp.consensus_tol_slope)
+        keep, vx, vy, support = track_prior(
             pts,
             table,
             self._coast <= tp.coast_length - travel,
@@ -249,10 +255,10 @@ class LaneTracker:
             prior[:, 0] = vx
             prior[:, 1] = vy
             cloud = np.concatenate((cloud, prior))
-        det, width, lines, ls = _detect_lanes(cloud, self.params, self.path_range)
+        det, width, lines, ls = detect_lanes_checked(cloud, self.params, self.path_range)
         if tp.consensus_tol > 0.0 and ls[-1] > 0:
             det, lines, ls = self._hold_together(det, lines, ls, width)
-        self._ids, self._coast, self._next_id = _match(
+        self._ids, self._coast, self._next_id = match_tracks(
             lines,
             ls,
             table,
@@ -271,11 +277,11 @@ class LaneTracker:
     def _hold_together(
         self, det: LaneDetection, lines: np.ndarray, ls: np.ndarray, width: float
     ) -> tuple[LaneDetection, np.ndarray, np.ndarray]:
-        """The detection's lines held to their common shape (:func:`_hold`): where a
+        """The detection's lines held to their common shape (:func:`hold_to_consensus`): where a
         line strays from it (far ahead, on clutter no track reached yet) its points
         are set onto it, where two lines part both end, and the trajectory follows."""
         tp = self.tracker
-        out, ls, moved = _hold(lines, ls, tp.consensus_tol, tp.consensus_tol_slope)
+        out, ls, moved = hold_to_consensus(lines, ls, tp.consensus_tol, tp.consensus_tol_slope)
         if not moved:
             return det, lines, ls
         fields = {name: out[ls[i] : ls[i + 1]] for i, name in enumerate(LINE_NAMES)}

@@ -1,9 +1,9 @@
 """The driving trajectory: the path midway between cubic fits of the ego lines.
 
 The one implementation of the path every detector returns as
-:attr:`LaneDetection.trajectory <aldm_gym.sensor.detection.LaneDetection>`: the
+:attr:`LaneDetection.trajectory <aldm_gym.sensor.lane_detection.LaneDetection>`: the
 naive and ground-truth detectors call :func:`driving_trajectory`, the ALDM kernel
-calls its compiled core :func:`_path` directly (numba calls it across modules).
+calls its compiled core :func:`fit_path` directly (numba calls it across modules).
 
 Paper §"Advanced Lane Detection Model", last paragraph: a third-degree trend line
 through each ego line; the trajectory is the middle between them. Where the paper is
@@ -94,7 +94,7 @@ def driving_trajectory(
 
     See the module docstring for the rules. Lines of >= 4 points with strictly
     increasing, finite x (every detector's output) are fitted in one compiled call
-    (:func:`_path`, Householder QR); any other line by :func:`fit_cubic`.
+    (:func:`fit_path`, Householder QR); any other line by :func:`fit_cubic`.
 
     :param left: ``(K, 2)`` left ego line [m], sorted by x.
     :param right: ``(K, 2)`` right ego line [m], sorted by x.
@@ -111,7 +111,7 @@ def driving_trajectory(
     if left.ndim == 2 and right.ndim == 2 and left.shape[1] == 2 and right.shape[1] == 2:
         left = np.ascontiguousarray(left)
         right = np.ascontiguousarray(right)
-        ok, path = _path(left, right, float(lane_width), float(spacing), reach)
+        ok, path = fit_path(left, right, float(lane_width), float(spacing), reach)
         if ok:
             return path
         left = left[: _cut_length(left, reach)]
@@ -253,7 +253,7 @@ def _cubic_values_py(points: FloatArray, xq: FloatArray) -> FloatArray:
 _cubic_values = numba.njit(cache=True)(_cubic_values_py)
 
 
-def _path_py(
+def fit_path_py(
     left: FloatArray, right: FloatArray, lane_width: float, spacing: float, path_range: float
 ) -> tuple[bool, FloatArray]:
     """:func:`driving_trajectory` in one call, or ``(False, empty)`` if a line needs
@@ -304,7 +304,7 @@ def _path_py(
     return True, out
 
 
-_path = numba.njit(cache=True)(_path_py)
+fit_path = numba.njit(cache=True)(fit_path_py)
 
 
 __all__ = [

@@ -44,7 +44,7 @@ def _has_custom_collisions(cls: type) -> bool:
 
 
 @cache
-def _uses_base_box(cls: type) -> bool:
+def uses_base_box(cls: type) -> bool:
     """Whether ``cls`` collides as highway-env's box: base polygon, velocity and checks."""
     return (
         not _has_custom_collisions(cls)
@@ -120,7 +120,7 @@ def resolve_collisions(vehicles: list[RoadObject], objects: list[RoadObject], dt
         if not (math.isfinite(px) and math.isfinite(py)) or radius != radius:
             _resolve_all_collisions(vehicles, objects, dt)
             return
-        if _uses_base_box(cls):
+        if uses_base_box(cls):
             c = math.cos(obj.heading)
             s = math.sin(obj.heading)
             step = obj.speed * dt

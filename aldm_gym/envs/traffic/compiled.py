@@ -65,8 +65,8 @@ from highway_env.vehicle.kinematics import Vehicle
 from highway_env.vehicle.objects import RoadObject
 
 from aldm_gym.envs.traffic import kernels as K
-from aldm_gym.envs.traffic.collisions import _uses_base_box, resolve_collisions
-from aldm_gym.envs.traffic.scalar import _NUMPY_POWER_SPECIAL
+from aldm_gym.envs.traffic.collisions import resolve_collisions, uses_base_box
+from aldm_gym.envs.traffic.scalar import NUMPY_POWER_SPECIAL
 from aldm_gym.envs.traffic.vehicles import (
     STEPS_ENDING_WITH_UPDATE,
     BatchedLaneUpdate,
@@ -161,7 +161,7 @@ def _classes_ok(kinds: frozenset[type]) -> tuple[bool, bool]:
         and cls.on_state_update in (Vehicle.on_state_update, BatchedLaneUpdate.on_state_update)
         for cls in kinds
     )
-    return ok, all(_uses_base_box(cls) for cls in kinds)
+    return ok, all(uses_base_box(cls) for cls in kinds)
 
 
 @cache
@@ -334,7 +334,7 @@ class CompiledTraffic:
         compiled = vehicles[first:]
         if any(map(_ROUTE, compiled)):
             return self._decline("a FastIDMVehicle follows a planned route")
-        if not _NUMPY_POWER_SPECIAL.isdisjoint(map(_DELTA, compiled)):
+        if not NUMPY_POWER_SPECIAL.isdisjoint(map(_DELTA, compiled)):
             return self._decline("an IDM exponent (DELTA) that numpy special-cases")
         self._boxes = ok[1]
         return first

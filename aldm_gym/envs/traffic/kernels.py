@@ -5,7 +5,7 @@ moves them and finds their lanes (:func:`traffic_step`). Each repeats, operation
 operation, what highway-env's ``IDMVehicle`` (through
 :class:`~aldm_gym.envs.traffic.vehicles.FastIDMVehicle`) computes on a road whose lanes
 are :class:`~aldm_gym.roads.lane.ReferenceLane` offsets of one
-:class:`~aldm_gym.roads.geometry.ReferenceLine`, in the same order and with the same
+:class:`~aldm_gym.roads.reference_line.ReferenceLine`, in the same order and with the same
 IEEE operations (``math`` and numba call the same C library here), so the results are
 the same floats (``tests/test_traffic_compiled.py`` checks whole episodes bit for bit).
 On such a road every lane shares the line's arc length ``s`` and the lateral coordinate
@@ -39,7 +39,7 @@ import math
 import numba
 import numpy as np
 
-from aldm_gym.roads.geometry import _project
+from aldm_gym.roads.reference_line import project_point
 from aldm_gym.types import FloatArray
 
 F_X, F_Y, F_HEADING, F_SPEED, F_LENGTH, F_TARGET_SPEED, F_SPEED_LIMIT = 0, 1, 2, 3, 4, 5, 6
@@ -94,10 +94,10 @@ def _project_point_py(
     key = np.int64(math.floor(px / cell)) * 1_000_003 + np.int64(math.floor(py / cell))
     i = np.searchsorted(hash_keys, key)
     if i < hash_keys.shape[0] and hash_keys[i] == key:
-        return _project(
+        return project_point(
             ref_xy, ref_heading, step, hash_idx[hash_ptr[i] : hash_ptr[i + 1]], window, px, py
         )
-    return _project(ref_xy, ref_heading, step, coarse, window, px, py)
+    return project_point(ref_xy, ref_heading, step, coarse, window, px, py)
 
 
 _project_point = numba.njit(cache=True)(_project_point_py)

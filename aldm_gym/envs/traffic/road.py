@@ -276,7 +276,7 @@ class FastRoad(Road):
                 prepare(np.array([v.position for v in deferred], dtype=np.float64).reshape(-1, 2))
         for vehicle in deferred:
             # The vehicle's own on_state_update (its class may extend the end of a
-            # step, e.g. MapIDMVehicle); no longer deferred, it runs Vehicle's now.
+            # step, e.g. MapIDMVehicle); outside the deferral it runs Vehicle's.
             vehicle.on_state_update()
         self._neighbours.valid = False
         if first is None:

@@ -190,13 +190,13 @@ asin_scalar: Callable[[float], float] = _pick("arcsin", math.asin, np.arcsin)
 
 # np.power special-cases some exponents (e.g. 2 -> square, 0.5 -> sqrt, -1 -> reciprocal):
 # those, and anything math.pow rejects, go through numpy itself.
-_NUMPY_POWER_SPECIAL = frozenset({-2.0, -1.0, -0.5, 0.0, 0.5, 1.0, 2.0, 3.0})
+NUMPY_POWER_SPECIAL = frozenset({-2.0, -1.0, -0.5, 0.0, 0.5, 1.0, 2.0, 3.0})
 _POWER_FROM_LIBM = NUMPY_AGREES_WITH_LIBM["power"]
 
 
 def power_scalar(x: float, exponent: float) -> float:
     """``np.power(x, exponent)`` for scalars, bit for bit."""
-    if _POWER_FROM_LIBM and exponent not in _NUMPY_POWER_SPECIAL:
+    if _POWER_FROM_LIBM and exponent not in NUMPY_POWER_SPECIAL:
         try:
             return math.pow(x, exponent)
         except (ValueError, OverflowError):

@@ -6,7 +6,6 @@ their painted intervals, chained across lane sections and linked roads) and its 
 
 from __future__ import annotations
 
-from aldm_gym.roads.opendrive.geometry import PlanView
 from aldm_gym.roads.opendrive.map import DEFAULT_SAMPLE_STEP, LaneKey, LaneRecord, OpenDriveMap
 from aldm_gym.roads.opendrive.marks import DEFAULT_BROKEN_PATTERN, MarkingLine
 from aldm_gym.roads.opendrive.parse import (
@@ -15,6 +14,7 @@ from aldm_gym.roads.opendrive.parse import (
     parse_file,
     shipped_map,
 )
+from aldm_gym.roads.opendrive.plan_view import PlanView
 
 __all__ = [
     "DEFAULT_BROKEN_PATTERN",

@@ -38,10 +38,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from aldm_gym.roads.opendrive.geometry import PlanView
 from aldm_gym.roads.opendrive.lanes import cubic_at, section_end
 from aldm_gym.roads.opendrive.marks import MarkPiece, chain_pieces
 from aldm_gym.roads.opendrive.parse import Road
+from aldm_gym.roads.opendrive.plan_view import PlanView
 from aldm_gym.types import FloatArray
 
 BRIDGE_CLEARANCE = 3.0

@@ -16,8 +16,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from aldm_gym.errors import MapError
-from aldm_gym.roads.opendrive.geometry import PlanView
 from aldm_gym.roads.opendrive.parse import Cubic, Lane, LaneSection, Road
+from aldm_gym.roads.opendrive.plan_view import PlanView
 from aldm_gym.types import FloatArray
 
 _GRID_TOLERANCE = 1e-9

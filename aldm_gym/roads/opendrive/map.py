@@ -22,7 +22,6 @@ from aldm_gym.roads.opendrive.bridges import (
     levels,
     overpass_segments,
 )
-from aldm_gym.roads.opendrive.geometry import PlanView
 from aldm_gym.roads.opendrive.lanes import (
     cubic_at,
     driving_direction,
@@ -39,6 +38,7 @@ from aldm_gym.roads.opendrive.marks import (
     section_pieces,
 )
 from aldm_gym.roads.opendrive.parse import Header, Junction, Lane, Road, parse_file
+from aldm_gym.roads.opendrive.plan_view import PlanView
 from aldm_gym.types import FloatArray, IntArray
 
 LaneKey = tuple[str, int, int]

@@ -10,7 +10,7 @@ Data flow of one frame (:func:`output._detect`, the single entry point called fr
   :mod:`.grid` (the search grid) and :mod:`.fit` (ridge quadratics and their running
   sums, shared with the output's smoothing);
 * :mod:`.output` — the returned lines and the one-line lane width; the trajectory is
-  the one path fit of every detector, :func:`aldm_gym.sensor.trajectory._path`.
+  the one path fit of every detector, :func:`aldm_gym.sensor.trajectory.fit_path`.
 * :mod:`.track` — the tracking ALDM's kernels (:class:`aldm_gym.sensor.tracking.LaneTracker`):
   the last lines moved by odometry, the prior points and clutter filter fed to the
   pipeline above, and the matching that keeps line identities.

@@ -1,8 +1,8 @@
 """Fit stage: the small least-squares fits every trace and the output share.
 
 The ridge-regularised quadratic ``y = A u² + B u + C`` (u = x - x_ref) from its
-normal-equation sums, the one update of those running sums (:func:`_update_sums`),
-and the local quadratic that smooths a traced line (:func:`_smooth_at`).
+normal-equation sums, the one update of those running sums (:func:`update_sums`),
+and the local quadratic that smooths a traced line (:func:`smooth_at`).
 """
 
 from __future__ import annotations
@@ -42,7 +42,7 @@ def _inv3_py(m, inv):
 _inv3 = numba.njit(cache=True)(_inv3_py)
 
 
-def _update_sums_py(s0, s1, s2, s3, s4, t0, t1, t2, u, y, w):
+def update_sums_py(s0, s1, s2, s3, s4, t0, t1, t2, u, y, w):
     """The running fit sums with the point ``(u, y)`` added (``w = 1``) or dropped
     (``w = -1``); u = x - x_last [m].
 
@@ -63,7 +63,7 @@ def _update_sums_py(s0, s1, s2, s3, s4, t0, t1, t2, u, y, w):
     )
 
 
-_update_sums = numba.njit(cache=True, inline="always")(_update_sums_py)
+update_sums = numba.njit(cache=True, inline="always")(update_sums_py)
 
 
 def _ridge_quadratic_py(us, ys, n, a0, b0, lam_a, lam_b, a_max, work):
@@ -88,16 +88,16 @@ def _ridge_quadratic_py(us, ys, n, a0, b0, lam_a, lam_b, a_max, work):
     t1 = 0.0
     t2 = 0.0
     for k in range(n):
-        s0, s1, s2, s3, s4, t0, t1, t2 = _update_sums(
+        s0, s1, s2, s3, s4, t0, t1, t2 = update_sums(
             s0, s1, s2, s3, s4, t0, t1, t2, us[k], ys[k], 1.0
         )
-    return _ridge_solve(s0, s1, s2, s3, s4, t0, t1, t2, a0, b0, lam_a, lam_b, a_max, work)
+    return ridge_solve(s0, s1, s2, s3, s4, t0, t1, t2, a0, b0, lam_a, lam_b, a_max, work)
 
 
 _ridge_quadratic = numba.njit(cache=True)(_ridge_quadratic_py)
 
 
-def _ridge_solve_py(s0, s1, s2, s3, s4, t0, t1, t2, a0, b0, lam_a, lam_b, a_max, work):
+def ridge_solve_py(s0, s1, s2, s3, s4, t0, t1, t2, a0, b0, lam_a, lam_b, a_max, work):
     """:func:`_ridge_quadratic` from the point sums ``s_k = sum u^k``, ``t_k = sum y u^k``.
 
     Lets a trace keep running sums over its sliding fit window (:func:`_robust_trace`).
@@ -139,10 +139,10 @@ def _ridge_solve_py(s0, s1, s2, s3, s4, t0, t1, t2, a0, b0, lam_a, lam_b, a_max,
     return a, b, c, inv
 
 
-_ridge_solve = numba.njit(cache=True)(_ridge_solve_py)
+ridge_solve = numba.njit(cache=True)(ridge_solve_py)
 
 
-def _smooth_at_py(lx, ly, xq, h, a0, b0, lam_a, lam_b, a_max):
+def smooth_at_py(lx, ly, xq, h, a0, b0, lam_a, lam_b, a_max):
     """Local quadratic (ridge) fit of a line's points at each ``xq`` [m].
 
     Uses the points within ``h`` of ``xq`` (at least the three nearest), so a value
@@ -191,4 +191,4 @@ def _smooth_at_py(lx, ly, xq, h, a0, b0, lam_a, lam_b, a_max):
     return out_y, out_b, out_a
 
 
-_smooth_at = numba.njit(cache=True)(_smooth_at_py)
+smooth_at = numba.njit(cache=True)(smooth_at_py)

@@ -14,10 +14,10 @@ import numpy as np
 from aldm_gym.sensor.aldm_kernels.layout import P
 
 GUIDE_STEP = 2.0
-"""x step of a guide line's table [m] (:func:`_guide_dev`)."""
+"""x step of a guide line's table [m] (:func:`guide_dev`)."""
 
 
-def _build_grid_py(xs, ys, cell_y):
+def build_grid_py(xs, ys, cell_y):
     """Bucket the sorted points into an x-by-y grid (counting sort, O(N + cells)).
 
     Cells are 2 m in x (one sensor sample) by ``2 cell_y`` in y, coarsened until
@@ -85,7 +85,7 @@ def _build_grid_py(xs, ys, cell_y):
     return geo, start, pts
 
 
-_build_grid = numba.njit(cache=True)(_build_grid_py)
+build_grid = numba.njit(cache=True)(build_grid_py)
 
 
 def _gated_py(xs, ys, k, x_last, A, B, C, inv, fp, sig2):
@@ -149,7 +149,7 @@ def _cell_rows_py(geo, x_last, xa, xb, A, B, C, margin):
 _cell_rows = numba.njit(cache=True)(_cell_rows_py)
 
 
-def _guide_dev_py(guide, x, y):
+def guide_dev_py(guide, x, y):
     """``y`` minus the guide line at ``x`` [m] (NaN outside the guide's x range).
 
     ``guide`` is a ``(G, 4)`` table (x, slope, a, y) every :data:`GUIDE_STEP`
@@ -163,7 +163,7 @@ def _guide_dev_py(guide, x, y):
     return y - (guide[g, 3] + (guide[g, 1] + guide[g, 2] * u) * u)
 
 
-_guide_dev = numba.njit(cache=True)(_guide_dev_py)
+guide_dev = numba.njit(cache=True)(guide_dev_py)
 
 
 def _scan_py(ctx, x_lo, x_hi, r_max, nearest, par_max):
@@ -175,9 +175,9 @@ def _scan_py(ctx, x_lo, x_hi, r_max, nearest, par_max):
     bins in x order (``nearest`` stops at the first bin with a hit).
 
     ``ctx`` is the search's context, ``(xs, ys, mask, geo, start, pts, x_last, A, B,
-    C, inv, fp, sig2, guide, g_off)`` (see :func:`_grid_search`).
+    C, inv, fp, sig2, guide, g_off)`` (see :func:`grid_search`).
 
-    Used by the rare second look only: :func:`_grid_search`'s own two passes do the
+    Used by the rare second look only: :func:`grid_search`'s own two passes do the
     same visit inline, because calling this for them made a typical frame's
     ``detect_lanes`` ~30 % slower (92 vs 121 µs, ``benchmarks/bench_aldm.py`` frame).
 
@@ -209,7 +209,7 @@ def _scan_py(ctx, x_lo, x_hi, r_max, nearest, par_max):
                 r = _gated(xs, ys, k, x_last, A, B, C, inv, fp, sig2)
                 if r < 0.0 or r > r_max:
                     continue
-                if par_max < np.inf and not abs(_guide_dev(guide, x, ys[k]) - g_off) <= par_max:
+                if par_max < np.inf and not abs(guide_dev(guide, x, ys[k]) - g_off) <= par_max:
                     continue
                 if (nearest and x < best_x) or r < best_r or (r == best_r and k < best):
                     best = k
@@ -223,7 +223,7 @@ def _scan_py(ctx, x_lo, x_hi, r_max, nearest, par_max):
 _scan = numba.njit(cache=True)(_scan_py)
 
 
-def _grid_search_py(
+def grid_search_py(
     xs, ys, mask, geo, start, pts, x_last, A, B, C, inv, fp, sig2, search, guide, g_off
 ):
     """Next point of a robust trace (§ALDM step 2 with a gate), via the grid.
@@ -234,7 +234,7 @@ def _grid_search_py(
     ``skip_residual``, the nearest gated point farther in the window with at most half
     that residual wins instead (clutter beside a dashed line fills its gaps).
 
-    Markings are parallel: with a guide line (``guide``, see :func:`_guide_dev`) and
+    Markings are parallel: with a guide line (``guide``, see :func:`guide_dev`) and
     the traced line's mean offset from it (``g_off``; NaN: not known), a winner more
     than ``parallel_gate`` off the guide shifted by that offset yields to the nearest
     gated point in the window at most half as far off (an old marking diverging from
@@ -297,7 +297,7 @@ def _grid_search_py(
                     best_r = r
                     best = k
     if best_r <= fp[P.skip_residual] and not (
-        abs(_guide_dev(guide, xs[best], ys[best]) - g_off) > fp[P.parallel_gate]
+        abs(guide_dev(guide, xs[best], ys[best]) - g_off) > fp[P.parallel_gate]
     ):
         return best  # the common case: no second look (NaN offsets compare false)
     ctx = (xs, ys, mask, geo, start, pts, x_last, A, B, C, inv, fp, sig2, guide, g_off)
@@ -305,7 +305,7 @@ def _grid_search_py(
 
 
 def _second_look_py(ctx, x_hi, x_tie, best, best_r):
-    """The rare second look of :func:`_grid_search` at its winner ``best``: a poor fit
+    """The rare second look of :func:`grid_search` at its winner ``best``: a poor fit
     (residual above ``skip_residual``: a tar seam beside a dashed line, in the gap)
     yields to the nearest gated point farther in the window that fits at least twice
     as well; a point off the guide shifted by ``g_off`` by more than ``parallel_gate``
@@ -324,7 +324,7 @@ def _second_look_py(ctx, x_hi, x_tie, best, best_r):
         if skip >= 0:
             best = skip
     if g_off == g_off:
-        dev = abs(_guide_dev(guide, xs[best], ys[best]) - g_off)
+        dev = abs(guide_dev(guide, xs[best], ys[best]) - g_off)
         if dev > fp[P.parallel_gate]:
             alt, _ = _scan(ctx, x_last, x_hi, np.inf, True, 0.5 * dev)
             if alt >= 0:
@@ -335,4 +335,4 @@ def _second_look_py(ctx, x_hi, x_tie, best, best_r):
 _second_look = numba.njit(cache=True)(_second_look_py)
 
 
-_grid_search = numba.njit(cache=True)(_grid_search_py)
+grid_search = numba.njit(cache=True)(grid_search_py)

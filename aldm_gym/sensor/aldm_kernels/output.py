@@ -1,8 +1,8 @@
 """Output stage: the traced lines as returned, the one-line lane width, and the
-whole pipeline (:func:`_detect`, the single entry point called from Python).
+whole pipeline (:func:`detect_frame`, the single entry point called from Python).
 
-The trajectory is not computed here: :func:`_detect` calls the one path fit of
-every detector, :func:`aldm_gym.sensor.trajectory._path`.
+The trajectory is not computed here: :func:`detect_frame` calls the one path fit of
+every detector, :func:`aldm_gym.sensor.trajectory.fit_path`.
 """
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from aldm_gym.sensor.aldm_kernels.fit import _smooth_at
+from aldm_gym.sensor.aldm_kernels.fit import smooth_at
 from aldm_gym.sensor.aldm_kernels.layout import (
     L_EGO_LEFT,
     L_EGO_RIGHT,
@@ -20,10 +20,10 @@ from aldm_gym.sensor.aldm_kernels.layout import (
     I,
     P,
 )
-from aldm_gym.sensor.aldm_kernels.paper import _paper_detect
-from aldm_gym.sensor.aldm_kernels.robust import _robust_detect
-from aldm_gym.sensor.aldm_kernels.sort import _gather
-from aldm_gym.sensor.trajectory import PATH_STEP, _path
+from aldm_gym.sensor.aldm_kernels.paper import paper_detect
+from aldm_gym.sensor.aldm_kernels.robust import robust_detect
+from aldm_gym.sensor.aldm_kernels.sort import gather
+from aldm_gym.sensor.trajectory import PATH_STEP, fit_path
 
 
 def _assemble_py(xs, ys, mask, fp, ip, a0, b0):
@@ -82,7 +82,7 @@ def _assemble_py(xs, ys, mask, fp, ip, a0, b0):
         else:
             xq = lx
         if smooth:
-            yq, _, _ = _smooth_at(
+            yq, _, _ = smooth_at(
                 lx, ly, xq, fp[P.smooth_half_width], a0, b0, lam_a, lam_b, fp[P.a_max]
             )
         elif n_out >= 2:
@@ -127,13 +127,13 @@ _one_line_width = numba.njit(cache=True)(_one_line_width_py)
 def _finish_py(xs, ys, mask, offsets, fp, ip, a0, b0, path_range):
     """Output lines, one-line lane width and trajectory of a traced frame.
 
-    :return: ``(lines, starts, offsets, ok, trajectory, width)`` as :func:`_detect`.
+    :return: ``(lines, starts, offsets, ok, trajectory, width)`` as :func:`detect_frame`.
     """
     lines, starts = _assemble(xs, ys, mask, fp, ip, a0, b0)
     width = _one_line_width(starts, offsets, fp)
     left = lines[starts[L_EGO_LEFT] : starts[L_EGO_LEFT + 1]]
     right = lines[starts[L_EGO_RIGHT] : starts[L_EGO_RIGHT + 1]]
-    ok, traj = _path(left, right, width, PATH_STEP, path_range)
+    ok, traj = fit_path(left, right, width, PATH_STEP, path_range)
     return lines, starts, offsets, ok, traj, width
 
 
@@ -141,11 +141,11 @@ _finish = numba.njit(cache=True)(_finish_py)
 
 
 def _robust_pipeline_py(pts, fp, ip, path_range):
-    """The whole robust-mode ALDM on one frame (see :func:`_detect`)."""
-    xs, ys = _gather(pts, pts.shape[1] >= 3, fp[P.z_band], fp[P.max_range])
+    """The whole robust-mode ALDM on one frame (see :func:`detect_frame`)."""
+    xs, ys = gather(pts, pts.shape[1] >= 3, fp[P.z_band], fp[P.max_range])
     mask = np.zeros(xs.shape[0], dtype=np.uint8)
     offsets = np.full(N_LINES, np.nan)
-    a0, b0 = _robust_detect(xs, ys, fp, ip, mask, offsets)
+    a0, b0 = robust_detect(xs, ys, fp, ip, mask, offsets)
     return _finish(xs, ys, mask, offsets, fp, ip, a0, b0, path_range)
 
 
@@ -153,26 +153,26 @@ _robust_pipeline = numba.njit(cache=True)(_robust_pipeline_py)
 
 
 def _paper_pipeline_py(pts, fp, ip, path_range):
-    """The whole paper-mode ALDM on one frame (see :func:`_detect`)."""
-    xs, ys = _gather(pts, pts.shape[1] >= 3, fp[P.z_band], fp[P.max_range])
+    """The whole paper-mode ALDM on one frame (see :func:`detect_frame`)."""
+    xs, ys = gather(pts, pts.shape[1] >= 3, fp[P.z_band], fp[P.max_range])
     mask = np.zeros(xs.shape[0], dtype=np.uint8)
     offsets = np.full(N_LINES, np.nan)
-    _paper_detect(xs, ys, fp, ip, mask, offsets)
+    paper_detect(xs, ys, fp, ip, mask, offsets)
     return _finish(xs, ys, mask, offsets, fp, ip, 0.0, 0.0, path_range)
 
 
 _paper_pipeline = numba.njit(cache=True)(_paper_pipeline_py)
 
 
-def _detect_py(pts, fp, ip, path_range):
+def detect_frame_py(pts, fp, ip, path_range):
     """The whole ALDM on one frame, each stage's plain-Python reference at the top
-    level (the stages it calls are compiled); see :func:`_detect`."""
+    level (the stages it calls are compiled); see :func:`detect_frame`."""
     if ip[I.paper] == 1:
         return _paper_pipeline_py(pts, fp, ip, path_range)
     return _robust_pipeline_py(pts, fp, ip, path_range)
 
 
-def _detect(pts, fp, ip, path_range):
+def detect_frame(pts, fp, ip, path_range):
     """The whole ALDM on one frame; the single entry point called from Python.
 
     One compiled pipeline per mode, so a first run compiles only the mode it uses
@@ -182,7 +182,7 @@ def _detect(pts, fp, ip, path_range):
     :param fp: float parameters (layout ``P_*``).
     :param ip: integer parameters (layout ``I_*``).
     :param path_range: the trajectory fits the ego lines up to this x [m] (``inf``:
-        whole lines), see :func:`aldm_gym.sensor.trajectory._path`.
+        whole lines), see :func:`aldm_gym.sensor.trajectory.fit_path`.
     :return: ``(lines, starts, offsets, ok, trajectory, width)``: packed output lines
         (see :func:`_assemble`), the lines' offsets at x = 0 ``(4,)`` [m] (NaN if not
         found), whether the compiled path fit applied (else the caller falls back to

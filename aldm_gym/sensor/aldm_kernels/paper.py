@@ -21,7 +21,7 @@ from aldm_gym.sensor.aldm_kernels.layout import (
     I,
     P,
 )
-from aldm_gym.sensor.aldm_kernels.sort import _insertion_sort
+from aldm_gym.sensor.aldm_kernels.sort import insertion_sort
 
 
 def _paper_start_py(xs, ys, m, side, ref, min_off, k, spacing, out):
@@ -67,7 +67,7 @@ def _paper_start_py(xs, ys, m, side, ref, min_off, k, spacing, out):
             break
         out[got] = best
         got += 1
-    _insertion_sort(out, got)  # index order is (x, y) order
+    insertion_sort(out, got)  # index order is (x, y) order
     return got
 
 
@@ -157,7 +157,7 @@ def _paper_trace_py(xs, ys, start, search, view, mask, bit):
 _paper_trace = numba.njit(cache=True)(_paper_trace_py)
 
 
-def _paper_detect_py(xs, ys, fp, ip, mask, offsets):
+def paper_detect_py(xs, ys, fp, ip, mask, offsets):
     """The paper's ALDM: start conditions and traces of the four lines.
 
     ``offsets[l]`` receives each found line's start-parabola value at x = 0 [m]
@@ -208,4 +208,4 @@ def _paper_detect_py(xs, ys, fp, ip, mask, offsets):
         )
 
 
-_paper_detect = numba.njit(cache=True)(_paper_detect_py)
+paper_detect = numba.njit(cache=True)(paper_detect_py)

@@ -13,8 +13,8 @@ import math
 import numba
 import numpy as np
 
-from aldm_gym.sensor.aldm_kernels.fit import _ridge_solve, _smooth_at, _update_sums
-from aldm_gym.sensor.aldm_kernels.grid import GUIDE_STEP, _build_grid, _grid_search, _guide_dev
+from aldm_gym.sensor.aldm_kernels.fit import ridge_solve, smooth_at, update_sums
+from aldm_gym.sensor.aldm_kernels.grid import GUIDE_STEP, build_grid, grid_search, guide_dev
 from aldm_gym.sensor.aldm_kernels.layout import (
     L_EGO_LEFT,
     L_EGO_RIGHT,
@@ -24,7 +24,7 @@ from aldm_gym.sensor.aldm_kernels.layout import (
     I,
     P,
 )
-from aldm_gym.sensor.aldm_kernels.sort import _bucket_order
+from aldm_gym.sensor.aldm_kernels.sort import bucket_order
 
 HIST = 64
 """Ring buffer of the most recent accepted points of a traced line (fit window cap)."""
@@ -72,10 +72,10 @@ def _seed_chains_py(xs, ys, m, link_dx, link_dy):
     :return: ``(M,)`` component root of every start-region point.
     """
     parent = np.arange(m)
-    # Points in y order (the bucket sort of _gather, here on y). Any order among equal
+    # Points in y order (the bucket sort of gather, here on y). Any order among equal
     # y will do: the candidates of a point are all those within link_dy in y, and the
     # choice among them is by value.
-    yo = _bucket_order(ys[:m], ys[:m])
+    yo = bucket_order(ys[:m], ys[:m])
     pos = np.empty(m, dtype=np.int64)
     for q in range(m):
         pos[yo[q]] = q
@@ -430,7 +430,7 @@ def _robust_trace_py(xs, ys, first, last, a0, b0, fp, lam_a, lam_b, guide, grid,
     ``(x_last, x_last + search]`` whose residual passes the gate, the nearest in x
     wins; gated points within ``tie_dx`` of it compete by |residual| (ties: smaller
     (x, y)); a winner that fits poorly, or lies off the guide (below), may yield to a
-    better point farther on (:func:`_grid_search`). No gated point: the line ends here
+    better point farther on (:func:`grid_search`). No gated point: the line ends here
     (exit, lane drop, end of paint). Nor is a line followed where it is steeper than
     ``max_slope``.
 
@@ -440,7 +440,7 @@ def _robust_trace_py(xs, ys, first, last, a0, b0, fp, lam_a, lam_b, guide, grid,
     only its offset from its own points, and crosses gaps along the guide's shape;
     and the mean offset from the guide of the window's points (at least
     ``PARALLEL_MIN_POINTS``) tells the next point from clutter diverging from the
-    line (:func:`_grid_search`).
+    line (:func:`grid_search`).
     """
     hist = np.empty(HIST, dtype=np.int64)
     head = 0  # number of accepted points so far (hist is a ring)
@@ -482,10 +482,10 @@ def _robust_trace_py(xs, ys, first, last, a0, b0, fp, lam_a, lam_b, guide, grid,
     dcnt = 0
     for q in range(head - 1, lo - 1, -1):
         j = hist[q % HIST]
-        s0, s1, s2, s3, s4, t0, t1, t2 = _update_sums(
+        s0, s1, s2, s3, s4, t0, t1, t2 = update_sums(
             s0, s1, s2, s3, s4, t0, t1, t2, xs[j] - x_last, ys[j], 1.0
         )
-        d = _guide_dev(guide, xs[j], ys[j])
+        d = guide_dev(guide, xs[j], ys[j])
         if d == d:
             dsum += d
             dcnt += 1
@@ -501,7 +501,7 @@ def _robust_trace_py(xs, ys, first, last, a0, b0, fp, lam_a, lam_b, guide, grid,
             pa = guide[g, 2]
             la = lam_ga
             lb = lam_gb
-        A, B, C, inv = _ridge_solve(
+        A, B, C, inv = ridge_solve(
             s0, s1, s2, s3, s4, t0, t1, t2, pa, pb, la, lb, fp[P.a_max], work
         )
         if abs(B) > fp[P.max_slope]:
@@ -509,7 +509,7 @@ def _robust_trace_py(xs, ys, first, last, a0, b0, fp, lam_a, lam_b, guide, grid,
         # Mean offset from the guide of the window's points within its range.
         g_off = dsum / dcnt if dcnt >= PARALLEL_MIN_POINTS else np.nan
         geo, start, pts = grid
-        best = _grid_search(
+        best = grid_search(
             xs, ys, mask, geo, start, pts, x_last, A, B, C, inv, fp, sig2, search, guide, g_off
         )
         if best < 0:
@@ -519,10 +519,10 @@ def _robust_trace_py(xs, ys, first, last, a0, b0, fp, lam_a, lam_b, guide, grid,
         # of the new point is about to be overwritten) ...
         while head + 1 - lo > HIST:
             j = hist[lo % HIST]
-            s0, s1, s2, s3, s4, t0, t1, t2 = _update_sums(
+            s0, s1, s2, s3, s4, t0, t1, t2 = update_sums(
                 s0, s1, s2, s3, s4, t0, t1, t2, xs[j] - x_last, ys[j], -1.0
             )
-            d = _guide_dev(guide, xs[j], ys[j])
+            d = guide_dev(guide, xs[j], ys[j])
             if d == d:
                 dsum -= d
                 dcnt -= 1
@@ -543,22 +543,22 @@ def _robust_trace_py(xs, ys, first, last, a0, b0, fp, lam_a, lam_b, guide, grid,
         # ... add the new point (u = 0) and drop those now more than fit_length behind.
         s0 += 1.0
         t0 += ys[best]
-        d = _guide_dev(guide, x_new, ys[best])
+        d = guide_dev(guide, x_new, ys[best])
         if d == d:
             dsum += d
             dcnt += 1
         while xs[hist[lo % HIST]] - x_last < -fit_length:
             j = hist[lo % HIST]
-            s0, s1, s2, s3, s4, t0, t1, t2 = _update_sums(
+            s0, s1, s2, s3, s4, t0, t1, t2 = update_sums(
                 s0, s1, s2, s3, s4, t0, t1, t2, xs[j] - x_last, ys[j], -1.0
             )
-            d = _guide_dev(guide, xs[j], ys[j])
+            d = guide_dev(guide, xs[j], ys[j])
             if d == d:
                 dsum -= d
                 dcnt -= 1
             lo += 1
         if lo == head - 1:  # the new point alone: the sums are exact, drop the residue
-            d = _guide_dev(guide, x_new, ys[best])
+            d = guide_dev(guide, x_new, ys[best])
             dsum = d if d == d else 0.0
             dcnt = 1 if d == d else 0
             s0 = 1.0
@@ -600,7 +600,7 @@ def _guide_table_py(xs, ys, mask, bit, fp, a0, b0, lam_a, lam_b):
     gx = np.empty(g)
     for j in range(g):
         gx[j] = lx[0] + GUIDE_STEP * j
-    gy, gb, ga = _smooth_at(lx, ly, gx, fp[P.smooth_half_width], a0, b0, lam_a, lam_b, fp[P.a_max])
+    gy, gb, ga = smooth_at(lx, ly, gx, fp[P.smooth_half_width], a0, b0, lam_a, lam_b, fp[P.a_max])
     out = np.empty((g, 4))
     for j in range(g):
         out[j, 0] = gx[j]
@@ -613,7 +613,7 @@ def _guide_table_py(xs, ys, mask, bit, fp, a0, b0, lam_a, lam_b):
 _guide_table = numba.njit(cache=True)(_guide_table_py)
 
 
-def _robust_detect_py(xs, ys, fp, ip, mask, offsets):
+def robust_detect_py(xs, ys, fp, ip, mask, offsets):
     """Robust ALDM: seeds of the four lines, then traces with point exclusivity.
 
     Seeds are claimed first; then lines are traced ego lines before adjacent ones,
@@ -677,7 +677,7 @@ def _robust_detect_py(xs, ys, fp, ip, mask, offsets):
     # enough support becomes the guide (shape prior) of the others.
     order = np.argsort(-size, kind="mergesort")
     guide = np.zeros((0, 4))
-    grid = _build_grid(xs, ys, fp[P.gate_max])
+    grid = build_grid(xs, ys, fp[P.gate_max])
     for q in range(N_LINES):
         s = order[q]
         if size[s] == 0.0:
@@ -690,4 +690,4 @@ def _robust_detect_py(xs, ys, fp, ip, mask, offsets):
     return a, b
 
 
-_robust_detect = numba.njit(cache=True)(_robust_detect_py)
+robust_detect = numba.njit(cache=True)(robust_detect_py)

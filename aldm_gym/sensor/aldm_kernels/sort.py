@@ -1,9 +1,9 @@
 """Sort stage: the points in canonical (x, y) order, and the one bucket sort behind it.
 
 Every later stage sees the points sorted lexicographically by ``(x, y)``
-(:func:`_gather`), so each decision depends on point *values* only: input order can
+(:func:`gather`), so each decision depends on point *values* only: input order can
 never change a result. The start condition walks its points in y order with the same
-sort (:func:`_bucket_order`).
+sort (:func:`bucket_order`).
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ SMALL_RUN = 16
 """Buckets up to this size are sorted by insertion, larger (crowded) ones by argsort."""
 
 
-def _insertion_sort_py(a, m):
+def insertion_sort_py(a, m):
     """Sort ``a[:m]`` in place, ascending, by insertion (a handful of values, no
     allocation)."""
     for i in range(1, m):
@@ -29,7 +29,7 @@ def _insertion_sort_py(a, m):
         a[j + 1] = v
 
 
-_insertion_sort = numba.njit(cache=True)(_insertion_sort_py)
+insertion_sort = numba.njit(cache=True)(insertion_sort_py)
 
 
 def _sort_run_py(k1, k2, order, a, b):
@@ -52,7 +52,7 @@ def _sort_run_py(k1, k2, order, a, b):
 _sort_run = numba.njit(cache=True)(_sort_run_py)
 
 
-def _bucket_order_py(k1, k2):
+def bucket_order_py(k1, k2):
     """The indices that sort ``(k1, k2)`` lexicographically (ties in index order or any).
 
     A bucket sort on ``k1``: as many buckets as values over its range, each bucket by
@@ -110,16 +110,16 @@ def _bucket_order_py(k1, k2):
     return order
 
 
-_bucket_order = numba.njit(cache=True)(_bucket_order_py)
+bucket_order = numba.njit(cache=True)(bucket_order_py)
 
 
-def _gather_py(pts, has_z, z_band, max_range):
+def gather_py(pts, has_z, z_band, max_range):
     """Valid points in canonical order: sorted lexicographically by ``(x, y)``.
 
     Rows with a non-finite coordinate, with x < 0 (behind the sensor), with x or |y|
     beyond ``max_range`` or, when ``has_z``, with ``|z| > z_band`` (an overpass's
     lines, barriers) are dropped; ``-0.0`` becomes ``0.0``. The result is a function
-    of the point set only, never of the input order (:func:`_bucket_order`).
+    of the point set only, never of the input order (:func:`bucket_order`).
 
     :return: ``(xs, ys)``, each ``(M,)`` [m].
     """
@@ -141,7 +141,7 @@ def _gather_py(pts, has_z, z_band, max_range):
         m += 1
     vx = vx[:m]
     vy = vy[:m]
-    order = _bucket_order(vx, vy)
+    order = bucket_order(vx, vy)
     xs = np.empty(m)
     ys = np.empty(m)
     for q in range(m):
@@ -150,4 +150,4 @@ def _gather_py(pts, has_z, z_band, max_range):
     return xs, ys
 
 
-_gather = numba.njit(cache=True)(_gather_py)
+gather = numba.njit(cache=True)(gather_py)

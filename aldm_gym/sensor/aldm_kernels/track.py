@@ -1,11 +1,11 @@
 """Kernels of the tracking ALDM (:class:`aldm_gym.sensor.tracking.LaneTracker`).
 
 The tracker carries the last frame's lines forward by odometry and tabulates them
-(:func:`_table`), holds them to the lanes' common shape (:func:`_consensus`; the
-detected lines too, :func:`_hold`), turns them into a prior for the stateless ALDM
-(:func:`_prior`: which points support a track, which contradict it, and prior points
+(:func:`track_table`), holds them to the lanes' common shape (:func:`consensus`; the
+detected lines too, :func:`hold_to_consensus`), turns them into a prior for the stateless ALDM
+(:func:`track_prior`: which points support a track, which contradict it, and prior points
 along the stretches a track has no support in) and gives every detected line the
-identity of the track it continues (:func:`_match`). Decisions and their reasons:
+identity of the track it continues (:func:`match_tracks`). Decisions and their reasons:
 ``docs/aldm.md``, section "Tracking".
 
 A track is a polyline sorted by x (a line of the last detection); the tracks of a
@@ -21,7 +21,7 @@ import math
 import numba
 import numpy as np
 
-from aldm_gym.sensor.aldm_kernels.sort import _insertion_sort
+from aldm_gym.sensor.aldm_kernels.sort import insertion_sort
 
 
 def _interp_line_py(lx, ly, lo, hi, x):
@@ -71,7 +71,7 @@ samples of the parabolas 2 m apart is off by 0.6 mm in a 800 m curve, 5 mm in a
 100 m one."""
 
 
-def _table_py(lines, ls, dx, dy, dpsi):
+def track_table_py(lines, ls, dx, dy, dpsi):
     """The tracks ``lines[ls[t]:ls[t + 1]]`` (``(K, 2)`` each, sorted by x) moved into
     the new sensor frame, tabulated.
 
@@ -151,7 +151,7 @@ def _table_py(lines, ls, dx, dy, dpsi):
     return table, first
 
 
-_table = numba.njit(cache=True)(_table_py)
+track_table = numba.njit(cache=True)(track_table_py)
 
 
 CONSENSUS_NEAR = 50.0
@@ -164,7 +164,7 @@ def _median_py(buf, m):
     (no allocation), more by numpy's selection (insertion sort is quadratic)."""
     if m > 16:
         return np.median(buf[:m])
-    _insertion_sort(buf, m)
+    insertion_sort(buf, m)
     h = m // 2
     return buf[h] if m % 2 == 1 else 0.5 * (buf[h - 1] + buf[h])
 
@@ -172,7 +172,7 @@ def _median_py(buf, m):
 _median = numba.njit(cache=True)(_median_py)
 
 
-def _consensus_py(table, first, tol0, tol_slope):
+def consensus_py(table, first, tol0, tol_slope):
     """Pull every track back to the lanes' common shape where it strays (in place).
 
     Lanes are parallel: a track following an old marking or a seam far ahead
@@ -273,14 +273,14 @@ def _consensus_py(table, first, tol0, tol_slope):
     return moved
 
 
-_consensus = numba.njit(cache=True)(_consensus_py)
+consensus = numba.njit(cache=True)(consensus_py)
 
 
-def _hold_py(lines, ls, tol0, tol_slope):
+def hold_to_consensus_py(lines, ls, tol0, tol_slope):
     """A detection's lines (concatenated as the tracks) held to their common shape.
 
-    The lines are tabulated as they are (:func:`_table` without motion) and
-    :func:`_consensus` decides where one strays; each vertex moves by the
+    The lines are tabulated as they are (:func:`track_table` without motion) and
+    :func:`consensus` decides where one strays; each vertex moves by the
     consensus's correction there (interpolated between the samples; past the last
     sample, the last one's), and the vertices from a sample before a line was ended
     (two lines parting) on are dropped; a line left with fewer than two is dropped.
@@ -288,9 +288,9 @@ def _hold_py(lines, ls, tol0, tol_slope):
     :return: ``(out, out_ls, moved)``: the lines and their offsets (new arrays when
         any vertex moved or was dropped, else the inputs) and whether one did.
     """
-    table, first = _table(lines, ls, 0.0, 0.0, 0.0)
+    table, first = track_table(lines, ls, 0.0, 0.0, 0.0)
     before = table.copy()
-    if _consensus(table, first, tol0, tol_slope) == 0:
+    if consensus(table, first, tol0, tol_slope) == 0:
         return lines, ls, False
     out = np.empty_like(lines)
     out_ls = np.zeros_like(ls)
@@ -334,7 +334,7 @@ def _hold_py(lines, ls, tol0, tol_slope):
     return out[:n], out_ls, True
 
 
-_hold = numba.njit(cache=True)(_hold_py)
+hold_to_consensus = numba.njit(cache=True)(hold_to_consensus_py)
 
 
 def _lookup_py(table, t, x):
@@ -422,10 +422,10 @@ def _parallel_py(table, t, d, x):
 _parallel = numba.njit(cache=True)(_parallel_py)
 
 
-def _prior_py(
+def track_prior_py(
     pts, table, coast_ok, gate0, gate_slope, bridge_gap, step, max_pair, z_band, tail_length
 ):
-    """The tracks (tabulated by :func:`_table`) as a prior for one frame's points.
+    """The tracks (tabulated by :func:`track_table`) as a prior for one frame's points.
 
     A point *supports* the nearest track when its lateral residual to it is within
     ``gate0 + gate_slope * x`` [m]. A point that supports no track and lies between
@@ -611,10 +611,12 @@ def _prior_py(
     return keep, vx[:n], vy[:n], support
 
 
-_prior = numba.njit(cache=True)(_prior_py)
+track_prior = numba.njit(cache=True)(track_prior_py)
 
 
-def _match_py(lines, ls, table, match_gate, ids, coast, support, travel, min_support, next_id):
+def match_tracks_py(
+    lines, ls, table, match_gate, ids, coast, support, travel, min_support, next_id
+):
     """The track each detected line continues, and the lines' ids and coasting.
 
     The cost of line ``i`` against track ``t`` is the mean lateral distance of the
@@ -675,4 +677,4 @@ def _match_py(lines, ls, table, match_gate, ids, coast, support, travel, min_sup
     return new_ids, new_coast, next_id
 
 
-_match = numba.njit(cache=True)(_match_py)
+match_tracks = numba.njit(cache=True)(match_tracks_py)

@@ -1,0 +1,200 @@
+"""The result of lane detection, shared by every detector (naive, ALDM, ground truth).
+
+All coordinates are in the ISO 8855 sensor frame: x forward [m], y left [m].
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+
+from aldm_gym.errors import InputError
+from aldm_gym.sensor.trajectory import DEFAULT_LANE_WIDTH, driving_trajectory, fit_cubic
+from aldm_gym.types import FloatArray
+
+LINE_NAMES: tuple[str, str, str, str] = ("left_adjacent", "ego_left", "ego_right", "right_adjacent")
+"""The four lines, left to right. Observation arrays use this order."""
+
+MIN_PREVIEW = 60.0
+"""Preview a line must reach for target selection [m] (paper §ALDM: "The preview
+distance must be at least 60 m"); see :meth:`LaneDetection.preview_ok`."""
+
+_EMPTY = np.zeros((0, 2))
+
+
+def _as_line(points: FloatArray | None, name: str) -> FloatArray:
+    """Validate a line: a finite ``(K, 2)`` float array, returned sorted by x."""
+    if points is None:
+        return _EMPTY.copy()
+    arr = np.asarray(points, dtype=np.float64)
+    if arr.size == 0:
+        return _EMPTY.copy()
+    if arr.ndim != 2 or arr.shape[1] != 2:
+        raise InputError(f"LaneDetection.{name} must have shape (K, 2), got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise InputError(f"LaneDetection.{name} contains NaN or inf")
+    order = np.argsort(arr[:, 0], kind="stable")
+    return np.ascontiguousarray(arr[order])
+
+
+def resample_line(points: FloatArray, n: int) -> FloatArray:
+    """``n`` points equally spaced in x over the line's x range, linearly interpolated.
+
+    The paper (§"Advanced Lane Detection Model") transmits 13 equally distributed
+    points per line. A line with fewer than two points cannot be resampled and
+    gives an empty ``(0, 2)`` array.
+
+    :param points: ``(K, 2)`` points sorted by x [m].
+    :param n: number of output points (>= 2).
+    :return: ``(n, 2)`` points, or ``(0, 2)``.
+    """
+    if n < 2:
+        raise InputError(f"resample needs n >= 2, got {n}")
+    if len(points) < 2 or points[-1, 0] <= points[0, 0]:
+        return _EMPTY.copy()
+    xs = np.linspace(points[0, 0], points[-1, 0], n)
+    return np.column_stack([xs, np.interp(xs, points[:, 0], points[:, 1])])
+
+
+@dataclass(frozen=True)
+class LaneDetection:
+    """Detected lane lines of one frame, in the sensor frame (x forward, y left) [m].
+
+    Each line is a ``(K, 2)`` float64 array sorted by x; ``K = 0`` when the line was
+    not found. ``trajectory`` is the ``(M, 2)`` desired driving path (empty when no
+    ego line was found).
+
+    :ivar ego_left: left marking of the ego lane.
+    :ivar ego_right: right marking of the ego lane.
+    :ivar left_adjacent: left marking of the lane left of the ego lane.
+    :ivar right_adjacent: right marking of the lane right of the ego lane.
+    :ivar trajectory: desired path midway between the ego lines.
+    :ivar source: name of the detector that produced it (``"naive"``, ``"aldm"``, ...).
+    """
+
+    ego_left: FloatArray = field(default_factory=lambda: _EMPTY.copy())
+    ego_right: FloatArray = field(default_factory=lambda: _EMPTY.copy())
+    left_adjacent: FloatArray = field(default_factory=lambda: _EMPTY.copy())
+    right_adjacent: FloatArray = field(default_factory=lambda: _EMPTY.copy())
+    trajectory: FloatArray = field(default_factory=lambda: _EMPTY.copy())
+    source: str = ""
+
+    def __post_init__(self) -> None:
+        for name in (*LINE_NAMES, "trajectory"):
+            object.__setattr__(self, name, _as_line(getattr(self, name), name))
+
+    @classmethod
+    def from_lines(
+        cls,
+        ego_left: FloatArray | None = None,
+        ego_right: FloatArray | None = None,
+        left_adjacent: FloatArray | None = None,
+        right_adjacent: FloatArray | None = None,
+        *,
+        source: str = "",
+        lane_width: float = DEFAULT_LANE_WIDTH,
+        path_range: float | None = None,
+    ) -> LaneDetection:
+        """Build a detection from lines; the trajectory comes from :func:`driving_trajectory`.
+
+        :param lane_width: lane width for a one-line trajectory [m].
+        :param path_range: the trajectory fits each ego line on its points with
+            x <= this (at least 4 points) [m]; ``None``: the whole line.
+        """
+        det = cls(
+            ego_left=ego_left,  # type: ignore[arg-type]
+            ego_right=ego_right,  # type: ignore[arg-type]
+            left_adjacent=left_adjacent,  # type: ignore[arg-type]
+            right_adjacent=right_adjacent,  # type: ignore[arg-type]
+            source=source,
+        )
+        traj = driving_trajectory(det.ego_left, det.ego_right, lane_width, path_range=path_range)
+        return replace(det, trajectory=traj)
+
+    @classmethod
+    def trusted(cls, source: str = "", **lines: FloatArray) -> LaneDetection:
+        """Build from arrays that already satisfy the invariants, skipping validation.
+
+        For detectors whose output is by construction finite float64 ``(K, 2)`` arrays
+        sorted by x (the ALDM kernels; checked in its tests): validating again costs
+        about as much as a whole detection of a typical frame. Missing lines are empty.
+
+        :param lines: any of :data:`LINE_NAMES` and ``trajectory``.
+        """
+        unknown = set(lines) - {*LINE_NAMES, "trajectory"}
+        if unknown:
+            raise InputError(f"unknown LaneDetection field(s) {sorted(unknown)}")
+        det = object.__new__(cls)
+        for name in (*LINE_NAMES, "trajectory"):
+            object.__setattr__(det, name, lines[name] if name in lines else _EMPTY.copy())
+        object.__setattr__(det, "source", source)
+        return det
+
+    def line(self, name: str) -> FloatArray:
+        """One line by name (one of :data:`LINE_NAMES`)."""
+        if name not in LINE_NAMES:
+            raise InputError(f"unknown line {name!r}; allowed: {list(LINE_NAMES)}")
+        return getattr(self, name)
+
+    def found(self, name: str) -> bool:
+        """Whether line ``name`` has at least two points."""
+        return len(self.line(name)) >= 2
+
+    def preview(self, name: str) -> float:
+        """Farthest x reached by line ``name`` [m]; 0 when missing."""
+        line = self.line(name)
+        return float(line[-1, 0]) if len(line) else 0.0
+
+    def preview_ok(self, name: str, minimum: float = MIN_PREVIEW) -> bool:
+        """Whether line ``name`` reaches at least ``minimum`` ahead of the sensor.
+
+        The paper lists "the preview distance must be at least 60 m" among the
+        conditions the data has to fulfil (§ALDM), for target selection at long range;
+        it gives no rule for a shorter line. No detector drops or shortens a line
+        for it: a line with less preview is returned as traced, and this flag says
+        that it does not meet the paper's condition (a missing line never does).
+
+        :param minimum: required preview [m] (default :data:`MIN_PREVIEW`, 60 m).
+        """
+        return self.found(name) and self.preview(name) >= minimum
+
+    def extent(self, name: str) -> float:
+        """Length in x covered by line ``name`` (last x - first x) [m]; 0 when missing."""
+        line = self.line(name)
+        return float(line[-1, 0] - line[0, 0]) if len(line) else 0.0
+
+    def resample(self, n: int = 13) -> LaneDetection:
+        """A copy with every line resampled to ``n`` equally spaced points.
+
+        Lines with fewer than two points become empty. The trajectory is kept.
+        """
+        kw: dict[str, Any] = {name: resample_line(self.line(name), n) for name in LINE_NAMES}
+        return replace(self, **kw)
+
+    def as_array(self, n: int = 13) -> tuple[FloatArray, np.ndarray]:
+        """Lines as a fixed-size array for observations.
+
+        :return: ``(points, valid)``: ``points`` is ``(4, n, 2)`` in the order of
+            :data:`LINE_NAMES` (zeros for missing lines), ``valid`` is a ``(4,)`` bool mask.
+        """
+        pts = np.zeros((4, n, 2))
+        valid = np.zeros(4, dtype=bool)
+        for i, name in enumerate(LINE_NAMES):
+            r = resample_line(self.line(name), n)
+            if len(r):
+                pts[i] = r
+                valid[i] = True
+        return pts, valid
+
+
+__all__ = [
+    "DEFAULT_LANE_WIDTH",
+    "LINE_NAMES",
+    "MIN_PREVIEW",
+    "LaneDetection",
+    "driving_trajectory",
+    "fit_cubic",
+    "resample_line",
+]
