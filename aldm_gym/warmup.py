@@ -14,7 +14,7 @@ mode, the naive detector, the traffic, the env with the naive and ground-truth
 detectors, the camera preset's conditions and a shipped OpenDRIVE map) while this
 process compiles the robust ALDM and then the tracking ALDM; then this process runs
 everything once more, now from the cache, and steps the env with the ALDM, with the
-tracking ALDM under the camera preset and on a map (the README's examples). Both
+tracking ALDM under the camera preset and on a map (the documented examples). Both
 write the same on-disk cache (numba replaces its index files atomically; a kernel both
 happen to need is compiled twice, not corrupted).
 
@@ -89,7 +89,7 @@ _HELPER_ENVS: tuple[dict, ...] = (
     {"detector": "naive", "vehicles_count": 5, "road": {"xodr": "motorway"}},
 )
 """Envs the helper runs, with detectors that compile nothing the robust ALDM's process
-does: the naive and the ground-truth detector, and with the naive one the README's
+does: the naive and the ground-truth detector, and with the naive one the documented
 examples, the camera preset (occlusion, wear, noise, clutter) and a shipped map
 (``"motorway"`` stands for its path)."""
 

@@ -94,8 +94,10 @@ class ALDMAction:
     continuous actions (clipped to the space) are held by the ego until the next one.
     """
 
-    def __init__(self, env: ALDMHighwayEnv) -> None:
+    def __init__(self, env: ALDMHighwayEnv, vehicle_class: type[Vehicle]) -> None:
+        """The action type of ``env``, whose ego is a ``vehicle_class``."""
         self.env = env
+        self._vehicle_class = vehicle_class
         action = env.settings.action
         self.continuous = action.type == "ContinuousAction"
         self.max_steering = float(env.lka.max_steering)
@@ -112,9 +114,7 @@ class ALDMAction:
     @property
     def vehicle_class(self) -> type:
         """The ego vehicle class."""
-        from aldm_gym.envs.vehicle import SensorVehicle
-
-        return SensorVehicle
+        return self._vehicle_class
 
     @property
     def controlled_vehicle(self) -> Vehicle:

@@ -233,7 +233,7 @@ class ALDMHighwayEnv(AbstractEnv):
     def define_spaces(self) -> None:
         """Observation and action types and spaces from the settings."""
         self.observation_type = ALDMObservation(self)
-        self.action_type = ALDMAction(self)
+        self.action_type = ALDMAction(self, SensorVehicle)
         # highway-env rebuilds the spaces at every reset; an equal space is kept so
         # that a user's ``action_space.seed(...)`` survives.
         obs_space = self.observation_type.space()

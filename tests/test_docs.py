@@ -1,0 +1,44 @@
+"""The README is a landing page whose examples run and whose links resolve."""
+
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+README = ROOT / "README.md"
+
+
+def _python_blocks(path: Path) -> list[str]:
+    return re.findall(r"```python\n(.*?)```", path.read_text(), re.S)
+
+
+def test_the_readme_is_a_landing_page_with_the_two_commands() -> None:
+    text = README.read_text()
+    assert len(text.splitlines()) <= 150
+    assert "make demo" in text and "make test" in text
+    ci = (ROOT / ".ci" / "run").read_text()
+    assert "make test\n" in ci  # CI calls the README's test command
+
+
+@pytest.mark.parametrize("block", _python_blocks(README), ids=lambda b: b.splitlines()[0][:40])
+def test_readme_examples_run(block: str, tmp_path: Path) -> None:
+    result = subprocess.run(
+        [sys.executable, "-c", block], capture_output=True, text=True, cwd=tmp_path, timeout=300
+    )
+    assert result.returncode == 0, result.stderr[-2000:]
+
+
+@pytest.mark.parametrize("page", [README, *sorted((ROOT / "docs").glob("*.md"))], ids=str)
+def test_relative_links_resolve(page: Path) -> None:
+    missing = []
+    for target in re.findall(r"\]\(([^)#\s]+)(?:#[^)]*)?\)", page.read_text()):
+        if "://" in target:
+            continue
+        if not (page.parent / target).exists():
+            missing.append(target)
+    assert missing == []
