@@ -1,25 +1,18 @@
-"""The gate to stable-baselines3: import it (and torch), or say how to install them.
+"""Deprecated: the stable-baselines3 gate is :mod:`aldm_gym.training.sb3`.
 
-stable-baselines3 and torch are optional (the ``[rl]`` extra) and heavy; modules that
-need them import them inside functions through :func:`import_sb3`, so that
-``import aldm_gym`` and the ``aldm-gym`` parser stay light.
+This module re-exports its public names and warns (``DeprecationWarning``) on import.
 """
 
 from __future__ import annotations
 
-from typing import Any
+import warnings
 
-from aldm_gym.errors import MissingRLDependencies
+from aldm_gym.training.sb3 import MissingRLDependencies, import_sb3
 
+__all__ = ["MissingRLDependencies", "import_sb3"]
 
-def import_sb3() -> Any:
-    """Import stable_baselines3 (and torch) or raise :class:`MissingRLDependencies`."""
-    try:
-        import stable_baselines3
-        import torch  # noqa: F401
-    except ImportError as exc:  # pragma: no cover - depends on the install
-        raise MissingRLDependencies(
-            f"training needs stable-baselines3, torch and tensorboard ({exc}); "
-            "install them with: pip install torch==2.13.0 && pip install -e '.[rl]' (from a clone)"
-        ) from exc
-    return stable_baselines3
+warnings.warn(
+    "aldm_gym.agents.sb3 is deprecated; import from aldm_gym.training.sb3",
+    DeprecationWarning,
+    stacklevel=2,
+)
