@@ -86,8 +86,9 @@ __all__ = [
 ]
 
 warnings.warn(
-    "aldm_gym.agents.checkpoints is deprecated; import from aldm_gym.training.outputs, "
-    "aldm_gym.training.lock, aldm_gym.training.sb3.checkpoints or aldm_gym.training.models",
+    f"{__name__} is now split over aldm_gym.training.outputs, aldm_gym.training.lock, "
+    "aldm_gym.training.sb3.checkpoints and aldm_gym.training.models; "
+    "import from there (the old name will be removed)",
     DeprecationWarning,
     stacklevel=2,
 )

@@ -48,7 +48,8 @@ __all__ = [
 ]
 
 warnings.warn(
-    "aldm_gym.agents.rllib is deprecated; import from aldm_gym.training.rllib and its modules",
+    f"{__name__} is now split over aldm_gym.training.rllib and its modules; "
+    "import from there (the old name will be removed)",
     DeprecationWarning,
     stacklevel=2,
 )

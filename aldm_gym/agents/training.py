@@ -58,8 +58,9 @@ __all__ = [
 ]
 
 warnings.warn(
-    "aldm_gym.agents.training is deprecated; import from aldm_gym.training.sb3.backend, "
-    "aldm_gym.training.sb3.envs or aldm_gym.training.settings",
+    f"{__name__} is now split over aldm_gym.training.sb3.backend, "
+    "aldm_gym.training.sb3.envs and aldm_gym.training.settings; "
+    "import from there (the old name will be removed)",
     DeprecationWarning,
     stacklevel=2,
 )
