@@ -77,8 +77,9 @@ setup-ray: $(RAY_VENV)/.stamp
 ## The suite again under the [ray] extra's pins, then the RLlib tests (a two-node cluster).
 test-ray: $(RAY_VENV)/.stamp
 	MPLBACKEND=Agg SDL_VIDEODRIVER=dummy $(RAY_BIN)/python -m pytest -n 2 -q -m "not slow" \
-		--ignore=tests/test_rllib.py
-	MPLBACKEND=Agg SDL_VIDEODRIVER=dummy $(RAY_BIN)/python -m pytest -n 2 -q tests/test_rllib.py
+		--ignore-glob='tests/training/test_rllib*.py'
+	MPLBACKEND=Agg SDL_VIDEODRIVER=dummy $(RAY_BIN)/python -m pytest -n 2 -q \
+		tests/training/test_rllib.py tests/training/test_rllib_cluster.py
 
 ## Speed benchmarks (figures go to BENCHMARKS.md by hand, with the machine noted).
 bench: $(VENV)/.stamp-dev

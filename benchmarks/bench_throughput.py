@@ -1,7 +1,7 @@
 """Env steps per second when training: SB3's vectorised envs and RLlib's env runners.
 
 Two measurements on the training env (``ALDMHighway-v0`` with
-:func:`~aldm_gym.agents.training.env_config`'s defaults: ALDM, per-dash road, 40 s
+:func:`~aldm_gym.training.settings.env_config`'s defaults: ALDM, per-dash road, 40 s
 episodes, 20 vehicles):
 
 * **sampling**: env steps per second of SB3's ``DummyVecEnv`` and ``SubprocVecEnv`` with
@@ -48,10 +48,11 @@ def _sb3_sampler(n_envs: int, subprocess: bool) -> tuple[Sampler, Callable[[], N
     """``(sample, close)`` for an SB3 vectorised env."""
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
-    from aldm_gym.agents.training import _make_env, env_config
+    from aldm_gym.training.sb3.envs import make_env
+    from aldm_gym.training.settings import env_config
 
     config = env_config()
-    fns = [lambda: _make_env(config) for _ in range(n_envs)]
+    fns = [lambda: make_env(config) for _ in range(n_envs)]
     venv = SubprocVecEnv(fns) if subprocess else DummyVecEnv(fns)
     venv.seed(0)
     venv.reset()
@@ -69,10 +70,11 @@ def _rllib_samplers() -> tuple[dict[str, Sampler], Callable[[], None]]:
     """Samplers with 1 and 2 of the same two RLlib env runners, and ``close``."""
     import ray
 
-    from aldm_gym.agents.rllib import _connect, ppo_config
-    from aldm_gym.agents.training import PPOParams, env_config
+    from aldm_gym.training.rllib.cluster import connect
+    from aldm_gym.training.rllib.config import ppo_config
+    from aldm_gym.training.settings import PPOParams, env_config
 
-    _connect(None, 2)
+    connect(None, 2)
     config = ppo_config(env_config(), PPOParams(), timesteps=10**6, num_env_runners=2)
     algo = config.build_algo()
     group = algo.env_runner_group
@@ -160,7 +162,8 @@ def sampling(rounds: int, steps: int, with_rllib: bool) -> dict[str, float]:
 
 def training(train_steps: int, n_steps: int, with_rllib: bool) -> dict[str, float]:
     """Wall time [s] of a training of ``train_steps`` steps per configuration."""
-    from aldm_gym.agents.training import PPOParams, train
+    from aldm_gym.training.sb3.backend import train
+    from aldm_gym.training.settings import PPOParams
 
     times = {}
     params = PPOParams(n_steps=n_steps)
@@ -179,7 +182,7 @@ def training(train_steps: int, n_steps: int, with_rllib: bool) -> dict[str, floa
         for n in (1, 2)
     ]
     if with_rllib:
-        from aldm_gym.agents.rllib import train_rllib
+        from aldm_gym.training.rllib.backend import train_rllib
 
         runs += [
             (

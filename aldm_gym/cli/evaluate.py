@@ -1,11 +1,13 @@
 """``aldm-gym evaluate``: a trained policy against IDLE and the rule-based LCA.
 
-``--model`` is an SB3 ``.zip`` or an RLlib checkpoint folder (``--backend rllib``);
-both play the same seeds through the same code.
+``--model`` is an SB3 ``.zip``, an RLlib checkpoint folder (``--backend rllib``), or a
+training's output folder: from that it takes the best validation's model, else the
+final model (:func:`~aldm_gym.training.models.model_to_evaluate`), and says which.
+Both backends' models play the same seeds through the same code.
 
 Writes ``evaluate_<model>_<detector>_<marking model>.json`` next to the model (or to
 ``--out``) and prints the table and a one-line verdict
-(:mod:`aldm_gym.agents.model_evaluation`).
+(:mod:`aldm_gym.training.model_evaluation`).
 """
 
 from __future__ import annotations
@@ -15,15 +17,6 @@ import json
 import time
 from typing import Any
 
-from aldm_gym.agents.checkpoints import TRAINING_FILE, find_training_file
-from aldm_gym.agents.model_evaluation import (
-    EVAL_COLUMNS,
-    EVALUATION_SEED,
-    evaluate,
-    summary_line,
-)
-from aldm_gym.agents.sb3 import MissingRLDependencies
-from aldm_gym.agents.training import VALIDATION_SEED
 from aldm_gym.cli.argtypes import (
     BadArgument,
     make_output_dir,
@@ -32,9 +25,20 @@ from aldm_gym.cli.argtypes import (
     positive_int,
     seed,
 )
+from aldm_gym.cli.console import console
 from aldm_gym.cli.report import format_table
+from aldm_gym.errors import CheckpointError, MissingRLDependencies
 from aldm_gym.roads.highway import MARKING_MODELS
 from aldm_gym.sensor.detectors import DETECTORS
+from aldm_gym.training.model_evaluation import (
+    EVAL_COLUMNS,
+    EVALUATION_SEED,
+    evaluate,
+    summary_line,
+)
+from aldm_gym.training.models import model_to_evaluate
+from aldm_gym.training.outputs import TRAINING_FILE, find_training_file
+from aldm_gym.training.settings import VALIDATION_SEED
 
 EPISODES = 30
 """Default episodes per policy."""
@@ -52,7 +56,8 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         "--model",
         type=model_path,
         required=True,
-        help="model .zip or checkpoint (SB3), or checkpoint folder (RLlib: rllib_model, "
+        help="a training's output folder (its best model, else its final one), a model "
+        ".zip or checkpoint (SB3), or a checkpoint folder (RLlib: rllib_model, "
         "checkpoints/rllib_<steps>)",
     )
     parser.add_argument(
@@ -87,29 +92,36 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
 def run(args: argparse.Namespace) -> int:
     """``aldm-gym evaluate``."""
     episodes = args.episodes or (QUICK_EPISODES if args.quick else EPISODES)
-    if find_training_file(args.model) is None:
+    try:
+        model, picked = model_to_evaluate(args.model)
+    except CheckpointError as exc:  # an output folder without a trained model
+        raise BadArgument("--model", str(exc)) from None
+    if find_training_file(model) is None:
         raise BadArgument(
             "--model",
-            f"no {TRAINING_FILE} next to {args.model} "
+            f"no {TRAINING_FILE} next to {model} "
             "(models are read from an aldm-gym train output folder)",
         )
+    if picked is not None:
+        print(f"evaluating {model}: {picked}")
     t0 = time.perf_counter()
     try:
-        rows, info = evaluate(
-            args.model,
-            episodes=episodes,
-            seed=args.seed,
-            detector=args.detector,
-            marking_model=args.marking_model,
-            progress=not args.no_progress,
-        )
+        with console():
+            rows, info = evaluate(
+                model,
+                episodes=episodes,
+                seed=args.seed,
+                detector=args.detector,
+                marking_model=args.marking_model,
+                progress=not args.no_progress,
+            )
     except MissingRLDependencies as exc:
         raise SystemExit(f"aldm-gym evaluate: {exc}") from None
     except (ValueError, FileNotFoundError) as exc:  # a corrupt model, not a checkpoint
         raise BadArgument("--model", str(exc)) from None
-    out = make_output_dir(args.out or args.model.parent)
+    out = make_output_dir(args.out or model.parent)
     cfg = info["env_config"]
-    name = args.model.name if args.model.is_dir() else args.model.stem
+    name = model.name if model.is_dir() else model.stem
     path = out / f"evaluate_{name}_{cfg['detector']}_{cfg['marking_model']}.json"
     path.write_text(json.dumps({"rows": rows, **info}, indent=2) + "\n")
     print(f"wrote {path} ({time.perf_counter() - t0:.0f} s)")

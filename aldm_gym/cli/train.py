@@ -1,19 +1,19 @@
 """``aldm-gym train``: train (or resume) a PPO lane-change policy.
 
 ``--backend sb3`` (the default) trains with stable-baselines3 on this machine
-(:func:`~aldm_gym.agents.training.train`); ``--backend rllib`` with Ray RLlib on a
+(:func:`~aldm_gym.training.sb3.backend.train`); ``--backend rllib`` with Ray RLlib on a
 local Ray instance or, with ``--address``, on a running cluster
-(:func:`~aldm_gym.agents.rllib.train_rllib`, ``docs/cluster.md``). Flags of one backend
-only are refused with the other. ``--resume`` continues with the backend of the
-training in ``--out`` (the RLlib path from its newest checkpoint that loads, with the
-saved settings unless a flag gives them).
+(:func:`~aldm_gym.training.rllib.backend.train_rllib`, ``docs/cluster.md``). Flags of
+one backend only are refused with the other. ``--resume`` continues with the backend of
+the training in ``--out`` (from its newest checkpoint that is intact and restores).
 
-Flags map onto :func:`~aldm_gym.agents.training.train`; ``--resume`` takes the env
-config and hyperparameters saved in ``<out>/training.json`` and refuses flags that
-contradict them, and restores the run's settings (budget, envs, seed, checkpoint and
+Flags map onto the training functions' arguments; ``--resume`` takes the env config
+and hyperparameters saved in ``<out>/training.json`` and refuses flags that contradict
+them, and restores the run's settings (budget, workers, seed, checkpoint and
 validation periods) unless a flag gives them, saying which it restored and which it
-overrode. Warnings (a stale lock taken over, a corrupt checkpoint skipped) print as one
-line each. stable-baselines3 and Ray are imported only when the command runs.
+overrode. The training's messages print as lines (:func:`~aldm_gym.cli.console.console`),
+warnings (a stale lock taken over, a corrupt checkpoint skipped) as one line each.
+stable-baselines3 and Ray are imported only when the command runs.
 """
 
 from __future__ import annotations
@@ -27,30 +27,6 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from aldm_gym.agents.checkpoints import (
-    BEST_MODEL_FILE,
-    CHECKPOINT_DIR,
-    MODEL_FILE,
-    TENSORBOARD_DIR,
-    TRAINING_FILE,
-    VALIDATION_FILE,
-    OutputLocked,
-    check_unlocked,
-    holds_training,
-    read_training,
-)
-from aldm_gym.agents.sb3 import MissingRLDependencies
-from aldm_gym.agents.training import (
-    DEFAULT_CHECKPOINT_FREQ,
-    DEFAULT_COLLISION_REWARD,
-    DEFAULT_TIMESTEPS,
-    DEFAULT_VALIDATION_EPISODES,
-    DEFAULT_VALIDATION_FREQ,
-    LR_SCHEDULES,
-    VALIDATION_SEED,
-    PPOParams,
-    train,
-)
 from aldm_gym.cli.argtypes import (
     BadArgument,
     config_setting,
@@ -63,8 +39,35 @@ from aldm_gym.cli.argtypes import (
     ray_address,
     seed,
 )
+from aldm_gym.cli.console import console
+from aldm_gym.errors import ClusterError, MissingRLDependencies, OutputLocked, ResumeError
 from aldm_gym.roads.highway import MARKING_MODELS
 from aldm_gym.sensor.detectors import DETECTORS
+from aldm_gym.training.lock import check_unlocked
+from aldm_gym.training.models import BACKENDS
+from aldm_gym.training.outputs import (
+    BEST_MODEL_FILE,
+    CHECKPOINT_DIR,
+    MODEL_FILE,
+    RLLIB_MODEL_DIR,
+    TENSORBOARD_DIR,
+    TRAINING_FILE,
+    VALIDATION_FILE,
+    holds_training,
+    read_training,
+)
+from aldm_gym.training.rllib.backend import TB_RUN, train_rllib
+from aldm_gym.training.sb3.backend import train
+from aldm_gym.training.settings import (
+    DEFAULT_CHECKPOINT_FREQ,
+    DEFAULT_COLLISION_REWARD,
+    DEFAULT_TIMESTEPS,
+    DEFAULT_VALIDATION_EPISODES,
+    DEFAULT_VALIDATION_FREQ,
+    LR_SCHEDULES,
+    VALIDATION_SEED,
+    PPOParams,
+)
 
 QUICK_TIMESTEPS = 1_024
 """``train --quick``: a smoke-test budget (about a minute)."""
@@ -87,9 +90,6 @@ MAX_N_ENVS = 64
 MAX_ENV_RUNNERS = 1024
 """Most ``--num-env-runners`` accepted."""
 
-BACKENDS = ("sb3", "rllib")
-"""Training backends: stable-baselines3 (one machine), Ray RLlib (a cluster)."""
-
 _ONLY = {
     "sb3": ("n_envs", "validation_freq", "validation_episodes"),
     "rllib": ("num_env_runners", "address"),
@@ -106,7 +106,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     parser = subparsers.add_parser("train", help="train a PPO lane-change policy")
     parser.add_argument(
         "--backend",
-        choices=BACKENDS,
+        choices=tuple(BACKENDS),
         default=None,
         help="sb3: stable-baselines3 on this machine; rllib: Ray RLlib, local or on a "
         "cluster ([ray] extra) (sb3; --resume: the training's)",
@@ -284,10 +284,8 @@ def _call_training(func: Callable[..., Any], out: Path, **kwargs: Any) -> Any:
     """``func(out, **kwargs)`` (either backend's training) with warnings as one line
     each; its result, or None when interrupted (Ctrl-C, SIGTERM). What the user can fix
     is raised as :class:`BadArgument` naming the flag, a missing extra as SystemExit."""
-    from aldm_gym.agents.rllib import ClusterError, ResumeError  # no Ray imported
-
     try:
-        with warnings.catch_warnings():
+        with console(), warnings.catch_warnings():
             warnings.showwarning = _one_line_warning
             return func(out, **kwargs)
     except MissingRLDependencies as exc:
@@ -371,16 +369,13 @@ def run(args: argparse.Namespace) -> int:
         print(
             f"best validation at {best['steps']} steps (mean return {best['mean_return']:.2f}, "
             f"success {best['success_rate']:.2f}, {best['mean_speed']:.2f} m/s): "
-            f"{out / BEST_MODEL_FILE}; evaluate it with "
-            f"aldm-gym evaluate --model {out / BEST_MODEL_FILE}"
+            f"{out / BEST_MODEL_FILE}; evaluate it with aldm-gym evaluate --model {out}"
         )
     return 0
 
 
 def _run_rllib(args: argparse.Namespace, quick: bool) -> int:
     """``aldm-gym train --backend rllib``."""
-    from aldm_gym.agents.rllib import MODEL_DIR, TB_RUN, train_rllib
-
     out: Path = args.out
     t0 = time.perf_counter()
     steps = _call_training(
@@ -394,9 +389,10 @@ def _run_rllib(args: argparse.Namespace, quick: bool) -> int:
         return 130
     tb = out / TENSORBOARD_DIR
     print(
-        f"trained {steps} steps in {time.perf_counter() - t0:.0f} s; wrote {out / MODEL_DIR}, "
-        f"checkpoints in {out / CHECKPOINT_DIR}, tensorboard logs in {tb / TB_RUN} "
+        f"trained {steps} steps in {time.perf_counter() - t0:.0f} s; "
+        f"wrote {out / RLLIB_MODEL_DIR}, checkpoints in {out / CHECKPOINT_DIR}, "
+        f"tensorboard logs in {tb / TB_RUN} "
         f"(tensorboard --logdir {tb}); evaluate it with "
-        f"aldm-gym evaluate --model {out / MODEL_DIR}"
+        f"aldm-gym evaluate --model {out}"
     )
     return 0

@@ -1,73 +1,31 @@
 """The RLlib backend: PPO settings as on the SB3 path, checkpoints written whole,
-resume, a checkpoint played outside Ray, and training on a real two-node Ray cluster.
+resume, a checkpoint played outside Ray, a stop between iterations.
 
-Tests needing Ray RLlib skip without the ``[ray]`` extra (``make test-ray`` runs them).
+Tests needing Ray RLlib skip without the ``[ray]`` extra (``make test-ray`` runs them;
+a real two-node cluster: ``test_rllib_cluster.py``).
 """
 
 from __future__ import annotations
 
 import json
 import os
-import socket
 import subprocess
 import sys
 import time
-from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from aldm_gym.agents.checkpoints import remove_temporary_files
-from aldm_gym.agents.rllib import (
-    STEPS_FILE,
-    checkpoint_steps,
-    is_checkpoint,
-    newest_checkpoint,
-)
-from aldm_gym.agents.training import PPOParams
+from aldm_gym.training.rllib.checkpoints import checkpoint_steps, newest_checkpoint
+from aldm_gym.training.settings import PPOParams
 
 BIN = Path(sys.executable).parent
 SHORT = {"duration": 10.0}
 
 
-def _fake_checkpoint(path: Path, steps: int | None) -> Path:
-    """A folder shaped like an RLlib checkpoint; complete if ``steps`` is given."""
-    path.mkdir(parents=True)
-    (path / "rllib_checkpoint.json").write_text("{}")
-    if steps is not None:
-        (path / STEPS_FILE).write_text(json.dumps({"steps": steps}))
-    return path
-
-
-def test_only_complete_checkpoints_are_resumed_from(tmp_path: Path) -> None:
-    ckpt = tmp_path / "checkpoints"
-    _fake_checkpoint(ckpt / "rllib_128", 128)
-    _fake_checkpoint(ckpt / "rllib_1024", 1024)
-    _fake_checkpoint(ckpt / "rllib_2048", None)  # renamed in before its steps file: never
-    _fake_checkpoint(ckpt / ".rllib_4096.tmpab12", 4096)  # still being written
-    newest = newest_checkpoint(tmp_path)
-    assert newest == ckpt / "rllib_1024" and checkpoint_steps(newest) == 1024
-    assert not is_checkpoint(ckpt / "rllib_2048")
-    removed = remove_temporary_files(tmp_path)
-    assert removed == [ckpt / ".rllib_4096.tmpab12"]
-    assert not removed[0].exists() and (ckpt / "rllib_1024").exists()
-
-
-def test_no_checkpoint_in_an_empty_folder(tmp_path: Path) -> None:
-    assert newest_checkpoint(tmp_path) is None
-
-
-# --- with Ray RLlib ---------------------------------------------------------------------
-
-
-@pytest.fixture(scope="module")
-def rllib() -> object:
-    return pytest.importorskip("ray.rllib")
-
-
 def test_ppo_runs_as_on_the_sb3_path(rllib: object) -> None:
-    from aldm_gym.agents.rllib import RLLIB_ENV_ID, ppo_config
+    from aldm_gym.training.rllib.config import RLLIB_ENV_ID, ppo_config
 
     params = PPOParams(n_steps=128, learning_rate=3e-4, gamma=0.9)
     cfg = ppo_config(SHORT, params, timesteps=4096, num_env_runners=3, seed=7)
@@ -91,7 +49,7 @@ def test_ppo_runs_as_on_the_sb3_path(rllib: object) -> None:
 def trained(rllib: object, tmp_path_factory: pytest.TempPathFactory) -> Path:
     """128 steps on one remote env runner, then resumed to 256; ``out`` given as a
     relative path (as a user types it)."""
-    from aldm_gym.agents.rllib import train_rllib
+    from aldm_gym.training.rllib.backend import train_rllib
 
     out = tmp_path_factory.mktemp("rllib")
     kwargs = {
@@ -113,7 +71,8 @@ def trained(rllib: object, tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def test_training_writes_checkpoints_and_resumes(trained: Path) -> None:
-    from aldm_gym.agents.rllib import MODEL_DIR, train_rllib
+    from aldm_gym.training.outputs import RLLIB_MODEL_DIR as MODEL_DIR
+    from aldm_gym.training.rllib.backend import train_rllib
 
     meta = json.loads((trained / "training.json").read_text())
     assert meta["backend"] == "rllib" and meta["timesteps"] == 256
@@ -129,7 +88,7 @@ def test_training_writes_checkpoints_and_resumes(trained: Path) -> None:
 
 def _observations_seen(checkpoint: Path) -> int:
     """How many observations the checkpoint's normalisation statistics count."""
-    from aldm_gym.agents.rllib import RLlibPolicy
+    from aldm_gym.training.rllib.policy import RLlibPolicy
 
     state = RLlibPolicy(checkpoint).pipeline.get_state()
     return int(state["MeanStdFilter"][None]["running_stats"][0]["num_pushes"])
@@ -146,8 +105,8 @@ def test_checkpoints_carry_the_runners_statistics_across_a_resume(trained: Path)
 def test_resume_falls_back_to_an_older_checkpoint(trained: Path, tmp_path: Path) -> None:
     import shutil
 
-    from aldm_gym.agents.checkpoints import TrainingWarning
-    from aldm_gym.agents.rllib import train_rllib
+    from aldm_gym.errors import TrainingWarning
+    from aldm_gym.training.rllib.backend import train_rllib
 
     out = tmp_path / "out"
     shutil.copytree(trained, out, ignore=shutil.ignore_patterns("train.lock"))
@@ -160,28 +119,17 @@ def test_resume_falls_back_to_an_older_checkpoint(trained: Path, tmp_path: Path)
     assert _observations_seen(out / "checkpoints" / "rllib_256") >= 256
 
 
-def test_a_closed_port_is_one_line_and_exit_2(
-    rllib: object, tmp_path: Path, capsys: pytest.CaptureFixture[str]
-) -> None:
-    from _cli import usage_error
-
-    argv = ["train", "--backend", "rllib", "--address", f"127.0.0.1:{_free_port()}"]
-    line = usage_error([*argv, "--out", str(tmp_path / "t")], capsys)
-    assert "argument --address: no Ray cluster answers at 127.0.0.1:" in line
-    assert not (tmp_path / "t" / "training.json").exists()  # nothing to clean up
-
-
 def test_an_iteration_that_sampled_nothing_counts_no_steps() -> None:
-    from aldm_gym.agents.rllib import _sampled
+    from aldm_gym.training.rllib.backend import sampled_steps
 
-    assert _sampled({"env_runners": {"num_env_steps_sampled": 256}}) == 256
+    assert sampled_steps({"env_runners": {"num_env_steps_sampled": 256}}) == 256
     for result in ({"env_runners": {"num_env_steps_sampled": float("nan")}}, {}):
         with pytest.warns(UserWarning, match="sampled no env steps"):
-            assert _sampled(result) == 0
+            assert sampled_steps(result) == 0
 
 
 def test_an_sb3_training_is_not_resumed_by_rllib(rllib: object, tmp_path: Path) -> None:
-    from aldm_gym.agents.rllib import train_rllib
+    from aldm_gym.training.rllib.backend import train_rllib
 
     (tmp_path / "training.json").write_text(json.dumps({"env_config": {}, "ppo": {}}))
     with pytest.raises(ValueError, match="holds an SB3 training"):
@@ -192,7 +140,7 @@ def test_a_checkpoint_plays_outside_ray_with_frozen_statistics(trained: Path) ->
     import gymnasium as gym
 
     from aldm_gym import ENV_ID
-    from aldm_gym.agents.checkpoints import load_policy
+    from aldm_gym.training.models import load_policy
 
     policy, meta = load_policy(trained / "rllib_model")
     assert policy.num_timesteps == 256 and meta["backend"] == "rllib"
@@ -217,17 +165,34 @@ def test_a_checkpoint_plays_outside_ray_with_frozen_statistics(trained: Path) ->
 
 
 def test_evaluate_plays_an_rllib_checkpoint_against_the_baselines(trained: Path) -> None:
-    from aldm_gym.agents.model_evaluation import evaluate
+    from aldm_gym.training.model_evaluation import evaluate
 
     rows, info = evaluate(trained / "checkpoints" / "rllib_128", episodes=2, progress=False)
     assert [r["policy"] for r in rows] == ["idle", "rule_based", "model"]
     assert info["timesteps"] == 128 and len(info["per_episode"]["model"]["mean_speed"]) == 2
 
 
+def test_evaluate_takes_the_final_checkpoint_of_an_output_folder(
+    trained: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from aldm_gym.cli import main
+
+    argv = ["evaluate", "--model", str(trained), "--episodes", "1", "--no-progress"]
+    assert main([*argv, "--out", str(tmp_path)]) == 0
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert lines[0] == f"evaluating {trained / 'rllib_model'}: the final RLlib checkpoint"
+    record = json.loads((tmp_path / "evaluate_rllib_model_aldm_per_dash.json").read_text())
+    assert record["timesteps"] == 256 and [r["policy"] for r in record["rows"]] == [
+        "idle",
+        "rule_based",
+        "model",
+    ]
+
+
 def test_a_damaged_checkpoint_names_the_folder(trained: Path, tmp_path: Path) -> None:
     import shutil
 
-    from aldm_gym.agents.rllib import load_rllib_policy
+    from aldm_gym.training.rllib.policy import load_rllib_policy
 
     out = tmp_path / "out"
     shutil.copytree(trained, out, ignore=shutil.ignore_patterns("train.lock"))
@@ -236,156 +201,6 @@ def test_a_damaged_checkpoint_names_the_folder(trained: Path, tmp_path: Path) ->
         path.write_bytes(b"not a pickle")
     with pytest.raises(ValueError, match="rllib_model: not a readable RLlib checkpoint"):
         load_rllib_policy(out / "rllib_model")
-
-
-# --- a real two-node cluster --------------------------------------------------------------
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
-def _wait_for(port: int, timeout: float = 60.0) -> None:
-    """Return once the head accepts connections on ``port`` (fail after ``timeout``)."""
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        try:
-            with socket.create_connection(("127.0.0.1", port), timeout=1.0):
-                return
-        except OSError:
-            time.sleep(0.2)
-    pytest.fail(f"the Ray head did not open port {port}")
-
-
-def _nodes_alive(address: str, env: dict[str, str]) -> int:
-    status = subprocess.run(
-        [str(BIN / "ray"), "status", "--address", address],
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=60,
-    )
-    if "Active:" not in status.stdout:  # the head is not answering yet
-        return 0
-    active = status.stdout.split("Active:")[1].split("Pending:")[0]
-    return active.count("node_")
-
-
-@pytest.fixture()
-def ray_cluster(rllib: object, tmp_path: Path) -> Iterator[tuple[str, dict[str, str]]]:
-    """A head and a second node on 127.0.0.1 (one CPU each, a token of their own),
-    each a ``ray start --block`` process, ended (and its Ray processes with it) after."""
-    port = _free_port()
-    token = tmp_path / "ray_token"
-    token.write_text(os.urandom(32).hex())
-    env = {**os.environ, "RAY_AUTH_MODE": "token", "RAY_AUTH_TOKEN_PATH": str(token)}
-    common = ["--block", "--node-ip-address", "127.0.0.1", "--num-cpus", "1"]
-    common += ["--disable-usage-stats"]
-    ray = str(BIN / "ray")
-    log = open(tmp_path / "ray.log", "w")  # closed in the finally below
-    nodes = [
-        subprocess.Popen(
-            [ray, "start", "--head", "--port", str(port), "--include-dashboard", "false", *common],
-            env=env,
-            stdout=log,
-            stderr=subprocess.STDOUT,
-        )
-    ]
-    address = f"127.0.0.1:{port}"
-    try:
-        _wait_for(port)
-        nodes.append(
-            subprocess.Popen(
-                [ray, "start", "--address", address, *common],
-                env=env,
-                stdout=log,
-                stderr=subprocess.STDOUT,
-            )
-        )
-        end = time.monotonic() + 60
-        while _nodes_alive(address, env) < 2:
-            assert time.monotonic() < end, (tmp_path / "ray.log").read_text()[-2000:]
-            time.sleep(0.5)
-        yield address, env
-    finally:
-        for node in reversed(nodes):
-            node.terminate()
-            try:
-                node.wait(timeout=60)
-            except subprocess.TimeoutExpired:
-                node.kill()
-        log.close()
-
-
-@pytest.mark.slow
-def test_train_on_a_two_node_cluster_and_evaluate(
-    ray_cluster: tuple[str, dict[str, str]], tmp_path: Path
-) -> None:
-    address, env = ray_cluster
-    out = tmp_path / "train"
-    argv = [str(BIN / "aldm-gym"), "train", "--backend", "rllib", "--address", address]
-    too_many = subprocess.run(
-        [*argv, "--num-env-runners", "3", "--out", str(tmp_path / "too_many")],
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
-    assert too_many.returncode == 2 and "Traceback" not in too_many.stderr
-    assert "argument --num-env-runners: the Ray cluster at" in too_many.stderr
-    assert "has 2 CPUs; 3 env runners need one each" in too_many.stderr
-    # Two env runners needing one CPU each on two one-CPU nodes: one runs on each node.
-    train = subprocess.run(
-        [
-            str(BIN / "aldm-gym"),
-            "train",
-            "--backend",
-            "rllib",
-            "--address",
-            address,
-            "--num-env-runners",
-            "2",
-            "--timesteps",
-            "384",
-            "--n-steps",
-            "64",
-            "--duration",
-            "10",
-            "--out",
-            str(out),
-            "--no-progress",
-        ],
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=600,
-    )
-    assert train.returncode == 0, train.stderr[-3000:]
-    assert f"wrote {out / 'rllib_model'}" in train.stdout
-    meta = json.loads((out / "training.json").read_text())
-    assert meta["num_env_runners"] == 2 and meta["backend"] == "rllib"
-    assert checkpoint_steps(out / "rllib_model") >= 384
-    evaluate = subprocess.run(
-        [
-            str(BIN / "aldm-gym"),
-            "evaluate",
-            "--model",
-            str(out / "rllib_model"),
-            "--episodes",
-            "2",
-            "--no-progress",
-        ],
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=600,
-    )
-    assert evaluate.returncode == 0, evaluate.stderr[-3000:]
-    record = json.loads((out / "evaluate_rllib_model_aldm_per_dash.json").read_text())
-    assert [r["policy"] for r in record["rows"]] == ["idle", "rule_based", "model"]
-    assert record["timesteps"] >= 384
 
 
 @pytest.mark.slow

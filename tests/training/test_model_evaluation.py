@@ -8,7 +8,7 @@ from typing import Any
 
 import pytest
 
-from aldm_gym.agents.model_evaluation import (
+from aldm_gym.training.model_evaluation import (
     MIN_EPISODES,
     collision_test,
     paired_difference,

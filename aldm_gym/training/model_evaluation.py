@@ -1,0 +1,220 @@
+"""A trained model against the rule-based policies: ``aldm-gym evaluate``.
+
+:func:`evaluate` plays a trained model, :class:`~aldm_gym.agents.policies.RuleBasedLCA`
+and :class:`~aldm_gym.agents.policies.IdlePolicy` on the same seeds with
+:func:`~aldm_gym.agents.evaluation.run_episodes`; :func:`summary_line` says in one
+sentence how the model compares, with its uncertainty.
+
+The verdict is paired on the seeds (every policy drives the same episodes):
+
+* speed: the mean of the per-episode differences of mean speed (model − IDLE) with a
+  95 % confidence interval from Student's t (:func:`paired_difference`); the model is
+  called faster or slower only when the interval excludes 0;
+* collisions: the episodes where only one of the two collided decide (McNemar's exact
+  test, :func:`collision_test`); "fewer" or "more" only when p < 0.05;
+* under :data:`MIN_EPISODES` episodes the verdict is "inconclusive" whatever the
+  numbers (collisions are rare events: 3 episodes cannot tell 10 % from 30 %).
+
+The environment and the policies are imported when :func:`evaluate` runs: the command
+line reads :data:`EVALUATION_SEED` to build its parser.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+from aldm_gym import ENV_ID
+from aldm_gym.errors import ConfigError, InputError
+from aldm_gym.training.models import load_policy
+from aldm_gym.training.settings import env_config
+
+EVALUATION_SEED = 10_000
+"""First seed of the evaluation episodes (training envs use ``0 ..``, validation 20000..)."""
+
+MIN_EPISODES = 20
+"""Fewest episodes for which :func:`summary_line` gives a verdict (else "inconclusive")."""
+
+CONFIDENCE = 0.95
+"""Confidence level of the interval on the speed difference."""
+
+SIGNIFICANCE = 0.05
+"""Largest p-value of :func:`collision_test` for which collisions are called fewer/more."""
+
+EVAL_COLUMNS = (
+    "policy",
+    "success_rate",
+    "mean_speed",
+    "lane_changes_ok",
+    "lane_changes_failed",
+    "departures_per_km",
+    "collisions",
+)
+"""Columns of the evaluation table (metrics from
+:func:`~aldm_gym.agents.evaluation.summarize`)."""
+
+
+def evaluate(
+    model_path: Path,
+    episodes: int = 30,
+    seed: int = EVALUATION_SEED,
+    detector: str | None = None,
+    marking_model: str | None = None,
+    progress: bool = True,
+) -> tuple[list[dict[str, Any]], dict[str, Any]]:
+    """Evaluate a model against IDLE and the rule-based LCA on the same seeds.
+
+    :param model_path: what :func:`~aldm_gym.training.models.load_policy` takes: a
+        model ``.zip``, an RLlib checkpoint folder or a training's output folder.
+    :param episodes: episodes per policy (seeds ``seed .. seed + episodes - 1``).
+    :param detector, marking_model: override the training env's (None: as trained).
+    :return: rows (``idle``, ``rule_based``, ``model``) with the
+        :func:`~aldm_gym.agents.evaluation.summarize` metrics and ``policy``; and the
+        evaluation's env config, model metadata and, per policy, each episode's mean
+        speed [m/s] and whether it collided (``per_episode``, in seed order).
+    :raises FileNotFoundError, CheckpointError: see
+        :func:`~aldm_gym.training.models.load_policy`.
+    :raises MissingRLDependencies: stable-baselines3 / torch missing.
+    """
+    import gymnasium as gym
+    from tqdm import tqdm
+
+    from aldm_gym.agents.evaluation import run_episodes, summarize
+    from aldm_gym.agents.policies import IdlePolicy, RuleBasedLCA
+
+    policy, meta = load_policy(model_path)
+    config = dict(meta["env_config"])
+    if detector is not None:
+        config["detector"] = env_config(detector=detector)["detector"]
+    if marking_model is not None:
+        config["marking_model"] = env_config(marking_model=marking_model)["marking_model"]
+    env = gym.make(ENV_ID, config=config)
+    seeds = range(seed, seed + episodes)
+    rows = []
+    per_episode: dict[str, dict[str, list[Any]]] = {}
+    policies = (("idle", IdlePolicy()), ("rule_based", RuleBasedLCA()), ("model", policy))
+    try:
+        with tqdm(total=3 * episodes, desc="evaluate", unit="ep", disable=not progress) as bar:
+            for name, pol in policies:
+                played = run_episodes(env, pol, seeds, bar.update)
+                rows.append({"policy": name, **summarize(played)})
+                per_episode[name] = {
+                    "mean_speed": [_mean(e.speeds) for e in played],
+                    "collided": [bool(e.collided) for e in played],
+                }
+    finally:
+        env.close()
+    info = {
+        "env_config": config,
+        "trained_on": meta["env_config"],
+        "timesteps": int(policy.num_timesteps),
+        "seeds": [seed, seed + episodes - 1],
+        "per_episode": per_episode,
+    }
+    return rows, info
+
+
+def _mean(values: list[float]) -> float:
+    return float(sum(values) / len(values)) if values else float("nan")
+
+
+def paired_difference(
+    a: list[float], b: list[float], confidence: float = CONFIDENCE
+) -> tuple[float, float, float]:
+    """Mean of ``a[i] - b[i]`` and its confidence interval (Student's t, paired).
+
+    :return: ``(mean, low, high)``; the interval is infinite for fewer than two pairs.
+    """
+    from scipy import stats
+
+    if len(a) != len(b) or not a:
+        raise InputError(f"paired_difference needs equally many values, got {len(a)}, {len(b)}")
+    d = [x - y for x, y in zip(a, b, strict=True)]
+    mean = _mean(d)
+    if len(d) < 2:
+        return mean, -math.inf, math.inf
+    sd = math.sqrt(sum((x - mean) ** 2 for x in d) / (len(d) - 1))
+    half = float(stats.t.ppf(0.5 + confidence / 2, len(d) - 1)) * sd / math.sqrt(len(d))
+    return mean, mean - half, mean + half
+
+
+def collision_test(a: list[bool], b: list[bool]) -> float:
+    """p-value (two-sided) that ``a`` and ``b`` collide equally often, paired by episode.
+
+    McNemar's exact test: only episodes where exactly one of the two collided count;
+    under the hypothesis each such episode is ``a``'s with probability 1/2.
+    """
+    from scipy import stats
+
+    only_a = sum(x and not y for x, y in zip(a, b, strict=True))
+    only_b = sum(y and not x for x, y in zip(a, b, strict=True))
+    if only_a + only_b == 0:
+        return 1.0
+    return float(stats.binomtest(only_a, only_a + only_b, 0.5).pvalue)
+
+
+BASELINES: dict[str, str] = {"idle": "IDLE", "rule_based": "the rule-based LCA"}
+"""The policies a model is compared with, by their ``per_episode`` key, and their names."""
+
+
+def verdict(info: dict[str, Any], baseline: str = "idle") -> str:
+    """How the model compares with a baseline policy (``"idle"`` or ``"rule_based"``),
+    stating the uncertainty (see the module).
+
+    :param info: what :func:`evaluate` returns (its ``per_episode``).
+    :raises ConfigError: an unknown baseline (naming the allowed ones).
+    """
+    if baseline not in BASELINES:
+        raise ConfigError(f"unknown baseline {baseline!r}; allowed: {sorted(BASELINES)}")
+    name = BASELINES[baseline]
+    model, base = info["per_episode"]["model"], info["per_episode"][baseline]
+    n = len(model["mean_speed"])
+    dv, lo, hi = paired_difference(model["mean_speed"], base["mean_speed"])
+    p = collision_test(model["collided"], base["collided"])
+    cm, cb = sum(model["collided"]), sum(base["collided"])
+    speed = (
+        f"speed {dv:+.2f} m/s vs {name} ({CONFIDENCE:.0%} CI {lo:+.2f} to {hi:+.2f}, "
+        "per-episode means on the same seeds)"
+    )
+    crashes = f"collisions in {cm} vs {cb} of {n} episodes (paired exact test p = {p:.2f})"
+    if n < MIN_EPISODES:
+        return (
+            f"is inconclusive against {name}: {n} episodes are too few for a verdict "
+            f"(at least {MIN_EPISODES}); "
+            f"{speed}; {crashes}"
+        )
+    if lo > 0:
+        pace = f"is faster than {name}"
+    elif hi < 0:
+        pace = f"is slower than {name}"
+    else:
+        pace = f"is not measurably faster or slower than {name}"
+    if p < SIGNIFICANCE:
+        safety = "with fewer collisions" if cm < cb else "with more collisions"
+    else:
+        safety = "with no significant difference in collisions"
+    return f"{pace} {safety}: {speed}; {crashes}"
+
+
+def summary_line(rows: list[dict[str, Any]], info: dict[str, Any]) -> str:
+    """The model against IDLE and the rule-based LCA: a :func:`verdict` against each,
+    with its uncertainty, and the summary figures.
+
+    :param rows, info: what :func:`evaluate` returns.
+    """
+    by = {r["policy"]: r for r in rows}
+    m, idle, rule = by["model"], by["idle"], by["rule_based"]
+    trained = info["trained_on"]
+    cfg = info["env_config"]
+    return (
+        f"model ({info['timesteps']} steps, trained on {trained['detector']}/"
+        f"{trained['marking_model']}, evaluated on {cfg['detector']}/{cfg['marking_model']}, "
+        f"{m['episodes']} episodes) {verdict(info)}; it "
+        f"{verdict(info, 'rule_based')}. Success {m['success_rate']:.0%} "
+        f"(IDLE {idle['success_rate']:.0%}, rule-based {rule['success_rate']:.0%}), "
+        f"mean speed {m['mean_speed']:.1f} m/s (IDLE {idle['mean_speed']:.1f}, rule-based "
+        f"{rule['mean_speed']:.1f}), collisions {m['collisions']} (IDLE {idle['collisions']}, "
+        f"rule-based {rule['collisions']}), lane changes {m['lane_changes_ok']} ok / "
+        f"{m['lane_changes_failed']} failed"
+    )

@@ -1,0 +1,341 @@
+"""PPO on stable-baselines3: :class:`SB3Backend` and :func:`train` (``aldm-gym train``).
+
+:func:`train` fits a stable-baselines3 PPO ``MultiInputPolicy`` on the meta actions
+(``Discrete(5)``) of ``ALDMHighway-v0`` with the observation built from one detector's
+lanes (``naive``, ``aldm`` or ``ground_truth``). Environments run vectorised
+(``SubprocVecEnv`` for more than one), observations are normalised with running
+statistics (``VecNormalize``), tensorboard logs go to ``<out>/tb/`` and
+checkpoints to ``<out>/checkpoints/`` every ``checkpoint_freq`` steps (between
+rollouts) and on an interruption (Ctrl-C, SIGTERM). ``resume=True`` continues from the
+newest intact checkpoint with the settings, step count, tensorboard run, optimiser
+state, normalisation statistics, envs and RNG states of the interrupted run: with the
+same ``n_envs`` and ``seed`` it trains on exactly as the uninterrupted run would have.
+The output folder's files are listed in :mod:`aldm_gym.training.outputs`; what every
+training does (lock, signals, fallback to an intact checkpoint, ``training.json``) is
+:func:`~aldm_gym.training.backend.train_with`'s; the callbacks that checkpoint,
+validate and show progress are in :mod:`aldm_gym.training.sb3.callbacks`.
+
+Validation: every ``validation_freq`` steps (after the PPO update that ends a rollout)
+and at the end, the current policy drives ``validation_episodes`` episodes with the
+fixed seeds ``VALIDATION_SEED ..`` (deterministic actions), disjoint from the training
+envs' seeds (``seed ..``) and from
+:func:`~aldm_gym.training.model_evaluation.evaluate`'s (``10000 ..``). The policy with
+the highest mean episode return (the env's reward, i.e. the objective the training
+optimises) is kept as ``best_model.zip``. PPO on this task is not monotone: collisions
+are rare events and successive checkpoints of one run differ by several collisions in
+30 episodes, so choosing on held-out seeds is what makes a training's result
+reproducible without peeking at the evaluation seeds.
+
+Why PPO rather than DQN: PPO is on-policy and collects its rollouts from all vectorised
+environments at once, which is how the two cores of this machine are used (the env, not
+the network, is the bottleneck); it is robust to hyperparameters on highway-env's meta
+actions (highway-env's own PPO example trains in ~2e4 steps), and its state is the
+weights, the optimiser, the step count and the envs', so a resume loses nothing. DQN
+would also need its replay buffer checkpointed (hundreds of MB of Dict observations)
+for an exact resume.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any, ClassVar
+
+from aldm_gym.training.backend import Backend, CheckpointRef, train_with
+from aldm_gym.training.outputs import (
+    MODEL_FILE,
+    TENSORBOARD_DIR,
+    VECNORM_FILE,
+    write_bytes_atomic,
+)
+from aldm_gym.training.sb3 import import_sb3
+from aldm_gym.training.sb3.checkpoints import (
+    Checkpoint,
+    Snapshot,
+    checkpoint_fault,
+    checkpoints,
+    restore_resume_state,
+    take_snapshot,
+)
+from aldm_gym.training.sb3.envs import close_envs, make_vec_env
+from aldm_gym.training.settings import (
+    DEFAULT_COLLISION_REWARD,
+    RUN_DEFAULTS,
+    PPOParams,
+    env_config,
+)
+from aldm_gym.training.signals import StopRequest
+
+RUN_SETTINGS = tuple(RUN_DEFAULTS["sb3"])
+"""Settings of a run that ``resume`` restores from ``training.json`` unless given."""
+
+
+class SB3Backend(Backend[Checkpoint]):
+    """PPO on stable-baselines3 (see the module docstring).
+
+    Its chunks are SB3's rollouts; the callbacks snapshot the training at the start of
+    each, so the last consistent state is always at hand and the first signal stops
+    it at once (:attr:`stops_at_once`).
+
+    :param verbose: SB3's verbosity.
+    :param callback: extra SB3 callback(s) (a list or one).
+    :ivar model: the SB3 PPO model (None before :meth:`build` or :meth:`restore`).
+    """
+
+    name: ClassVar[str] = "sb3"
+    stops_at_once: ClassVar[bool] = True
+
+    def __init__(
+        self,
+        out: Path,
+        meta: Mapping[str, Any],
+        saved: Mapping[str, Any] | None,
+        progress: bool,
+        verbose: int = 0,
+        callback: Any = None,
+    ) -> None:
+        super().__init__(out, meta, saved, progress)
+        self.verbose = verbose
+        self.callback = callback
+        self.model: Any = None
+        self.venv: Any = None
+        self.done = 0
+        self.resumed = False
+        self.checkpointer: Any = None
+        self.final: Snapshot | None = None
+
+    @staticmethod
+    def require() -> None:
+        """Import stable-baselines3 and torch (:func:`~aldm_gym.training.sb3.import_sb3`)."""
+        import_sb3()
+
+    @contextmanager
+    def session(self) -> Iterator[None]:
+        """Torch on one thread: the envs need the cores; the MLP is tiny."""
+        import torch
+
+        torch.set_num_threads(1)
+        yield
+
+    def checkpoints(self) -> list[Checkpoint]:
+        """The SB3 checkpoints of the output folder, newest first."""
+        return checkpoints(self.out)
+
+    def checkpoint_fault(self, checkpoint: Checkpoint) -> str | None:
+        """Why a checkpoint's files cannot be used (sha256 against its manifest)."""
+        return checkpoint_fault(self.out, checkpoint.steps)
+
+    def restore(self, checkpoint: Checkpoint) -> str:
+        """Load the model and normalisation of ``checkpoint`` onto new envs; with the
+        saved ``n_envs`` and ``seed``, put the envs and RNGs back as they were."""
+        from stable_baselines3 import PPO
+        from stable_baselines3.common.vec_env import VecNormalize
+
+        run, saved = self.meta, self.saved or {}
+        done = checkpoint.steps
+        exact = (
+            checkpoint.resume_state is not None
+            and run["n_envs"] == int(saved.get("n_envs", 1))
+            and run["seed"] == int(saved.get("seed", 0))
+        )
+        self.venv = make_vec_env(run["env_config"], run["n_envs"], run["seed"] + done)
+        self.venv = VecNormalize.load(str(checkpoint.vecnormalize), self.venv)
+        self.venv.training = True
+        # PPO.load takes n_envs from venv and rebuilds the rollout buffer for it.
+        self.model = PPO.load(checkpoint.model, env=self.venv, device="cpu")
+        self.model.tensorboard_log = str(self.out / TENSORBOARD_DIR)
+        self.done, self.resumed = done, True
+        if exact:
+            assert checkpoint.resume_state is not None
+            restore_resume_state(self.model, checkpoint.resume_state)
+            return f"envs and RNGs continue exactly from {checkpoint.model.name}"
+        self.model.set_random_seed(run["seed"] + done)
+        return (
+            f"envs restart from seed {run['seed'] + done} (n_envs or seed changed, "
+            "or the checkpoint has no resume state)"
+        )
+
+    def build(self) -> None:
+        """A new PPO model on new, normalised envs."""
+        from stable_baselines3 import PPO
+        from stable_baselines3.common.vec_env import VecNormalize
+
+        run, params = self.meta, self.params
+        self.venv = VecNormalize(
+            make_vec_env(run["env_config"], run["n_envs"], run["seed"]),
+            norm_reward=False,
+            clip_obs=10.0,
+        )
+        self.model = PPO(
+            "MultiInputPolicy",
+            self.venv,
+            n_steps=params.n_steps,
+            batch_size=min(params.batch_size, params.n_steps * run["n_envs"]),
+            n_epochs=params.n_epochs,
+            learning_rate=params.learning_rate_schedule(),
+            gamma=params.gamma,
+            gae_lambda=params.gae_lambda,
+            ent_coef=params.ent_coef,
+            clip_range=params.clip_range,
+            policy_kwargs={"net_arch": list(params.net_arch)},
+            tensorboard_log=str(self.out / TENSORBOARD_DIR),
+            seed=run["seed"],
+            device="cpu",
+            verbose=self.verbose,
+        )
+
+    def _callbacks(self) -> list[Any]:
+        """The training's callbacks, in this order: on a rollout boundary the
+        checkpoint is written before validating."""
+        from aldm_gym.training.sb3.callbacks import (
+            ProgressCallback,
+            RolloutCheckpointCallback,
+            ValidationCallback,
+        )
+
+        run = self.meta
+        self.checkpointer = RolloutCheckpointCallback(run["checkpoint_freq"], self.out)
+        callbacks: list[Any] = [self.checkpointer]
+        if run["validation_freq"] > 0 and run["validation_episodes"] > 0:
+            callbacks.append(
+                ValidationCallback(
+                    self.out,
+                    run["env_config"],
+                    run["validation_freq"],
+                    run["validation_episodes"],
+                    progress=self.progress,
+                )
+            )
+        if self.progress:
+            callbacks.append(ProgressCallback(run["timesteps"]))
+        if self.callback is not None:
+            callbacks += self.callback if isinstance(self.callback, list) else [self.callback]
+        return callbacks
+
+    def learn(self, stop: StopRequest) -> None:
+        """One ``model.learn`` to the budget (SB3's rollouts are the chunks; the first
+        signal interrupts it at once, see :attr:`stops_at_once`), then the snapshot of
+        the state after the last update."""
+        callbacks = self._callbacks()
+        if self.meta["timesteps"] > self.done:
+            self.model.learn(
+                total_timesteps=self.meta["timesteps"] - self.done,
+                callback=callbacks,
+                reset_num_timesteps=not self.resumed,
+                tb_log_name="PPO",
+            )
+        # The state after the last update (also when resumed with nothing left to do),
+        # taken while the envs are open.
+        self.final = take_snapshot(self.model)
+
+    def save_checkpoint(self) -> CheckpointRef | None:
+        """Write the snapshot of the last completed update (see
+        :meth:`~aldm_gym.training.sb3.callbacks.RolloutCheckpointCallback.save_last_snapshot`)."""
+        if self.checkpointer is None:
+            return None
+        path = self.checkpointer.save_last_snapshot()
+        if path is None:
+            return None
+        return CheckpointRef(self.checkpointer.snapshot_steps, path)
+
+    def save_final(self) -> Path:
+        """The final snapshot as a checkpoint, ``model.zip`` and ``vecnormalize.pkl``."""
+        assert self.final is not None and self.checkpointer is not None
+        self.checkpointer.snapshot = self.final
+        self.checkpointer.save_last_snapshot()
+        write_bytes_atomic(self.out / MODEL_FILE, self.final.model)
+        write_bytes_atomic(self.out / VECNORM_FILE, self.final.vecnormalize)
+        return self.out / MODEL_FILE
+
+    def close(self, interrupted: bool) -> None:
+        """Close the envs (:func:`~aldm_gym.training.sb3.envs.close_envs`)."""
+        if self.venv is not None:
+            close_envs(self.venv, interrupted)
+
+    @classmethod
+    def load_policy(cls, path: Path) -> tuple[Any, dict[str, Any]]:
+        """A model ``.zip`` (:func:`aldm_gym.training.sb3.policy.load_policy`)."""
+        from aldm_gym.training.sb3.policy import load_policy
+
+        return load_policy(path)
+
+
+def train(
+    out: Path,
+    *,
+    detector: str = "aldm",
+    marking_model: str = "per_dash",
+    timesteps: int | None = None,
+    n_envs: int | None = None,
+    seed: int | None = None,
+    checkpoint_freq: int | None = None,
+    duration: float | None = None,
+    vehicles_count: int | None = None,
+    collision_reward: float | None = DEFAULT_COLLISION_REWARD,
+    params: PPOParams | None = None,
+    validation_freq: int | None = None,
+    validation_episodes: int | None = None,
+    resume: bool = False,
+    progress: bool = True,
+    verbose: int = 0,
+    callback: Any = None,
+) -> Any:
+    """Train (or resume training) a PPO policy; return the SB3 model.
+
+    :param out: output folder (its files: :mod:`aldm_gym.training.outputs`); held
+        locked while training.
+    :param timesteps: total policy steps of the training (counting steps done before a
+        resume), rounded up to whole rollouts (``n_steps × n_envs``); default
+        :data:`~aldm_gym.training.settings.DEFAULT_TIMESTEPS`.
+    :param n_envs: envs run in parallel (default 1).
+    :param seed: seed of the envs (``seed + i`` for the i-th) and the network (0).
+    :param checkpoint_freq: save a checkpoint every this many steps [policy steps]
+        (default :data:`~aldm_gym.training.settings.DEFAULT_CHECKPOINT_FREQ`).
+    :param duration, vehicles_count, collision_reward: env overrides (None: the env's
+        defaults).
+
+    The defaults (one env, 49152 steps, collision weight -2, linearly decaying learning
+    rate) are the recipe of ``docs/results.md`` (b). It is sensitive to the rollout size:
+    two envs with the same or with halved rollouts missed the aim there.
+    :param validation_freq: validate every this many steps (0: never) [policy steps]
+        (default :data:`~aldm_gym.training.settings.DEFAULT_VALIDATION_FREQ`).
+    :param validation_episodes: episodes per validation (seeds ``VALIDATION_SEED ..``;
+        default :data:`~aldm_gym.training.settings.DEFAULT_VALIDATION_EPISODES`).
+    :param progress: a tqdm bar over the steps, showing the recent training episodes'
+        mean return and length, and one over each validation's episodes (the progress
+        lines announcing and reporting each validation are logged either way).
+    :param callback: extra SB3 callback(s) (a list or one).
+    :param resume: continue from the newest intact checkpoint of ``out``; the env
+        config and hyperparameters are those saved in ``<out>/training.json``, and so
+        is every one of :data:`RUN_SETTINGS` left None (the settings restored and
+        overridden are logged). With the saved ``n_envs`` and ``seed`` the envs and
+        RNGs continue exactly where the checkpoint was taken.
+    :raises FileExistsError: ``out`` holds a training and ``resume`` is False.
+    :raises FileNotFoundError: ``resume`` without a ``training.json`` in ``out`` (one
+        without an intact checkpoint starts again from step 0 with its settings).
+    :raises ResumeError: ``resume`` of an RLlib training.
+    :raises OutputLocked: another training is writing ``out``.
+    :raises MissingRLDependencies: stable-baselines3 / torch missing.
+    :raises KeyboardInterrupt: interrupted by Ctrl-C or SIGTERM (after saving the
+        last consistent state as a checkpoint).
+    """
+    backend = train_with(
+        SB3Backend,
+        out,
+        given={
+            "timesteps": timesteps,
+            "n_envs": n_envs,
+            "seed": seed,
+            "checkpoint_freq": checkpoint_freq,
+            "validation_freq": validation_freq,
+            "validation_episodes": validation_episodes,
+        },
+        config=env_config(detector, marking_model, duration, vehicles_count, collision_reward),
+        params=params,
+        resume=resume,
+        progress=progress,
+        verbose=verbose,
+        callback=callback,
+    )
+    return backend.model

@@ -1,0 +1,195 @@
+"""What a training is: the env config, the PPO hyperparameters and the run settings.
+
+Both backends train the same task from these: :func:`env_config` (``ALDMHighway-v0``
+with one detector's lanes in the observation), :class:`PPOParams` (SB3's names; the
+RLlib backend maps them onto RLlib's) and the run settings of :data:`RUN_DEFAULTS`
+(budget, workers, seed, checkpoint and validation periods), which ``resume`` restores
+from ``training.json`` unless given (:func:`resolve_run_settings`). Each default lives
+here once.
+"""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+from aldm_gym.errors import ConfigError
+from aldm_gym.roads.highway import MARKING_MODELS
+from aldm_gym.sensor.detectors import DETECTORS
+
+DEFAULT_TIMESTEPS = 49_152
+"""Default training budget [policy steps] (about 15 min on 2 cores, see docs/results.md)."""
+
+DEFAULT_COLLISION_REWARD = -2.0
+"""Collision weight of a training's reward (the env's default is -1; see docs/results.md)."""
+
+DEFAULT_CHECKPOINT_FREQ = 4_096
+"""Default checkpoint period [policy steps]."""
+
+DEFAULT_VALIDATION_FREQ = 4_096
+"""Default validation period [policy steps] (SB3 backend)."""
+
+DEFAULT_VALIDATION_EPISODES = 20
+"""Default episodes per validation (SB3 backend)."""
+
+DEFAULT_ENV_RUNNERS = 1
+"""Default ``--num-env-runners`` (RLlib backend)."""
+
+VALIDATION_SEED = 20_000
+"""First seed of the validation episodes (training envs use ``seed ..``, evaluation 10000..)."""
+
+LR_SCHEDULES = ("constant", "linear")
+"""Learning-rate schedules of :class:`PPOParams`."""
+
+RUN_DEFAULTS: dict[str, dict[str, int]] = {
+    "sb3": {
+        "timesteps": DEFAULT_TIMESTEPS,
+        "n_envs": 1,
+        "seed": 0,
+        "checkpoint_freq": DEFAULT_CHECKPOINT_FREQ,
+        "validation_freq": DEFAULT_VALIDATION_FREQ,
+        "validation_episodes": DEFAULT_VALIDATION_EPISODES,
+    },
+    "rllib": {
+        "timesteps": DEFAULT_TIMESTEPS,
+        "num_env_runners": DEFAULT_ENV_RUNNERS,
+        "seed": 0,
+        "checkpoint_freq": DEFAULT_CHECKPOINT_FREQ,
+    },
+}
+"""Each backend's run settings and their defaults (``resume`` restores them from
+``training.json`` unless given)."""
+
+RUN_MINIMUM = {
+    "timesteps": 1,
+    "n_envs": 1,
+    "num_env_runners": 0,
+    "checkpoint_freq": 1,
+    "validation_freq": 0,
+    "validation_episodes": 0,
+}
+"""The least value of each bounded run setting (``seed`` is any integer)."""
+
+
+@dataclass
+class PPOParams:
+    """PPO hyperparameters (SB3 names).
+
+    Defaults follow highway-env's PPO example for the meta actions (``gamma`` 0.8:
+    at 1 Hz the reward of the next ~5 s matters; lr 5e-4, 10 epochs, batch 64), with
+    the learning rate decaying linearly (see ``docs/results.md`` (b) for why).
+
+    :ivar n_steps: rollout length per environment [policy steps].
+    :ivar lr_schedule: ``"constant"``, or ``"linear"``: ``learning_rate`` decays
+        linearly to 0 at the end of the budget (SB3's ``progress_remaining``).
+    """
+
+    n_steps: int = 256
+    batch_size: int = 64
+    n_epochs: int = 10
+    learning_rate: float = 5e-4
+    gamma: float = 0.8
+    gae_lambda: float = 0.95
+    ent_coef: float = 0.01
+    clip_range: float = 0.2
+    net_arch: list[int] = field(default_factory=lambda: [128, 128])
+    lr_schedule: str = "linear"
+
+    def __post_init__(self) -> None:
+        if self.lr_schedule not in LR_SCHEDULES:
+            raise ConfigError(
+                f"lr_schedule must be one of {LR_SCHEDULES}, got {self.lr_schedule!r}"
+            )
+
+    @classmethod
+    def saved(cls, record: Mapping[str, Any]) -> PPOParams:
+        """The hyperparameters of a ``training.json``'s ``"ppo"`` (a record without
+        ``lr_schedule`` trained with a constant rate)."""
+        return cls(**{"lr_schedule": "constant", **record})
+
+    def learning_rate_schedule(self) -> float | Callable[[float], float]:
+        """What SB3's ``learning_rate`` argument takes for this schedule."""
+        if self.lr_schedule == "linear":
+            return functools.partial(linear_schedule, self.learning_rate)
+        return self.learning_rate
+
+
+def linear_schedule(start: float, progress_remaining: float) -> float:
+    """``start`` scaled by SB3's ``progress_remaining`` (1 at the start, 0 at the end)."""
+    return start * progress_remaining
+
+
+def env_config(
+    detector: str = "aldm",
+    marking_model: str = "per_dash",
+    duration: float | None = None,
+    vehicles_count: int | None = None,
+    collision_reward: float | None = None,
+) -> dict[str, Any]:
+    """The ``ALDMHighway-v0`` config of a training (only keys that differ from defaults).
+
+    :param collision_reward: weight of the collision term of the reward (env: -1).
+    :raises ConfigError: unknown detector or marking model.
+    """
+    if detector not in DETECTORS:
+        raise ConfigError(f"detector must be one of {DETECTORS}, got {detector!r}")
+    if marking_model not in MARKING_MODELS:
+        raise ConfigError(f"marking_model must be one of {MARKING_MODELS}, got {marking_model!r}")
+    config: dict[str, Any] = {"detector": detector, "marking_model": marking_model}
+    if duration is not None:
+        config["duration"] = float(duration)
+    if vehicles_count is not None:
+        config["vehicles_count"] = int(vehicles_count)
+    if collision_reward is not None:
+        config["collision_reward"] = float(collision_reward)
+    return config
+
+
+def check_run_settings(given: Mapping[str, int | None]) -> None:
+    """Refuse a run setting below its least value (:data:`RUN_MINIMUM`).
+
+    :raises ConfigError: naming the setting, its least value and the value given.
+    """
+    for name, value in given.items():
+        least = RUN_MINIMUM.get(name)
+        if value is not None and least is not None and value < least:
+            raise ConfigError(f"{name} must be >= {least}, got {value}")
+
+
+def resolve_run_settings(
+    given: Mapping[str, int | None], saved: Mapping[str, Any] | None, backend: str = "sb3"
+) -> tuple[dict[str, int], list[str]]:
+    """The run settings of a training and, for a resume, what was restored/overridden.
+
+    :param given: each of the backend's run settings as passed (None: not given).
+    :param saved: the ``training.json`` being resumed, or None for a new training.
+    :param backend: whose settings (a key of :data:`RUN_DEFAULTS`).
+    :return: the settings, and lines saying which were restored from ``saved`` and
+        which were overridden (empty for a new training).
+    """
+    defaults = RUN_DEFAULTS[backend]
+    settings: dict[str, int] = {}
+    restored, overridden = [], []
+    for name, default in defaults.items():
+        value = given.get(name)
+        if saved is None:
+            settings[name] = default if value is None else int(value)
+            continue
+        was = int(saved.get(name, default))
+        if value is None:
+            settings[name] = was
+            restored.append(f"{name}={was}")
+        else:
+            settings[name] = int(value)
+            if int(value) == was:
+                restored.append(f"{name}={was}")
+            else:
+                overridden.append(f"{name}={int(value)} (was {was})")
+    report = []
+    if saved is not None:
+        report.append("restored: env config, PPO hyperparameters, " + ", ".join(restored))
+        if overridden:
+            report.append("overridden: " + ", ".join(overridden))
+    return settings, report

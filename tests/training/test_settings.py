@@ -1,0 +1,65 @@
+"""What a training is: hyperparameters, env config and run settings."""
+
+from __future__ import annotations
+
+import pytest
+
+from aldm_gym.errors import ConfigError
+from aldm_gym.training.settings import (
+    RUN_DEFAULTS,
+    PPOParams,
+    check_run_settings,
+    env_config,
+    resolve_run_settings,
+)
+
+
+def test_linear_learning_rate_decays_to_zero_over_the_budget() -> None:
+    schedule = PPOParams(learning_rate=4e-4, lr_schedule="linear").learning_rate_schedule()
+    assert callable(schedule)
+    assert [schedule(p) for p in (1.0, 0.5, 0.0)] == [4e-4, 2e-4, 0.0]
+    assert PPOParams(lr_schedule="constant").learning_rate_schedule() == 5e-4
+    with pytest.raises(ValueError, match="lr_schedule must be one of"):
+        PPOParams(lr_schedule="cosine")
+
+
+def test_a_record_without_a_schedule_trained_with_a_constant_rate() -> None:
+    assert PPOParams.saved({"n_steps": 64}) == PPOParams(n_steps=64, lr_schedule="constant")
+    assert PPOParams.saved({"lr_schedule": "linear"}).lr_schedule == "linear"
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"detector": "canny"}, "detector must be one of"),
+        ({"marking_model": "dashed"}, "marking_model must be one of"),
+    ],
+)
+def test_env_config_names_the_bad_setting(kwargs: dict, message: str) -> None:
+    with pytest.raises(ConfigError, match=message):
+        env_config(**kwargs)
+
+
+def test_run_settings_restore_the_saved_ones_unless_given() -> None:
+    given = {"timesteps": 192, "n_envs": None, "seed": 3}
+    run, report = resolve_run_settings(given, None)
+    assert run == {**RUN_DEFAULTS["sb3"], "timesteps": 192, "seed": 3} and report == []
+    saved = {"timesteps": 64, "n_envs": 2, "seed": 3, "checkpoint_freq": 64}
+    run, report = resolve_run_settings(given, saved)
+    assert (run["timesteps"], run["n_envs"], run["checkpoint_freq"]) == (192, 2, 64)
+    assert report[0].startswith("restored: env config, PPO hyperparameters, n_envs=2, seed=3")
+    assert report[1] == "overridden: timesteps=192 (was 64)"
+    run, _ = resolve_run_settings({"num_env_runners": None}, {"seed": 5}, "rllib")
+    assert run == {**RUN_DEFAULTS["rllib"], "seed": 5}
+
+
+@pytest.mark.parametrize(
+    ("name", "value", "least"),
+    [("timesteps", 0, 1), ("n_envs", 0, 1), ("num_env_runners", -1, 0), ("validation_freq", -1, 0)],
+)
+def test_run_settings_below_their_least_value_are_refused(
+    name: str, value: int, least: int
+) -> None:
+    with pytest.raises(ConfigError, match=f"{name} must be >= {least}, got {value}"):
+        check_run_settings({name: value})
+    check_run_settings({name: least, "seed": -1})
