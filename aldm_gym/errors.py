@@ -16,6 +16,7 @@ that caught those keeps working::
     ├── ClusterError (ValueError)       no Ray cluster at the address, or too few CPUs
     ├── OutputLocked (RuntimeError)     another training holds the output folder
     └── MissingRLDependencies (ImportError)
+        └── MissingRayDependencies
 
     AldmGymWarning (UserWarning)
     ├── NumbaCacheWarning               a kernel's cache was unusable: recompiled
@@ -37,6 +38,7 @@ __all__ = [
     "MapError",
     "MapNotFoundError",
     "MissingRLDependencies",
+    "MissingRayDependencies",
     "NumbaCacheWarning",
     "OffRoadError",
     "OutputLocked",
@@ -98,6 +100,10 @@ class OutputLocked(AldmGymError, RuntimeError):
 
 class MissingRLDependencies(AldmGymError, ImportError):
     """stable-baselines3, torch or Ray RLlib is not installed (the message says how)."""
+
+
+class MissingRayDependencies(MissingRLDependencies):
+    """Ray RLlib or torch is not installed (the ``[ray]`` extra)."""
 
 
 class AldmGymWarning(UserWarning):

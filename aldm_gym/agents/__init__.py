@@ -4,9 +4,9 @@ Modules, one job each:
 
 * :mod:`~aldm_gym.agents.policies`: IDLE and the rule-based lane-change policy.
 * :mod:`~aldm_gym.agents.lka`: the lane-keeping controller as an agent.
-* :mod:`~aldm_gym.agents.evaluation`: the one episode loop and its metrics.
-* :mod:`~aldm_gym.agents.comparison`: the closed-loop naive-vs-ALDM comparison.
-* :mod:`~aldm_gym.agents.plot`: figures (validation history, lateral offsets).
+* :mod:`~aldm_gym.agents.episodes`: the one episode loop and its metrics.
+* :mod:`~aldm_gym.agents.closed_loop`: the closed-loop naive-vs-ALDM comparison.
+* :mod:`~aldm_gym.agents.figures`: figures (validation history, lateral offsets).
 
 Training PPO policies, and evaluating them against these controllers, is
 :mod:`aldm_gym.training`; ``training``, ``rllib``, ``checkpoints``, ``callbacks``,

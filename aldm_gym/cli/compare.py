@@ -5,9 +5,9 @@ through every detector (:func:`~aldm_gym.sensor.open_loop.compare_detectors`),
 written to ``compare_frames.csv`` with the figures ``compare_frames.png``,
 ``frame_per_dash.png`` and ``frame_editor.png``. Closed loop: the LKA (IDLE) and the
 rule-based LCA on the same seeded episodes
-(:func:`~aldm_gym.agents.comparison.compare_closed_loop`), written to ``compare.csv``
+(:func:`~aldm_gym.agents.closed_loop.compare_closed_loop`), written to ``compare.csv``
 and ``offset.png`` (with the ACC's target-selection metrics). Target selection where
-it is hard (:mod:`~aldm_gym.agents.target_comparison`: curves of R 500–1500 m,
+it is hard (:mod:`~aldm_gym.agents.target_scenes`: curves of R 500–1500 m,
 vehicles 60–150 m ahead in the ego and adjacent lanes, cut-ins), generated roads
 only: ``compare_targets.csv`` and ``compare_targets.png``. With ``--xodr PATH`` both
 halves run on that OpenDRIVE map instead of seeded generated roads (frames on its
@@ -148,7 +148,7 @@ CONSOLE_COLUMNS: dict[str, str] = {
     "target_accuracy": "target ok",
 }
 """The closed-loop columns printed (with their short headers); ``compare.csv`` has all
-of :data:`~aldm_gym.agents.comparison.CLOSED_LOOP_COLUMNS`."""
+of :data:`~aldm_gym.agents.closed_loop.CLOSED_LOOP_COLUMNS`."""
 
 
 def _no_bar(args: argparse.Namespace) -> bool | None:
@@ -381,8 +381,8 @@ def _compare_closed_loop(args: argparse.Namespace, out: Path) -> list[Path]:
     """Closed loop: LKA (IDLE) and the rule-based LCA on the same seeded episodes."""
     from tqdm import tqdm
 
-    from aldm_gym.agents.comparison import CLOSED_LOOP_COLUMNS, compare_closed_loop
-    from aldm_gym.agents.plot import plot_offsets
+    from aldm_gym.agents.closed_loop import CLOSED_LOOP_COLUMNS, compare_closed_loop
+    from aldm_gym.agents.figures import plot_offsets
     from aldm_gym.roads import MARKING_MODELS
     from aldm_gym.sensor.detectors import DETECTORS
 
@@ -426,7 +426,7 @@ def _compare_closed_loop(args: argparse.Namespace, out: Path) -> list[Path]:
 def _plot_conditions(args: argparse.Namespace, traffic: dict[str, Any] | None, out: Path) -> Path:
     """``frame_conditions.png``: a closed-loop frame of the first seed under the
     conditions, with vehicles, shadows and clutter, under every detector's lines."""
-    from aldm_gym.agents.comparison import conditions_scene
+    from aldm_gym.agents.closed_loop import conditions_scene
     from aldm_gym.sensor.frame_plot import plot_conditions_frame
 
     scene = conditions_scene(
@@ -463,8 +463,8 @@ def _compare_targets(args: argparse.Namespace, out: Path) -> list[Path]:
     """Target selection in hard scenes (curves, vehicles in adjacent lanes, cut-ins)."""
     from tqdm import tqdm
 
-    from aldm_gym.agents.plot import plot_target_selection
-    from aldm_gym.agents.target_comparison import (
+    from aldm_gym.agents.figures import plot_target_selection
+    from aldm_gym.agents.target_scenes import (
         DISTANCE_BINS,
         TARGET_COLUMNS,
         compare_target_selection,

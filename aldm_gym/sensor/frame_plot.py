@@ -311,7 +311,7 @@ def draw_occluders(ax: Axes, boxes: np.ndarray, reach: float) -> None:
 def plot_conditions_frame(scene: Mapping[str, Any], path: str | Path, *, title: str = "") -> None:
     """One sensor frame with vehicles, shadows and clutter, under each detector's lines.
 
-    :param scene: :func:`~aldm_gym.agents.comparison.conditions_scene`'s result.
+    :param scene: :func:`~aldm_gym.agents.closed_loop.conditions_scene`'s result.
     :param path: the PNG written.
     :param title: the figure's title.
     """

@@ -180,7 +180,7 @@ class Backend(ABC, Generic[C]):
     @abstractmethod
     def load_policy(cls, path: Path) -> tuple[Any, dict[str, Any]]:
         """A trained model or checkpoint of this backend as a policy with SB3's
-        ``predict`` (:mod:`aldm_gym.agents.evaluation` plays it), and the
+        ``predict`` (:mod:`aldm_gym.agents.episodes` plays it), and the
         ``training.json`` of its output folder.
 
         :raises FileNotFoundError: no model there, or no ``training.json`` beside it.

@@ -2,7 +2,7 @@
 
 :func:`evaluate` plays a trained model, :class:`~aldm_gym.agents.policies.RuleBasedLCA`
 and :class:`~aldm_gym.agents.policies.IdlePolicy` on the same seeds with
-:func:`~aldm_gym.agents.evaluation.run_episodes`; :func:`summary_line` says in one
+:func:`~aldm_gym.agents.episodes.run_episodes`; :func:`summary_line` says in one
 sentence how the model compares, with its uncertainty.
 
 The verdict is paired on the seeds (every policy drives the same episodes):
@@ -52,7 +52,7 @@ EVAL_COLUMNS = (
     "collisions",
 )
 """Columns of the evaluation table (metrics from
-:func:`~aldm_gym.agents.evaluation.summarize`)."""
+:func:`~aldm_gym.agents.episodes.summarize`)."""
 
 
 def evaluate(
@@ -70,7 +70,7 @@ def evaluate(
     :param episodes: episodes per policy (seeds ``seed .. seed + episodes - 1``).
     :param detector, marking_model: override the training env's (None: as trained).
     :return: rows (``idle``, ``rule_based``, ``model``) with the
-        :func:`~aldm_gym.agents.evaluation.summarize` metrics and ``policy``; and the
+        :func:`~aldm_gym.agents.episodes.summarize` metrics and ``policy``; and the
         evaluation's env config, model metadata and, per policy, each episode's mean
         speed [m/s] and whether it collided (``per_episode``, in seed order).
     :raises FileNotFoundError, CheckpointError: see
@@ -80,7 +80,7 @@ def evaluate(
     import gymnasium as gym
     from tqdm import tqdm
 
-    from aldm_gym.agents.evaluation import run_episodes, summarize
+    from aldm_gym.agents.episodes import run_episodes, summarize
     from aldm_gym.agents.policies import IdlePolicy, RuleBasedLCA
 
     policy, meta = load_policy(model_path)

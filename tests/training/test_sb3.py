@@ -83,7 +83,7 @@ def test_validation_keeps_the_model_it_scored_best(tmp_path: Path) -> None:
     import gymnasium as gym
     import numpy as np
 
-    from aldm_gym.agents.evaluation import run_episodes
+    from aldm_gym.agents.episodes import run_episodes
 
     out = tmp_path / "val"
     extra = ("--validation-freq", "32", "--validation-episodes", "2")

@@ -3,8 +3,8 @@
 highway-env's ``Road`` answers neighbour queries, collisions and perception queries
 with O(n²) Python-level work per simulation step, and its vehicle models spend most of
 their time in numpy *scalar* calls (highway-env issues #36, #121, #223). This package
-keeps the exact answers (checked bit for bit in ``tests/test_traffic.py``) and removes
-that work. One job per module:
+keeps the exact answers (checked bit for bit in
+``tests/envs/traffic/test_fast_road.py``) and removes that work. One job per module:
 
 - :mod:`~aldm_gym.envs.traffic.scalar` -- scalar float math with numpy's results
   (``clip_scalar``, ``power_scalar``, ``sin_scalar``, ...) and the probe of where numpy

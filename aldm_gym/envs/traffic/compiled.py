@@ -20,7 +20,7 @@ functions, so the episode is the same bit for bit as with the Python path
 (:data:`~aldm_gym.envs.traffic.scalar.LIBM_MATCHES_NUMPY`), and the same bit for bit
 as the Python path computed with libm's functions on every CPU; where numpy differs by
 last bits the two engines agree to rounding over short horizons and statistically
-(docs/env.md, "The traffic engine"; ``tests/test_traffic_compiled.py`` checks all
+(docs/env.md, "The traffic engine"; ``tests/envs/traffic/test_compiled.py`` checks all
 three). A step runs on the Python path whenever the engine cannot run it, decided per
 simulation step (the reason is counted in :attr:`CompiledTraffic.steps`, and a whole
 env step on the Python path is warned about once per reason):

@@ -7,7 +7,7 @@ operation, what highway-env's ``IDMVehicle`` (through
 are :class:`~aldm_gym.roads.lane.ReferenceLane` offsets of one
 :class:`~aldm_gym.roads.reference_line.ReferenceLine`, in the same order and with the same
 IEEE operations (``math`` and numba call the same C library here), so the results are
-the same floats (``tests/test_traffic_compiled.py`` checks whole episodes bit for bit).
+the same floats (``tests/envs/traffic/test_compiled.py`` checks whole episodes bit for bit).
 On such a road every lane shares the line's arc length ``s`` and the lateral coordinate
 of lane ``k`` is ``offset[k] - d``, so one projection per vehicle and step serves every
 lane query.

@@ -4,7 +4,7 @@ After :class:`~aldm_gym.envs.traffic.road.FastRoad`, the per-step cost is domina
 numpy *scalar* calls in the vehicle models (``np.clip``, ``np.dot``, ``np.array``,
 properties building 2-vectors). The classes here redo the same IEEE operations on
 Python floats (:mod:`aldm_gym.envs.traffic.scalar`), so trajectories are identical
-bit for bit (checked in ``tests/test_traffic.py``):
+bit for bit (checked in ``tests/envs/traffic/test_fast_road.py``):
 
 - :class:`BatchedLaneUpdate` -- mixin: lets ``FastRoad.step`` defer the closest-lane
   look-up that ends a vehicle's ``step``.

@@ -21,14 +21,10 @@ from __future__ import annotations
 
 from typing import Any
 
-from aldm_gym.errors import MissingRLDependencies
+from aldm_gym.errors import MissingRayDependencies
 from aldm_gym.training.backend import import_extra
 
 __all__ = ["MissingRayDependencies", "import_rllib"]
-
-
-class MissingRayDependencies(MissingRLDependencies):
-    """Ray RLlib or torch is not installed."""
 
 
 def import_rllib() -> Any:

@@ -29,7 +29,7 @@ from stable_baselines3.common.utils import safe_mean
 from tqdm import tqdm
 
 from aldm_gym import ENV_ID
-from aldm_gym.agents.evaluation import EpisodeStats, run_episodes, summarize
+from aldm_gym.agents.episodes import EpisodeStats, run_episodes, summarize
 from aldm_gym.agents.policies import IdlePolicy, RuleBasedLCA
 from aldm_gym.training.outputs import (
     BEST_MODEL_FILE,
@@ -182,7 +182,7 @@ class ValidationCallback(BaseCallback):
     Not SB3's ``EvalCallback``: that one scores with ``evaluate_policy`` on a
     ``VecEnv`` (no per-episode seeds, returns only) and triggers every ``eval_freq``
     calls mid-rollout; here every policy plays the same seeded episodes through
-    :func:`~aldm_gym.agents.evaluation.run_episodes` with ground-truth metrics, between
+    :func:`~aldm_gym.agents.episodes.run_episodes` with ground-truth metrics, between
     rollouts.
 
     :param out: the training's output folder.
@@ -268,7 +268,7 @@ class ValidationCallback(BaseCallback):
 
     def validate(self) -> None:
         """Play the validation seeds now; record, log, and keep the model if best."""
-        from aldm_gym.agents.plot import plot_validation
+        from aldm_gym.agents.figures import plot_validation
 
         steps = self.model.num_timesteps
         self.last = steps

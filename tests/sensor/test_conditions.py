@@ -8,12 +8,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import aldm_gym
 from aldm_gym.roads import HighwayRoad, OpenDriveRoad
 from aldm_gym.sensor import LineSensor, LineSensorConfig, detect_lanes
 from aldm_gym.sensor import conditions as cond
 from tests.conftest import pose_on_lane
 
-MAPS = Path(__file__).resolve().parents[1] / "aldm_gym" / "roads" / "maps"
+MAPS = Path(aldm_gym.__file__).parent / "roads" / "maps"
 W = 3.75  # lane width of the test roads [m]
 
 

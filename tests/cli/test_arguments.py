@@ -12,7 +12,9 @@ from pathlib import Path
 import pytest
 from _cli import usage_error
 
-MAP = Path(__file__).resolve().parent.parent / "aldm_gym" / "roads" / "maps" / "motorway.xodr"
+import aldm_gym
+
+MAP = Path(aldm_gym.__file__).parent / "roads" / "maps" / "motorway.xodr"
 
 
 @pytest.fixture()

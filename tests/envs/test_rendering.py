@@ -177,7 +177,7 @@ def test_demo_frame_is_where_naive_errs_most() -> None:
 def test_offset_figure_marks_a_collision(tmp_path: Path) -> None:
     from argparse import Namespace
 
-    from aldm_gym.agents.plot import plot_offsets
+    from aldm_gym.agents.figures import plot_offsets
     from aldm_gym.cli.compare import _crashed
 
     full = [(25.0 * k, 0.01 * k) for k in range(40)]
@@ -208,7 +208,7 @@ def test_offset_figure_survives_an_episode_that_leaves_the_map(tmp_path: Path) -
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from aldm_gym.agents.plot import plot_offsets
+    from aldm_gym.agents.figures import plot_offsets
 
     traces = {
         ("editor", "naive"): [(0.0, -math.inf)],

@@ -10,6 +10,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
+import aldm_gym
 from aldm_gym.roads.map_road import OpenDriveRoad
 from aldm_gym.roads.opendrive import OpenDriveMap
 from aldm_gym.roads.opendrive.bridges import BRIDGE_CLEARANCE, Crossing, levels
@@ -320,7 +321,7 @@ def test_the_render_draws_the_bridge_overhead(maps: dict[str, Path]) -> None:
 
 
 def test_the_shipped_bridges_map() -> None:
-    path = Path(__file__).resolve().parents[1] / "aldm_gym" / "roads" / "maps" / "bridges.xodr"
+    path = Path(aldm_gym.__file__).parent / "roads" / "maps" / "bridges.xodr"
     road = OpenDriveRoad.from_file(path)
     bridges = road.map.bridges
     assert sorted(bridges) == ["3", "4"]

@@ -7,7 +7,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from aldm_gym.agents.evaluation import EpisodeStats, run_episode, summarize
+from aldm_gym.agents.episodes import EpisodeStats, run_episode, summarize
 from aldm_gym.envs.actions import MetaAction
 
 

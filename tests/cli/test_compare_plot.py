@@ -8,7 +8,8 @@ from pathlib import Path
 import pytest
 from _cli import usage_error
 
-from aldm_gym.agents.comparison import CLOSED_LOOP_COLUMNS
+import aldm_gym
+from aldm_gym.agents.closed_loop import CLOSED_LOOP_COLUMNS
 from aldm_gym.cli import main
 from aldm_gym.roads import HighwayRoad
 from aldm_gym.sensor.detectors import make_detector
@@ -68,7 +69,7 @@ def test_compare_with_the_camera_preset_adds_tracking_and_the_conditions_frame(
 def test_conditions_on_and_detector_variants() -> None:
     import argparse
 
-    from aldm_gym.agents.comparison import compare_closed_loop
+    from aldm_gym.agents.closed_loop import compare_closed_loop
     from aldm_gym.cli.compare import conditions_on, sensor_settings
 
     assert not conditions_on({})
@@ -131,7 +132,7 @@ def test_unknown_detector() -> None:
         make_detector("perfect")
 
 
-MAP = Path(__file__).resolve().parent.parent / "aldm_gym" / "roads" / "maps" / "motorway.xodr"
+MAP = Path(aldm_gym.__file__).parent / "roads" / "maps" / "motorway.xodr"
 
 
 @pytest.mark.skipif(not MAP.exists(), reason="shipped maps not built")

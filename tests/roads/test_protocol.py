@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import aldm_gym
 from aldm_gym.errors import OffRoadError
 from aldm_gym.roads import (
     HighwayRoad,
@@ -21,7 +22,7 @@ from aldm_gym.roads import (
     shipped_map,
 )
 
-PACKAGE = Path(__file__).resolve().parents[1] / "aldm_gym"
+PACKAGE = Path(aldm_gym.__file__).parent
 ROAD_KINDS = {"HighwayRoad", "OpenDriveRoad", "PolylineRoad"}
 
 

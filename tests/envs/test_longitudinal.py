@@ -340,7 +340,7 @@ def test_acc_on_an_opendrive_map() -> None:
 
 # ------------------------------------------------------------------ comparison
 def test_target_scenes_aldm_right_naive_per_dash_wrong() -> None:
-    from aldm_gym.agents.target_comparison import compare_target_selection
+    from aldm_gym.agents.target_scenes import compare_target_selection
 
     rows, curves = compare_target_selection(
         [0], 24, marking_models=("per_dash",), detectors=("naive", "aldm")

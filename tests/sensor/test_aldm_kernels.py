@@ -1,0 +1,234 @@
+"""The ALDM's numba kernels (aldm_gym.sensor.aldm_kernels): twins, sorts, fit sums,
+the fit window, a fully plain-Python run."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from aldm_gym.sensor.aldm import _packed, detect_lanes, make_params
+from aldm_gym.sensor.aldm_kernels import fit, grid, layout, output, robust, sort
+
+from ._aldm_cases import frame
+
+
+# ----------------------------------------------------------------- kernels
+def _kernel_inputs(seed: int, mode: str):  # type: ignore[no-untyped-def]
+    _road, pts = frame(seed, radius=-200, noise=0.05, dropout=0.1)
+    fp, ip = _packed(make_params(mode=mode))
+    return pts, fp, ip
+
+
+@pytest.mark.parametrize("mode", ["robust", "paper"])
+@pytest.mark.parametrize("reach", [np.inf, 80.0])
+def test_python_and_numba_pipeline_agree_exactly(mode: str, reach: float) -> None:
+    """The top-level kernel as Python (its helpers compiled) vs fully compiled."""
+    pts, fp, ip = _kernel_inputs(13, mode)
+    got_py = output.detect_frame_py(pts, fp, ip, reach)
+    got_nb = output.detect_frame(pts, fp, ip, reach)
+    for a, b in zip(got_py, got_nb, strict=True):
+        np.testing.assert_array_equal(a, b)
+
+
+def test_leaf_kernels_python_and_numba_agree_exactly() -> None:
+    pts, _fp, _ip = _kernel_inputs(14, "robust")
+    xs, ys = sort.gather_py(pts, True, 0.5, 500.0)
+    xs2, ys2 = sort.gather(pts, True, 0.5, 500.0)
+    np.testing.assert_array_equal(xs, xs2)
+    np.testing.assert_array_equal(ys, ys2)
+    m = int(np.searchsorted(xs, 23.52, side="right"))
+    np.testing.assert_array_equal(
+        robust._seed_chains_py(xs, ys, m, 4.5, 1.5), robust._seed_chains(xs, ys, m, 4.5, 1.5)
+    )
+    g_py, g_nb = grid.build_grid_py(xs, ys, 1.2), grid.build_grid(xs, ys, 1.2)
+    for a, b in zip(g_py, g_nb, strict=True):
+        np.testing.assert_array_equal(a, b)
+    us, vs = xs[:20] - xs[19], ys[:20]
+    w1, w2 = np.empty((2, 3, 3)), np.empty((2, 3, 3))
+    r_py = fit._ridge_quadratic_py(us, vs, 20, 0.001, 0.0, 2.0, 1.0, 0.005, w1)
+    r_nb = fit._ridge_quadratic(us, vs, 20, 0.001, 0.0, 2.0, 1.0, 0.005, w2)
+    assert r_py[:3] == r_nb[:3]
+    np.testing.assert_array_equal(r_py[3], r_nb[3])
+
+
+@pytest.mark.parametrize("kind", ["uniform", "ties", "crowded", "constant", "empty"])
+def test_start_region_y_order_is_a_sort(kind: str) -> None:
+    """The start region's y order (the one bucket sort on ``ys[:m]``) is ascending."""
+    rng = np.random.default_rng(7)
+    ys = rng.uniform(-180.0, 180.0, 1200)
+    if kind == "ties":
+        ys = np.round(ys / 10.0) * 10.0
+    elif kind == "crowded":  # most values in a few buckets (argsort path), one far outlier
+        ys[:1000] = np.round(rng.uniform(0.0, 1.0, 1000), 2)
+        ys[1000] = -1e4
+    elif kind == "constant":
+        ys[:] = -0.0
+    m = 0 if kind == "empty" else 1000  # only ys[:m] counts
+    for order in (sort.bucket_order, sort.bucket_order_py):
+        yo = order(ys[:m], ys[:m])
+        np.testing.assert_array_equal(np.sort(yo), np.arange(m))
+        np.testing.assert_array_equal(ys[yo], np.sort(ys[:m]))
+
+
+@pytest.mark.parametrize("kind", ["uniform", "ties", "crowded", "subnormal_range"])
+def test_bucket_order_is_the_lexicographic_order(kind: str) -> None:
+    """``_bucket_order(k1, k2)`` orders like ``np.lexsort((k2, k1))`` (as values)."""
+    rng = np.random.default_rng(11)
+    k1 = rng.uniform(0.0, 200.0, 2000)
+    k2 = rng.uniform(-50.0, 50.0, 2000)
+    if kind == "ties":
+        k1, k2 = np.round(k1), np.round(k2)
+    elif kind == "crowded":
+        k1[:1900] = np.round(rng.uniform(0.0, 1.0, 1900), 1)
+        k1[0] = 1e4
+    elif kind == "subnormal_range":
+        k1 = np.where(rng.random(2000) < 0.5, 0.0, 5e-324)
+    want = np.lexsort((k2, k1))
+    for order in (sort.bucket_order, sort.bucket_order_py):
+        with np.errstate(over="ignore"):  # plain Python: m / (sub-normal range) is inf
+            got = order(k1, k2)
+        np.testing.assert_array_equal(np.sort(got), np.arange(len(k1)))
+        np.testing.assert_array_equal(k1[got], k1[want])
+        np.testing.assert_array_equal(k2[got], k2[want])
+
+
+def test_fit_sums_update_adds_and_drops_exactly() -> None:
+    """``update_sums`` with w = ±1 is the former add/drop pair bit for bit (frozen copy),
+    and the sums it builds are the normal equations of the true quadratic."""
+
+    def add_drop(sums: tuple, u: float, y: float, sign: float) -> tuple:
+        s0, s1, s2, s3, s4, t0, t1, t2 = sums
+        uu = u * u
+        if sign > 0:
+            return (
+                s0 + 1.0,
+                s1 + u,
+                s2 + uu,
+                s3 + uu * u,
+                s4 + uu * uu,
+                t0 + y,
+                t1 + u * y,
+                t2 + uu * y,
+            )
+        return (
+            s0 - 1.0,
+            s1 - u,
+            s2 - uu,
+            s3 - uu * u,
+            s4 - uu * uu,
+            t0 - y,
+            t1 - u * y,
+            t2 - uu * y,
+        )
+
+    rng = np.random.default_rng(5)
+    us = -rng.uniform(0.0, 40.0, 60)
+    ys = 1.8 + 0.02 * us + 1e-3 * us * us  # an exact quadratic
+    sums_py = sums_nb = frozen = (0.0,) * 8
+    for k in range(60):
+        for w in (1.0, -1.0) if k % 7 == 3 else (1.0,):  # some points added and dropped
+            sums_py = fit.update_sums_py(*sums_py, us[k], ys[k], w)
+            sums_nb = fit.update_sums(*sums_nb, us[k], ys[k], w)
+            frozen = add_drop(frozen, us[k], ys[k], w)
+            assert sums_py == frozen and sums_nb == frozen
+    for w in (1.0,):  # the dropped points back, then the fit of the true quadratic
+        for k in range(3, 60, 7):
+            sums_nb = fit.update_sums(*sums_nb, us[k], ys[k], w)
+    want = [np.sum(us**j) for j in range(5)] + [np.sum(ys * us**j) for j in range(3)]
+    np.testing.assert_allclose(sums_nb, want, rtol=1e-12)
+    a, b, c, _ = fit.ridge_solve(*sums_nb, 0.0, 0.0, 0.0, 0.0, 1.0, np.empty((2, 3, 3)))
+    np.testing.assert_allclose([a, b, c], [1e-3, 0.02, 1.8], rtol=1e-8)
+
+
+@pytest.mark.parametrize("fit_length", [40.0, 20.0])
+def test_trace_fit_window_dense_line_and_gap(fit_length: float) -> None:
+    """The trace's running fit sums: > HIST points in the window, and a gap that leaves
+    only the new point in it (fit_length 20 m < the 25 m gap < gap_search_length)."""
+    x = np.concatenate([np.arange(5.0, 60.0, 0.25), np.arange(85.0, 180.0, 0.25)])
+    pts = np.concatenate([np.column_stack([x, np.full_like(x, y)]) for y in (1.8, -1.9)])
+    params = make_params(fit_length=fit_length, gap_search_length=30.0)
+    det = detect_lanes(pts, params)
+    for name, y in (("ego_left", 1.8), ("ego_right", -1.9)):
+        line = getattr(det, name)
+        assert line[0, 0] == 5.0 and line[-1, 0] == 179.75
+        np.testing.assert_allclose(line[:, 1], y, atol=1e-9)
+    # The trace kernel alone, plain Python vs compiled, on a noisy copy.
+    noisy = pts + np.random.default_rng(3).normal(0.0, 0.05, pts.shape)
+    fp, _ip = _packed(params)
+    xs, ys = sort.gather(noisy, False, 0.5, 500.0)
+    cells = grid.build_grid(xs, ys, fp[layout.P.gate_max])
+    seed = (xs <= 23.52) & (ys > 0.0)
+    first, last = np.flatnonzero(seed)[[0, -1]]
+    masks, bit = [], np.uint8(2)
+    for trace in (robust._robust_trace_py, robust._robust_trace):
+        mask = np.where(seed, 2, 0).astype(np.uint8)
+        trace(xs, ys, first, last, 0.0, 0.0, fp, 2.5, 1.0, np.zeros((0, 3)), cells, mask, bit)
+        masks.append(mask)
+    np.testing.assert_array_equal(masks[0], masks[1])
+    assert xs[masks[1] == 2].max() > 170.0
+
+
+@pytest.mark.slow
+def test_fully_plain_python_run_agrees_with_numba(tmp_path: Path) -> None:
+    """NUMBA_DISABLE_JIT=1: every kernel runs as plain Python in a subprocess."""
+    _road, pts = frame(15, radius=300, noise=0.05, dropout=0.1)
+    pts = pts[pts[:, 0] < 90.0]  # keep the pure-Python run short
+    np.save(tmp_path / "pts.npy", pts)
+    code = (
+        "import json, sys, numpy as np\n"
+        "from aldm_gym.sensor.aldm import detect_lanes\n"
+        f"p = np.load({str(tmp_path / 'pts.npy')!r})\n"
+        "out = {}\n"
+        "for mode in ('robust', 'paper'):\n"
+        "    d = detect_lanes(p, mode=mode)\n"
+        "    out[mode] = {n: getattr(d, n).tolist() for n in "
+        "('left_adjacent', 'ego_left', 'ego_right', 'right_adjacent', 'trajectory')}\n"
+        "print(json.dumps(out))\n"
+    )
+    env = dict(os.environ, NUMBA_DISABLE_JIT="1")
+    res = subprocess.run(
+        [sys.executable, "-c", code],
+        env=env,
+        capture_output=True,
+        text=True,
+        check=True,
+        cwd=Path(__file__).resolve().parents[1],
+    )
+    plain = json.loads(res.stdout.strip().splitlines()[-1])
+    for mode in ("robust", "paper"):
+        det = detect_lanes(pts, mode=mode)
+        for name, value in plain[mode].items():
+            np.testing.assert_array_equal(np.array(value).reshape(-1, 2), getattr(det, name))
+
+
+# ----------------------------------------------------------------- canonical order
+@pytest.mark.parametrize("kind", ["uniform", "ties", "crowded", "signed_zero"])
+def test_gather_is_the_lexicographic_sort_of_the_valid_points(kind: str) -> None:
+    """The bucket sort equals np.lexsort by (x, y) of the kept rows, also for crowded buckets."""
+    rng = np.random.default_rng(5)
+    pts = rng.uniform(-10.0, 300.0, (3000, 3))
+    pts[:, 2] *= 0.003
+    if kind == "ties":
+        pts[:, :2] = np.round(pts[:, :2])
+    elif kind == "crowded":  # most points in a few buckets (argsort path), one far outlier
+        pts[:, 0] = np.round(rng.uniform(0.0, 1.0, 3000), 2)
+        pts[0, 0] = 450.0
+    elif kind == "signed_zero":
+        pts[:300, 0] = -0.0
+        pts[300:600, 1] = -0.0
+    pts[rng.integers(0, 3000, 20)] = np.nan
+    keep = (pts[:, 0] >= 0) & (pts[:, 0] <= 500) & (np.abs(pts[:, 1]) <= 500)
+    keep &= np.abs(pts[:, 2]) <= 0.5
+    q = pts[keep] + 0.0
+    o = np.lexsort((q[:, 1], q[:, 0]))
+    for gather in (sort.gather, sort.gather_py):
+        xs, ys = gather(pts[rng.permutation(len(pts))], True, 0.5, 500.0)
+        np.testing.assert_array_equal(xs, q[o, 0])
+        np.testing.assert_array_equal(ys, q[o, 1])
+        assert not np.signbit(xs).any() and not np.signbit(ys[ys == 0.0]).any()
