@@ -22,7 +22,8 @@ to any of them recompiles them all (a minute), and an unchanged checkout keeps i
 cache whatever the files' times.
 
 On a cache miss of one of the package's kernels (the first run after an install or an
-edit), one line on stderr says that kernels are being compiled, once per process.
+edit), one log record says that kernels are being compiled, once per process (logger
+``aldm_gym.compile``, level WARNING: Python shows it on stderr with no logging set up).
 
 :func:`install` wraps numba's ``Cache.load_overload`` and
 ``Dispatcher.enable_caching`` for functions of this package only (another package's
@@ -34,7 +35,7 @@ modules keep their plain ``numba.njit(cache=True)``.
 from __future__ import annotations
 
 import hashlib
-import sys
+import logging
 import warnings
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -42,6 +43,8 @@ from pathlib import Path
 from typing import Any
 
 from aldm_gym.errors import NumbaCacheWarning
+
+_LOG = logging.getLogger("aldm_gym.compile")
 
 PACKAGE = "aldm_gym"
 """Functions of modules under this package are guarded."""
@@ -94,16 +97,15 @@ def notice_given() -> Iterator[None]:
 
 
 def _announce_compile() -> None:
-    """One line on stderr, once per process, when a kernel is not in the cache: the
-    first run after an install compiles for about a minute, and should not look hung."""
+    """One log record (a warning, so that Python shows it on stderr without any logging
+    set up), once per process, when a kernel is not in the cache: the first run after
+    an install compiles for about a minute, and should not look hung."""
     global _announced
     if not _announced:
         _announced = True
-        print(
+        _LOG.warning(
             "aldm-gym: compiling numba kernels (first run after an install or an update; "
-            "about a minute on 2 cores, cached on disk afterwards)...",
-            file=sys.stderr,
-            flush=True,
+            "about a minute on 2 cores, cached on disk afterwards)..."
         )
 
 

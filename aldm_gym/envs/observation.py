@@ -46,6 +46,7 @@ import numpy as np
 from gymnasium import spaces
 
 from aldm_gym.config import setting, validate
+from aldm_gym.envs.traffic.vehicles import velocity
 from aldm_gym.errors import InputError
 from aldm_gym.sensor.lane_detection import LINE_NAMES, LaneDetection, resample_line
 from aldm_gym.types import FloatArray
@@ -78,6 +79,9 @@ class LaneCode(IntEnum):
 
 LANE_ROWS = (LaneCode.LEFT, LaneCode.EGO, LaneCode.RIGHT)
 """Lane code of each row of the ``lanes`` observation."""
+
+_ROW_OF_CODE = {float(code): row for row, code in enumerate(LANE_ROWS)}
+"""Row of the ``lanes`` observation of a lane code (as the float codes hold it)."""
 
 VEHICLE_LENGTH = 5.0
 """highway-env's vehicle length [m], subtracted from centre distances to give gaps."""
@@ -226,18 +230,34 @@ def lane_gaps(
         reach = 0.5 * (lengths + VEHICLE_LENGTH)
     pd = perception_distance
     out = np.tile(np.array([pd, 0.0, pd, 0.0]), (3, 1))
-    for row, code in enumerate(LANE_ROWS):
-        mine = codes == code
-        ahead = np.flatnonzero(mine & (x >= 0.0))
-        if len(ahead):
-            i = ahead[np.argmin(x[ahead])]
-            out[row, 0] = min(max(x[i] - reach[i], 0.0), pd)
-            out[row, 1] = vx[i]
-        behind = np.flatnonzero(mine & (x < 0.0))
-        if len(behind):
-            i = behind[np.argmax(x[behind])]
-            out[row, 2] = min(max(-x[i] - reach[i], 0.0), pd)
-            out[row, 3] = vx[i]
+    # The nearest vehicle ahead (smallest x >= 0) and behind (largest x < 0) per lane,
+    # the first one on ties; one pass over a handful of vehicles, in plain floats.
+    xs = x.tolist()
+    ahead = [-1, -1, -1]
+    behind = [-1, -1, -1]
+    for i, (code, xi) in enumerate(zip(codes.tolist(), xs, strict=True)):
+        row = _ROW_OF_CODE.get(code)
+        if row is None:
+            continue
+        if xi >= 0.0:
+            j = ahead[row]
+            if j < 0 or xi < xs[j]:
+                ahead[row] = i
+        else:
+            j = behind[row]
+            if j < 0 or xi > xs[j]:
+                behind[row] = i
+    gaps = reach.tolist()
+    speeds = vx.tolist()
+    for row in range(3):
+        i = ahead[row]
+        if i >= 0:
+            out[row, 0] = min(max(xs[i] - gaps[i], 0.0), pd)
+            out[row, 1] = speeds[i]
+        i = behind[row]
+        if i >= 0:
+            out[row, 2] = min(max(-xs[i] - gaps[i], 0.0), pd)
+            out[row, 3] = speeds[i]
     return out
 
 
@@ -283,8 +303,9 @@ def build_observation(
         traj = t
         traj_valid[0] = 1.0
     veh = np.zeros((vehicles_count, 6))
-    lanes = lane_gaps(np.zeros(0), np.zeros(0), np.zeros(0), perception_distance)
-    if len(others):
+    if len(others) == 0:
+        lanes = lane_gaps(np.zeros(0), np.zeros(0), np.zeros(0), perception_distance)
+    else:
         dist = np.hypot(others[:, 0], others[:, 1])
         near = np.flatnonzero(dist <= perception_distance)
         near = near[np.argsort(dist[near], kind="stable")]
@@ -379,7 +400,7 @@ class ALDMObservation:
         if others:
             rel = to_sensor_frame(
                 np.array([v.position for v in others], dtype=np.float64),
-                np.array([v.velocity for v in others], dtype=np.float64) - ego.velocity,
+                np.array([velocity(v) for v in others], dtype=np.float64) - ego.velocity,
                 frame.origin,
                 frame.yaw,
             )

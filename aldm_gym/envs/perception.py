@@ -18,8 +18,7 @@ from aldm_gym.envs.config import EnvConfig
 from aldm_gym.envs.targets import Objects, objects_from_world
 from aldm_gym.envs.traffic import FastRoad
 from aldm_gym.envs.traffic import kernels as K
-from aldm_gym.envs.traffic.scalar import cos_scalar, sin_scalar
-from aldm_gym.envs.traffic.vehicles import uses_base_kinematics
+from aldm_gym.envs.traffic.vehicles import velocity
 from aldm_gym.roads.protocol import Road
 from aldm_gym.sensor.detectors import Detector, make_detector
 from aldm_gym.sensor.frame import SensorFrame
@@ -27,16 +26,7 @@ from aldm_gym.sensor.lane_detection import LaneDetection
 from aldm_gym.sensor.line_sensor import LineSensor
 from aldm_gym.sensor.tracking import EgoMotion
 
-__all__ = ["Perception", "velocity"]
-
-
-def velocity(vehicle: Any) -> Any:
-    """``vehicle.velocity`` [m/s] (world frame): for highway-env's own kinematics the
-    same floats computed without building two arrays."""
-    if uses_base_kinematics(type(vehicle)):
-        speed, heading = vehicle.speed, vehicle.heading
-        return (speed * cos_scalar(heading), speed * sin_scalar(heading))
-    return vehicle.velocity
+__all__ = ["Perception"]
 
 
 class Perception:

@@ -225,7 +225,9 @@ class Referee:
                 n: {"mean_abs_error": nan, "preview": nan, "correct": 0.0}
                 for n in ("ego_left", "ego_right")
             }
-        scores = score_detection(detection, self.road, frame, self.lane_position.lane)
+        scores = score_detection(
+            detection, self.road, frame, self.lane_position.lane, names=("ego_left", "ego_right")
+        )
         out: dict[str, dict[str, float]] = {}
         for name in ("ego_left", "ego_right"):
             sc = scores[name]

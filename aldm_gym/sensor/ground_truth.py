@@ -49,6 +49,26 @@ def boundary_y(y: FloatArray, line: Boundary) -> FloatArray:
     return out
 
 
+def true_markings(road: Road, frame: SensorFrame, xs: FloatArray) -> FloatArray:
+    """True lateral position [m] of every marking at sensor x positions ``xs``
+    (``(n_markings, K)``, NaN where a marking is not there).
+
+    Each value depends on its own x only (the road interpolates the segment that
+    crosses it), so lines scored on different x share one sampling.
+
+    :param xs: ``(K,)`` x positions [m], any order.
+    """
+    xs = np.asarray(xs, dtype=np.float64)
+    order = np.argsort(xs, kind="stable")
+    # Sample out to the sensor's range too: how far a road follows a marking depends on
+    # the last x asked for, and a detected point may lie far to the side in a curve.
+    grid = np.append(xs[order], max(float(frame.range), float(xs[order][-1])))
+    y, _ = road.sample_markings(frame.origin, frame.yaw, grid)
+    out = np.empty((y.shape[0], len(xs)))
+    out[:, order] = y[:, :-1]
+    return out
+
+
 def true_line(road: Road, frame: SensorFrame, marking: Boundary, xs: FloatArray) -> FloatArray:
     """True lateral position [m] of a line at sensor x positions ``xs`` (NaN where unseen).
 
@@ -56,18 +76,9 @@ def true_line(road: Road, frame: SensorFrame, marking: Boundary, xs: FloatArray)
     :param xs: ``(K,)`` x positions [m], any order.
     :return: ``(K,)`` y [m].
     """
-    xs = np.asarray(xs, dtype=np.float64)
     if len(xs) == 0:
         return np.zeros(0)
-    order = np.argsort(xs, kind="stable")
-    # Sample out to the sensor's range too: how far a road follows a marking depends on
-    # the last x asked for, and a detected point may lie far to the side in a curve.
-    grid = np.append(xs[order], max(float(frame.range), float(xs[order][-1])))
-    y, _ = road.sample_markings(frame.origin, frame.yaw, grid)
-    y = y[:, :-1]
-    out = np.empty(len(xs))
-    out[order] = boundary_y(y, marking)
-    return out
+    return boundary_y(true_markings(road, frame, xs), marking)
 
 
 def ground_truth_detect(
@@ -127,11 +138,19 @@ def score_line(
     tol: float = 0.3,
     start_max: float = 25.0,
     preview_min: float = 60.0,
+    markings_y: FloatArray | None = None,
 ) -> LineScore:
-    """Score a detected line against true marking ``marking`` (``None``: no such line)."""
+    """Score a detected line against true marking ``marking`` (``None``: no such line).
+
+    :param markings_y: every marking's true y at the line's x
+        (:func:`true_markings`), if already sampled.
+    """
     if len(line) < 2 or marking is None:
         return LineScore(len(line) >= 2, False, float("nan"), float("nan"), 0.0)
-    truth = true_line(road, frame, marking, line[:, 0])
+    if markings_y is None:
+        truth = true_line(road, frame, marking, line[:, 0])
+    else:
+        truth = boundary_y(markings_y, marking)
     err = np.abs(line[:, 1] - truth)  # NaN where the marking does not reach: counts as wrong
     err = np.where(np.isnan(err), np.inf, err)
     near = line[:, 0] <= preview_min
@@ -146,11 +165,27 @@ def score_detection(
     road: Road,
     frame: SensorFrame,
     lane_id: int,
+    names: tuple[str, ...] = LINE_NAMES,
     **kwargs: float,
 ) -> dict[str, LineScore]:
-    """Score the four lines (:data:`LINE_NAMES`) of a detection for a vehicle in ``lane_id``."""
+    """Score the lines ``names`` (default: all four, :data:`LINE_NAMES`) of a detection
+    for a vehicle in ``lane_id``.
+
+    The true markings are sampled once, at the x of every line that is scored (when
+    no line reaches beyond the sensor's range: the reach of the road's sampling grows
+    with the farthest x asked for, so such a line is sampled on its own).
+    """
     marks = line_markings(road, lane_id, frame.origin)
+    lines = {name: detection.line(name) for name in names}
+    scored = [n for n in names if len(lines[n]) >= 2 and marks[n] is not None]
+    rows: dict[str, FloatArray | None] = dict.fromkeys(names)
+    if scored and all(lines[n][:, 0].max() <= frame.range for n in scored):
+        y = true_markings(road, frame, np.concatenate([lines[n][:, 0] for n in scored]))
+        start = 0
+        for n in scored:
+            rows[n] = y[:, start : start + len(lines[n])]
+            start += len(lines[n])
     return {
-        name: score_line(detection.line(name), road, frame, marks[name], **kwargs)
-        for name in LINE_NAMES
+        name: score_line(lines[name], road, frame, marks[name], markings_y=rows[name], **kwargs)
+        for name in names
     }

@@ -47,6 +47,7 @@ __all__ = [
     "FastControlledVehicle",
     "FastIDMVehicle",
     "uses_base_kinematics",
+    "velocity",
 ]
 
 
@@ -56,6 +57,16 @@ def uses_base_kinematics(cls: type) -> bool:
     return getattr(cls, "direction", None) is RoadObject.direction and (
         getattr(cls, "velocity", None) in (Vehicle.velocity, RoadObject.velocity)
     )
+
+
+def velocity(vehicle: RoadObject) -> tuple[float, float] | np.ndarray:
+    """``vehicle.velocity`` [m/s] (world frame): for highway-env's own kinematics the
+    same floats (``speed * cos``, ``speed * sin``, numpy's functions) without building
+    two arrays; otherwise the vehicle's own property."""
+    if uses_base_kinematics(type(vehicle)):
+        speed, heading = vehicle.speed, vehicle.heading
+        return (speed * cos_scalar(heading), speed * sin_scalar(heading))
+    return vehicle.velocity
 
 
 def _extra_length(obj: RoadObject) -> float:
