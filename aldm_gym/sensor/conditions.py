@@ -33,7 +33,7 @@ from typing import Any
 import numba
 import numpy as np
 
-from aldm_gym.errors import ConfigError
+from aldm_gym.errors import InputError
 from aldm_gym.types import FloatArray, IntArray
 
 CELL = 100.0
@@ -113,13 +113,28 @@ _uniform = numba.njit(cache=True)(_uniform_py)
 _KEYS: weakref.WeakKeyDictionary[Any, int] = weakref.WeakKeyDictionary()
 
 
+KEY_GRID = 1e-3
+"""The grid [m] :func:`road_key` rounds the road's numbers to before digesting them."""
+
+
+def _grid_bytes(values: Any) -> bytes:
+    """``values`` rounded to :data:`KEY_GRID` as int64 bytes (non-finite values as a
+    fixed sentinel)."""
+    arr = np.asarray(values, dtype=np.float64)
+    finite = np.isfinite(arr)
+    grid = np.where(finite, np.round(np.where(finite, arr, 0.0) / KEY_GRID), -(2.0**62))
+    return np.ascontiguousarray(grid.astype(np.int64)).tobytes()
+
+
 def road_key(road: Any, seed: int = 0) -> int:
     """A 32-bit key of ``road``'s geometry and ``seed``: the road-fixed draws' identity.
 
     Digests the road's marking geometry (the reference table of a generated road, the
     marking vertices of a map) and paint table, so two roads built alike share their
     worn stretches and clutter, and a road and its twin with the other marking model
-    (same geometry) do too. Cached per road object.
+    (same geometry) do too. The numbers are digested on a 1 mm grid (:func:`_grid_bytes`),
+    so the last-bit differences of numpy's SIMD paths between CPUs do not give the same
+    road other wear. Cached per road object.
 
     :param road: the marked road (:class:`~aldm_gym.roads.MarkedRoad`).
     :param seed: the sensor's ``wear_seed``: another seed wears other stretches.
@@ -130,14 +145,14 @@ def road_key(road: Any, seed: int = 0) -> int:
         digest = hashlib.blake2b(digest_size=8)
         reference = getattr(road, "reference", None)
         if reference is not None:
-            digest.update(np.ascontiguousarray(reference.xy).tobytes())
+            digest.update(_grid_bytes(reference.xy))
         markings = getattr(road, "markings", None)
         xy = getattr(markings, "xy", None)
         if xy is not None:
-            digest.update(np.ascontiguousarray(xy).tobytes())
+            digest.update(_grid_bytes(xy))
         tab = road.marking_table
         for name in ("phase", "period", "dash", "paint", "paint_start"):
-            digest.update(np.ascontiguousarray(tab[name]).tobytes())
+            digest.update(_grid_bytes(tab[name]))
         base = int.from_bytes(digest.digest()[:4], "little")
         try:
             _KEYS[road] = base
@@ -350,12 +365,12 @@ def occluder_array(vehicles: Any) -> FloatArray:
     :return: ``(V, 6)`` rows ``(x, y, heading, length, width, height)``. A vehicle
         without ``HEIGHT`` is :data:`TRUCK_HEIGHT` tall when 10 m or longer, else
         :data:`CAR_HEIGHT`.
-    :raises ConfigError: an array of another shape or with non-finite values.
+    :raises InputError: an array of another shape or with non-finite values.
     """
     if isinstance(vehicles, np.ndarray):
         arr = np.asarray(vehicles, dtype=np.float64)
         if arr.ndim != 2 or arr.shape[1] != 6 or not np.isfinite(arr).all():
-            raise ConfigError(
+            raise InputError(
                 "occluders must be vehicles or a (V, 6) array of finite "
                 f"(x, y, heading, length, width, height), got shape {arr.shape}"
             )

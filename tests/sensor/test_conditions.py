@@ -164,6 +164,21 @@ def test_worn_paint_is_fixed_per_road(model: str) -> None:
     assert window(c) != window(a)
 
 
+def test_the_road_key_ignores_last_bit_differences_of_the_geometry() -> None:
+    """numpy's SIMD paths build the same road to different last bits on other CPUs:
+    its wear and clutter must not change with them."""
+    road = HighwayRoad({"seed": 3, "length": 2000.0})
+    key = cond.road_key(road, 0)
+    twin = HighwayRoad({"seed": 3, "length": 2000.0})
+    xy = twin.reference.xy
+    xy[1::3] = np.nextafter(xy[1::3], np.inf)  # every third vertex one ulp off
+    assert cond.road_key(twin, 0) == key
+    moved = HighwayRoad({"seed": 3, "length": 2000.0})
+    moved.reference.xy[5, 0] += 0.01  # a real change of the geometry
+    assert cond.road_key(moved, 0) != key
+    assert cond.road_key(road, 1) != key
+
+
 def test_worn_dash_share_and_a_worn_dash_is_gone_whole() -> None:
     road = HighwayRoad({"curved": False, "length": 1000.0})
     key = cond.road_key(road, 0)
