@@ -1,9 +1,9 @@
 """The exceptions and warnings aldm-gym raises on purpose, by kind.
 
 A caller can tell a typo in a setting from a corrupt map or a broken checkpoint by the
-class it catches. Every class also derives from the built-in exception it replaced
+class it catches. Every class also derives from the matching built-in exception
 (``ValueError``, ``FileNotFoundError``, ``RuntimeError``, ``ImportError``), so code
-that caught those keeps working::
+that catches those catches these too::
 
     AldmGymError
     ├── ConfigError (ValueError)        an unknown setting or a value out of its rules

@@ -429,9 +429,10 @@ class CompiledTraffic:
             self._p = p
         return True
 
-    def _refresh(self, road: Road, first: int) -> bool:
-        """Read the Python vehicles (rows ``:first``) into the arrays again; False if
-        one is not on this network's edge or its position is not finite.
+    def _refresh(self, road: Road, first: int) -> str | None:
+        """Read the Python vehicles (rows ``:first``) into the arrays again; the reason
+        for the Python path if one is not on this network's lanes or its position is
+        not finite, else ``None``.
 
         Row by row, the columns of :meth:`_gather`: for the one or two vehicles before
         the compiled ones this costs ~6 µs, :meth:`_gather`'s column reads ~20 µs.
@@ -446,10 +447,10 @@ class CompiledTraffic:
             if _is_controlled(type(v)):
                 target = lane_of.get(v.target_lane_index, -2)
             if lane is None or limit is None or target == -2:
-                return False
+                return _OFF_LANES
             x, y = v.position.tolist()
             if not (abs(x) < _COORD_LIMIT and abs(y) < _COORD_LIMIT):
-                return False
+                return _NOT_FINITE
             impact = v.impact
             ix, iy = (0.0, 0.0) if impact is None else impact.tolist()
             f[row, : K.F_SPEED_LIMIT + 1] = (
@@ -472,7 +473,7 @@ class CompiledTraffic:
                 v.collidable,
                 v.check_collisions,
             )
-        return True
+        return None
 
     @contextmanager
     def holding(self) -> Iterator[None]:
@@ -534,7 +535,7 @@ class CompiledTraffic:
             first = self._first
             for v in vehicles[:first]:
                 v.act()
-            gathered = self._refresh(road, first)
+            failed = self._refresh(road, first)
         else:
             split = self._split(road)
             if split is None:
@@ -543,10 +544,10 @@ class CompiledTraffic:
             first = self._first = split
             for v in vehicles[:first]:
                 v.act()
-            gathered = self._gather(road, first)
-        if not gathered:
+            failed = None if self._gather(road, first) else _OFF_LANES
+        if failed is not None:
             # The Python vehicles have acted: the rest act in Python too (same order).
-            self.steps[_OFF_LANES] += 1
+            self.steps[failed] += 1
             for v in vehicles[first:]:
                 v.act()
             return True
@@ -646,7 +647,7 @@ class CompiledTraffic:
         if not self._boxes or f is None or k is None or len(f) != len(vehicles):
             resolve_collisions(vehicles, road.objects, dt)
             return
-        if not self._refresh(road, first):  # they moved in Python since the gather
+        if self._refresh(road, first) is not None:  # moved in Python since the gather
             resolve_collisions(vehicles, road.objects, dt)
             return
         ok, pairs = K.collision_pairs(f, k, float(dt))

@@ -109,7 +109,7 @@ LIBM_MATCHES_NUMPY: bool = all(NUMPY_AGREES_WITH_LIBM.values())
 path's (and highway-env's) episodes bit for bit (docs/env.md, "The traffic engine")."""
 
 FAST_MATH_MATCHES_NUMPY: bool = LIBM_MATCHES_NUMPY
-"""Alias of :data:`LIBM_MATCHES_NUMPY` (the name earlier releases exported)."""
+"""Alias of :data:`LIBM_MATCHES_NUMPY`, kept for code that imports this name."""
 
 PLAIN_DOT_MATCHES_NUMPY: bool = NUMPY_AGREES_WITH_LIBM["dot"]
 """Whether ``np.dot`` of 2-vectors (and ``np.linalg.norm`` of one) is plain arithmetic

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 import struct
+import warnings
 from typing import Any
 
 import gymnasium as gym
@@ -28,7 +29,8 @@ from highway_env.vehicle.behavior import IDMVehicle
 from highway_env.vehicle.objects import Obstacle
 
 import aldm_gym  # noqa: F401  (registers ALDMHighway-v0)
-from aldm_gym.envs.traffic import compiled, kernels, scalar, vehicles
+from aldm_gym.envs.traffic import compiled, kernels, scalar, straight_lanes, vehicles
+from aldm_gym.envs.traffic import road as traffic_road
 from aldm_gym.envs.traffic.compiled import COMPILED, CompiledTraffic
 from aldm_gym.roads import reference_line
 
@@ -41,6 +43,12 @@ _LIBM = {
 }
 
 
+def _plain_dot(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Plain dot products wherever the Python path chooses between them and numpy's."""
+    for module in (vehicles, traffic_road, straight_lanes):
+        monkeypatch.setattr(module, "PLAIN_DOT_MATCHES_NUMPY", True)
+
+
 @pytest.fixture
 def libm_python_path(monkeypatch: pytest.MonkeyPatch) -> None:
     """The Python path computed with libm's functions and plain dot products: the
@@ -49,7 +57,7 @@ def libm_python_path(monkeypatch: pytest.MonkeyPatch) -> None:
     for name, function in _LIBM.items():
         monkeypatch.setattr(vehicles, name, function)
     monkeypatch.setattr(scalar, "_POWER_FROM_LIBM", True)
-    monkeypatch.setattr(vehicles, "PLAIN_DOT_MATCHES_NUMPY", True)
+    _plain_dot(monkeypatch)
 
 
 def _off_by_one_ulp(function: Any) -> Any:
@@ -79,7 +87,7 @@ def perturbed_python_path(monkeypatch: pytest.MonkeyPatch) -> None:
 
     monkeypatch.setattr(scalar, "_POWER_FROM_LIBM", True)
     monkeypatch.setattr(vehicles, "power_scalar", power)
-    monkeypatch.setattr(vehicles, "PLAIN_DOT_MATCHES_NUMPY", True)
+    _plain_dot(monkeypatch)
 
 
 def _env(engine: str, **config: Any) -> Any:
@@ -206,25 +214,28 @@ where numpy's functions differ from libm's by last bits (measured: below 1e-12 a
 40 s on an AVX-512 CPU; a wrong operation in a kernel gives 1e-3 and more)."""
 
 
-def _assert_equal_to_rounding(seed: int, steps: int, **config: Any) -> None:
+def _assert_equal_to_rounding(seed: int, steps: int, **config: Any) -> float:
     """Compiled and Python engine from the same seed: the same discrete states
-    throughout, floats within :data:`_ROUNDING`."""
+    throughout, floats within :data:`_ROUNDING`; returns the largest float difference."""
     envs = [_env(engine, **config) for engine in ("python", "compiled")]
     for env in envs:
         env.reset(seed=seed)
     rng = np.random.default_rng(seed)
+    largest = 0.0
     for step in range(steps):
         action = int(rng.integers(0, 5))
         results = [env.step(action) for env in envs]
         (f_py, d_py), (f_c, d_c) = (_state(env) for env in envs)
         assert d_c == d_py, (seed, step)
-        assert np.abs(f_c - f_py).max() <= _ROUNDING, (seed, step)
+        largest = max(largest, float(np.abs(f_c - f_py).max()))
+        assert largest <= _ROUNDING, (seed, step)
         assert abs(results[1][1] - results[0][1]) <= _ROUNDING
         assert results[1][2:4] == results[0][2:4]  # terminated, truncated
         for key, value in results[0][0].items():
             np.testing.assert_allclose(results[1][0][key], value, atol=1e-4, err_msg=key)
         if results[0][2] or results[0][3]:
             break
+    return largest
 
 
 def _statistics(engine: str, seeds: range, steps: int) -> dict[str, float]:
@@ -277,8 +288,8 @@ def test_episodes_match_the_installed_python_path(seed: int, config: dict) -> No
 def test_engines_agree_to_rounding_where_the_math_differs(perturbed_python_path: None) -> None:
     """Elementary functions one ulp off libm's on some inputs (numpy's AVX-512 kernels,
     emulated on any CPU): the engines still agree to rounding over the short horizon."""
-    for seed, config in _SCENES[:3]:
-        _assert_equal_to_rounding(seed, 10, **config)
+    largest = max(_assert_equal_to_rounding(seed, 10, **config) for seed, config in _SCENES[:3])
+    assert largest > 0.0  # the perturbation reached the Python path
 
 
 def test_engines_agree_statistically_where_the_math_differs(
@@ -477,6 +488,33 @@ def test_non_finite_positions_take_the_python_path_and_its_error() -> None:
     assert errors[0] == errors[1]
 
 
+def test_a_python_vehicle_gone_non_finite_within_a_block_is_counted_as_such() -> None:
+    """Within ``holding`` the vehicles before the compiled ones are read again before
+    each act: one whose position left the finite range sends the step to the Python
+    path under that reason (not "off the lanes")."""
+    env = _env("compiled")
+    env.reset(seed=0)
+    road = env.unwrapped.road
+    engine: CompiledTraffic = road.engine
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        with engine.holding():
+            road.act()
+            road.step(0.1)
+            ego = road.vehicles[0]  # before the compiled ones: it acts first, in Python
+            ego_act = ego.act
+
+            def act_then_fly_off(*args: Any) -> None:
+                ego_act(*args)
+                ego.position[1] = 1e13  # beyond any coordinate the kernels take
+
+            ego.act = act_then_fly_off
+            assert engine.act(road)
+    assert engine.steps[COMPILED] == 1
+    assert engine.steps["a vehicle's position is not finite"] == 1
+    assert sum(engine.steps.values()) == 2
+
+
 def test_kernels_match_their_plain_python_twins() -> None:
     """Each compiled kernel computes what its plain-Python twin computes."""
     env = _env("compiled", vehicles_density=2.0)
@@ -603,7 +641,7 @@ def test_holding_keeps_state_only_within_the_block() -> None:
         reads["gather"] += 1
         return gather(*args)
 
-    def counting_refresh(*args: Any) -> bool:
+    def counting_refresh(*args: Any) -> str | None:
         reads["refresh"] += 1
         return refresh(*args)
 
