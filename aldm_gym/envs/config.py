@@ -216,12 +216,19 @@ class EnvConfig:
                 object.__setattr__(self, name, _build_section(name, cls, value))
         if not isinstance(self.road, RoadConfig | MapConfig):
             object.__setattr__(self, "road", self._road_section(self.road))
+        elif isinstance(self.road, RoadConfig):
+            for key in ("lanes_count", "marking_model"):
+                if getattr(self.road, key) != getattr(self, key):
+                    raise ConfigError(
+                        f"road.{key} ({getattr(self.road, key)!r}) contradicts "
+                        f"config[{key!r}] ({getattr(self, key)!r})"
+                    )
         object.__setattr__(self, "detector_params", self._detector_params(self.detector_params))
 
     def _road_section(self, given: Any) -> RoadConfig | MapConfig:
         """The ``road`` mapping as a :class:`RoadConfig` (with the top-level
         ``lanes_count`` and ``marking_model``) or, with ``xodr``, a :class:`MapConfig`."""
-        road = dict(_mapping("road", given))
+        road = {} if given is None else dict(_mapping("road", given))  # None: the default
         check_keys("road", road, tuple(f.name for f in dataclasses.fields(RoadConfig)) + MAP_KEYS)
         for key in ("lanes_count", "marking_model"):
             if key in road and road[key] != getattr(self, key):
@@ -277,9 +284,7 @@ class EnvConfig:
 
 
 def _mapping(name: str, value: Any) -> Mapping[str, Any]:
-    """``value`` as a mapping (``None``: empty), or a :class:`ConfigError` naming it."""
-    if value is None:
-        return {}
+    """``value`` as a mapping, or a :class:`ConfigError` naming it."""
     if not isinstance(value, Mapping):
         raise ConfigError(f"config[{name!r}] must be a mapping, got {type(value).__name__}")
     return value

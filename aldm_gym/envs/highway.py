@@ -213,10 +213,15 @@ class ALDMHighwayEnv(AbstractEnv):
         settings, view = parse_config(merged)
         on_map = load_map(settings)
         if on_map is not None:
-            # The lane count comes from the map (settings and view are this call's own).
-            lanes = map_lanes_count(on_map)
-            object.__setattr__(settings, "lanes_count", lanes)
-            dict.__setitem__(view, "lanes_count", lanes)
+            # The map sets these (settings and view are this call's own): its lane count,
+            # and neighbours searched across connected lanes, which highway-env's reset
+            # copies from the config onto the road.
+            for key, value in (
+                ("lanes_count", map_lanes_count(on_map)),
+                ("neighbour_vehicles_connected_lanes", True),
+            ):
+                object.__setattr__(settings, key, value)
+                dict.__setitem__(view, key, value)
         self.settings = settings
         self.config: ConfigView = view
         self._scene = make_scene(settings, on_map)

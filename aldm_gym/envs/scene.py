@@ -65,9 +65,6 @@ class Scene:
     """A scene builder: the road, the traffic's road and the vehicles of an episode
     (:meth:`road`, :meth:`traffic_road`, :meth:`place_vehicles`, in that order)."""
 
-    CONNECTED_LANES = False
-    """Whether neighbours are always searched across connected lanes."""
-
     def __init__(self, settings: EnvConfig) -> None:
         """Hold the settings the scene is built from."""
         self.settings = settings
@@ -83,9 +80,8 @@ class Scene:
             network=road.network,
             np_random=rng,
             record_history=s.show_trajectories,
-            neighbour_vehicles_connected_lanes=(
-                s.neighbour_vehicles_connected_lanes or self.CONNECTED_LANES
-            ),
+            # On a map the env sets it: its lanes end at every lane section.
+            neighbour_vehicles_connected_lanes=s.neighbour_vehicles_connected_lanes,
         )
 
     def place_vehicles(
@@ -141,9 +137,6 @@ class MapScene(Scene):
     :param settings: the env's settings.
     :param road: the map, as :func:`~aldm_gym.envs.config.load_map` read it.
     """
-
-    CONNECTED_LANES = True
-    """A map's lanes end at every lane section: look across to see the leader."""
 
     def __init__(self, settings: EnvConfig, road: OpenDriveRoad) -> None:
         """Hold the settings and the map."""

@@ -505,3 +505,14 @@ def test_features_map_aldm_keeps_its_lane_naive_departs() -> None:
     assert departures == 0 and run >= 15
     departures, _ = _closed_loop("features", "naive", 0)
     assert departures >= 1
+
+
+def test_a_map_searches_neighbours_across_connected_lanes(curved: Path) -> None:
+    # A map's lanes end at every lane section: the leader on the next section is seen.
+    env = _make(curved, neighbour_vehicles_connected_lanes=False)
+    env.reset(seed=0)
+    assert env.unwrapped.config["neighbour_vehicles_connected_lanes"] is True
+    assert env.unwrapped.road.neighbour_vehicles_connected_lanes is True
+    generated = gym.make("ALDMHighway-v0")
+    generated.reset(seed=0)
+    assert generated.unwrapped.road.neighbour_vehicles_connected_lanes is False

@@ -105,3 +105,17 @@ def test_section_errors_name_the_key(config: dict, match: str) -> None:
 def test_settings_are_frozen() -> None:
     with pytest.raises(dataclasses.FrozenInstanceError):
         _env().settings.duration = 3.0  # type: ignore[misc]
+
+
+@pytest.mark.parametrize("section", ["acc", "sensor", "road", "detector_params", "lka"])
+def test_a_section_given_as_none_is_an_error(section: str) -> None:
+    message = rf"config\['{section}'\] must be a mapping, got NoneType"
+    with pytest.raises(ConfigError, match=message):
+        env_config.merged_config(env_config.default_config(), {section: None})
+
+
+def test_a_road_config_must_agree_with_the_top_level_keys() -> None:
+    road = RoadConfig(lanes_count=2, marking_model="editor")
+    with pytest.raises(ConfigError, match=r"road.lanes_count \(2\) contradicts"):
+        EnvConfig(lanes_count=4, road=road)
+    assert EnvConfig(lanes_count=2, marking_model="editor", road=road).road is road
