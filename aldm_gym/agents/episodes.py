@@ -40,7 +40,7 @@ class EpisodeStats:
 
     :ivar seed: the episode's seed.
     :ivar steps: policy steps played.
-    :ivar distance: distance driven along the road [m].
+    :ivar distance: distance driven [m] (``info["distance"]``).
     :ivar duration: simulated time [s].
     :ivar departures: lane departures (a wheel over a marking without a lane change).
     :ivar collided: the ego crashed.
@@ -54,7 +54,7 @@ class EpisodeStats:
         detected), aborted, or ending in another lane.
     :ivar speeds: ego speed at each step [m/s].
     :ivar reward: sum of rewards.
-    :ivar trace: ``(distance from the start [m], signed lateral offset [m])`` per step.
+    :ivar trace: ``(distance driven [m], signed lateral offset [m])`` per step.
     :ivar collision: where the other vehicle was in a collision (``info["collision"]``:
         ``"front"``, ``"rear"``, ``"side"``), ``""`` without one.
     :ivar target_correct: steps whose ACC target was the true in-lane leader (or
@@ -112,7 +112,6 @@ def run_episode(env: Any, policy: Policy, seed: int, max_steps: int | None = Non
         policy.reset()
     stats = EpisodeStats(seed=seed)
     dt = 1.0 / float(env.unwrapped.config["policy_frequency"])  # highway-env's key
-    s_start = float(info["arc_length"])
     pending: tuple[int, int, int] | None = None  # (direction, start lane, completed count)
     aborted = int(info.get("lane_changes_aborted", 0))
     phantom_before = False
@@ -128,7 +127,9 @@ def run_episode(env: Any, policy: Policy, seed: int, max_steps: int | None = Non
         stats.duration += dt
         stats.reward += float(reward)
         stats.speeds.append(float(info["speed"]))
-        stats.trace.append((float(info["arc_length"]) - s_start, float(info["lateral_offset"])))
+        # The way driven, not the arc length: a map's s restarts on every road.
+        stats.distance = float(info["distance"])
+        stats.trace.append((stats.distance, float(info["lateral_offset"])))
         stats.departures += int(bool(info["lane_departure"]))
         stats.collided |= bool(info["crashed"])
         if info.get("collision"):
@@ -170,7 +171,6 @@ def run_episode(env: Any, policy: Policy, seed: int, max_steps: int | None = Non
         aborted = int(info.get("lane_changes_aborted", 0))
         if info["lane_change"] == 0 and pending is None:
             stats.offsets.append(abs(float(info["lateral_offset"])))
-    stats.distance = float(info["arc_length"]) - s_start
     return stats
 
 

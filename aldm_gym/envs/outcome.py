@@ -108,6 +108,7 @@ def step_info(ego: Any, referee: Referee, detection: dict, target: dict) -> dict
         "lane_changes_completed": int(ego.lane_changes_completed),
         "lane_changes_aborted": int(ego.lane_changes_aborted),
         "arc_length": pos.s,
+        "distance": referee.distance,
         "departures": referee.departures,
         "detection": detection,
         "target": target,

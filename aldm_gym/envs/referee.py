@@ -73,6 +73,8 @@ class Referee:
     :ivar departures: lane departures this episode (a wheel over a marking outside a
         lane change, counted once per departure).
     :ivar departed_step: a departure happened during this policy step.
+    :ivar distance: distance the ego drove this episode [m]: the path length of its
+        positions at the simulation steps.
     :ivar collision: ``""`` or the kind of the ego's collision (:func:`collision_kind`).
     """
 
@@ -84,6 +86,8 @@ class Referee:
         self.off_map = False
         self.departures = 0
         self.departed_step = False
+        self.distance = 0.0
+        self._last_xy: tuple[float, float] | None = None
         self.collision = ""
         self.acc_step: dict[str, bool] = {"aeb": False, "phantom_braking": False}
         self._lc_target_index: int | None = None
@@ -102,7 +106,12 @@ class Referee:
 
     def locate(self, ego: Any) -> LanePosition:
         """The ego's true lane position (:attr:`lane_position`). Off a map's lanes the
-        last lane is kept with an infinite offset (a departure) and :attr:`off_map` set."""
+        last lane is kept with an infinite offset (a departure) and :attr:`off_map` set.
+        Adds the way from the last call to :attr:`distance`."""
+        xy = (float(ego.position[0]), float(ego.position[1]))
+        if self._last_xy is not None:
+            self.distance += math.hypot(xy[0] - self._last_xy[0], xy[1] - self._last_xy[1])
+        self._last_xy = xy
         try:
             self.lane_position = self.road.lane_position(ego.position)
         except OffRoadError:

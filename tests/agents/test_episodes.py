@@ -28,7 +28,7 @@ class ScriptedEnv:
     def _info(**kw: Any) -> dict[str, Any]:
         det = {"mean_abs_error": 0.01, "preview": 190.0, "correct": 1.0}
         base = {
-            "arc_length": 0.0,
+            "distance": 0.0,
             "lane_index": 1,
             "lane_changes_completed": 0,
             "lane_changes_aborted": 0,
@@ -67,10 +67,10 @@ class ScriptedPolicy:
 def test_known_departures_offsets_and_distance() -> None:
     mk = ScriptedEnv._info
     infos = [
-        mk(arc_length=25.0, lateral_offset=0.1),
-        mk(arc_length=50.0, lateral_offset=-0.3, lane_departure=True),
-        mk(arc_length=75.0, lateral_offset=0.2),
-        mk(arc_length=100.0, lateral_offset=-1.2, lane_departure=True, crashed=True),
+        mk(distance=25.0, lateral_offset=0.1),
+        mk(distance=50.0, lateral_offset=-0.3, lane_departure=True),
+        mk(distance=75.0, lateral_offset=0.2),
+        mk(distance=100.0, lateral_offset=-1.2, lane_departure=True, crashed=True),
     ]
     st = run_episode(ScriptedEnv(infos), ScriptedPolicy([MetaAction.IDLE] * 4), seed=0)
     assert st.distance == 100.0 and st.steps == 4
@@ -87,16 +87,16 @@ def test_lane_change_outcomes_are_judged_by_ground_truth() -> None:
     mk = ScriptedEnv._info
     infos = [
         # MetaAction.LANE_LEFT accepted, completes in lane 0: ok.
-        mk(arc_length=25.0, lane_change=1, lane_index=1),
-        mk(arc_length=50.0, lane_changes_completed=1, lane_index=0),
+        mk(distance=25.0, lane_change=1, lane_index=1),
+        mk(distance=50.0, lane_changes_completed=1, lane_index=0),
         # MetaAction.LANE_RIGHT refused: failed.
-        mk(arc_length=75.0, lane_changes_completed=1, lane_index=0, lane_change_refused=True),
+        mk(distance=75.0, lane_changes_completed=1, lane_index=0, lane_change_refused=True),
         # MetaAction.LANE_RIGHT accepted, aborted: failed.
-        mk(arc_length=100.0, lane_changes_completed=1, lane_index=0, lane_change=-1),
-        mk(arc_length=125.0, lane_changes_completed=1, lane_changes_aborted=1, lane_index=0),
+        mk(distance=100.0, lane_changes_completed=1, lane_index=0, lane_change=-1),
+        mk(distance=125.0, lane_changes_completed=1, lane_changes_aborted=1, lane_index=0),
         # MetaAction.LANE_RIGHT accepted, "completes" but ends two lanes over: failed.
-        mk(arc_length=150.0, lane_changes_completed=1, lane_changes_aborted=1, lane_change=-1),
-        mk(arc_length=175.0, lane_changes_completed=2, lane_changes_aborted=1, lane_index=2),
+        mk(distance=150.0, lane_changes_completed=1, lane_changes_aborted=1, lane_change=-1),
+        mk(distance=175.0, lane_changes_completed=2, lane_changes_aborted=1, lane_index=2),
     ]
     actions = [
         MetaAction.LANE_LEFT,
@@ -119,8 +119,8 @@ def test_both_correct_and_preview() -> None:
     miss = {"mean_abs_error": float("nan"), "preview": float("nan"), "correct": 0.0}
     ok = {"mean_abs_error": 0.01, "preview": 100.0, "correct": 1.0}
     infos = [
-        mk(arc_length=10.0, detection={"ego_left": ok, "ego_right": ok}),
-        mk(arc_length=20.0, detection={"ego_left": ok, "ego_right": miss}),
+        mk(distance=10.0, detection={"ego_left": ok, "ego_right": ok}),
+        mk(distance=20.0, detection={"ego_left": ok, "ego_right": miss}),
     ]
     row = summarize(
         [
