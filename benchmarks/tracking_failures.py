@@ -5,12 +5,13 @@ Runs ``ALDMHighway-v0`` with the tracking ALDM (``detector_params={"tracking":
 True}``) under the camera preset with trucks (the setting of the tracking goal in
 ``docs/results.md``), IDLE (lane keeping only), and scores each step's ego lines as
 ``info["detection"]`` does (:func:`aldm_gym.sensor.ground_truth.score_line`: every
-point within 0.3 m of the true marking, starting within 25 m, reaching 60 m). Each
+point within 0.3 m of the true marking, starting within 25 m, a preview of 60 m). Each
 failing line is put in one class, checked in this order:
 
 * ``missing``: fewer than two points;
-* ``short``: it ends before 60 m;
 * ``late start``: its first point is beyond 25 m;
+* ``short``: its preview (:func:`~aldm_gym.sensor.lane_detection.line_preview`: the far
+  end of its part without a gap over 36 m) is under 60 m;
 * ``error < 90 m`` / ``error >= 90 m``: a point more than 0.3 m off, by the x of the
   first such point; each split into ``seen`` (this frame has points of the true
   marking within 10 m of that x: the line left a measured marking, e.g. for clutter)
@@ -40,6 +41,7 @@ def classify(env: Any, name: str) -> tuple[str, float, float]:
     """The failure class of ego line ``name`` of the env's last step, the x of its
     first point off by more than 0.3 m [m] (NaN if none) and its largest error [m]."""
     from aldm_gym.sensor.ground_truth import line_markings, true_line
+    from aldm_gym.sensor.lane_detection import line_preview
 
     u = env.unwrapped
     line = u.detection.line(name)
@@ -51,10 +53,10 @@ def classify(env: Any, name: str) -> tuple[str, float, float]:
     err = np.abs(line[:, 1] - true_line(u.highway, u.frame, marking, line[:, 0]))
     bad = np.flatnonzero(~(err <= 0.3))
     worst = float(np.nanmax(err)) if np.isfinite(err).any() else float("inf")
-    if line[-1, 0] < 60.0:
-        return "short", float("nan"), worst
     if line[0, 0] > 25.0:
         return "late start", float("nan"), worst
+    if line_preview(line) < 60.0:
+        return "short", float("nan"), worst
     if len(bad) == 0:
         return "other", float("nan"), worst
     x_bad = float(line[bad[0], 0])

@@ -21,11 +21,13 @@ from aldm_gym.agents.episodes import run_episodes, summarize
 from aldm_gym.agents.policies import IdlePolicy, RuleBasedLCA
 from aldm_gym.errors import ConfigError
 from aldm_gym.roads.highway import MARKING_MODELS
+from aldm_gym.sensor.aldm import MODES as ALDM_MODES
 from aldm_gym.sensor.detectors import DETECTORS
 
 CLOSED_LOOP_COLUMNS: tuple[str, ...] = (
     "marking_model",
     "detector",
+    "mode",
     "episodes",
     "km",
     "departures_per_km",
@@ -73,12 +75,15 @@ def compare_closed_loop(
     traffic: dict[str, Any] | None = None,
     min_radius: float | None = None,
     xodr: str | os.PathLike[str] | None = None,
+    aldm_mode: str = "robust",
     progress: Callable[[int], None] | None = None,
 ) -> tuple[list[dict[str, Any]], dict[tuple[str, str], Trace]]:
     """IDLE (LKA only) and the rule-based LCA on the same seeded episodes, per detector.
 
     :param seeds: episode seeds; each policy plays each seed once per row.
     :param detectors: row names, keys of :data:`DETECTOR_VARIANTS`.
+    :param aldm_mode: the ALDM rows' mode, ``"robust"`` (the default) or ``"paper"``;
+        the rows' ``mode`` column names it.
     :param sensor: the env's ``sensor`` config section (e.g. ``lateral_noise``,
         ``dropout``, ``preset``); None: the env's defaults.
     :param traffic: the env's ``traffic`` section (e.g. ``truck_share``); None: cars.
@@ -94,6 +99,8 @@ def compare_closed_loop(
     """
     if xodr is not None and min_radius is not None:
         raise ConfigError("min_radius applies to generated roads, not to a map (xodr)")
+    if aldm_mode not in ALDM_MODES:
+        raise ConfigError(f"aldm_mode must be one of {list(ALDM_MODES)}, got {aldm_mode!r}")
     detectors = list(detectors)
     unknown = [d for d in detectors if d not in DETECTOR_VARIANTS]
     if unknown:
@@ -103,6 +110,9 @@ def compare_closed_loop(
     for model in marking_models:
         for det in detectors:
             name, params = DETECTOR_VARIANTS[det]
+            mode = aldm_mode if name == "aldm" else ""
+            if mode == "paper":
+                params = {**params, "mode": "paper"}
             config: dict[str, Any] = {"marking_model": model, "detector": name}
             if params:
                 config["detector_params"] = dict(params)
@@ -120,7 +130,12 @@ def compare_closed_loop(
                 lca = run_episodes(env, RuleBasedLCA(), seeds, progress=progress)
             finally:
                 env.close()
-            row = {"marking_model": model, "detector": det, **summarize(idle + lca)}
+            row = {
+                "marking_model": model,
+                "detector": det,
+                "mode": mode,
+                **summarize(idle + lca),
+            }
             rows.append({c: row[c] for c in CLOSED_LOOP_COLUMNS})
             traces[(model, det)] = idle[0].trace
     return rows, traces

@@ -49,6 +49,7 @@ DISTANCE_BINS: tuple[float, ...] = (20.0, 40.0, 60.0, 80.0, 100.0, 120.0, 150.0)
 TARGET_COLUMNS: tuple[str, ...] = (
     "marking_model",
     "detector",
+    "mode",
     "scenes",
     "accuracy",
     "missed_rate",
@@ -160,11 +161,15 @@ def select_in_scenes(
     sensor: LineSensor | None = None,
     config: ACCConfig | None = None,
     progress: Callable[[int], None] | None = None,
+    params: dict[str, Any] | None = None,
 ) -> list[bool]:
-    """Whether ``detector``'s lines make the target selector pick each scene's vehicle."""
+    """Whether ``detector``'s lines make the target selector pick each scene's vehicle.
+
+    :param params: the detector's parameters (``{"mode": "paper"}`` for the ALDM's).
+    """
     sensor = sensor or LineSensor()
     cfg = config or ACCConfig()
-    det = make_detector(detector)
+    det = make_detector(detector, params)
     ego_x = -float(sensor.config.mount_x)
     out = []
     for sc in scenes:
@@ -203,9 +208,13 @@ def compare_target_selection(
     *,
     marking_models: Iterable[str] = MARKING_MODELS,
     detectors: Iterable[str] = DETECTORS,
+    aldm_mode: str = "robust",
     progress: Callable[[int], None] | None = None,
 ) -> tuple[list[dict[str, Any]], dict[tuple[str, str], list[float]]]:
     """The scenario set on the roads of ``seeds`` for every marking model × detector.
+
+    :param aldm_mode: the ALDM's mode (``"robust"`` or ``"paper"``), named in the rows'
+        ``mode`` column.
 
     :return: rows with the keys of :data:`TARGET_COLUMNS`, and per ``(marking model,
         detector)`` the accuracy in each distance bin of :data:`DISTANCE_BINS`
@@ -221,11 +230,16 @@ def compare_target_selection(
     for model in marking_models:
         roads = [r.with_marking_model(model) for r in base]
         for det in detectors:
-            picked = np.array(select_in_scenes(roads, scenes, det, progress=progress))
+            mode = aldm_mode if det == "aldm" else ""
+            params = {"mode": "paper"} if mode == "paper" else None
+            picked = np.array(
+                select_in_scenes(roads, scenes, det, progress=progress, params=params)
+            )
             ok = picked == truth
             row: dict[str, Any] = {
                 "marking_model": model,
                 "detector": det,
+                "mode": mode,
                 "scenes": len(scenes),
                 "accuracy": _share(ok),
                 "missed_rate": _share(truth & ~picked),

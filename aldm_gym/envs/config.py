@@ -131,7 +131,8 @@ class EnvConfig:
     ``vehicles_density``, the reward weights, ``reward_speed_range`` [m/s],
     ``normalize_reward``, ``offroad_terminal``. aldm-gym's: ``initial_speed`` [m/s],
     ``marking_model``, ``detector``, ``progress_reward``, ``lane_keeping_reward``,
-    ``departure_reward``, ``departure_terminal``, and the sections ``detector_params``,
+    ``departure_reward``, ``departure_terminal``, ``info_metrics`` (``info["lane_metrics"]``,
+    :mod:`aldm_gym.sensor.lane_metrics`), and the sections ``detector_params``,
     ``sensor``, ``road``, ``lka``, ``acc`` (ACC and AEB), ``traffic`` (trucks).
     Meanings: ``docs/env.md``.
     """
@@ -186,6 +187,7 @@ class EnvConfig:
     lane_keeping_reward: float = _reward(0.3)
     departure_reward: float = _reward(-0.5)
     departure_terminal: bool = setting(False)
+    info_metrics: bool = setting(False)
 
     def __post_init__(self) -> None:
         validate(self, "config")

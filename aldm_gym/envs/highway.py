@@ -443,6 +443,10 @@ class ALDMHighwayEnv(AbstractEnv):
             self.vehicle,
         )
         info.update(outcome.step_info(self.vehicle, referee, detection, target))
+        if self.settings.info_metrics:
+            info["lane_metrics"] = referee.lane_metrics(
+                perception.detection, perception.frame, perception.sensor.config.visibility
+            )
         return info
 
     # ------------------------------------------------------------------ rendering

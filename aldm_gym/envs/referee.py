@@ -26,6 +26,7 @@ from aldm_gym.roads.protocol import Road
 from aldm_gym.sensor.frame import SensorFrame
 from aldm_gym.sensor.ground_truth import score_detection
 from aldm_gym.sensor.lane_detection import LaneDetection
+from aldm_gym.sensor.lane_metrics import NEAR, frame_metrics
 
 __all__ = ["NO_TARGET_INFO", "Referee", "collision_kind"]
 
@@ -220,6 +221,31 @@ class Referee:
         }
 
     # ------------------------------------------------------------------ lanes
+    def lane_metrics(
+        self, detection: LaneDetection | None, frame: SensorFrame, view: float | None = None
+    ) -> dict[str, Any]:
+        """``info["lane_metrics"]``: the frame's lane-detection metrics
+        (:func:`~aldm_gym.sensor.lane_metrics.frame_metrics`): per threshold
+        (``"strict"``, ``"loose"``) the counts ``tp``, ``fp``, ``fn`` over the four
+        lines, and the mean |lateral error| of the lines precise at the loose threshold
+        near (x <= 40 m) and far [m] (NaN without such points).
+
+        :param view: the sensor's visibility [m] (``None``: its range)."""
+        empty = LaneDetection()
+        lane = self.lane_position.lane
+        m = frame_metrics(detection or empty, self.road, frame, lane, view=view)
+        out: dict[str, Any] = {}
+        for threshold in ("strict", "loose"):
+            tp, fp, fn = m.counts(threshold)
+            out[threshold] = {"tp": tp, "fp": fp, "fn": fn}
+        errors = [x.errors for x in m.matches if x.loose_precise]
+        both = np.concatenate(errors) if errors else np.zeros((0, 2))
+        near = both[both[:, 0] <= NEAR, 1]
+        far = both[both[:, 0] > NEAR, 1]
+        out["near_mean_m"] = float(near.mean()) if len(near) else math.nan
+        out["far_mean_m"] = float(far.mean()) if len(far) else math.nan
+        return out
+
     def score(
         self, detection: LaneDetection | None, frame: SensorFrame
     ) -> dict[str, dict[str, float]]:

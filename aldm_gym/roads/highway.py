@@ -40,7 +40,9 @@ from aldm_gym.roads.reference_line import ReferenceLine, Segment
 from aldm_gym.types import FloatArray
 
 MIN_RADIUS_BY_SPEED = {130: 800.0, 120: 600.0, 110: 500.0, 100: 400.0}
-"""RVS 03.03.23 minimum curve radius [m] by design speed [km/h] (paper, Table I)."""
+"""RVS 03.03.23 minimum curve radius [m] by design speed [km/h] (paper, Table II). The
+paper's LKA assumes curves of at least the 110 km/h value, 500 m: the default
+``min_radius`` of generated roads."""
 
 MAX_HEADING = np.deg2rad(75.0)
 """Largest heading of a generated road relative to its start [rad]: it never turns back."""
@@ -92,7 +94,7 @@ class RoadConfig:
     lane_width: float = setting(3.75, lo=2.5, hi=5.0)
     length: float = setting(6000.0, lo=200.0, hi=100_000.0)
     curved: bool = setting(True)
-    min_radius: float = setting(500.0, lo=100.0, hi=1e6)
+    min_radius: float = setting(MIN_RADIUS_BY_SPEED[110], lo=100.0, hi=1e6)
     max_radius: float = setting(3000.0, lo="min_radius", hi=1e6)
     straight_length: tuple[float, float] = setting((150.0, 600.0), kind="pair", lo=1.0, hi=1e5)
     arc_length: tuple[float, float] = setting((150.0, 600.0), kind="pair", lo=1.0, hi=1e5)

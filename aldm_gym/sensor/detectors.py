@@ -184,7 +184,10 @@ REGISTRY: dict[str, DetectorEntry] = {
         _make_naive, "CarMaker's default: the relevant line object per side", ("lane_width",)
     ),
     "aldm": DetectorEntry(
-        _make_aldm, "the paper's Advanced Lane Detection Model (detect_lanes)", None
+        _make_aldm,
+        "the Advanced Lane Detection Model (detect_lanes): the robust mode by default, "
+        "the paper's algorithm as published with mode='paper'",
+        None,
     ),
     "ground_truth": DetectorEntry(_make_truth, "the true markings: the upper bound"),
 }

@@ -15,7 +15,6 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from aldm_gym.errors import InputError
-from aldm_gym.sensor.detectors import DETECTORS
 from aldm_gym.sensor.frame import SensorFrame
 from aldm_gym.sensor.lane_detection import LINE_NAMES, LaneDetection
 
@@ -213,8 +212,10 @@ def percent(share: float) -> str:
 
 
 def plot_detector_bars(rows: Sequence[Mapping[str, Any]], path: str | Path) -> None:
-    """Bars of the share of frames with both ego lines correct [%], per marking model and
-    detector (rows of :func:`~aldm_gym.sensor.open_loop.compare_detectors`); a PNG.
+    """Per marking model and detector (rows of
+    :func:`~aldm_gym.sensor.open_loop.compare_detectors`): the share of frames with both
+    ego lines correct [%] (left) and the F1 of the four lines at the strict threshold,
+    with the loose one (1.5 m) as a light bar behind (right); a PNG.
 
     Every bar carries its value, so a bar of zero height reads "0 %", not as missing.
     """
@@ -224,38 +225,58 @@ def plot_detector_bars(rows: Sequence[Mapping[str, Any]], path: str | Path) -> N
     import matplotlib.pyplot as plt
 
     models = sorted({r["marking_model"] for r in rows}, reverse=True)
-    dets = [d for d in DETECTORS if any(r["detector"] == d for r in rows)]
-    fig, ax = plt.subplots(figsize=(6.4, 4.0))
-    width = 0.8 / len(dets)
-    for i, d in enumerate(dets):
-        vals = [
-            next(
-                (r["both_correct"] for r in rows if r["marking_model"] == m and r["detector"] == d),
-                0.0,
-            )
-            for m in models
-        ]
-        name, colour = DETECTOR_STYLE.get(d, (d, None))
-        bars = ax.bar(
-            np.arange(len(models)) + i * width,
-            100.0 * np.asarray(vals),
-            width,
-            label=name,
-            color=colour,
+    keys = list(dict.fromkeys((r["detector"], r.get("mode", "")) for r in rows))
+    keys.sort(key=lambda k: list(DETECTOR_STYLE).index(k[0]) if k[0] in DETECTOR_STYLE else 99)
+
+    def value(model: str, key: tuple[str, str], column: str) -> float:
+        return next(
+            (
+                float(r[column])
+                for r in rows
+                if r["marking_model"] == model and (r["detector"], r.get("mode", "")) == key
+            ),
+            0.0,
         )
-        labels = ax.bar_label(bars, [percent(v) for v in vals], padding=2, fontsize=10)
-        for text, v in zip(labels, vals, strict=True):
-            if v == 0.0:
-                text.set_color(colour or "black")
-                text.set_fontweight("bold")
-    ax.set_xticks(np.arange(len(models)) + 0.4 - width / 2, models, fontsize=11)
-    ax.set_xlabel("marking model (per_dash: every dash its own object; editor: one per line)")
-    ax.set_ylabel("frames with both ego lines correct [%]")
-    ax.set_ylim(0, 112)
-    ax.set_yticks(range(0, 101, 20))
-    ax.legend(ncol=len(dets), loc="lower center", bbox_to_anchor=(0.5, 1.0), frameon=False)
-    ax.grid(axis="y", alpha=0.3)
-    fig.tight_layout()
+
+    fig, axes = plt.subplots(1, 2, figsize=(11.0, 4.2))
+    width = 0.8 / len(keys)
+    for panel, (ax, column, label) in enumerate(
+        zip(
+            axes,
+            ("both_correct", "strict_f1"),
+            ("frames with both ego lines correct [%]", "F1 of the four lines [%]"),
+            strict=True,
+        )
+    ):
+        for i, key in enumerate(keys):
+            name, colour = DETECTOR_STYLE.get(key[0], (key[0], None))
+            if key[1] == "paper":
+                name, colour = f"{name} (paper mode)", "tab:purple"
+            x = np.arange(len(models)) + i * width
+            if panel == 1:
+                loose = [value(m, key, "loose_f1") for m in models]
+                ax.bar(x, 100.0 * np.nan_to_num(loose), width, color=colour, alpha=0.3)
+            vals = [value(m, key, column) for m in models]
+            bars = ax.bar(x, 100.0 * np.nan_to_num(vals), width, label=name, color=colour)
+            texts = ax.bar_label(bars, [f"{100 * v:.0f}" for v in vals], padding=2, fontsize=8)
+            for text, v in zip(texts, vals, strict=True):
+                if v == 0.0:
+                    text.set_color(colour or "black")
+                    text.set_fontweight("bold")
+        ax.set_xticks(np.arange(len(models)) + 0.4 - width / 2, models, fontsize=11)
+        ax.set_ylabel(label)
+        ax.set_ylim(0, 112)
+        ax.set_yticks(range(0, 101, 20))
+        ax.grid(axis="y", alpha=0.3)
+    axes[0].set_title("strict: every point within 0.3 m, preview >= 60 m", fontsize=9)
+    axes[1].set_title("dark: strict; light: 75 % within 1.5 m (OpenLane)", fontsize=9)
+    handles, names = axes[0].get_legend_handles_labels()
+    fig.legend(handles, names, ncol=len(keys), loc="upper center", frameon=False)
+    fig.supxlabel(
+        "marking model (per_dash: every dash its own object; editor: one object per line)",
+        fontsize=10,
+    )
+    fig.tight_layout(rect=(0.0, 0.0, 1.0, 0.93))
     fig.savefig(path, dpi=130)
     plt.close(fig)
 

@@ -15,7 +15,7 @@ import numpy as np
 
 from aldm_gym.roads.protocol import Road
 from aldm_gym.sensor.frame import SensorFrame
-from aldm_gym.sensor.lane_detection import LINE_NAMES, LaneDetection
+from aldm_gym.sensor.lane_detection import LINE_NAMES, LaneDetection, line_preview
 from aldm_gym.types import FloatArray
 
 Boundary = int | tuple[int, ...]
@@ -117,10 +117,11 @@ class LineScore:
 
     :ivar found: the detector returned at least two points.
     :ivar correct: every point within ``tol`` of the true marking, first point within
-        ``start_max`` and last point at least ``preview_min`` ahead.
+        ``start_max`` and the preview at least ``preview_min``.
     :ivar mean_abs_error: mean |y - y_true| of points up to ``preview_min`` [m] (NaN if none).
     :ivar max_abs_error: largest |y - y_true| over all points [m] (NaN if none).
-    :ivar preview: x of the last point [m] (0 if not found).
+    :ivar preview: how far ahead the line can be used [m]
+        (:func:`~aldm_gym.sensor.lane_detection.line_preview`; 0 if not found).
     """
 
     found: bool
@@ -155,7 +156,7 @@ def score_line(
     err = np.where(np.isnan(err), np.inf, err)
     near = line[:, 0] <= preview_min
     mean = float(np.mean(err[near])) if near.any() else float("nan")
-    preview = float(line[-1, 0])
+    preview = line_preview(line)
     correct = bool(np.all(err <= tol) and line[0, 0] <= start_max and preview >= preview_min)
     return LineScore(True, correct, mean, float(np.max(err)), preview)
 

@@ -39,6 +39,34 @@ def _as_line(points: FloatArray | None, name: str) -> FloatArray:
     return np.ascontiguousarray(arr[order])
 
 
+PREVIEW_START = 25.0
+"""A line's usable part starts within this x [m] (the paper's start region, 23.52 m,
+rounded up)."""
+
+PREVIEW_GAP = 36.0
+"""... and has no gap in x longer than this [m]: a dash and two gaps, so one worn or
+unseen dash does not end a line (the robust ALDM bridges as far,
+``ALDMParams.gap_search_length``)."""
+
+
+def line_preview(
+    line: FloatArray, start_max: float = PREVIEW_START, gap: float = PREVIEW_GAP
+) -> float:
+    """How far ahead a line can be used [m]: the x of the last point of its part that
+    starts within ``start_max`` and has no gap in x longer than ``gap``; 0 when it
+    starts farther out or has fewer than 2 points. A single 6 m dash at 183–189 m
+    previews 0 m; a traced line from 6 m to 190 m, 190 m.
+
+    :param line: ``(K, 2)`` points (x, y) [m], sorted by x.
+    """
+    if len(line) < 2 or line[0, 0] > start_max:
+        return 0.0
+    x = line[:, 0]
+    breaks = np.flatnonzero(np.diff(x) > gap)
+    end = int(breaks[0]) if len(breaks) else len(x) - 1
+    return float(x[end])
+
+
 def resample_line(points: FloatArray, n: int) -> FloatArray:
     """``n`` points equally spaced in x over the line's x range, linearly interpolated.
 
@@ -143,9 +171,9 @@ class LaneDetection:
         return len(self.line(name)) >= 2
 
     def preview(self, name: str) -> float:
-        """Farthest x reached by line ``name`` [m]; 0 when missing."""
-        line = self.line(name)
-        return float(line[-1, 0]) if len(line) else 0.0
+        """How far ahead line ``name`` can be used [m] (:func:`line_preview`); 0 when
+        missing."""
+        return line_preview(self.line(name))
 
     def preview_ok(self, name: str, minimum: float = MIN_PREVIEW) -> bool:
         """Whether line ``name`` reaches at least ``minimum`` ahead of the sensor.
@@ -193,8 +221,11 @@ __all__ = [
     "DEFAULT_LANE_WIDTH",
     "LINE_NAMES",
     "MIN_PREVIEW",
+    "PREVIEW_GAP",
+    "PREVIEW_START",
     "LaneDetection",
     "driving_trajectory",
     "fit_cubic",
+    "line_preview",
     "resample_line",
 ]

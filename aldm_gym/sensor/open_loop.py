@@ -15,11 +15,13 @@ from typing import Any
 
 import numpy as np
 
+from aldm_gym.roads.markings import MARKING_MODELS
 from aldm_gym.roads.position import Pose
 from aldm_gym.roads.protocol import Road
-from aldm_gym.sensor.detectors import DETECTORS, make_detector
+from aldm_gym.sensor.detectors import make_detector
 from aldm_gym.sensor.frame import SensorFrame
 from aldm_gym.sensor.ground_truth import score_detection
+from aldm_gym.sensor.lane_metrics import MetricsTotals, frame_metrics
 from aldm_gym.sensor.line_sensor import LineSensor
 
 
@@ -44,9 +46,19 @@ def sample_poses(
     return road.sample_poses(n, rng, max_shift, heading_jitter, margin)
 
 
+FRAME_DETECTORS: tuple[tuple[str, str, dict[str, Any]], ...] = (
+    ("naive", "", {}),
+    ("aldm", "robust", {}),
+    ("aldm", "paper", {"mode": "paper"}),
+    ("ground_truth", "", {}),
+)
+"""The open loop's rows: ``(detector, ALDM mode, detector params)``: CarMaker's naive
+detection, the ALDM in its robust default and in the paper's mode, and ground truth."""
+
 COLUMNS: tuple[str, ...] = (
     "marking_model",
     "detector",
+    "mode",
     "frames",
     "both_correct",
     "left_correct",
@@ -55,78 +67,128 @@ COLUMNS: tuple[str, ...] = (
     "p95_abs_error_m",
     "mean_preview_m",
     "adjacent_correct",
+    "strict_precision",
+    "strict_recall",
+    "strict_f1",
+    "strict_tp",
+    "strict_fp",
+    "strict_fn",
+    "loose_precision",
+    "loose_recall",
+    "loose_f1",
+    "loose_tp",
+    "loose_fp",
+    "loose_fn",
+    "near_mean_m",
+    "near_p95_m",
+    "far_mean_m",
+    "far_p95_m",
+    "recall_dashed",
+    "recall_solid",
+    "recall_edge",
 )
-"""Columns of :func:`compare_detectors` rows."""
+"""Columns of :func:`compare_detectors` rows (:mod:`aldm_gym.sensor.lane_metrics` for the
+precision/recall/F1 and near/far ones)."""
 
 
 def compare_detectors(
     roads: Iterable[Road],
-    detectors: Iterable[str] = DETECTORS,
+    detectors: Iterable[tuple[str, str, dict[str, Any]] | str] = FRAME_DETECTORS,
     frames_per_road: int = 100,
     sensor: LineSensor | None = None,
     seed: int = 0,
     progress: Callable[[int], None] | None = None,
+    marking_models: Iterable[str] = MARKING_MODELS,
 ) -> list[dict[str, Any]]:
-    """Score detectors on the same seeded frames of each road and marking model.
+    """Score detectors on the same seeded frames of each road, in each marking model.
 
-    Every road is used as given (its ``marking_model``); pass both models of a road to
-    compare them. Frames of one road are identical across detectors (same poses, same
-    sensor noise).
+    A frame is a seeded pose of a road (poses seeded by the road's index) measured with
+    seeded sensor noise; the same pose and noise are measured on every marking model of
+    the road (the same paint; only the line objects differ) and given to every
+    detector, so the rows differ only by detector and marking model.
 
-    :param progress: called with the number of frames done after each frame.
-    :return: one row per (marking model, detector) with the keys of :data:`COLUMNS`:
-        shares of frames with both/left/right ego lines correct, mean and 95th
-        percentile of |lateral error| up to 60 m over ego lines [m], mean preview of the
-        ego lines [m], share of adjacent lines found where they exist.
+    :param roads: the road geometries (their own marking model does not matter).
+    :param detectors: ``(detector, mode, params)`` rows (:data:`FRAME_DETECTORS`), or
+        detector names (the ALDM then in its default robust mode).
+    :param progress: called with 1 after each frame of one marking model.
+    :return: one row per (marking model, detector, mode) with the keys of
+        :data:`COLUMNS`: shares of frames with both/left/right ego lines correct (the
+        strict rule), mean and 95th percentile of |lateral error| up to 60 m over ego
+        lines [m], mean preview of the ego lines [m] (0 for a missing or unusable line,
+        :func:`~aldm_gym.sensor.lane_detection.line_preview`), share of adjacent lines
+        correct where they exist, and :mod:`~aldm_gym.sensor.lane_metrics` over all four
+        lines: precision, recall, F1, true positives (recalled true lines), false
+        positives and false negatives at the strict and the loose threshold, near and far
+        lateral errors, strict recall per kind of true line.
     """
     sensor = sensor or LineSensor()
-    names = list(detectors)
-    dets = {name: make_detector(name) for name in names}
-    acc: dict[tuple[str, str], dict[str, list[float]]] = {}
+    view = sensor.config.visibility
+    specs = [
+        (d, "robust" if d == "aldm" else "", {}) if isinstance(d, str) else d for d in detectors
+    ]
+    rows_spec = [(name, mode, make_detector(name, params)) for name, mode, params in specs]
+    models = list(marking_models)
+    acc: dict[tuple[str, str, str], dict[str, list[float]]] = {}
+    totals: dict[tuple[str, str, str], MetricsTotals] = {}
     for r_i, road in enumerate(roads):
         rng = np.random.default_rng([seed, r_i])
+        variants = {m: road.with_marking_model(m) for m in models}
         for pose in sample_poses(road, frames_per_road, rng):
-            noise_rng = np.random.default_rng([seed, r_i, int(pose.s * 1000)])
-            frame = sensor.measure(road, pose.pose, rng=noise_rng)
-            for name in names:
-                det = dets[name](frame, road, pose.lane_id)
-                sc = score_detection(det, road, frame, pose.lane_id)
-                a = acc.setdefault((road.marking_model, name), {})
-                el, er = sc["ego_left"], sc["ego_right"]
-                a.setdefault("both", []).append(float(el.correct and er.correct))
-                a.setdefault("left", []).append(float(el.correct))
-                a.setdefault("right", []).append(float(er.correct))
-                a.setdefault("err", []).extend(
-                    v for v in (el.mean_abs_error, er.mean_abs_error) if np.isfinite(v)
-                )
-                a.setdefault("preview", []).extend([el.preview, er.preview])
-                for side in ("left_adjacent", "right_adjacent"):
-                    truth_exists = not (
-                        (side == "left_adjacent" and pose.index == 0)
-                        or (side == "right_adjacent" and pose.index == pose.lanes - 1)
+            for model, r in variants.items():
+                noise_rng = np.random.default_rng([seed, r_i, int(pose.s * 1000)])
+                frame = sensor.measure(r, pose.pose, rng=noise_rng)
+                for name, mode, det_fn in rows_spec:
+                    det = det_fn(frame, r, pose.lane_id)
+                    key = (model, name, mode)
+                    _score_frame(acc.setdefault(key, {}), det, r, frame, pose)
+                    totals.setdefault(key, MetricsTotals()).add(
+                        frame_metrics(det, r, frame, pose.lane_id, view=view)
                     )
-                    if truth_exists:
-                        a.setdefault("adj", []).append(float(sc[side].correct))
-            if progress is not None:
-                progress(1)
+                if progress is not None:
+                    progress(1)
     rows = []
-    for (model, name), a in acc.items():
+    for key, a in acc.items():
+        model, name, mode = key
         err = np.asarray(a.get("err", []))
-        rows.append(
-            {
-                "marking_model": model,
-                "detector": name,
-                "frames": len(a["both"]),
-                "both_correct": float(np.mean(a["both"])),
-                "left_correct": float(np.mean(a["left"])),
-                "right_correct": float(np.mean(a["right"])),
-                "mean_abs_error_m": float(err.mean()) if len(err) else float("nan"),
-                "p95_abs_error_m": float(np.percentile(err, 95)) if len(err) else float("nan"),
-                "mean_preview_m": float(np.mean(a["preview"])),
-                "adjacent_correct": float(np.mean(a["adj"])) if a.get("adj") else float("nan"),
-            }
-        )
+        summary = totals[key].summary()
+        row: dict[str, Any] = {
+            "marking_model": model,
+            "detector": name,
+            "mode": mode,
+            "frames": len(a["both"]),
+            "both_correct": float(np.mean(a["both"])),
+            "left_correct": float(np.mean(a["left"])),
+            "right_correct": float(np.mean(a["right"])),
+            "mean_abs_error_m": float(err.mean()) if len(err) else float("nan"),
+            "p95_abs_error_m": float(np.percentile(err, 95)) if len(err) else float("nan"),
+            "mean_preview_m": float(np.mean(a["preview"])),
+            "adjacent_correct": float(np.mean(a["adj"])) if a.get("adj") else float("nan"),
+        }
+        row.update({c: summary[c] for c in COLUMNS if c not in row})
+        rows.append(row)
     return rows
+
+
+def _score_frame(
+    a: dict[str, list[float]], det: Any, road: Road, frame: SensorFrame, pose: Pose
+) -> None:
+    """Add a frame's ego-line scores (the strict rule) to the row's accumulator ``a``."""
+    sc = score_detection(det, road, frame, pose.lane_id)
+    el, er = sc["ego_left"], sc["ego_right"]
+    a.setdefault("both", []).append(float(el.correct and er.correct))
+    a.setdefault("left", []).append(float(el.correct))
+    a.setdefault("right", []).append(float(er.correct))
+    a.setdefault("err", []).extend(
+        v for v in (el.mean_abs_error, er.mean_abs_error) if np.isfinite(v)
+    )
+    a.setdefault("preview", []).extend([el.preview, er.preview])
+    for side in ("left_adjacent", "right_adjacent"):
+        truth_exists = not (
+            (side == "left_adjacent" and pose.index == 0)
+            or (side == "right_adjacent" and pose.index == pose.lanes - 1)
+        )
+        if truth_exists:
+            a.setdefault("adj", []).append(float(sc[side].correct))
 
 
 def remeasure(road: Road, frame: SensorFrame) -> SensorFrame:

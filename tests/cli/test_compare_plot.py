@@ -46,7 +46,16 @@ def test_compare_quick_writes_csvs_and_figures(
     for name in names:
         assert (tmp_path / name).stat().st_size > 10_000
     out = capsys.readouterr().out
-    assert "Closed loop" in out and "both_correct" in out
+    assert "Closed loop" in out and "both ok" in out
+    assert "F1 1.5m" in out and "robust" in out
+    metrics = {"strict_f1", "loose_f1", "strict_tp", "strict_fp", "strict_fn", "near_mean_m"}
+    assert metrics <= set(COLUMNS)
+    # The ground truth sees the same frames as the detectors, on both marking models.
+    for model in ("per_dash", "editor"):
+        gt = next(
+            r for r in frames if (r["marking_model"], r["detector"]) == (model, "ground_truth")
+        )
+        assert float(gt["strict_f1"]) == 1.0
 
 
 @pytest.mark.slow
@@ -64,6 +73,27 @@ def test_compare_with_the_camera_preset_adds_tracking_and_the_conditions_frame(
     assert float(loop[("per_dash", "aldm")]["mean_preview_m"]) <= 120.0
     assert float(loop[("per_dash", "ground_truth")]["both_correct"]) == 1.0
     assert (tmp_path / "frame_conditions.png").stat().st_size > 10_000
+
+
+def test_compare_mode_paper_names_the_mode(tmp_path: Path) -> None:
+    argv = ["compare", "--quick", "--roads", "1", "--frames", "4", "--scenes", "6"]
+    argv += ["--mode", "paper", "--no-closed-loop", "--out", str(tmp_path), "--no-progress"]
+    assert main(argv) == 0
+    with open(tmp_path / "compare_targets.csv") as fh:
+        modes = {r["detector"]: r["mode"] for r in csv.DictReader(fh)}
+    assert modes == {"naive": "", "aldm": "paper", "ground_truth": ""}
+    with open(tmp_path / "compare_frames.csv") as fh:
+        frames = {(r["detector"], r["mode"]) for r in csv.DictReader(fh)}
+    assert {("aldm", "robust"), ("aldm", "paper")} <= frames  # the open loop has both
+
+
+def test_closed_loop_rejects_an_unknown_aldm_mode() -> None:
+    from aldm_gym.agents.closed_loop import compare_closed_loop
+
+    with pytest.raises(
+        ValueError, match=r"aldm_mode must be one of \['robust', 'paper'\], got 'fast'"
+    ):
+        compare_closed_loop([0], aldm_mode="fast")
 
 
 def test_conditions_on_and_detector_variants() -> None:
@@ -109,6 +139,7 @@ def test_plot_writes_png(tmp_path: Path) -> None:
         ["compare", "--frames", "0"],
         ["compare", "--dropout", "1.5"],
         ["compare", "--noise", "-1"],
+        ["compare", "--mode", "fast"],
         ["plot", "--marking-model", "opendrive"],
         ["nonsense"],
     ],

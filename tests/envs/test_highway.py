@@ -93,6 +93,26 @@ def test_spaces_and_info_contents() -> None:
         assert score["mean_abs_error"] < 0.1
         assert score["preview"] >= 60.0
     assert obs["line_valid"][1] == 1.0 and obs["line_valid"][2] == 1.0
+    assert "lane_metrics" not in info  # opt-in: info_metrics
+
+
+@pytest.mark.parametrize(("detector", "strict_tp"), [("ground_truth", 4), ("naive", None)])
+def test_info_lane_metrics(detector: str, strict_tp: int | None) -> None:
+    config = {"vehicles_count": 5, "info_metrics": True, "detector": detector}
+    env = make({**config, "initial_lane_id": 1})
+    env.reset(seed=2)
+    for _ in range(3):
+        *_, info = env.step(1)
+    m = info["lane_metrics"]
+    assert set(m) == {"strict", "loose", "near_mean_m", "far_mean_m"}
+    # 4 lanes, the ego in the second: four true lines, each found or missed
+    for counts in (m["strict"], m["loose"]):
+        assert counts["tp"] + counts["fn"] == 4
+    if strict_tp is not None:
+        assert m["strict"] == {"tp": strict_tp, "fp": 0, "fn": 0}
+        assert m["near_mean_m"] < 1e-6
+    else:  # naive on per-dash paint: single dashes, never a 60 m preview
+        assert m["strict"]["tp"] < 4 and m["strict"]["fn"] > 0
 
 
 def test_vehicle_lane_assignment_uses_detected_lines() -> None:
