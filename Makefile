@@ -9,7 +9,7 @@ PIP    := $(BIN)/python -m pip
 # pip resolves an unpinned torch to a multi-GB CUDA build.
 TORCH  := torch==2.13.0
 
-.PHONY: demo test test-avx2 test-ray bench lint clean setup setup-dev setup-ray
+.PHONY: demo test test-avx2 test-ray figures bench lint clean setup setup-dev setup-ray
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -42,7 +42,7 @@ demo: $(VENV)/.stamp-base $(VENV)/.stamp-kernels
 
 ## Test suite (lint, then pytest on both cores).
 test: $(VENV)/.stamp-dev $(VENV)/.stamp-kernels
-	$(BIN)/ruff check aldm_gym tests benchmarks
+	$(BIN)/ruff check aldm_gym tests benchmarks scripts
 	MPLBACKEND=Agg SDL_VIDEODRIVER=dummy $(BIN)/python -m pytest -n 2 -q
 
 ## The suite again on numpy's and OpenBLAS's AVX2 paths. On an AVX-512 CPU numpy's
@@ -81,13 +81,18 @@ test-ray: $(RAY_VENV)/.stamp
 	MPLBACKEND=Agg SDL_VIDEODRIVER=dummy $(RAY_BIN)/python -m pytest -n 2 -q \
 		tests/training/test_rllib.py tests/training/test_rllib_cluster.py
 
+## The numbers and figures of the docs, from seeded runs: the README's headline table,
+## docs/results.md's naive-vs-ALDM tables and docs/img (scripts/figures.py; ~3 min).
+figures: $(VENV)/.stamp-base $(VENV)/.stamp-kernels
+	MPLBACKEND=Agg $(BIN)/python scripts/figures.py
+
 ## Speed benchmarks (figures go to BENCHMARKS.md by hand, with the machine noted).
 bench: $(VENV)/.stamp-dev
 	$(BIN)/python -m benchmarks
 
 lint: $(VENV)/.stamp-dev
-	$(BIN)/ruff check aldm_gym tests benchmarks
-	$(BIN)/ruff format --check aldm_gym tests benchmarks
+	$(BIN)/ruff check aldm_gym tests benchmarks scripts
+	$(BIN)/ruff format --check aldm_gym tests benchmarks scripts
 
 clean:
 	rm -rf $(VENV) $(RAY_VENV) out .pytest_cache .ruff_cache

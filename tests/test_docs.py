@@ -42,3 +42,32 @@ def test_relative_links_resolve(page: Path) -> None:
         if not (page.parent / target).exists():
             missing.append(target)
     assert missing == []
+
+
+def _figures_script():  # type: ignore[no-untyped-def]
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("figures", ROOT / "scripts" / "figures.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.mark.slow
+def test_the_readme_table_is_what_the_quick_comparison_computes(tmp_path: Path) -> None:
+    """``make demo``'s run, recomputed: the README's headline table cannot go stale
+    (``make figures`` rewrites it)."""
+    figures = _figures_script()
+    computed = figures.quick_headline(tmp_path / "quick")
+    assert figures.block(README.read_text(), "headline") == computed
+
+
+def test_every_generated_block_has_its_markers() -> None:
+    figures = _figures_script()
+    figures.block(README.read_text(), "headline")
+    results = (ROOT / "docs" / "results.md").read_text()
+    for name in figures.RESULTS_BLOCKS:
+        assert figures.block(results, name).startswith("| "), name  # a table
+    with pytest.raises(ValueError, match="no <!-- generated:nothing --> block"):
+        figures.replace_block("text", "nothing", "x")
