@@ -82,7 +82,7 @@ test-ray: $(RAY_VENV)/.stamp
 		tests/training/test_rllib.py tests/training/test_rllib_cluster.py
 
 ## The numbers and figures of the docs, from seeded runs: the README's headline table,
-## docs/results.md's naive-vs-ALDM tables and docs/img (scripts/figures.py; ~3 min).
+## docs/results.md's naive-vs-ALDM tables and docs/img (scripts/figures.py; about 5 min).
 figures: $(VENV)/.stamp-base $(VENV)/.stamp-kernels
 	MPLBACKEND=Agg $(BIN)/python scripts/figures.py
 

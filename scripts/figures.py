@@ -20,7 +20,7 @@ The other tables of docs/results.md (the tracker's failure classes, bridges agai
 their control map, training) come from longer or hand-built runs; each names its
 command and date there and is not rewritten here.
 
-Run: ``.venv/bin/python scripts/figures.py [--quick-only]`` (about 8 minutes on 2
+Run: ``.venv/bin/python scripts/figures.py [--quick-only]`` (about 5 minutes on 2
 cores; ``--quick-only``: the README's table alone, under a minute).
 """
 

@@ -63,7 +63,7 @@ registry's detectors (:data:`~aldm_gym.sensor.detectors.DETECTORS`) and the trac
 ALDM (stateful, so it is compared in closed loop only). Also the order of the rows."""
 
 Trace = list[tuple[float, float]]
-"""``(distance from the start [m], signed lateral offset [m])`` per policy step."""
+"""``(distance driven so far [m], signed lateral offset [m])`` per policy step."""
 
 
 def compare_closed_loop(

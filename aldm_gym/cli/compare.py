@@ -120,9 +120,9 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     parser.add_argument(
         "--mode",
         choices=("robust", "paper"),
-        default="robust",
-        help="the ALDM's mode in the closed loop and the target scenes (the open loop "
-        "reports both; robust: the paper's algorithm with its gaps filled, docs/aldm.md)",
+        help="the ALDM's mode in the closed loop and the target scenes (default: robust, "
+        "the paper's algorithm with its gaps filled, docs/aldm.md; the open loop reports "
+        "both)",
     )
     parser.add_argument(
         "--no-closed-loop", action="store_true", help="only the frame-level comparison"
@@ -244,6 +244,10 @@ def check_applicable(args: argparse.Namespace) -> None:
         for flag, value in (("--min-radius", args.min_radius), ("--scenes", args.scenes)):
             if value is not None:
                 raise BadArgument(flag, "applies to generated roads only, not with --xodr")
+    if args.no_closed_loop and args.xodr is not None and args.mode is not None:
+        raise BadArgument(
+            "--mode", "applies to the closed loop and the target scenes: neither runs here"
+        )
     if args.no_closed_loop:
         for flag, given in (
             ("--episodes", args.episodes is not None),
@@ -439,7 +443,7 @@ def _compare_closed_loop(args: argparse.Namespace, out: Path) -> list[Path]:
             traffic=traffic,
             min_radius=None if args.xodr else args.min_radius,
             xodr=args.xodr,
-            aldm_mode=args.mode,
+            aldm_mode=args.mode or "robust",
             progress=bar.update,
         )
     write_csv(out / "compare.csv", rows, CLOSED_LOOP_COLUMNS)
@@ -516,7 +520,7 @@ def _compare_targets(args: argparse.Namespace, out: Path) -> list[Path]:
     total = n_roads * per_road * len(MARKING_MODELS) * len(DETECTORS)
     with tqdm(total=total, desc="target scenes", unit="scene", disable=_no_bar(args)) as bar:
         rows, curves = compare_target_selection(
-            seeds, per_road, aldm_mode=args.mode, progress=bar.update
+            seeds, per_road, aldm_mode=args.mode or "robust", progress=bar.update
         )
     write_csv(out / "compare_targets.csv", rows, TARGET_COLUMNS)
     print("ACC target selection (curves R 500-1500 m, one vehicle ahead per scene):")

@@ -26,7 +26,7 @@ from aldm_gym.roads.protocol import Road
 from aldm_gym.sensor.frame import SensorFrame
 from aldm_gym.sensor.ground_truth import score_detection
 from aldm_gym.sensor.lane_detection import LaneDetection
-from aldm_gym.sensor.lane_metrics import NEAR, frame_metrics
+from aldm_gym.sensor.lane_metrics import NEAR, THRESHOLDS, frame_metrics
 
 __all__ = ["NO_TARGET_INFO", "Referee", "collision_kind"]
 
@@ -225,17 +225,18 @@ class Referee:
         self, detection: LaneDetection | None, frame: SensorFrame, view: float | None = None
     ) -> dict[str, Any]:
         """``info["lane_metrics"]``: the frame's lane-detection metrics
-        (:func:`~aldm_gym.sensor.lane_metrics.frame_metrics`): per threshold
-        (``"strict"``, ``"loose"``) the counts ``tp``, ``fp``, ``fn`` over the four
-        lines, and the mean |lateral error| of the lines precise at the loose threshold
+        (:func:`~aldm_gym.sensor.lane_metrics.frame_metrics`): ``detected``, the lines
+        detected; per threshold (``"strict"``, ``"loose"``) the counts ``tp`` (true
+        lines recalled), ``fp`` (detected lines not precise), ``fn`` (true lines not
+        recalled), and the mean |lateral error| of the lines precise at the loose threshold
         near (x <= 40 m) and far [m] (NaN without such points).
 
         :param view: the sensor's visibility [m] (``None``: its range)."""
         empty = LaneDetection()
         lane = self.lane_position.lane
         m = frame_metrics(detection or empty, self.road, frame, lane, view=view)
-        out: dict[str, Any] = {}
-        for threshold in ("strict", "loose"):
+        out: dict[str, Any] = {"detected": len(m.detected)}
+        for threshold in THRESHOLDS:
             tp, fp, fn = m.counts(threshold)
             out[threshold] = {"tp": tp, "fp": fp, "fn": fn}
         errors = [x.errors for x in m.matches if x.loose_precise]

@@ -203,12 +203,13 @@ DETECTOR_STYLE = {
 
 
 def percent(share: float) -> str:
-    """A share in [0, 1] as a bar label: ``"0 %"``, ``"<1 %"``, ``"14 %"``, ``"100 %"``."""
+    """A share in [0, 1] as a bar label in per cent (the axis says [%]): ``"0"``,
+    ``"<1"`` (above zero but under 1 %), ``"14"``, ``"100"``."""
     if share == 0.0:
-        return "0 %"
+        return "0"
     if share < 0.01:
-        return "<1 %"
-    return f"{100.0 * share:.0f} %"
+        return "<1"
+    return f"{100.0 * share:.0f}"
 
 
 def plot_detector_bars(rows: Sequence[Mapping[str, Any]], path: str | Path) -> None:
@@ -217,7 +218,8 @@ def plot_detector_bars(rows: Sequence[Mapping[str, Any]], path: str | Path) -> N
     ego lines correct [%] (left) and the F1 of the four lines at the strict threshold,
     with the loose one (1.5 m) as a light bar behind (right); a PNG.
 
-    Every bar carries its value, so a bar of zero height reads "0 %", not as missing.
+    Every bar carries its value (:func:`percent`), so a bar of zero height reads "0" in
+    the bar's colour, not as a missing bar, and a sliver above zero reads "<1".
     """
     import matplotlib
 
@@ -258,7 +260,7 @@ def plot_detector_bars(rows: Sequence[Mapping[str, Any]], path: str | Path) -> N
                 ax.bar(x, 100.0 * np.nan_to_num(loose), width, color=colour, alpha=0.3)
             vals = [value(m, key, column) for m in models]
             bars = ax.bar(x, 100.0 * np.nan_to_num(vals), width, label=name, color=colour)
-            texts = ax.bar_label(bars, [f"{100 * v:.0f}" for v in vals], padding=2, fontsize=8)
+            texts = ax.bar_label(bars, [percent(v) for v in vals], padding=2, fontsize=8)
             for text, v in zip(texts, vals, strict=True):
                 if v == 0.0:
                     text.set_color(colour or "black")

@@ -58,10 +58,16 @@ def line_preview(
     previews 0 m; a traced line from 6 m to 190 m, 190 m.
 
     :param line: ``(K, 2)`` points (x, y) [m], sorted by x.
+    :raises InputError: not a ``(K, 2)`` array, x not finite or not sorted.
     """
-    if len(line) < 2 or line[0, 0] > start_max:
-        return 0.0
+    line = np.asarray(line, dtype=np.float64)
+    if line.ndim != 2 or line.shape[1] != 2:
+        raise InputError(f"a line is a (K, 2) array of (x, y) [m], got shape {line.shape}")
     x = line[:, 0]
+    if not np.isfinite(x).all() or np.any(np.diff(x) < 0.0):
+        raise InputError("a line's x must be finite and sorted (ascending)")
+    if len(line) < 2 or x[0] > start_max:
+        return 0.0
     breaks = np.flatnonzero(np.diff(x) > gap)
     end = int(breaks[0]) if len(breaks) else len(x) - 1
     return float(x[end])

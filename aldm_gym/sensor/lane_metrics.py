@@ -1,9 +1,10 @@
 """Lane-detection metrics as the field reports them, on aldm-gym's ground truth.
 
 Per frame, the detected lines (ego left/right, left/right adjacent) are matched one to
-one to the true markings around the vehicle's lane by minimum cost (the mean lateral
-distance over their common x; Hungarian method, ``scipy.optimize.linear_sum_assignment``).
-Each matched pair is judged at two thresholds:
+one to the true markings around the vehicle's lane by minimum cost (Hungarian method,
+``scipy.optimize.linear_sum_assignment``), Gen-LaneNet's cost: over the grid points
+(below) either line covers, the lateral distance clipped at 1.5 m, and 1.5 m where only
+one covers. Each matched pair is judged at two thresholds:
 
 - **strict**, this project's headline rule (:func:`~aldm_gym.sensor.ground_truth.score_line`):
   every detected point within 0.3 m of the true marking, the first point within 25 m and
@@ -16,11 +17,16 @@ Each matched pair is judged at two thresholds:
   the true line is recalled when at least 75 % of the grid points it covers count, the
   detected line is precise when at least 75 % of those it covers count.
 
-A true line present in the frame and not recalled is a false negative (FN), a detected
-line not precise is a false positive (FP); at the strict threshold a pair either matches
-or not, so its recalled and precise lines are the same true positives (TP).
-Precision = precise detected lines / detected lines, recall = recalled true lines /
-true lines, F1 their harmonic mean, each summed over frames and lines. Lateral errors
+Counting follows OpenLane: at each threshold a true line is a true positive (TP) when
+its pair recalls it, else a false negative (FN); a detected line is a false positive
+(FP) when it is not precise (or not matched). Precision = precise detected lines /
+detected lines, recall = TP / true lines, F1 their harmonic mean (0 when nothing is
+recalled), each summed over frames and lines. At the strict threshold a pair passes or
+fails as a whole, so TP + FP is the number of lines detected; at the loose one a pair
+can recall its true line while its detected line is not precise (a long line that
+leaves the marking after it) or the reverse (a short correct piece of a long marking),
+so TP + FP need not equal the lines detected and precision is not TP / (TP + FP): the
+summaries report the lines detected beside the counts. Lateral errors
 are reported as the field does, near (x ≤ 40 m) and far (40 m < x, to the end of the
 view), as the mean and the 95th percentile of |Δy| [m] of the detected points of the
 lines precise at the loose threshold; and per kind of true line: ``"dashed"`` (broken
@@ -69,6 +75,7 @@ __all__ = [
     "LOOSE_TOLERANCE",
     "NEAR",
     "PREVIEW_GAP",
+    "THRESHOLDS",
     "FrameMetrics",
     "LineMatch",
     "MetricsTotals",
@@ -92,6 +99,8 @@ PREVIEW_MIN = 60.0
 """... and its preview reaches this far [m] (the paper's minimum preview)."""
 GRID_STEP = 2.0
 """The x step of the sensor's grid the loose criterion samples [m]."""
+THRESHOLDS = ("strict", "loose")
+"""The two thresholds a pair is judged at."""
 KINDS = ("solid", "dashed", "edge")
 """Kinds of true line the metrics are broken down by."""
 
@@ -140,6 +149,8 @@ class FrameMetrics:
     def counts(self, threshold: str) -> tuple[int, int, int]:
         """``(TP, FP, FN)`` at ``threshold`` (``"strict"`` or ``"loose"``): the true lines
         recalled, the detected lines not precise, the true lines not recalled."""
+        if threshold not in THRESHOLDS:
+            raise InputError(f"threshold must be one of {list(THRESHOLDS)}, got {threshold!r}")
         recalled = sum(getattr(m, threshold) for m in self.matches)
         precise_name = "loose_precise" if threshold == "loose" else threshold
         precise = sum(getattr(m, precise_name) for m in self.matches)
@@ -150,15 +161,24 @@ class FrameMetrics:
         return next((m for m in self.matches if m.truth == truth), None)
 
 
-def _kind(road: Road, marking: Any, name: str, present: dict[str, Any]) -> str:
-    """:data:`KINDS` of true line ``name`` (module docstring)."""
-    first = marking if isinstance(marking, int | np.integer) else marking[0]
-    if int(road.marking_table["type"][int(first)]) in (2, 3):
+EDGE_CLEARANCE = 1.0
+"""A solid line is an edge when no other true marking lies more than this far [m]
+beyond it (away from the ego lane) anywhere along it in view."""
+
+
+def _kind(road: Road, marking: Any, name: str, on_grid: FloatArray, y_line: FloatArray) -> str:
+    """:data:`KINDS` of true line ``name`` (module docstring), from its paint and from the
+    true markings of the frame: ``on_grid`` (all markings on the grid), ``y_line`` (this
+    line's y there)."""
+    rows = (int(marking),) if isinstance(marking, int | np.integer) else tuple(marking)
+    if int(road.marking_table["type"][rows[0]]) in (2, 3):
         return "dashed"
-    beyond = {"ego_left": "left_adjacent", "ego_right": "right_adjacent"}.get(name)
-    if beyond is None or present.get(beyond) is None:
-        return "edge"
-    return "solid"
+    side = 1.0 if name in ("ego_left", "left_adjacent") else -1.0
+    others = np.delete(on_grid, list(rows), axis=0)
+    seen = np.isfinite(y_line)
+    with np.errstate(invalid="ignore"):
+        beyond = side * (others[:, seen] - y_line[seen]) > EDGE_CLEARANCE
+    return "solid" if bool(np.any(beyond)) else "edge"
 
 
 def _grid(frame: SensorFrame, view: float | None) -> FloatArray:
@@ -170,6 +190,22 @@ def _grid(frame: SensorFrame, view: float | None) -> FloatArray:
 def _cover(x: FloatArray, grid: FloatArray) -> np.ndarray:
     """Grid points between a line's first and last x."""
     return (grid >= x[0]) & (grid <= x[-1])
+
+
+def _check_view(frame: SensorFrame, view: Any) -> float | None:
+    """``view`` as a float, or an :class:`InputError` when it is not a distance that
+    leaves at least two grid points in view."""
+    if view is None:
+        return None
+    if isinstance(view, bool) or not isinstance(view, int | float | np.floating | np.integer):
+        raise InputError(f"view must be a distance [m] or None, got {view!r}")
+    least = frame.fov_start + GRID_STEP
+    if not float(view) >= least:  # NaN fails too
+        raise InputError(
+            f"view must be at least {least:g} m (two grid points from the field of view's "
+            f"start, {frame.fov_start:g} m), got {view!r}"
+        )
+    return float(view)
 
 
 def frame_metrics(
@@ -186,11 +222,10 @@ def frame_metrics(
     :param view: the farthest x the sensor sees [m], when shorter than the frame's range
         (its ``visibility``): the loose criterion samples up to there, as benchmarks
         annotate only what a camera could see. ``None``: the range.
+    :raises InputError: ``view`` is not a distance leaving two grid points in view.
     """
-    if view is not None and not view > 0.0:
-        raise InputError(f"view must be a positive distance [m], got {view!r}")
+    grid = _grid(frame, _check_view(frame, view))
     marks = line_markings(road, lane_id, frame.origin)
-    grid = _grid(frame, view)
     lines = {n: detection.line(n) for n in LINE_NAMES if len(detection.line(n)) >= 2}
     xs = np.concatenate([grid, *(line[:, 0] for line in lines.values())])
     y_all = true_markings(road, frame, xs)
@@ -203,29 +238,33 @@ def frame_metrics(
         yg = boundary_y(on_grid, marking)
         if np.count_nonzero(np.isfinite(yg)) >= 2:
             truth_grid[name] = yg
-            truths[name] = _kind(road, marking, name, marks)
+            truths[name] = _kind(road, marking, name, on_grid, yg)
     start = len(grid)
     det_truth: dict[str, dict[str, FloatArray]] = {}
+    det_grid: dict[str, tuple[np.ndarray, FloatArray]] = {}
     for name, line in lines.items():
         rows = y_all[:, start : start + len(line)]
         start += len(line)
         det_truth[name] = {t: boundary_y(rows, marks[t]) for t in truths}
+        det_grid[name] = (_cover(line[:, 0], grid), np.interp(grid, line[:, 0], line[:, 1]))
     detected = tuple(lines)
     truth_names = tuple(truths)
-    cost = np.full((len(detected), len(truth_names)), np.inf)
+    # Gen-LaneNet's matching cost: over the grid points either line covers, |dy| clipped
+    # at the loose tolerance, and the tolerance where only one covers.
+    cost = np.zeros((len(detected), len(truth_names)))
     for i, d in enumerate(detected):
+        covered_d, y_d = det_grid[d]
         for j, t in enumerate(truth_names):
-            diff = np.abs(lines[d][:, 1] - det_truth[d][t])
-            finite = diff[np.isfinite(diff)]
-            if len(finite):
-                cost[i, j] = float(finite.mean())
+            yt = truth_grid[t]
+            covered_t = np.isfinite(yt)
+            union = covered_d | covered_t
+            with np.errstate(invalid="ignore"):
+                dy = np.minimum(np.abs(y_d - yt), LOOSE_TOLERANCE)
+            per_point = np.where(covered_d & covered_t, dy, LOOSE_TOLERANCE)
+            cost[i, j] = float(per_point[union].mean()) if union.any() else LOOSE_TOLERANCE
     matches = []
     if cost.size:
-        big = 1e9
-        rows, cols = linear_sum_assignment(np.where(np.isfinite(cost), cost, big))
-        for i, j in zip(rows.tolist(), cols.tolist(), strict=True):
-            if not np.isfinite(cost[i, j]):
-                continue
+        for i, j in zip(*(a.tolist() for a in linear_sum_assignment(cost)), strict=True):
             d, t = detected[i], truth_names[j]
             line = lines[d]
             diff = np.abs(line[:, 1] - det_truth[d][t])
@@ -235,18 +274,12 @@ def frame_metrics(
                 and line[0, 0] <= START_MAX
                 and line_preview(line) >= PREVIEW_MIN
             )
-            covered_d = _cover(line[:, 0], grid)
-            y_d = np.interp(grid, line[:, 0], line[:, 1])
+            covered_d, y_d = det_grid[d]
             yt = truth_grid[t]
-            covered_t = np.isfinite(yt)
-            both = covered_d & covered_t
-            close = int(
-                np.count_nonzero(
-                    both & (np.abs(np.where(both, y_d - yt, np.inf)) <= LOOSE_TOLERANCE)
-                )
-            )
-            loose = close >= LOOSE_SHARE * int(np.count_nonzero(covered_t))
-            loose_precise = close >= LOOSE_SHARE * int(np.count_nonzero(covered_d))
+            both = covered_d & np.isfinite(yt)
+            with np.errstate(invalid="ignore"):
+                close = int(np.count_nonzero(both & (np.abs(y_d - yt) <= LOOSE_TOLERANCE)))
+            n_t, n_d = int(np.count_nonzero(np.isfinite(yt))), int(np.count_nonzero(covered_d))
             seen = np.isfinite(diff)
             matches.append(
                 LineMatch(
@@ -255,8 +288,9 @@ def frame_metrics(
                     kind=truths[t],
                     cost=float(cost[i, j]),
                     strict=strict,
-                    loose=bool(loose),
-                    loose_precise=bool(loose_precise),
+                    loose=close >= LOOSE_SHARE * n_t,
+                    # a line that covers no grid point in view cannot be precise
+                    loose_precise=n_d > 0 and close >= LOOSE_SHARE * n_d,
                     errors=np.column_stack([line[seen, 0], diff[seen]]),
                 )
             )
@@ -273,6 +307,8 @@ def _prf(tp: int, fp: int, fn: int, detected: int) -> tuple[float, float, float]
     (true lines recalled), ``fp``, ``fn`` and the number of detected lines."""
     p = (detected - fp) / detected if detected else math.nan
     r = tp / (tp + fn) if tp + fn else math.nan
+    if r == 0.0:
+        return p, r, 0.0  # nothing recalled: F1 0 whatever the precision
     if p != p or r != r:
         return p, r, math.nan
     return p, r, (2 * p * r / (p + r) if p + r else 0.0)
@@ -317,12 +353,15 @@ class MetricsTotals:
             self._ego_previews.append(metrics.previews.get(name, 0.0))
 
     def summary(self) -> dict[str, float]:
-        """The metrics as a flat dict: per threshold ``{t}_tp``, ``{t}_fp``,
-        ``{t}_fn``, ``{t}_precision``, ``{t}_recall``, ``{t}_f1``; ``near_mean_m``,
+        """The metrics as a flat dict: ``lines_detected``; per threshold ``{t}_tp``,
+        ``{t}_fp``, ``{t}_fn``, ``{t}_precision``, ``{t}_recall``, ``{t}_f1``; ``near_mean_m``,
         ``near_p95_m``, ``far_mean_m``, ``far_p95_m``; per kind ``recall_{kind}``
         (strict) and ``loose_recall_{kind}``; ``mean_preview_m`` of the ego lines (0
         where missing)."""
-        out: dict[str, float] = {"frames": float(self.frames)}
+        out: dict[str, float] = {
+            "frames": float(self.frames),
+            "lines_detected": float(self._detected),
+        }
         for threshold, (tp, fp, fn) in self._counts.items():
             p, r, f1 = _prf(tp, fp, fn, self._detected)
             out.update(

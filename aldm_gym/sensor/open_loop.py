@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from aldm_gym.errors import ConfigError
 from aldm_gym.roads.markings import MARKING_MODELS
 from aldm_gym.roads.position import Pose
 from aldm_gym.roads.protocol import Road
@@ -67,6 +68,7 @@ COLUMNS: tuple[str, ...] = (
     "p95_abs_error_m",
     "mean_preview_m",
     "adjacent_correct",
+    "lines_detected",
     "strict_precision",
     "strict_recall",
     "strict_f1",
@@ -117,17 +119,22 @@ def compare_detectors(
         lines [m], mean preview of the ego lines [m] (0 for a missing or unusable line,
         :func:`~aldm_gym.sensor.lane_detection.line_preview`), share of adjacent lines
         correct where they exist, and :mod:`~aldm_gym.sensor.lane_metrics` over all four
-        lines: precision, recall, F1, true positives (recalled true lines), false
-        positives and false negatives at the strict and the loose threshold, near and far
+        lines: the lines detected, and at the strict and the loose threshold precision,
+        recall, F1, true positives (recalled true lines), false positives (detected lines
+        not precise) and false negatives (true lines not recalled), near and far
         lateral errors, strict recall per kind of true line.
     """
     sensor = sensor or LineSensor()
     view = sensor.config.visibility
-    specs = [
-        (d, "robust" if d == "aldm" else "", {}) if isinstance(d, str) else d for d in detectors
-    ]
+    specs = [_detector_spec(d) for d in detectors]
+    seen = [(name, mode) for name, mode, _ in specs]
+    twice = sorted({s for s in seen if seen.count(s) > 1})
+    if twice:
+        raise ConfigError(f"detector rows given twice (they would share one row): {twice}")
     rows_spec = [(name, mode, make_detector(name, params)) for name, mode, params in specs]
     models = list(marking_models)
+    if not models:
+        raise ConfigError("marking_models is empty: name at least one of per_dash, editor")
     acc: dict[tuple[str, str, str], dict[str, list[float]]] = {}
     totals: dict[tuple[str, str, str], MetricsTotals] = {}
     for r_i, road in enumerate(roads):
@@ -167,6 +174,25 @@ def compare_detectors(
         row.update({c: summary[c] for c in COLUMNS if c not in row})
         rows.append(row)
     return rows
+
+
+def _detector_spec(spec: Any) -> tuple[str, str, dict[str, Any]]:
+    """A ``(detector, mode, params)`` row of :func:`compare_detectors` from a row or a
+    name, its mode checked against its parameters.
+
+    :raises ConfigError: a malformed row, or a mode the parameters contradict.
+    """
+    if isinstance(spec, str):
+        return spec, "robust" if spec == "aldm" else "", {}
+    if not (isinstance(spec, tuple | list) and len(spec) == 3 and isinstance(spec[2], dict)):
+        raise ConfigError(f"a detector row is a name or (detector, mode, params), got {spec!r}")
+    name, mode, params = spec
+    runs = params.get("mode", "robust") if name == "aldm" else ""
+    if mode != runs:
+        raise ConfigError(
+            f"detector row {spec!r}: its mode label {mode!r} is not the mode it runs, {runs!r}"
+        )
+    return str(name), str(mode), dict(params)
 
 
 def _score_frame(

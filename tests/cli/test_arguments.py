@@ -76,6 +76,11 @@ CASES = [
     (["compare", "--no-closed-loop", "--trucks", "0.2", "--out", "DIR"], "--trucks", "closed loop"),
     (["compare", "--no-closed-loop", "--tracking", "--out", "DIR"], "--tracking", "closed loop"),
     (
+        ["compare", "--xodr", "MAP", "--no-closed-loop", "--mode", "paper", "--out", "DIR"],
+        "--mode",
+        "neither runs here",
+    ),
+    (
         ["compare", "--noise", "0.1", "--sensor", "lateral_noise=0.2", "--out", "DIR"],
         "--noise",
         "sets lateral_noise, and so does --sensor lateral_noise=...: give one",

@@ -158,7 +158,7 @@ def test_frame_has_a_legend_and_is_drawn_at_a_range_view() -> None:
 def test_bar_labels_are_percentages_and_zero_reads_zero() -> None:
     from aldm_gym.sensor.frame_plot import percent
 
-    assert [percent(v) for v in (0.0, 0.004, 0.145, 1.0)] == ["0 %", "<1 %", "14 %", "100 %"]
+    assert [percent(v) for v in (0.0, 0.004, 0.145, 1.0)] == ["0", "<1", "14", "100"]
 
 
 def test_demo_frame_is_where_naive_errs_most() -> None:

@@ -109,7 +109,10 @@ def test_a_missing_line_is_a_false_negative_and_no_line_is_nothing_detected() ->
     assert empty.detected == () and empty.counts("loose") == (0, 0, 4)
     summary = totals([empty]).summary()
     assert math.isnan(summary["strict_precision"]) and summary["strict_recall"] == 0.0
-    assert math.isnan(summary["strict_f1"])
+    assert summary["strict_f1"] == 0.0  # nothing recalled
+    assert summary["lines_detected"] == 0.0
+    with pytest.raises(ValueError, match="threshold must be one of"):
+        empty.counts("bogus")
 
 
 def test_kinds_edge_dashed() -> None:
@@ -176,5 +179,77 @@ def test_the_loose_rule_judges_within_the_view() -> None:
     # ground truth's full lines stay precise within the shorter view
     full = frame_metrics(_detect(lines), ROAD, frame, lane_id, view=140.0)
     assert full.counts("loose") == (4, 0, 0)
-    with pytest.raises(ValueError, match="view must be a positive distance"):
-        frame_metrics(_detect(lines), ROAD, frame, lane_id, view=float("nan"))
+    for bad in (float("nan"), 6.0, -1.0):
+        with pytest.raises(ValueError, match=r"view must be at least 7\.52 m"):
+            frame_metrics(_detect(lines), ROAD, frame, lane_id, view=bad)
+    for bad in ("100", True):
+        with pytest.raises(ValueError, match="view must be a distance"):
+            frame_metrics(_detect(lines), ROAD, frame, lane_id, view=bad)  # type: ignore[arg-type]
+
+
+def test_a_solid_line_with_a_lane_beyond_is_solid_not_edge() -> None:
+    road = HighwayRoad({"lanes_count": 4, "curved": False, "seed": 0, "lane_line_type": 1})
+    x, y = road.reference.position(1000.0, road.lane_offset(1))
+    pose = (x, y, float(road.reference.heading_at(1000.0)))
+    frame = LineSensor().measure(road, pose)
+    lane_id = road.lane_position(pose[:2]).lane
+    m = frame_metrics(ground_truth_detect(road, frame, lane_id), road, frame, lane_id)
+    assert m.truths == {
+        "left_adjacent": "edge",  # the road's left edge
+        "ego_left": "solid",
+        "ego_right": "solid",
+        "right_adjacent": "solid",  # the fourth lane lies beyond it
+    }
+
+
+def test_a_piece_beside_a_line_does_not_steal_its_match() -> None:
+    """Parallel candidates: the cost counts where the lines cover the grid, so a 20 m
+    piece 0.2 m beside the true line does not take it from the full detection."""
+    lines, frame, lane_id = _truth()
+    piece = lines["ego_left"][(lines["ego_left"][:, 0] >= 30) & (lines["ego_left"][:, 0] <= 50)]
+    piece = piece + np.array([0.0, -0.2])
+    detection = {"ego_left": lines["ego_left"], "left_adjacent": piece}
+    m = frame_metrics(_detect(detection), ROAD, frame, lane_id)
+    pairs = {match.truth: match.detected for match in m.matches}
+    assert pairs["ego_left"] == "ego_left"
+    assert m.counts("strict") == (1, 1, 3)
+
+
+def test_a_line_covering_no_grid_point_is_not_precise() -> None:
+    lines, frame, lane_id = _truth()
+    # two points between grid points, 1.4 m off the marking, and a line beyond the range
+    x0 = float(lines["ego_left"][7, 0]) + 0.5
+    y0 = float(np.interp(x0, *lines["ego_left"].T)) + 1.4
+    odd = {
+        "ego_left": np.array([[x0, y0], [x0 + 1.0, y0]]),
+        "ego_right": np.column_stack([[205.0, 230.0, 260.0], lines["ego_right"][-3:, 1]]),
+    }
+    m = frame_metrics(_detect(odd), ROAD, frame, lane_id)
+    assert all(not match.loose_precise and not match.loose for match in m.matches)
+    assert m.counts("loose") == (0, 2, 4)
+    assert math.isnan(totals([m]).summary()["far_mean_m"])  # no precise line's errors
+
+
+def test_at_the_loose_rule_tp_and_fp_need_not_add_up_to_the_lines_detected() -> None:
+    lines, frame, lane_id = _truth()
+    # a correct 40 m piece of ego_left: precise, but it covers under 75 % of the marking
+    piece = lines["ego_left"][lines["ego_left"][:, 0] <= 45.0]
+    m = frame_metrics(_detect({**lines, "ego_left": piece}), ROAD, frame, lane_id)
+    tp, fp, fn = m.counts("loose")
+    assert (tp, fp, fn) == (3, 0, 1) and tp + fp < len(m.detected)
+    s = totals([m]).summary()
+    assert s["loose_precision"] == 1.0 and s["loose_recall"] == 0.75
+    assert s["lines_detected"] == 4.0
+
+
+@pytest.mark.parametrize(
+    ("line", "message"),
+    [
+        (np.array([1.0, 2.0]), r"\(K, 2\) array"),
+        (np.array([[10.0, 0.0], [np.nan, 0.0]]), "finite and sorted"),
+        (np.array([[30.0, 0.0], [10.0, 0.0]]), "finite and sorted"),
+    ],
+)
+def test_line_preview_rejects_bad_lines(line: np.ndarray, message: str) -> None:
+    with pytest.raises(ValueError, match=message):
+        line_preview(line)

@@ -5,7 +5,9 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
+import pytest
 
+from aldm_gym.errors import ConfigError
 from aldm_gym.roads import HighwayRoad
 from aldm_gym.sensor import LineSensor
 from aldm_gym.sensor.open_loop import COLUMNS, FRAME_DETECTORS, compare_detectors
@@ -58,3 +60,24 @@ def test_detectors_by_name() -> None:
     rows = compare_detectors([HighwayRoad({"seed": 1, "length": 2000.0})], ["naive", "aldm"], 3)
     assert {(r["detector"], r["mode"]) for r in rows} == {("naive", ""), ("aldm", "robust")}
     assert {r["marking_model"] for r in rows} == {"per_dash", "editor"}
+
+
+@pytest.mark.parametrize(
+    ("detectors", "message"),
+    [
+        ([("aldm", "", {}), ("aldm", "", {"mode": "paper"})], "mode label ''"),
+        ([("aldm", "robust", {"mode": "paper"})], "is not the mode it runs, 'paper'"),
+        ([("aldm", "robust", {}), "aldm"], r"given twice .*\('aldm', 'robust'\)"),
+        ([("naive", "")], r"a name or \(detector, mode, params\)"),
+        ([("naive", "paper", {})], "is not the mode it runs, ''"),
+    ],
+)
+def test_bad_detector_rows_are_named(detectors: list, message: str) -> None:
+    road = [HighwayRoad({"seed": 1, "length": 2000.0})]
+    with pytest.raises(ConfigError, match=message):
+        compare_detectors(road, detectors, 2)
+
+
+def test_no_marking_model_is_an_error() -> None:
+    with pytest.raises(ConfigError, match="marking_models is empty"):
+        compare_detectors([HighwayRoad({"seed": 1})], ["naive"], 2, marking_models=[])
