@@ -104,10 +104,12 @@ def test_info_lane_metrics(detector: str, strict_tp: int | None) -> None:
     for _ in range(3):
         *_, info = env.step(1)
     m = info["lane_metrics"]
-    assert set(m) == {"strict", "loose", "near_mean_m", "far_mean_m"}
+    assert set(m) == {"strict", "loose", "near_mean_m", "far_mean_m", "detected"}
     # 4 lanes, the ego in the second: four true lines, each found or missed
     for counts in (m["strict"], m["loose"]):
         assert counts["tp"] + counts["fn"] == 4
+    # strictly, every detected line is a TP or an FP
+    assert m["strict"]["tp"] + m["strict"]["fp"] == m["detected"] <= 4
     if strict_tp is not None:
         assert m["strict"] == {"tp": strict_tp, "fp": 0, "fn": 0}
         assert m["near_mean_m"] < 1e-6
