@@ -8,7 +8,8 @@ that catches those catches these too::
     AldmGymError
     ├── ConfigError (ValueError)        an unknown setting or a value out of its rules
     ├── InputError (ValueError)         unusable data: wrong shape, NaN/inf, empty
-    │   └── OffRoadError                a world position on no lane of the road
+    │   ├── OffRoadError                a world position on no lane of the road
+    │   └── ScenarioError               an OpenSCENARIO file that cannot be played
     ├── MapError (ValueError)           an OpenDRIVE file that cannot be read or used
     ├── MapNotFoundError (FileNotFoundError)
     ├── CheckpointError (ValueError)    a training output or checkpoint that cannot be used
@@ -23,7 +24,7 @@ that catches those catches these too::
     └── TrainingWarning                 a training output was repaired or skipped
 
 Messages name what is wrong: the setting and the allowed values, the file, road,
-element and line of a map, the argument to blame.
+element and line of a map or a scenario, the argument to blame.
 """
 
 from __future__ import annotations
@@ -43,6 +44,7 @@ __all__ = [
     "OffRoadError",
     "OutputLocked",
     "ResumeError",
+    "ScenarioError",
     "TrainingWarning",
 ]
 
@@ -63,6 +65,11 @@ class InputError(AldmGymError, ValueError):
 
 class OffRoadError(InputError):
     """A world position lies on no lane of the road (off a map's lanes)."""
+
+
+class ScenarioError(InputError):
+    """An OpenSCENARIO file (or a parameter given for it) that cannot be played: the
+    message names the file, the line and the element (``file.xosc:57 <SpeedAction>``)."""
 
 
 class MapError(AldmGymError, ValueError):

@@ -8,6 +8,9 @@ import pytest
 
 from aldm_gym.cli import main
 
+NESTED = ("scenario",)
+"""Commands whose usage errors come from an action's parser (``aldm-gym scenario run``)."""
+
 
 def usage_error(argv: Sequence[str], capsys: pytest.CaptureFixture[str]) -> str:
     """Run ``aldm-gym argv``; assert it exits with code 2 after the subcommand's usage
@@ -20,5 +23,6 @@ def usage_error(argv: Sequence[str], capsys: pytest.CaptureFixture[str]) -> str:
     assert "Traceback" not in err
     lines = err.strip().splitlines()
     assert lines[0].startswith("usage: aldm-gym"), err
-    assert lines[-1].startswith(f"aldm-gym {argv[0]}: error: "), err
+    command = " ".join(argv[:2] if argv[0] in NESTED else argv[:1])
+    assert lines[-1].startswith(f"aldm-gym {command}: error: "), err
     return lines[-1]

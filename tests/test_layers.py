@@ -16,6 +16,7 @@ LAYERS = (
     "config",
     "roads",
     "sensor",
+    "scenario",
     "envs",
     "agents",
     "training",

@@ -22,10 +22,10 @@ import argparse
 from collections.abc import Sequence
 
 from aldm_gym import __version__
-from aldm_gym.cli import compare, evaluate, plot, train
+from aldm_gym.cli import compare, evaluate, plot, scenario, train
 from aldm_gym.cli.argtypes import BadArgument
 
-SUBCOMMANDS = (compare, plot, train, evaluate)
+SUBCOMMANDS = (compare, plot, scenario, train, evaluate)
 """The subcommand modules, in the order of ``aldm-gym --help``."""
 
 
@@ -74,6 +74,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args, extra = parser.parse_known_args(argv)
     sub = parser._subparsers._group_actions[0].choices[args.command]  # type: ignore[union-attr]
+    while sub._subparsers is not None:  # a command with actions (``scenario run``)
+        group = sub._subparsers._group_actions[0]
+        sub = group.choices[getattr(args, group.dest)]
     if extra:
         sub.error(f"unrecognized arguments: {' '.join(extra)}")
     try:

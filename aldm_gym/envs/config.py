@@ -20,6 +20,8 @@ top level              :class:`EnvConfig` (below)
                        with ``road.xodr`` (an OpenDRIVE map)
 ``detector_params``    the detector's own parameters (a read-only dict, checked by
                        :mod:`aldm_gym.sensor.detectors`)
+``scenario``           :class:`aldm_gym.scenario.ScenarioConfig` (an OpenSCENARIO
+                       file to play)
 =====================  =============================================================
 
 :func:`parse_config` validates a complete configuration once: unknown keys (named,
@@ -53,6 +55,7 @@ from aldm_gym.errors import ConfigError
 from aldm_gym.roads.highway import MARKING_MODELS, RoadConfig
 from aldm_gym.roads.map_road import OpenDriveRoad
 from aldm_gym.roads.opendrive import DEFAULT_BROKEN_PATTERN, DEFAULT_SAMPLE_STEP
+from aldm_gym.scenario.settings import ScenarioConfig
 from aldm_gym.sensor.detectors import DETECTORS, make_detector
 from aldm_gym.sensor.line_sensor import LineSensorConfig
 
@@ -133,7 +136,8 @@ class EnvConfig:
     ``marking_model``, ``detector``, ``progress_reward``, ``lane_keeping_reward``,
     ``departure_reward``, ``departure_terminal``, ``info_metrics`` (``info["lane_metrics"]``,
     :mod:`aldm_gym.sensor.lane_metrics`), and the sections ``detector_params``,
-    ``sensor``, ``road``, ``lka``, ``acc`` (ACC and AEB), ``traffic`` (trucks).
+    ``sensor``, ``road``, ``lka``, ``acc`` (ACC and AEB), ``traffic`` (trucks),
+    ``scenario`` (an OpenSCENARIO file to play).
     Meanings: ``docs/env.md``.
     """
 
@@ -183,6 +187,7 @@ class EnvConfig:
     lka: LKAConfig = section(LKAConfig)
     acc: ACCConfig = section(ACCConfig)
     traffic: TrafficConfig = section(TrafficConfig)
+    scenario: ScenarioConfig = section(ScenarioConfig)
     progress_reward: float = _reward(0.2)
     lane_keeping_reward: float = _reward(0.3)
     departure_reward: float = _reward(-0.5)
@@ -226,6 +231,11 @@ class EnvConfig:
                         f"config[{key!r}] ({getattr(self, key)!r})"
                     )
         object.__setattr__(self, "detector_params", self._detector_params(self.detector_params))
+        if self.scenario.enabled and isinstance(self.road, MapConfig):
+            raise ConfigError(
+                "road.xodr and scenario.xosc are both set: a scenario brings its own map "
+                "(RoadNetwork/LogicFile); drop road.xodr"
+            )
 
     def _road_section(self, given: Any) -> RoadConfig | MapConfig:
         """The ``road`` mapping as a :class:`RoadConfig` (with the top-level
@@ -269,8 +279,8 @@ class EnvConfig:
 
     @property
     def on_map(self) -> bool:
-        """Whether the env drives on an OpenDRIVE map (``road.xodr`` set)."""
-        return isinstance(self.road, MapConfig)
+        """Whether the env drives on an OpenDRIVE map (``road.xodr`` or a scenario set)."""
+        return isinstance(self.road, MapConfig) or self.scenario.enabled
 
     def road_config(self, seed: int) -> RoadConfig:
         """The generated road's :class:`RoadConfig`; ``seed`` replaces a ``None`` seed
@@ -306,6 +316,7 @@ SECTIONS: dict[str, Any] = {
     "acc": ACCConfig,
     "traffic": TrafficConfig,
     "sensor": LineSensorConfig,
+    "scenario": ScenarioConfig,
 }
 """The config sections declared by one dataclass each (``road`` is a
 :class:`~aldm_gym.roads.highway.RoadConfig` or a :class:`MapConfig`;
@@ -443,6 +454,11 @@ def load_map(settings: EnvConfig) -> OpenDriveRoad | None:
     :raises MapError: the reader's error naming file, road and element.
     """
     road = settings.road
+    if settings.scenario.enabled:
+        from aldm_gym.scenario import read_scenario
+
+        path = read_scenario(settings.scenario.xosc, settings.scenario.parameters).map_path
+        return OpenDriveRoad.from_file(str(path), marking_model=settings.marking_model)
     if not isinstance(road, MapConfig):
         return None
     return OpenDriveRoad.from_file(

@@ -52,12 +52,16 @@ from aldm_gym.envs.vehicle import SensorVehicle
 from aldm_gym.errors import ConfigError
 from aldm_gym.roads.position import LanePosition
 from aldm_gym.roads.protocol import Road
+from aldm_gym.scenario.runner import ScenarioRunner
 from aldm_gym.sensor.detectors import Detector
 from aldm_gym.sensor.frame import SensorFrame
 from aldm_gym.sensor.lane_detection import LaneDetection
 from aldm_gym.sensor.line_sensor import LineSensor
 
 __all__ = ["MAP_MIN_AHEAD", "MAP_TRAFFIC_ROOM", "ROAD_END_MARGIN", "ALDMHighwayEnv"]
+
+SCENARIO_END_MARGIN = 5.0
+"""A scenario run is truncated when the ego is this close to the end of its lanes [m]."""
 
 
 class ALDMHighwayEnv(AbstractEnv):
@@ -192,6 +196,8 @@ class ALDMHighwayEnv(AbstractEnv):
         """The longitudinal controller's output at the last simulation step."""
         self._s_before = 0.0
         self._space_seed: int | None = None
+        self.scenario: ScenarioRunner | None = None
+        """This episode's scenario run (``scenario.xosc`` set), else None."""
         super().__init__(dict(config) if config else None, render_mode)
 
     # ------------------------------------------------------------------ config
@@ -306,9 +312,22 @@ class ALDMHighwayEnv(AbstractEnv):
         self.road = scene.traffic_road(road, self.np_random)
         ego = scene.place_vehicles(road, self.road, self.np_random, self._make_ego)
         self.controlled_vehicles = [ego]
+        self.scenario = getattr(scene, "runner", None)
+        if self.scenario is not None:
+            self.scenario.on_activate = self._hand_over
+            if self.scenario.active:  # handed over by Init or at time 0
+                self._hand_over(self.scenario.ego)
         self._reset_longitudinal(road)
         self._perceive()
         self._s_before = self.lane_position.s
+
+    def _hand_over(self, entity: Any) -> None:
+        """The scenario hands the ego to the function: its set speed is the speed it
+        has (the only target speed while the scenario runs)."""
+        ego = self.vehicle
+        ego.target_speeds = np.array([float(entity.speed)])
+        ego.speed_index = 0
+        ego.target_speed = float(entity.speed)
 
     def _make_ego(self, traffic: Any, position: Any, heading: float, speed: float) -> SensorVehicle:
         """The ego at a pose, with the action and LKA settings."""
@@ -402,7 +421,11 @@ class ALDMHighwayEnv(AbstractEnv):
                 self.road.act()
                 self.road.step(dt)
                 self.steps += 1
+                if self.scenario is not None:
+                    self.scenario.step(dt)
                 self._perceive()
+                if self.scenario is not None and self.scenario.finished:
+                    break  # the stop trigger ends the episode at this simulation step
                 if frame < frames - 1:
                     self._automatic_rendering()
         self.enable_auto_render = False
@@ -428,6 +451,12 @@ class ALDMHighwayEnv(AbstractEnv):
 
     def _is_truncated(self) -> bool:
         assert self.referee is not None
+        if self.scenario is not None:
+            # a scenario ends at its stop trigger (max_time: a cap), or where the ego's
+            # lanes end (the scenario's map decides how far it can drive)
+            road_end = self.referee.road.ends_within(self.lane_position, SCENARIO_END_MARGIN)
+            late = self.scenario.world.time >= self.settings.scenario.max_time
+            return bool(self.scenario.finished or late or road_end)
         return outcome.truncated(self.settings, self.time, self.referee)
 
     def _info(self, obs: Any, action: Any = None) -> dict:
@@ -443,6 +472,12 @@ class ALDMHighwayEnv(AbstractEnv):
             self.vehicle,
         )
         info.update(outcome.step_info(self.vehicle, referee, detection, target))
+        if self.scenario is not None:
+            info["scenario"] = {
+                "time": self.scenario.world.time,
+                "ego_active": self.scenario.active,
+                "finished": self.scenario.finished,
+            }
         if self.settings.info_metrics:
             info["lane_metrics"] = referee.lane_metrics(
                 perception.detection, perception.frame, perception.sensor.config.visibility

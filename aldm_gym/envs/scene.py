@@ -10,6 +10,8 @@ its lanes, and the vehicles on it, the ego first and the traffic after it.
 - :class:`MapScene`: an OpenDRIVE map; the ego starts on a seeded lane and position
   with enough lane chain ahead, traffic ahead of it along the chain (IDM/MOBIL with a
   mandatory merge out of ending lanes).
+- :class:`ScenarioScene`: an OpenSCENARIO file on its map; its objects, placed and
+  moved by its storyboard (:mod:`aldm_gym.scenario`).
 
 The random draws keep their order (the road's seed, then the vehicles'), so a seed
 gives the same scene bit for bit.
@@ -43,6 +45,7 @@ __all__ = [
     "ROAD_END_MARGIN",
     "GeneratedScene",
     "MapScene",
+    "ScenarioScene",
     "Scene",
     "make_scene",
 ]
@@ -240,9 +243,40 @@ class MapScene(Scene):
         return ego
 
 
+class ScenarioScene(MapScene):
+    """An OpenSCENARIO file (``scenario.xosc``) on its map: the scenario's objects are
+    the vehicles, placed by its ``Init`` and moved by its storyboard
+    (:class:`~aldm_gym.scenario.ScenarioRunner`, :attr:`runner` per episode).
+
+    :param settings: the env's settings.
+    :param road: the scenario's map.
+    """
+
+    def __init__(self, settings: EnvConfig, road: OpenDriveRoad) -> None:
+        """Read the scenario with the settings' parameters (once per configure)."""
+        from aldm_gym.scenario import choose_ego, read_scenario
+
+        super().__init__(settings, road)
+        self.scenario = read_scenario(settings.scenario.xosc, settings.scenario.parameters)
+        self.ego_name = choose_ego(self.scenario, settings.scenario.ego)
+        self.runner: Any = None
+
+    def place_vehicles(
+        self, road: Road, traffic: FastRoad, rng: np.random.Generator, make_ego: MakeEgo
+    ) -> SensorVehicle:
+        """A fresh run of the scenario: its entities' vehicles, ``Init`` at time 0."""
+        from aldm_gym.scenario import ScenarioRunner
+
+        self.runner = ScenarioRunner(self.scenario, self.map, self.ego_name)
+        return self.runner.populate(traffic, make_ego)
+
+
 def make_scene(settings: EnvConfig, map_road: OpenDriveRoad | None) -> Scene:
-    """The scene builder of ``settings``: a :class:`MapScene` with the map read for
-    ``road.xodr``, else a :class:`GeneratedScene`."""
+    """The scene builder of ``settings``: a :class:`ScenarioScene` with a scenario, a
+    :class:`MapScene` with the map read for ``road.xodr``, else a
+    :class:`GeneratedScene`."""
+    if map_road is not None and settings.scenario.enabled:
+        return ScenarioScene(settings, map_road)
     if map_road is not None:
         return MapScene(settings, map_road)
     return GeneratedScene(settings)

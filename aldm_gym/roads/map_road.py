@@ -492,6 +492,62 @@ class OpenDriveRoad(PolylineRoad):
         x, y, h = self.map.lane_pose(str(road_id), int(lane_id), float(s))
         return (x, -y, -h)
 
+    def _lane_s(self, lane: LaneKey) -> tuple[FloatArray, FloatArray]:
+        """Per centre vertex of ``lane`` (travel order): its arc length ``u`` along the
+        lane [m] and the reference line's ``s`` there [m]; computed once per lane."""
+        cache = self.__dict__.setdefault("_lane_s_cache", {})
+        got = cache.get(lane)
+        if got is None:
+            row = self._key_index[lane]
+            rev, keep = self._lane_rev[row]
+            s = np.asarray(self.map.lanes[lane].s, dtype=np.float64)
+            s = (s[::-1] if rev else s)[keep]
+            c = self._centres
+            u = np.asarray(c.u[c.start[row] : c.start[row + 1]], dtype=np.float64)
+            got = cache[lane] = (u, s)
+        return got
+
+    def reference_s(self, lane: LaneKey, u: float) -> float:
+        """The reference line's ``s`` [m] where a point ``u`` [m] along ``lane``'s centre
+        lies (OpenDRIVE's road coordinate; on a curve the lane centre is longer or
+        shorter than the reference line). ``u`` beyond the lane is clamped to its ends."""
+        lane_u, s = self._lane_s(lane)
+        return float(np.interp(u, lane_u, s))
+
+    def lane_u(self, lane: LaneKey, s: float) -> float:
+        """The arc length ``u`` [m] along ``lane``'s centre where the reference line is at
+        ``s`` [m] (the inverse of :meth:`reference_s`; clamped to the lane)."""
+        lane_u, ref = self._lane_s(lane)
+        if ref[-1] < ref[0]:  # a lane driven against the reference line
+            return float(np.interp(s, ref[::-1], lane_u[::-1]))
+        return float(np.interp(s, ref, lane_u))
+
+    def lane_key(self, road_id: str, lane_id: int, s: float) -> LaneKey:
+        """The driving lane of OpenDRIVE road ``road_id`` with id ``lane_id`` in the lane
+        section that holds reference ``s`` [m].
+
+        :raises MapError: no such road, or that lane is not a driving lane there.
+        """
+        sections = sorted(
+            (rec.s0, rec.s1, key)
+            for key, rec in self.map.lanes.items()
+            if rec.road_id == str(road_id) and rec.lane_id == int(lane_id)
+        )
+        if not sections:
+            raise MapError(f"{self.map.path}: road {road_id!r} has no lane {lane_id}")
+        for s0, s1, key in sections:
+            if s0 - 1e-9 <= s <= s1 + 1e-9:
+                if key not in self._key_index:
+                    raise MapError(
+                        f"{self.map.path}: lane {lane_id} of road {road_id!r} at s = {s:g} m "
+                        f"is of type {self.map.lanes[key].type!r}, not a driving lane"
+                    )
+                return key
+        raise MapError(
+            f"{self.map.path}: s = {s:g} m is beyond road {road_id!r} "
+            f"(its lane {lane_id} spans s = {sections[0][0]:g}..{sections[-1][1]:g} m)"
+        )
+
     def lane_record(self, lane: LaneKey) -> LaneRecord:
         """The map's record of a lane (OpenDRIVE's frame)."""
         return self.map.lanes[lane]

@@ -86,6 +86,14 @@ CASES = [
         "sets lateral_noise, and so does --sensor lateral_noise=...: give one",
     ),
     (["compare", "--dropout", "0.1", "--sensor", "dropout=0", "--out", "DIR"], "--dropout", "one"),
+    # scenario
+    (["scenario", "run", "MISSING"], "FILE.xosc", "does not exist"),
+    (["scenario", "run", "MAP", "--video", "DIR/x.png"], "--video", "give a .gif file name"),
+    (["scenario", "run", "MAP"], "FILE.xosc", "the root is <OpenDRIVE>, not <OpenSCENARIO>"),
+    (["scenario", "run", "MAP", "--param", "novalue"], "--param", "must be KEY=VALUE"),
+    (["scenario", "suite", "DIR", "--detectors", "naive,bogus"], "--detectors", "comma-separated"),
+    (["scenario", "suite", "MISSING"], "DIR_OR_VARIATION", "does not exist"),
+    (["scenario", "suite", "DIR", "--address", "nowhere"], "--address", "host:port"),
     # plot
     (["plot", "--out", "DIR"], "--out", "is a folder"),
     (["plot", "--out", "FILE"], "--out", "unknown image type"),

@@ -1,0 +1,188 @@
+"""The conditions of triggers: their values from the world's state.
+
+Each function here returns ``evaluate(runner) -> bool`` for a
+:class:`~aldm_gym.scenario.storyboard.Condition`; ``runner`` is the
+:class:`~aldm_gym.scenario.runner.ScenarioRunner` (its ``world`` and ``storyboard``).
+
+Distances (``RelativeDistanceCondition``, ``TimeHeadwayCondition``,
+``DistanceCondition``, ``TimeToCollisionCondition``) follow the standard's coordinate
+systems:
+
+- ``entity``: in the triggering entity's frame (x forward, y left): longitudinal
+  along its x, lateral along its y, euclidean in the plane. With ``freespace`` the
+  distance is between the bounding boxes (0 where they overlap along that axis),
+  else between the reference points.
+- ``road``: longitudinal as the difference of the reference line's ``s``, lateral as
+  the difference of the road's ``t``; ``lane``: along and across the source's lane
+  (the target's reference point projected on its centre line); with ``freespace`` less
+  the two half-lengths (half-widths). Euclidean distances are the same in every system.
+
+A distance is a magnitude (>= 0). ``TimeHeadwayCondition`` divides the distance from
+the triggering entity to the referenced one by the triggering entity's speed (inf when
+it stands still), and counts only a referenced entity ahead; ``TimeToCollision``
+divides the distance by the closing speed along the line of sight (inf when the two
+do not close).
+"""
+
+from __future__ import annotations
+
+import math
+import operator
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from aldm_gym.scenario.world import Entity, World
+
+__all__ = [
+    "RULES",
+    "distance",
+    "relative_distance",
+    "rule",
+]
+
+RULES: dict[str, Callable[[Any, Any], bool]] = {
+    "greaterThan": operator.gt,
+    "lessThan": operator.lt,
+    "equalTo": lambda a, b: abs(a - b) < 1e-9 if _numbers(a, b) else a == b,
+    "greaterOrEqual": operator.ge,
+    "lessOrEqual": operator.le,
+    "notEqualTo": lambda a, b: abs(a - b) >= 1e-9 if _numbers(a, b) else a != b,
+}
+"""OpenSCENARIO's comparison rules."""
+
+
+def _numbers(a: Any, b: Any) -> bool:
+    return isinstance(a, int | float) and isinstance(b, int | float)
+
+
+def rule(name: str) -> Callable[[Any, Any], bool]:
+    """The comparison of a ``rule`` attribute (KeyError for an unknown one)."""
+    return RULES[name]
+
+
+def _extent(entity: Entity, axis: np.ndarray) -> tuple[float, float]:
+    """The box's (min, max) projection on a unit axis [m]."""
+    p = entity.corners() @ axis
+    return float(p.min()), float(p.max())
+
+
+def _gap(a: tuple[float, float], b: tuple[float, float]) -> float:
+    """The distance between two intervals (0 where they overlap)."""
+    return max(0.0, b[0] - a[1], a[0] - b[1])
+
+
+def _segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
+    ab = b - a
+    denom = float(ab @ ab)
+    k = 0.0 if denom == 0.0 else min(1.0, max(0.0, float((p - a) @ ab) / denom))
+    return float(np.hypot(*(p - (a + k * ab))))
+
+
+def box_distance(a: Entity, b: Entity) -> float:
+    """The shortest distance between two boxes [m] (0 where they overlap)."""
+    ca, cb = a.corners(), b.corners()
+    if _overlap(ca, cb):
+        return 0.0
+    best = math.inf
+    for poly, other in ((ca, cb), (cb, ca)):
+        for i in range(4):
+            for p in other:
+                best = min(best, _segment_distance(p, poly[i], poly[(i + 1) % 4]))
+    return best
+
+
+def _overlap(ca: np.ndarray, cb: np.ndarray) -> bool:
+    """Separating-axis test of two rectangles."""
+    for poly in (ca, cb):
+        for i in range(2):
+            edge = poly[i + 1] - poly[i]
+            axis = np.array([-edge[1], edge[0]])
+            pa, pb = ca @ axis, cb @ axis
+            if pa.max() < pb.min() or pb.max() < pa.min():
+                return False
+    return True
+
+
+def relative_distance(
+    world: World,
+    source: Entity,
+    target: Entity,
+    kind: str,
+    freespace: bool,
+    system: str = "entity",
+) -> float:
+    """The distance [m] from ``source`` to ``target`` of ``kind`` (``longitudinal``,
+    ``lateral``, ``euclidianDistance``/``cartesianDistance``) in ``system``."""
+    if system in ("road", "lane") and kind in ("longitudinal", "lateral"):
+        if system == "road":
+            a, b = world.coordinates(source), world.coordinates(target)
+            ds, dt = abs(b.s - a.s), abs(world.road_t(target) - world.road_t(source))
+        else:  # along and across the source's lane
+            ds, dt = world.lane_offsets(source, target)
+        if kind == "longitudinal":
+            extent = 0.5 * (source.box.length + target.box.length)
+            return max(0.0, ds - extent) if freespace else ds
+        extent = 0.5 * (source.box.width + target.box.width)
+        return max(0.0, dt - extent) if freespace else dt
+    if system not in ("road", "lane", "entity"):
+        raise ValueError(f"coordinate system {system!r}")
+    if kind in ("euclidianDistance", "cartesianDistance"):
+        if freespace:
+            return box_distance(source, target)
+        return float(np.hypot(*(target.reference_point() - source.reference_point())))
+    axis = source.forward() if kind == "longitudinal" else source.left()
+    if freespace:
+        return _gap(_extent(source, axis), _extent(target, axis))
+    return abs(float((target.reference_point() - source.reference_point()) @ axis))
+
+
+def distance(world: World, source: Entity, point: np.ndarray, freespace: bool) -> float:
+    """Euclidean distance [m] from an entity (its box with ``freespace``, else its
+    reference point) to a world point."""
+    if freespace:
+        c = source.corners()
+        inside = all(
+            float(np.cross(c[(i + 1) % 4] - c[i], point - c[i])) <= 0 for i in range(4)
+        ) or all(float(np.cross(c[(i + 1) % 4] - c[i], point - c[i])) >= 0 for i in range(4))
+        if inside:
+            return 0.0
+        return min(_segment_distance(point, c[i], c[(i + 1) % 4]) for i in range(4))
+    return float(np.hypot(*(point - source.reference_point())))
+
+
+def headway(
+    world: World,
+    source: Entity,
+    target: Entity,
+    freespace: bool,
+    system: str,
+    kind: str = "euclidianDistance",
+) -> float:
+    """Time headway [s] from ``source`` to ``target`` ahead of it: the distance of
+    ``kind`` over ``source``'s speed (inf when the target is behind or ``source``
+    stands still)."""
+    ahead = float((target.position - source.position) @ source.forward())
+    if ahead <= 0.0:
+        return math.inf
+    d = relative_distance(world, source, target, kind, freespace, system)
+    v = source.velocity
+    return math.inf if v <= 0.0 else d / v
+
+
+def time_to_collision(world: World, source: Entity, target: Entity, freespace: bool) -> float:
+    """Time to collision [s]: distance over the closing speed along the line of sight
+    (inf when the two do not close)."""
+    los = target.position - source.position
+    norm = float(np.hypot(*los))
+    if norm == 0.0:
+        return 0.0
+    los = los / norm
+    vs = source.velocity * source.forward()
+    vt = target.velocity * target.forward()
+    closing = float((vs - vt) @ los)
+    if closing <= 0.0:
+        return math.inf
+    d = box_distance(source, target) if freespace else norm
+    return d / closing

@@ -1,0 +1,225 @@
+"""OpenSCENARIO positions, resolved against the world when an action starts.
+
+Supported: ``LanePosition``, ``RelativeLanePosition`` (``ds`` along the reference line,
+or ``dsLane`` along the referenced entity's lane in the direction it faces),
+``RoadPosition``, ``WorldPosition`` (OpenDRIVE's inertial frame, mirrored into
+highway-env's as the map is) and
+``RelativeObjectPosition`` (``dx``/``dy`` in the referenced entity's frame). An
+``Orientation`` is relative to the lane's driving direction for lane and road
+positions and to the referenced entity for relative ones unless its ``type`` says
+``absolute`` (then OpenDRIVE's heading); ``WorldPosition``'s ``h`` is absolute. The
+world is planar: an orientation's pitch ``p`` and roll ``r`` are not used.
+
+Lane ids follow OpenDRIVE: ``RelativeLanePosition.dLane`` counts lanes along the road's
+``t`` axis (+1 is the next lane to the left of the reference line's direction), skipping
+the centre lane 0; ``offset`` is along ``t``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from aldm_gym.errors import MapError, OffRoadError, ScenarioError
+from aldm_gym.scenario.world import Entity, World
+
+__all__ = [
+    "LanePos",
+    "Orientation",
+    "Position",
+    "RelativeLanePos",
+    "RelativeObjectPos",
+    "RoadPos",
+    "Where",
+    "WorldPos",
+]
+
+
+@dataclass(frozen=True)
+class Orientation:
+    """An ``Orientation``: heading ``h`` [rad] (OpenDRIVE's sense: counter-clockwise),
+    ``relative`` or absolute."""
+
+    h: float = 0.0
+    relative: bool = True
+
+
+@dataclass(frozen=True)
+class Where:
+    """A resolved position: on a lane (``lane`` set: ``u``, ``t`` to the driver's left,
+    ``heading_offset`` from the lane's direction, highway-env's sense), or a world
+    ``point`` with a world ``heading`` (highway-env's frame)."""
+
+    lane: Any = None
+    u: float = 0.0
+    t: float = 0.0
+    heading_offset: float = 0.0
+    point: np.ndarray | None = None
+    heading: float = 0.0
+
+
+class Position:
+    """A position element; :meth:`resolve` turns it into a :class:`Where` now."""
+
+    where: str = ""
+
+    def resolve(self, world: World) -> Where:
+        """Where the position is in the world's current state.
+
+        :raises ScenarioError: naming the element, when the position is off the map.
+        """
+        raise NotImplementedError
+
+    def _error(self, exc: Exception) -> ScenarioError:
+        return ScenarioError(f"{self.where}: the position is not on the map: {exc}")
+
+
+def _wrap(angle: float) -> float:
+    """An angle in (-pi, pi] [rad]."""
+    return (angle + math.pi) % (2.0 * math.pi) - math.pi
+
+
+def _lane_where(
+    world: World, road_id: str, lane_id: int, s: float, offset: float, o: Orientation | None
+) -> Where:
+    key, u, t = world.locate(road_id, lane_id, s, offset)
+    heading = 0.0
+    if o is not None:
+        if o.relative:
+            heading = -o.h  # OpenDRIVE's counter-clockwise is negative in highway-env's world
+        else:
+            _, lane_heading = world.pose(key, u, 0.0)
+            heading = -o.h - lane_heading
+    return Where(lane=key, u=u, t=t, heading_offset=heading)
+
+
+@dataclass(frozen=True)
+class LanePos(Position):
+    """``LanePosition``: road, lane id, ``s`` and ``offset`` [m]."""
+
+    road_id: str
+    lane_id: int
+    s: float
+    offset: float = 0.0
+    orientation: Orientation | None = None
+    where: str = ""
+
+    def resolve(self, world: World) -> Where:
+        """See :class:`Position`."""
+        try:
+            return _lane_where(
+                world, self.road_id, self.lane_id, self.s, self.offset, self.orientation
+            )
+        except MapError as exc:
+            raise self._error(exc) from None
+
+
+@dataclass(frozen=True)
+class RoadPos(Position):
+    """``RoadPosition``: road, ``s`` and ``t`` [m] from the reference line; the lane is
+    the driving lane containing the point."""
+
+    road_id: str
+    s: float
+    t: float
+    orientation: Orientation | None = None
+    where: str = ""
+
+    def resolve(self, world: World) -> Where:
+        """See :class:`Position`."""
+        odr = world.road.map
+        plan = odr.plan_views.get(str(self.road_id))
+        length = odr.lengths.get(str(self.road_id), -1.0)
+        if plan is None or not -1e-9 <= self.s <= length + 1e-9:
+            raise self._error(MapError(f"no road {self.road_id!r} with s = {self.s:g} m"))
+        xs, ys, hs = plan.position(np.array([self.s]))
+        x, y, h = float(xs[0]), float(ys[0]), float(hs[0])
+        point = np.array([x - self.t * math.sin(h), y + self.t * math.cos(h)])
+        world_point = np.array([point[0], -point[1]])
+        try:
+            pos = world.road.lane_position(world_point)
+        except OffRoadError as exc:
+            raise self._error(exc) from None
+        o = self.orientation
+        heading = 0.0
+        if o is not None:
+            # relative to the lane's direction, or absolute (OpenDRIVE's heading)
+            heading = -o.h if o.relative else _wrap(-o.h - pos.heading)
+        return Where(
+            lane=pos.lane,
+            u=pos.s - world.road.chain_start(pos.lane),
+            t=pos.offset,
+            heading_offset=heading,
+        )
+
+
+@dataclass(frozen=True)
+class WorldPos(Position):
+    """``WorldPosition``: OpenDRIVE inertial ``x``, ``y`` [m] and heading ``h`` [rad]."""
+
+    x: float
+    y: float
+    h: float = 0.0
+    where: str = ""
+
+    def resolve(self, world: World) -> Where:
+        """See :class:`Position`."""
+        return Where(point=np.array([self.x, -self.y]), heading=-self.h)
+
+
+@dataclass(frozen=True)
+class RelativeLanePos(Position):
+    """``RelativeLanePosition``: ``dLane`` lanes and ``ds`` [m] along the reference
+    line (or ``dsLane`` along the lane) from an entity, ``offset`` [m] along ``t``."""
+
+    entity: str
+    d_lane: int
+    ds: float | None
+    ds_lane: float | None
+    offset: float = 0.0
+    orientation: Orientation | None = None
+    where: str = ""
+
+    def resolve(self, world: World) -> Where:
+        """See :class:`Position`."""
+        ref = world.entities[self.entity]
+        c = world.coordinates(ref)
+        lane_id = c.lane_id + self.d_lane
+        if c.lane_id > 0 >= lane_id or c.lane_id < 0 <= lane_id:
+            lane_id += 1 if self.d_lane > 0 else -1  # no lane 0 between
+        try:
+            if self.ds is not None:
+                return _lane_where(
+                    world, c.road_id, lane_id, c.s + self.ds, self.offset, self.orientation
+                )
+            # dsLane: along the referenced entity's lane, in the direction it faces
+            facing = 1.0 if math.cos(ref.heading - world.pose(c.lane, c.u, 0.0)[1]) >= 0 else -1.0
+            s_new = world.road.reference_s(c.lane, c.u + facing * float(self.ds_lane or 0.0))
+            return _lane_where(world, c.road_id, lane_id, s_new, self.offset, self.orientation)
+        except MapError as exc:
+            raise self._error(exc) from None
+
+
+@dataclass(frozen=True)
+class RelativeObjectPos(Position):
+    """``RelativeObjectPosition``: ``dx``, ``dy`` [m] in an entity's frame (ISO: y left)."""
+
+    entity: str
+    dx: float
+    dy: float
+    orientation: Orientation | None = None
+    where: str = ""
+
+    def resolve(self, world: World) -> Where:
+        """See :class:`Position`."""
+        ref: Entity = world.entities[self.entity]
+        point = ref.reference_point() + self.dx * ref.forward() + self.dy * ref.left()
+        heading = ref.heading
+        if self.orientation is not None:
+            heading = (
+                heading - self.orientation.h if self.orientation.relative else -self.orientation.h
+            )
+        return Where(point=point, heading=heading)

@@ -1,0 +1,1028 @@
+"""Reading an OpenSCENARIO 1.0–1.3 file into what :mod:`aldm_gym.scenario` plays.
+
+The file is read with lxml, which keeps every element's line, so an error names the
+file, the line and the element (``cut_in.xosc:57 <SpeedAction>``). Parameters are
+bound once per run (:mod:`aldm_gym.scenario.parameters`: the declarations, the
+overrides given, ``${...}`` expressions) and every attribute is resolved as it is
+read. The map is the ``RoadNetwork/LogicFile``; vehicles, pedestrians and misc objects
+come inline or from the catalogs of ``CatalogLocations`` (with their own parameter
+declarations and the reference's assignments).
+
+Anything the player does not support (an element it does not know, an action or
+condition it cannot play, a position it cannot resolve) is a
+:class:`~aldm_gym.errors.ScenarioError` when the file is read, never a silently
+skipped action. The supported set: docs/scenarios.md.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from lxml import etree
+
+from aldm_gym.errors import ScenarioError
+from aldm_gym.scenario import actions as A
+from aldm_gym.scenario import conditions as C
+from aldm_gym.scenario.parameters import ParamValue, bind, declarations_from_xml, resolve
+from aldm_gym.scenario.positions import (
+    LanePos,
+    Orientation,
+    Position,
+    RelativeLanePos,
+    RelativeObjectPos,
+    RoadPos,
+    WorldPos,
+)
+from aldm_gym.scenario.storyboard import (
+    STATES,
+    TRANSITIONS,
+    Act,
+    ActionElement,
+    Condition,
+    Event,
+    Maneuver,
+    ManeuverGroup,
+    Story,
+    Storyboard,
+    Trigger,
+)
+from aldm_gym.scenario.world import BoundingBox, Entity
+
+__all__ = ["EntitySpec", "Scenario", "read_scenario"]
+
+_MISSING: Any = object()
+
+_ELEMENT_TYPES = ("story", "act", "maneuverGroup", "maneuver", "event", "action")
+
+
+@dataclass(frozen=True)
+class EntitySpec:
+    """A ``ScenarioObject`` as read: name, kind, category, box, performance limits
+    and whether it has an ``ObjectController``."""
+
+    name: str
+    kind: str
+    category: str
+    box: BoundingBox
+    max_speed: float
+    max_acceleration: float
+    max_deceleration: float
+    controlled: bool
+    where: str
+
+    def entity(self, is_ego: bool) -> Entity:
+        """A fresh runtime :class:`~aldm_gym.scenario.world.Entity`."""
+        return Entity(
+            name=self.name,
+            kind=self.kind,
+            category=self.category,
+            box=self.box,
+            max_speed=self.max_speed,
+            max_acceleration=self.max_acceleration,
+            max_deceleration=self.max_deceleration,
+            is_ego=is_ego,
+        )
+
+
+@dataclass
+class Scenario:
+    """One concrete scenario: a file with its parameters bound.
+
+    :ivar path: the ``.xosc`` file.
+    :ivar version: ``(revMajor, revMinor)`` of its ``FileHeader``.
+    :ivar parameters: every parameter's value in this run.
+    :ivar map_path: the OpenDRIVE file of ``RoadNetwork/LogicFile``.
+    :ivar entities: the scenario objects in document order.
+    :ivar violations: the parameter constraints this run breaks (the suite's files
+        ask that such runs be discarded; :func:`read_scenario` does not refuse them).
+    """
+
+    path: Path
+    version: tuple[int, int]
+    parameters: dict[str, ParamValue]
+    map_path: Path
+    entities: list[EntitySpec]
+    violations: list[str] = field(default_factory=list)
+    _root: Any = None
+
+    def entity(self, name: str) -> EntitySpec:
+        """The scenario object called ``name``.
+
+        :raises ScenarioError: naming it and the scenario's objects.
+        """
+        for e in self.entities:
+            if e.name == name:
+                return e
+        raise ScenarioError(
+            f"{self.path.name}: no scenario object {name!r}; it has "
+            f"{[e.name for e in self.entities]}"
+        )
+
+    def build(self, entities: Mapping[str, Entity]) -> tuple[list[A.Instance], Storyboard]:
+        """A fresh run of the storyboard: the ``Init`` actions' instances (to start in
+        order at time 0) and the stories, bound to these runtime entities."""
+        reader = _Reader(self.path, self.parameters, self._root, entities)
+        return reader.init(), reader.storyboard()
+
+
+def read_scenario(path: str | Path, parameters: Mapping[str, Any] | None = None) -> Scenario:
+    """Read a concrete scenario with ``parameters`` overriding its declarations.
+
+    :raises ScenarioError: the file is missing or not OpenSCENARIO, a version outside
+        1.0–1.3, an unknown parameter given, or anything the player cannot play (the
+        message names file, line and element).
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise ScenarioError(f"{path}: no such scenario file")
+    try:
+        root = etree.parse(str(path)).getroot()
+    except etree.XMLSyntaxError as exc:
+        raise ScenarioError(f"{path.name}: malformed XML: {exc}") from None
+    if root.tag != "OpenSCENARIO":
+        raise ScenarioError(
+            f"{path.name}:{root.sourceline}: the root is <{root.tag}>, not <OpenSCENARIO>"
+        )
+    header = root.find("FileHeader")
+    if header is None:
+        raise ScenarioError(f"{path.name}: no <FileHeader>")
+    try:
+        version = (int(header.get("revMajor", "")), int(header.get("revMinor", "")))
+    except ValueError:
+        raise ScenarioError(
+            f"{path.name}:{header.sourceline} <FileHeader>: revMajor/revMinor must be integers"
+        ) from None
+    if version[0] != 1 or not 0 <= version[1] <= 3:
+        raise ScenarioError(
+            f"{path.name}:{header.sourceline} <FileHeader>: OpenSCENARIO {version[0]}.{version[1]} "
+            "is not supported (1.0 to 1.3 are)"
+        )
+    if root.find("Storyboard") is None:
+        if root.find("ParameterValueDistribution") is not None:
+            raise ScenarioError(
+                f"{path.name}: a parameter variation file, not a scenario: run it as a suite "
+                "(aldm-gym scenario suite)"
+            )
+        raise ScenarioError(f"{path.name}: no <Storyboard>")
+    declarations = declarations_from_xml(root.find("ParameterDeclarations"))
+    from aldm_gym.scenario.parameters import violations
+
+    _Reader(path, {}, root, None).kids(
+        root,
+        (
+            "FileHeader",
+            "ParameterDeclarations",
+            "CatalogLocations",
+            "RoadNetwork",
+            "Entities",
+            "Storyboard",
+        ),
+    )
+
+    values = bind(declarations, dict(parameters or {}), str(path.name))
+    broken = violations(declarations, values)
+    reader = _Reader(path, values, root, None)
+    network = root.find("RoadNetwork")
+    if network is not None:
+        for k in reader.kids(network, ("LogicFile", "SceneGraphFile", "TrafficSignals")):
+            if k.tag == "TrafficSignals" and len(k):
+                raise reader.error(k, "traffic signal controllers are not supported")
+    logic = root.find("RoadNetwork/LogicFile")
+    if logic is None:
+        raise ScenarioError(
+            f"{path.name}: no <RoadNetwork><LogicFile>: the player needs an OpenDRIVE map"
+        )
+    map_path = (path.parent / reader.attr(logic, "filepath")).resolve()
+    if not map_path.is_file():
+        raise ScenarioError(f"{reader.where(logic)}: the map {map_path} does not exist")
+    scenario = Scenario(
+        path=path,
+        version=version,
+        parameters=values,
+        map_path=map_path,
+        entities=reader.entities(),
+        violations=broken,
+        _root=root,
+    )
+    # Build the storyboard once now, so that what cannot be played is named before a
+    # run starts (positions are resolved only when their action starts).
+    scenario.build({e.name: e.entity(False) for e in scenario.entities})
+    return scenario
+
+
+class _Reader:
+    """Reads elements of one file with one set of parameter values."""
+
+    def __init__(
+        self,
+        path: Path,
+        params: Mapping[str, ParamValue],
+        root: Any,
+        entities: Mapping[str, Entity] | None,
+    ) -> None:
+        self.path = path
+        self.params = params
+        self.root = root
+        self.runtime = entities
+        self._catalogs: dict[str, dict[str, tuple[Any, Path]]] | None = None
+        self.actions: dict[str, ActionElement] = {}
+        self.pending: list[tuple[Any, str, str]] = []
+
+    # ------------------------------------------------------------ attributes
+    def where(self, el: Any, attr: str | None = None) -> str:
+        """``file:line <Tag>`` (and ``attr``) of an element."""
+        base = f"{self.path.name}:{el.sourceline} <{el.tag}>"
+        return base if attr is None else f"{base} {attr}"
+
+    def error(self, el: Any, message: str) -> ScenarioError:
+        """A :class:`ScenarioError` naming the element."""
+        return ScenarioError(f"{self.where(el)}: {message}")
+
+    def attr(self, el: Any, name: str, default: Any = _MISSING) -> str:
+        """An attribute, parameters resolved, as text."""
+        raw = el.get(name)
+        if raw is None:
+            if default is _MISSING:
+                raise self.error(el, f"missing attribute {name!r}")
+            return default
+        return str(resolve(raw, self.params, self.where(el, name)))
+
+    def num(self, el: Any, name: str, default: Any = _MISSING) -> float:
+        """A finite number attribute."""
+        raw = el.get(name)
+        if raw is None:
+            if default is _MISSING:
+                raise self.error(el, f"missing attribute {name!r}")
+            return default
+        value = resolve(raw, self.params, self.where(el, name))
+        try:
+            number = float(value)
+        except (TypeError, ValueError):
+            raise self.error(el, f"{name}={raw!r} is not a number") from None
+        if not math.isfinite(number):
+            raise self.error(el, f"{name}={raw!r} is not finite")
+        return number
+
+    def integer(self, el: Any, name: str, default: Any = _MISSING) -> int:
+        """An integer attribute."""
+        value = self.num(el, name, default)
+        if value != int(value):
+            raise self.error(el, f"{name} must be an integer, got {value:g}")
+        return int(value)
+
+    def flag(self, el: Any, name: str, default: Any = _MISSING) -> bool:
+        """A boolean attribute (``true``/``false``)."""
+        raw = el.get(name)
+        if raw is None:
+            if default is _MISSING:
+                raise self.error(el, f"missing attribute {name!r}")
+            return bool(default)
+        value = resolve(raw, self.params, self.where(el, name))
+        if isinstance(value, bool):
+            return value
+        text = str(value).strip().lower()
+        if text not in ("true", "false", "1", "0"):
+            raise self.error(el, f"{name}={raw!r} is not a boolean")
+        return text in ("true", "1")
+
+    def choice(self, el: Any, name: str, allowed: tuple[str, ...], default: Any = _MISSING) -> str:
+        """An enumeration attribute."""
+        value = self.attr(el, name, default)
+        if value not in allowed:
+            raise self.error(el, f"{name}={value!r} is not one of {list(allowed)}")
+        return value
+
+    def child(self, el: Any, tag: str) -> Any:
+        """The required child ``tag``."""
+        found = el.find(tag)
+        if found is None:
+            raise self.error(el, f"missing <{tag}>")
+        return found
+
+    def one(self, el: Any, allowed: tuple[str, ...]) -> Any:
+        """The one element child (a choice in the schema) among ``allowed``."""
+        kids = [k for k in el if isinstance(k.tag, str)]
+        if len(kids) != 1:
+            raise self.error(
+                el, f"expects one child of {list(allowed)}, has {[k.tag for k in kids]}"
+            )
+        if kids[0].tag not in allowed:
+            raise self.unsupported(kids[0], allowed)
+        return kids[0]
+
+    def kids(self, el: Any, allowed: tuple[str, ...]) -> list[Any]:
+        """The element children of ``el``, each of them among ``allowed`` (else the
+        error for an element the player does not play: nothing is skipped silently)."""
+        out = [k for k in el if isinstance(k.tag, str)]
+        for k in out:
+            if k.tag not in allowed:
+                raise self.unsupported(k, allowed)
+        return out
+
+    def no_declarations(self, el: Any) -> None:
+        """A ``ParameterDeclarations`` below the file level must be empty."""
+        decls = el.find("ParameterDeclarations")
+        if decls is not None and len([k for k in decls if isinstance(k.tag, str)]):
+            raise self.error(
+                decls,
+                "parameter declarations here are not supported (declare them at the file level)",
+            )
+
+    def absent(
+        self, el: Any, *names: str, allowed: Mapping[str, tuple[str, ...]] | None = None
+    ) -> None:
+        """Attributes the player does not play must be absent (or have a value in
+        ``allowed``)."""
+        for name in names:
+            raw = el.get(name)
+            if raw is None:
+                continue
+            ok = (allowed or {}).get(name)
+            if ok is not None and str(resolve(raw, self.params, self.where(el, name))) in ok:
+                continue
+            hint = f" (supported: {list(ok)})" if ok else ""
+            raise self.error(el, f"{name}={raw!r} is not supported by the player{hint}")
+
+    def unsupported(self, el: Any, allowed: tuple[str, ...] = ()) -> ScenarioError:
+        """The error for an element the player cannot play."""
+        hint = f" (supported here: {', '.join(allowed)})" if allowed else ""
+        return self.error(el, f"<{el.tag}> is not supported by the player{hint}")
+
+    # ------------------------------------------------------------ catalogs and entities
+    def catalogs(self) -> dict[str, dict[str, tuple[Any, Path]]]:
+        """Every catalog of ``CatalogLocations``: name -> entry name -> (element, file)."""
+        if self._catalogs is None:
+            found: dict[str, dict[str, tuple[Any, Path]]] = {}
+            for directory in self.root.findall("CatalogLocations/*/Directory"):
+                folder = (self.path.parent / self.attr(directory, "path")).resolve()
+                if not folder.is_dir():
+                    raise self.error(directory, f"the catalog folder {folder} does not exist")
+                for file in sorted(folder.glob("*.xosc")):
+                    try:
+                        croot = etree.parse(str(file)).getroot()
+                    except etree.XMLSyntaxError as exc:
+                        raise ScenarioError(f"{file.name}: malformed XML: {exc}") from None
+                    for catalog in croot.findall("Catalog"):
+                        entries = found.setdefault(catalog.get("name", ""), {})
+                        for entry in catalog:
+                            if isinstance(entry.tag, str) and entry.get("name"):
+                                entries[entry.get("name")] = (entry, file)
+            self._catalogs = found
+        return self._catalogs
+
+    def from_catalog(self, ref: Any) -> tuple[Any, _Reader]:
+        """The entry a ``CatalogReference`` names, with a reader for its parameters."""
+        name = self.attr(ref, "catalogName")
+        entry = self.attr(ref, "entryName")
+        catalogs = self.catalogs()
+        if name not in catalogs:
+            raise self.error(
+                ref, f"no catalog {name!r} in CatalogLocations; found {sorted(catalogs)}"
+            )
+        if entry not in catalogs[name]:
+            raise self.error(
+                ref, f"catalog {name!r} has no entry {entry!r}; it has {sorted(catalogs[name])}"
+            )
+        element, file = catalogs[name][entry]
+        assigned = {
+            self.attr(a, "parameterRef"): self.attr(a, "value")
+            for a in ref.findall("ParameterAssignments/ParameterAssignment")
+        }
+        decls = declarations_from_xml(element.find("ParameterDeclarations"))
+        values = bind(decls, assigned, file.name) if decls or assigned else {}
+        reader = _Reader(file, {**self.params, **values}, self.root, self.runtime)
+        reader._catalogs = self._catalogs
+        return element, reader
+
+    def entities(self) -> list[EntitySpec]:
+        """The ``Entities``' scenario objects."""
+        out = []
+        entities = self.child(self.root, "Entities")
+        for obj in self.kids(entities, ("ScenarioObject",)):
+            name = self.attr(obj, "name")
+            kids = [k for k in obj if isinstance(k.tag, str) and k.tag != "ObjectController"]
+            allowed = ("CatalogReference", "Vehicle", "Pedestrian", "MiscObject")
+            if len(kids) != 1:
+                raise self.error(
+                    obj, f"expects one of {list(allowed)}, has {[k.tag for k in kids]}"
+                )
+            body = kids[0]
+            if body.tag not in allowed:
+                raise self.unsupported(body, allowed)
+            reader: _Reader = self
+            if body.tag == "CatalogReference":
+                body, reader = self.from_catalog(body)
+            if body.tag not in ("Vehicle", "Pedestrian", "MiscObject"):
+                raise self.unsupported(body, ("Vehicle", "Pedestrian", "MiscObject"))
+            out.append(
+                reader._entity(
+                    name, body, obj.find("ObjectController") is not None, self.where(obj)
+                )
+            )
+        names = [e.name for e in out]
+        if len(set(names)) != len(names):
+            raise self.error(entities, f"scenario object names repeat: {names}")
+        return out
+
+    def _entity(self, name: str, body: Any, controlled: bool, where: str) -> EntitySpec:
+        kind = {"Vehicle": "vehicle", "Pedestrian": "pedestrian", "MiscObject": "miscObject"}[
+            body.tag
+        ]
+        category = self.attr(
+            body,
+            {
+                "vehicle": "vehicleCategory",
+                "pedestrian": "pedestrianCategory",
+                "miscObject": "miscObjectCategory",
+            }[kind],
+            kind,
+        )
+        bb = self.child(body, "BoundingBox")
+        centre, dims = self.child(bb, "Center"), self.child(bb, "Dimensions")
+        length, width = self.num(dims, "length"), self.num(dims, "width")
+        if length <= 0 or width <= 0:
+            raise self.error(dims, f"length and width must be > 0, got {length:g} x {width:g}")
+        box = BoundingBox(
+            cx=self.num(centre, "x"),
+            cy=self.num(centre, "y"),
+            length=length,
+            width=width,
+            height=self.num(dims, "height", 0.0),
+        )
+        perf = body.find("Performance")
+        if perf is not None:
+            limits = (
+                self.num(perf, "maxSpeed"),
+                self.num(perf, "maxAcceleration"),
+                self.num(perf, "maxDeceleration"),
+            )
+        else:
+            limits = (math.inf, math.inf, math.inf)
+        return EntitySpec(name, kind, category, box, *limits, controlled=controlled, where=where)
+
+    # ------------------------------------------------------------ positions
+    def position(self, el: Any) -> Position:
+        """A ``Position`` element's one child."""
+        p = self.one(
+            el,
+            (
+                "LanePosition",
+                "RelativeLanePosition",
+                "RoadPosition",
+                "WorldPosition",
+                "RelativeObjectPosition",
+            ),
+        )
+        where = self.where(p)
+        o = p.find("Orientation")
+        orient = None
+        if o is not None:
+            kind = self.choice(o, "type", ("relative", "absolute"), "relative")
+            orient = Orientation(h=self.num(o, "h", 0.0), relative=kind == "relative")
+        if p.tag == "LanePosition":
+            return LanePos(
+                self.attr(p, "roadId"),
+                self.integer(p, "laneId"),
+                self.num(p, "s"),
+                self.num(p, "offset", 0.0),
+                orient,
+                where,
+            )
+        if p.tag == "RelativeLanePosition":
+            self._entity_ref(p, "entityRef")
+            ds = self.num(p, "ds", None)
+            ds_lane = self.num(p, "dsLane", None)
+            if (ds is None) == (ds_lane is None):
+                raise self.error(p, "give one of ds and dsLane")
+            return RelativeLanePos(
+                self.attr(p, "entityRef"),
+                self.integer(p, "dLane"),
+                ds,
+                ds_lane,
+                self.num(p, "offset", 0.0),
+                orient,
+                where,
+            )
+        if p.tag == "RoadPosition":
+            return RoadPos(
+                self.attr(p, "roadId"), self.num(p, "s"), self.num(p, "t"), orient, where
+            )
+        if p.tag == "WorldPosition":
+            return WorldPos(self.num(p, "x"), self.num(p, "y"), self.num(p, "h", 0.0), where)
+        self._entity_ref(p, "entityRef")
+        return RelativeObjectPos(
+            self.attr(p, "entityRef"), self.num(p, "dx"), self.num(p, "dy"), orient, where
+        )
+
+    def _entity_ref(self, el: Any, attr: str) -> str:
+        name = self.attr(el, attr)
+        known = [e.get("name") for e in self.root.findall("Entities/ScenarioObject")]
+        if name not in known:
+            raise self.error(
+                el, f"{attr}={name!r} names no scenario object; the scenario has {known}"
+            )
+        return name
+
+    def _rt(self, name: str) -> Entity:
+        assert self.runtime is not None
+        return self.runtime[name]
+
+    # ------------------------------------------------------------ actions
+    def private(self, el: Any) -> Callable[[Entity | None], A.Instance]:
+        """A ``PrivateAction``: a factory of instances per actor."""
+        body = self.one(
+            el,
+            (
+                "LongitudinalAction",
+                "LateralAction",
+                "TeleportAction",
+                "RoutingAction",
+                "ControllerAction",
+                "ActivateControllerAction",
+            ),
+        )
+        where = self.where(body)
+        if body.tag == "TeleportAction":
+            pos = self.position(self.child(body, "Position"))
+            return lambda actor: A.Teleport(actor, where, pos)
+        if body.tag == "LongitudinalAction":
+            return self._longitudinal(self.one(body, ("SpeedAction", "LongitudinalDistanceAction")))
+        if body.tag == "LateralAction":
+            return self._lateral(self.one(body, ("LaneChangeAction", "LaneOffsetAction")))
+        if body.tag == "RoutingAction":
+            routing = self.one(body, ("FollowTrajectoryAction", "AssignRouteAction"))
+            if routing.tag == "AssignRouteAction":
+                return self._route(routing)
+            return self._routing(routing)
+        if body.tag == "ControllerAction":
+            body = self.one(body, ("ActivateControllerAction",))
+        # a missing domain means "no change" (the standard)
+        lat = self.flag(body, "lateral") if body.get("lateral") is not None else None
+        lon = self.flag(body, "longitudinal") if body.get("longitudinal") is not None else None
+        self.absent(body, "animation", "lighting")
+        where = self.where(body)
+        return lambda actor: A.ActivateController(actor, where, lat, lon)
+
+    def dynamics(self, el: Any) -> A.Dynamics:
+        """``*Dynamics`` with shape, dimension, value."""
+        return A.Dynamics(
+            shape=self.choice(el, "dynamicsShape", A.SHAPES),
+            dimension=self.choice(el, "dynamicsDimension", ("time", "distance", "rate")),
+            value=self.num(el, "value"),
+            where=self.where(el),
+        )
+
+    def _longitudinal(self, body: Any) -> Callable[[Entity | None], A.Instance]:
+        where = self.where(body)
+        if body.tag == "SpeedAction":
+            self.kids(body, ("SpeedActionDynamics", "SpeedActionTarget"))
+            dyn = self.dynamics(self.child(body, "SpeedActionDynamics"))
+            target_el = self.one(
+                self.child(body, "SpeedActionTarget"),
+                ("AbsoluteTargetSpeed", "RelativeTargetSpeed"),
+            )
+            continuous = False
+            if target_el.tag == "AbsoluteTargetSpeed":
+                v = self.num(target_el, "value")
+                target: Callable[[Any], float] = lambda world: v  # noqa: E731
+            else:
+                ref = self._entity_ref(target_el, "entityRef")
+                value = self.num(target_el, "value")
+                kind = self.choice(target_el, "speedTargetValueType", ("delta", "factor"))
+                continuous = self.flag(target_el, "continuous")
+
+                def target(
+                    world: Any, ref: str = ref, value: float = value, kind: str = kind
+                ) -> float:
+                    e = world.entities[ref]
+                    base = e.speed if e.scripted else e.velocity
+                    return base + value if kind == "delta" else base * value
+
+            return lambda actor: A.SpeedChange(actor, where, dyn, target, continuous)
+        self.kids(body, ("DynamicConstraints",))
+        ref = self._entity_ref(body, "entityRef")
+        distance = self.num(body, "distance", None)
+        gap = self.num(body, "timeGap", None)
+        if (distance is None) == (gap is None):
+            raise self.error(body, "give one of distance and timeGap")
+        freespace = self.flag(body, "freespace")
+        system = self.choice(body, "coordinateSystem", ("entity", "road", "lane"), "entity")
+        displacement = self.choice(
+            body,
+            "displacement",
+            ("trailingReferencedEntity", "leadingReferencedEntity", "any"),
+            "trailingReferencedEntity",
+        )
+        continuous = self.flag(body, "continuous")
+        dc = body.find("DynamicConstraints")
+        limits = None
+        if dc is not None:
+            limits = (
+                self.num(dc, "maxAcceleration", math.inf),
+                self.num(dc, "maxDeceleration", math.inf),
+                self.num(dc, "maxSpeed", math.inf),
+            )
+        leading: bool | None = {
+            "leadingReferencedEntity": True,
+            "trailingReferencedEntity": False,
+        }.get(displacement)  # None ("any"): the side the actor is on when it starts
+        return lambda actor: A.LongitudinalDistance(
+            actor, where, ref, distance, gap, freespace, leading, continuous, limits, system
+        )
+
+    def _lateral(self, body: Any) -> Callable[[Entity | None], A.Instance]:
+        where = self.where(body)
+        if body.tag == "LaneChangeAction":
+            self.kids(body, ("LaneChangeActionDynamics", "LaneChangeTarget"))
+            dyn = self.dynamics(self.child(body, "LaneChangeActionDynamics"))
+            offset = self.num(body, "targetLaneOffset", 0.0)
+            t = self.one(
+                self.child(body, "LaneChangeTarget"), ("RelativeTargetLane", "AbsoluteTargetLane")
+            )
+            if t.tag == "AbsoluteTargetLane":
+                lane_id = self.integer(t, "value")
+                target: Callable[[Any, Entity], int] = lambda world, actor: lane_id  # noqa: E731
+            else:
+                ref = self._entity_ref(t, "entityRef")
+                d = self.integer(t, "value")
+
+                def target(world: Any, actor: Entity, ref: str = ref, d: int = d) -> int:
+                    # + is the referenced entity's left: along t where it drives along s
+                    c = world.coordinates(world.entities[ref])
+                    lane, d = c.lane_id, d * c.direction
+                    new = lane + d
+                    if lane > 0 >= new or lane < 0 <= new:
+                        new += 1 if d > 0 else -1
+                    return new
+
+            return lambda actor: A.LaneChange(actor, where, dyn, target, offset)
+        self.kids(body, ("LaneOffsetActionDynamics", "LaneOffsetTarget"))
+        dyn_el = self.child(body, "LaneOffsetActionDynamics")
+        shape = self.choice(dyn_el, "dynamicsShape", A.SHAPES)
+        acc = self.num(dyn_el, "maxLateralAcc", None)
+        continuous = self.flag(body, "continuous")
+        t = self.one(
+            self.child(body, "LaneOffsetTarget"),
+            ("AbsoluteTargetLaneOffset", "RelativeTargetLaneOffset"),
+        )
+        value = self.num(t, "value")
+        if t.tag == "AbsoluteTargetLaneOffset":
+            offset_target: Callable[[Any, Entity], float] = lambda world, actor: value  # noqa: E731
+        else:
+            ref = self._entity_ref(t, "entityRef")
+
+            def offset_target(
+                world: Any, actor: Entity, ref: str = ref, value: float = value
+            ) -> float:
+                return world.coordinates(world.entities[ref]).offset + value
+
+        return lambda actor: A.LaneOffset(actor, where, shape, acc, offset_target, continuous)
+
+    def _route(self, body: Any) -> Callable[[Entity | None], A.Instance]:
+        where = self.where(body)
+        route = self.one(body, ("Route",))
+        self.kids(route, ("ParameterDeclarations", "Waypoint"))
+        self.no_declarations(route)
+        if self.flag(route, "closed", False):
+            raise self.error(route, "closed routes are not supported")
+        waypoints = []
+        for wp in route.findall("Waypoint"):
+            self.choice(
+                wp, "routeStrategy", ("fastest", "shortest", "leastIntersections", "random")
+            )
+            waypoints.append(self.position(self.child(wp, "Position")))
+        if len(waypoints) < 2:
+            raise self.error(route, f"a route needs at least 2 waypoints, has {len(waypoints)}")
+        return lambda actor: A.AssignRoute(actor, where, waypoints)
+
+    def _routing(self, body: Any) -> Callable[[Entity | None], A.Instance]:
+        where = self.where(body)
+        self.kids(
+            body,
+            (
+                "TrajectoryRef",
+                "Trajectory",
+                "CatalogReference",
+                "TimeReference",
+                "TrajectoryFollowingMode",
+            ),
+        )
+        if self.num(body, "initialDistanceOffset", 0.0) != 0.0:
+            raise self.error(body, "initialDistanceOffset is not supported")
+        ref = body.find("TrajectoryRef")
+        traj = ref.find("Trajectory") if ref is not None else body.find("Trajectory")
+        if traj is None:
+            bad = ref.find("CatalogReference") if ref is not None else body.find("CatalogReference")
+            if bad is not None:
+                raise self.error(
+                    bad,
+                    "trajectories from catalogs are not supported: give the <Trajectory> inline",
+                )
+            raise self.error(body, "missing <TrajectoryRef><Trajectory>")
+        if traj.find("ParameterDeclarations") is not None and len(
+            traj.find("ParameterDeclarations")
+        ):
+            raise self.error(traj, "a trajectory's own parameter declarations are not supported")
+        self.kids(traj, ("ParameterDeclarations", "Shape"))
+        if self.flag(traj, "closed", False):
+            raise self.error(traj, "closed trajectories are not supported")
+        poly = self.one(self.child(traj, "Shape"), ("Polyline",))
+        self.kids(poly, ("Vertex",))
+        vertices: list[tuple[float | None, Position]] = []
+        for v in poly.findall("Vertex"):
+            time = self.num(v, "time", None)
+            vertices.append((time, self.position(self.child(v, "Position"))))
+        if len(vertices) < 2:
+            raise self.error(poly, f"a polyline needs at least 2 vertices, has {len(vertices)}")
+        absolute, scale, offset = False, 1.0, 0.0
+        timing = body.find("TimeReference/Timing")
+        if timing is not None:
+            absolute = (
+                self.choice(timing, "domainAbsoluteRelative", ("absolute", "relative"))
+                == "absolute"
+            )
+            scale = self.num(timing, "scale", 1.0)
+            offset = self.num(timing, "offset", 0.0)
+        elif body.find("TimeReference/None") is not None:
+            vertices = [(None, p) for _, p in vertices]
+        mode = body.find("TrajectoryFollowingMode")
+        if mode is not None:
+            self.choice(mode, "followingMode", ("position", "follow"))
+        return lambda actor: A.FollowTrajectory(actor, where, vertices, absolute, scale, offset)
+
+    # ------------------------------------------------------------ init and storyboard
+    def init(self) -> list[A.Instance]:
+        """The ``Init`` actions' instances, in document order."""
+        out: list[A.Instance] = []
+        init = self.child(self.child(self.root, "Storyboard"), "Init")
+        self.kids(init, ("Actions",))
+        actions = init.find("Actions")
+        if actions is None:
+            return out
+        for el in self.kids(actions, ("Private",)):
+            actor = self._rt(self._entity_ref(el, "entityRef"))
+            for pa in self.kids(el, ("PrivateAction",)):
+                out.append(self.private(pa)(actor))
+        return out
+
+    def storyboard(self) -> Storyboard:
+        """The stories and the stop trigger; checks every element reference."""
+        sb = self.child(self.root, "Storyboard")
+        self.kids(sb, ("Init", "Story", "StopTrigger"))
+        stories = []
+        for story in sb.findall("Story"):
+            self.kids(story, ("ParameterDeclarations", "Act"))
+            self.no_declarations(story)
+            acts = [self._act(a) for a in story.findall("Act")]
+            stories.append(Story(self.attr(story, "name"), self.where(story), acts))
+        stop_el = sb.find("StopTrigger")
+        stop = self.trigger(stop_el, empty=False) if stop_el is not None else Trigger([], False)
+        board = Storyboard(stories, stop)
+        for el, kind, name in self.pending:
+            if board.element(kind, name) is None:
+                raise self.error(
+                    el, f"storyboardElementRef={name!r} names no {kind} of the storyboard"
+                )
+        self.board = board
+        return board
+
+    def _act(self, el: Any) -> Act:
+        self.kids(el, ("ManeuverGroup", "StartTrigger", "StopTrigger"))
+        groups = [self._group(g) for g in el.findall("ManeuverGroup")]
+        start_el = el.find("StartTrigger")
+        stop_el = el.find("StopTrigger")
+        return Act(
+            self.attr(el, "name"),
+            self.where(el),
+            groups,
+            self.trigger(start_el, empty=True) if start_el is not None else Trigger([], True),
+            self.trigger(stop_el, empty=False) if stop_el is not None else Trigger([], False),
+        )
+
+    def _group(self, el: Any) -> ManeuverGroup:
+        self.kids(el, ("Actors", "CatalogReference", "Maneuver"))
+        actors_el = self.child(el, "Actors")
+        self.kids(actors_el, ("EntityRef",))
+        if self.flag(actors_el, "selectTriggeringEntities", False):
+            raise self.error(actors_el, "selectTriggeringEntities='true' is not supported")
+        actors = [self._entity_ref(r, "entityRef") for r in actors_el.findall("EntityRef")]
+        if el.find("CatalogReference") is not None:
+            raise self.error(
+                el.find("CatalogReference"), "maneuvers from catalogs are not supported"
+            )
+        maneuvers = []
+        for m in el.findall("Maneuver"):
+            self.kids(m, ("ParameterDeclarations", "Event"))
+            self.no_declarations(m)
+            events = [self._event(e) for e in m.findall("Event")]
+            maneuvers.append(Maneuver(self.attr(m, "name"), self.where(m), events))
+        maximum = self.integer(el, "maximumExecutionCount", 1)
+        return ManeuverGroup(
+            self.attr(el, "name"), self.where(el), actors, maneuvers, max(maximum, 1)
+        )
+
+    def _event(self, el: Any) -> Event:
+        self.kids(el, ("Action", "StartTrigger"))
+        actions = []
+        for a in el.findall("Action"):
+            body = self.one(a, ("PrivateAction", "GlobalAction", "UserDefinedAction"))
+            if body.tag != "PrivateAction":
+                raise self.unsupported(body, ("PrivateAction",))
+            factory = self.private(body)
+            runtime = self.runtime
+
+            def make(
+                runner: Any, actor: str | None, factory: Any = factory, runtime: Any = runtime
+            ) -> Any:
+                return factory(None if actor is None else runtime[actor])
+
+            element = ActionElement(self.attr(a, "name"), self.where(a), make)
+            actions.append(element)
+        start_el = el.find("StartTrigger")
+        priority = self.choice(el, "priority", ("overwrite", "override", "skip", "parallel"))
+        return Event(
+            self.attr(el, "name"),
+            self.where(el),
+            actions,
+            self.trigger(start_el, empty=True) if start_el is not None else Trigger([], True),
+            priority,
+            max(self.integer(el, "maximumExecutionCount", 1), 1),
+        )
+
+    # ------------------------------------------------------------ triggers and conditions
+    def trigger(self, el: Any, empty: bool) -> Trigger:
+        """A start or stop trigger."""
+        groups = []
+        for g in self.kids(el, ("ConditionGroup",)):
+            groups.append([self.condition(c) for c in self.kids(g, ("Condition",))])
+        return Trigger(groups, empty)
+
+    def condition(self, el: Any) -> Condition:
+        """One ``Condition`` with its edge and delay."""
+        edge = self.choice(el, "conditionEdge", ("none", "rising", "falling", "risingOrFalling"))
+        delay = self.num(el, "delay", 0.0)
+        if delay < 0:
+            raise self.error(el, f"delay must be >= 0, got {delay:g}")
+        body = self.one(el, ("ByValueCondition", "ByEntityCondition"))
+        evaluate = self._by_value(body) if body.tag == "ByValueCondition" else self._by_entity(body)
+        return Condition(self.attr(el, "name", ""), evaluate, edge, delay, self.where(el))
+
+    def _rule(self, el: Any) -> Callable[[Any, Any], bool]:
+        return C.rule(self.choice(el, "rule", tuple(C.RULES)))
+
+    def _by_value(self, body: Any) -> Callable[[Any], bool]:
+        c = self.one(
+            body,
+            ("SimulationTimeCondition", "StoryboardElementStateCondition", "ParameterCondition"),
+        )
+        if c.tag == "SimulationTimeCondition":
+            value, rule = self.num(c, "value"), self._rule(c)
+            return lambda runner: rule(runner.world.time, value)
+        if c.tag == "ParameterCondition":
+            name = self.attr(c, "parameterRef")
+            if name not in self.params:
+                raise self.error(
+                    c, f"parameterRef={name!r} is not declared; declared: {sorted(self.params)}"
+                )
+            current, given, rule = self.params[name], self.attr(c, "value"), self._rule(c)
+            try:
+                result = rule(float(current), float(given))
+            except (TypeError, ValueError):
+                result = rule(str(current), given)
+            return lambda runner: result
+        kind = self.choice(c, "storyboardElementType", _ELEMENT_TYPES)
+        name = self.attr(c, "storyboardElementRef")
+        state = self.choice(c, "state", STATES + TRANSITIONS)
+        self.pending.append((c, kind, name))
+
+        seen = [0]  # this condition's cursor into the element's transitions
+
+        def evaluate(runner: Any, kind: str = kind, name: str = name, state: str = state) -> bool:
+            element = runner.storyboard.element(kind, name)
+            shown = element.shows(state, seen[0])
+            seen[0] = len(element.transitions)
+            return shown
+
+        return evaluate
+
+    def _by_entity(self, body: Any) -> Callable[[Any], bool]:
+        self.kids(body, ("TriggeringEntities", "EntityCondition"))
+        te = self.child(body, "TriggeringEntities")
+        self.kids(te, ("EntityRef",))
+        mode = self.choice(te, "triggeringEntitiesRule", ("any", "all"))
+        triggering = [self._entity_ref(r, "entityRef") for r in te.findall("EntityRef")]
+        if not triggering:
+            raise self.error(te, "no <EntityRef>")
+        c = self.one(
+            self.child(body, "EntityCondition"),
+            (
+                "RelativeDistanceCondition",
+                "TimeHeadwayCondition",
+                "TimeToCollisionCondition",
+                "SpeedCondition",
+                "RelativeSpeedCondition",
+                "ReachPositionCondition",
+                "DistanceCondition",
+                "TraveledDistanceCondition",
+            ),
+        )
+        one = self._entity_condition(c)
+        combine = any if mode == "any" else all
+        return lambda runner: combine(one(runner, runner.world.entities[n]) for n in triggering)
+
+    def _entity_condition(self, c: Any) -> Callable[[Any, Entity], bool]:
+        if c.tag == "TraveledDistanceCondition":
+            traveled = self.num(c, "value")
+            return lambda runner, e: e.traveled >= traveled
+        if c.tag == "ReachPositionCondition":
+            tolerance = self.num(c, "tolerance")
+            target = self.position(self.child(c, "Position"))
+            return lambda runner, e: (
+                C.distance(runner.world, e, _point(runner.world, target), False) <= tolerance
+            )
+        rule = self._rule(c)
+        value = self.num(c, "value")
+        systems = ("entity", "road", "lane", "trajectory")
+        if c.tag in ("RelativeDistanceCondition", "TimeHeadwayCondition"):
+            ref = self._entity_ref(c, "entityRef")
+            freespace = self.flag(c, "freespace")
+            # 1.1+: coordinateSystem (default entity); 1.0's TimeHeadway: alongRoute
+            along = c.get("alongRoute") is not None and self.flag(c, "alongRoute")
+            system = self.choice(c, "coordinateSystem", systems, "road" if along else "entity")
+            if system == "trajectory":
+                raise self.error(c, "coordinateSystem='trajectory' is not supported")
+            kinds = ("longitudinal", "lateral", "euclidianDistance", "cartesianDistance")
+            if c.tag == "RelativeDistanceCondition":
+                kind = self.choice(c, "relativeDistanceType", kinds)
+
+                def rel(runner: Any, e: Entity) -> bool:
+                    w = runner.world
+                    return rule(
+                        C.relative_distance(w, e, w.entities[ref], kind, freespace, system), value
+                    )
+
+                return rel
+            # the standard's default is the euclidean distance (1.0: alongRoute="false")
+            kind = self.choice(c, "relativeDistanceType", kinds, "euclidianDistance")
+            if kind == "lateral":
+                raise self.error(c, "a time headway along the lateral axis is not supported")
+
+            def head(runner: Any, e: Entity) -> bool:
+                w = runner.world
+                return rule(C.headway(w, e, w.entities[ref], freespace, system, kind), value)
+
+            return head
+        if c.tag == "TimeToCollisionCondition":
+            self.absent(
+                c,
+                "coordinateSystem",
+                "relativeDistanceType",
+                "alongRoute",
+                allowed={
+                    "coordinateSystem": ("entity",),
+                    "relativeDistanceType": ("euclidianDistance", "cartesianDistance"),
+                    "alongRoute": ("false",),
+                },
+            )
+            freespace = self.flag(c, "freespace")
+            target = self.one(self.child(c, "TimeToCollisionConditionTarget"), ("EntityRef",))
+            ref = self._entity_ref(target, "entityRef")
+            return lambda runner, e: rule(
+                C.time_to_collision(runner.world, e, runner.world.entities[ref], freespace), value
+            )
+        if c.tag in ("SpeedCondition", "RelativeSpeedCondition"):
+            self.absent(c, "direction")  # 1.3's directional speeds
+        if c.tag == "SpeedCondition":
+            return lambda runner, e: rule(e.velocity, value)
+        if c.tag == "RelativeSpeedCondition":
+            ref = self._entity_ref(c, "entityRef")
+            return lambda runner, e: rule(e.velocity - runner.world.entities[ref].velocity, value)
+        self.absent(
+            c,
+            "coordinateSystem",
+            "relativeDistanceType",
+            "alongRoute",
+            "routingAlgorithm",
+            allowed={
+                "coordinateSystem": ("entity",),
+                "relativeDistanceType": ("euclidianDistance", "cartesianDistance"),
+                "alongRoute": ("false",),
+            },
+        )
+        pos = self.position(self.child(c, "Position"))
+        freespace = self.flag(c, "freespace")
+        return lambda runner, e: rule(
+            C.distance(runner.world, e, _point(runner.world, pos), freespace), value
+        )
+
+
+def _point(world: Any, pos: Position) -> Any:
+    """World point of a position (lane positions on their lane's centre + offset)."""
+    w = pos.resolve(world)
+    if w.lane is not None:
+        return world.pose(w.lane, w.u, w.t)[0]
+    return w.point

@@ -1,0 +1,399 @@
+"""The storyboard's life cycle: which elements run, and when the scenario ends.
+
+OpenSCENARIO 1.x (ASAM OpenSCENARIO XML, "Storyboard and entities"): every storyboard
+element (story, act, maneuver group, maneuver, event, action) is in one of three states,
+``standby``, ``running`` or ``complete``, and moves between them by transitions
+(``startTransition``, ``endTransition``, ``stopTransition``, ``skipTransition``) that a
+:class:`~aldm_gym.scenario.conditions.StoryboardElementStateCondition` can watch.
+
+- The stories run from the start. An act starts when its start trigger fires (at once
+  without one) and ends when all its maneuver groups are complete, or stops when its
+  stop trigger fires.
+- A maneuver group runs its maneuvers; when all are complete it runs them again, up to
+  ``maximumExecutionCount`` times in all.
+- A maneuver's events start when their start triggers fire, by ``priority``:
+  ``overwrite`` (``override`` since 1.2) stops the maneuver's other running events,
+  ``skip`` does not start while another event of the maneuver runs (a skip transition
+  that counts as an execution), ``parallel`` starts regardless. An event runs its
+  actions (on every actor of its maneuver group) and ends when they all have; it can
+  start again up to its ``maximumExecutionCount`` (default 1). A maneuver is complete
+  when all its events are.
+- A trigger fires when one of its condition groups holds; a group holds when all its
+  conditions do. A condition's ``conditionEdge`` (``none``, ``rising``, ``falling``,
+  ``risingOrFalling``) and ``delay`` [s] apply to its own value; the first evaluation
+  has no previous value, so it makes no edge.
+- The scenario ends when the storyboard's stop trigger fires; nothing runs after.
+- A ``StoryboardElementStateCondition`` on a transition holds at the first evaluation
+  after the transition (each condition sees each transition once); on a state, while
+  the element is in it.
+
+Where the standard leaves the order open, :meth:`Storyboard.update` evaluates the
+triggers top down in document order, then starts the actions of newly started events
+at once (a step-shaped action takes effect at this time step).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+__all__ = [
+    "STATES",
+    "TRANSITIONS",
+    "Act",
+    "ActionElement",
+    "Condition",
+    "Element",
+    "Event",
+    "Maneuver",
+    "ManeuverGroup",
+    "Story",
+    "Storyboard",
+    "Trigger",
+]
+
+STATES = ("standbyState", "runningState", "completeState")
+"""The element states, as ``StoryboardElementStateCondition`` names them."""
+
+TRANSITIONS = ("startTransition", "endTransition", "stopTransition", "skipTransition")
+"""The transitions, as ``StoryboardElementStateCondition`` names them."""
+
+
+class Element:
+    """A storyboard element: its name, state and the last transition it made.
+
+    :ivar kind: ``story``, ``act``, ``maneuverGroup``, ``maneuver``, ``event`` or
+        ``action`` (``StoryboardElementStateCondition``'s ``storyboardElementType``).
+    """
+
+    kind = "element"
+
+    def __init__(self, name: str, where: str) -> None:
+        """A standby element; ``where`` names it in errors (``file:line <Tag>``)."""
+        self.name = name
+        self.where = where
+        self.state = "standbyState"
+        self.transition: str | None = None
+        self.transitions: list[str] = []
+        """Every transition the element made, in order (conditions keep a cursor)."""
+        self.runs = 0
+
+    def _move(self, transition: str, state: str, tick: int) -> None:
+        self.state = state
+        self.transition = transition
+        self.transitions.append(transition)
+
+    def shows(self, state: str, since: int) -> bool:
+        """Whether the element is in ``state`` now (a state), or made ``state`` (a
+        transition) after the first ``since`` of its transitions."""
+        if state in STATES:
+            return self.state == state
+        return state in self.transitions[since:]
+
+
+@dataclass(eq=False)
+class Condition:
+    """One ``Condition``: a value function with its edge and delay.
+
+    :ivar evaluate: ``evaluate(runner) -> bool``, the condition's value now.
+    """
+
+    name: str
+    evaluate: Callable[[Any], bool]
+    edge: str = "none"
+    delay: float = 0.0
+    where: str = ""
+    _previous: bool | None = None
+    _history: list[tuple[float, bool]] = field(default_factory=list)
+
+    def value(self, runner: Any, time: float) -> bool:
+        """The condition's value at ``time`` [s] (edge and delay applied)."""
+        now = bool(self.evaluate(runner))
+        before, self._previous = self._previous, now
+        if self.edge == "none":
+            edged = now
+        elif before is None:
+            edged = False
+        elif self.edge == "rising":
+            edged = now and not before
+        elif self.edge == "falling":
+            edged = before and not now
+        else:  # risingOrFalling
+            edged = now != before
+        if self.delay <= 0.0:
+            return edged
+        self._history.append((time, edged))
+        cutoff = time - self.delay + 1e-9
+        value = False
+        while self._history and self._history[0][0] <= cutoff:
+            _, value = self._history.pop(0)
+            if value:
+                return True
+        return value
+
+
+@dataclass(eq=False)
+class Trigger:
+    """A start or stop trigger: OR of condition groups, each an AND of conditions.
+    No groups: ``empty`` decides (a missing start trigger fires at once, a missing stop
+    trigger never)."""
+
+    groups: list[list[Condition]]
+    empty: bool
+
+    def fires(self, runner: Any, time: float) -> bool:
+        """Whether the trigger fires now (every condition is evaluated, so that edges
+        and delays see every time step)."""
+        if not self.groups:
+            return self.empty
+        results = [all([c.value(runner, time) for c in group]) for group in self.groups]
+        return any(results)
+
+
+class ActionElement(Element):
+    """An ``Action`` of an event: one runtime instance per actor (``instances``)."""
+
+    kind = "action"
+
+    def __init__(self, name: str, where: str, make: Callable[[Any, Any], Any]) -> None:
+        """``make(runner, actor) -> instance`` with ``start(runner)``,
+        ``done`` and ``stop()``; ``actor`` is ``None`` for a global action."""
+        super().__init__(name, where)
+        self.make = make
+        self.instances: list[Any] = []
+
+
+class Event(Element):
+    """An ``Event``: actions, a start trigger, a priority and an execution count."""
+
+    kind = "event"
+
+    def __init__(
+        self,
+        name: str,
+        where: str,
+        actions: list[ActionElement],
+        start: Trigger,
+        priority: str,
+        maximum: int,
+    ) -> None:
+        """See the module docstring."""
+        super().__init__(name, where)
+        self.actions = actions
+        self.start = start
+        self.priority = "overwrite" if priority == "override" else priority
+        self.maximum = maximum
+
+
+class Maneuver(Element):
+    """A ``Maneuver``: its events."""
+
+    kind = "maneuver"
+
+    def __init__(self, name: str, where: str, events: list[Event]) -> None:
+        """See the module docstring."""
+        super().__init__(name, where)
+        self.events = events
+
+
+class ManeuverGroup(Element):
+    """A ``ManeuverGroup``: actors, maneuvers and ``maximumExecutionCount``."""
+
+    kind = "maneuverGroup"
+
+    def __init__(
+        self, name: str, where: str, actors: list[str], maneuvers: list[Maneuver], maximum: int
+    ) -> None:
+        """See the module docstring."""
+        super().__init__(name, where)
+        self.actors = actors
+        self.maneuvers = maneuvers
+        self.maximum = maximum
+
+
+class Act(Element):
+    """An ``Act``: maneuver groups, a start and an optional stop trigger."""
+
+    kind = "act"
+
+    def __init__(
+        self, name: str, where: str, groups: list[ManeuverGroup], start: Trigger, stop: Trigger
+    ) -> None:
+        """See the module docstring."""
+        super().__init__(name, where)
+        self.groups = groups
+        self.start = start
+        self.stop = stop
+
+
+class Story(Element):
+    """A ``Story``: its acts."""
+
+    kind = "story"
+
+    def __init__(self, name: str, where: str, acts: list[Act]) -> None:
+        """See the module docstring."""
+        super().__init__(name, where)
+        self.acts = acts
+
+
+class Storyboard:
+    """The stories and the stop trigger, run by :meth:`update` once per time step.
+
+    :param stories: the stories in document order.
+    :param stop: the storyboard's stop trigger.
+    """
+
+    def __init__(self, stories: Sequence[Story], stop: Trigger) -> None:
+        """See the class docstring."""
+        self.stories = list(stories)
+        self.stop = stop
+        self.tick = 0
+        self.finished = False
+        self.by_name: dict[str, list[Element]] = {}
+        for element in self.elements():
+            self.by_name.setdefault(element.name, []).append(element)
+
+    def elements(self) -> Iterator[Element]:
+        """Every element, top down in document order."""
+        for story in self.stories:
+            yield story
+            for act in story.acts:
+                yield act
+                for group in act.groups:
+                    yield group
+                    for maneuver in group.maneuvers:
+                        yield maneuver
+                        for event in maneuver.events:
+                            yield event
+                            yield from event.actions
+
+    def element(self, kind: str, name: str) -> Element | None:
+        """The element of that kind and name (the first in document order), or None."""
+        return next((e for e in self.by_name.get(name, ()) if e.kind == kind), None)
+
+    # ------------------------------------------------------------------ running
+    def update(self, runner: Any, time: float) -> None:
+        """One time step at ``time`` [s]: triggers, transitions, started actions, and
+        the completion of elements whose actions ended."""
+        if self.finished:
+            return
+        self.tick += 1
+        tick = self.tick
+        for story in self.stories:
+            if story.state == "standbyState":
+                story._move("startTransition", "runningState", tick)
+            if story.state != "runningState":
+                continue
+            for act in story.acts:
+                self._update_act(runner, act, time, tick)
+            if all(a.state == "completeState" for a in story.acts):
+                story._move("endTransition", "completeState", tick)
+        if self.stop.fires(runner, time):
+            self.finished = True
+
+    def _update_act(self, runner: Any, act: Act, time: float, tick: int) -> None:
+        if act.state == "standbyState" and act.start.fires(runner, time):
+            act._move("startTransition", "runningState", tick)
+            for group in act.groups:
+                group._move("startTransition", "runningState", tick)
+                group.runs = 1
+        if act.state != "runningState":
+            return
+        if act.stop.groups and act.stop.fires(runner, time):
+            self._stop(act, tick)
+            return
+        for group in act.groups:
+            if group.state != "runningState":
+                continue
+            for maneuver in group.maneuvers:
+                if maneuver.state == "standbyState":
+                    maneuver._move("startTransition", "runningState", tick)
+                if maneuver.state == "runningState":
+                    self._update_maneuver(runner, group, maneuver, time, tick)
+            if all(m.state == "completeState" for m in group.maneuvers):
+                if group.runs < group.maximum:
+                    group.runs += 1
+                    for m in group.maneuvers:
+                        self._reset(m)
+                else:
+                    group._move("endTransition", "completeState", tick)
+        if all(g.state == "completeState" for g in act.groups):
+            act._move("endTransition", "completeState", tick)
+
+    def _update_maneuver(
+        self, runner: Any, group: ManeuverGroup, maneuver: Maneuver, time: float, tick: int
+    ) -> None:
+        for event in maneuver.events:
+            if event.state == "runningState":
+                self._finish_actions(event, tick)
+        for event in maneuver.events:
+            if event.state != "standbyState" or not event.start.fires(runner, time):
+                continue
+            running = [e for e in maneuver.events if e is not event and e.state == "runningState"]
+            if event.priority == "skip" and running:
+                event.runs += 1
+                done = event.runs >= event.maximum
+                event._move("skipTransition", "completeState" if done else "standbyState", tick)
+                continue
+            if event.priority == "overwrite":
+                for other in running:
+                    self._stop(other, tick)
+            event.runs += 1
+            event._move("startTransition", "runningState", tick)
+            for action in event.actions:
+                action._move("startTransition", "runningState", tick)
+                action.instances = [action.make(runner, actor) for actor in group.actors or [None]]
+                for instance in action.instances:
+                    instance.start(runner)
+            self._finish_actions(event, tick)
+        if all(e.state == "completeState" for e in maneuver.events):
+            maneuver._move("endTransition", "completeState", tick)
+
+    def _finish_actions(self, event: Event, tick: int) -> None:
+        """Complete the event's actions whose instances all ended, then the event."""
+        for action in event.actions:
+            if action.state == "runningState" and all(i.done for i in action.instances):
+                # an action overridden by a newer one of its domain ends by a stop
+                stopped = any(getattr(i, "stopped", False) for i in action.instances)
+                transition = "stopTransition" if stopped else "endTransition"
+                action._move(transition, "completeState", tick)
+        if all(a.state == "completeState" for a in event.actions):
+            if event.runs < event.maximum:
+                event._move("endTransition", "standbyState", tick)
+                for a in event.actions:
+                    a.state = "standbyState"
+            else:
+                event._move("endTransition", "completeState", tick)
+
+    def _stop(self, element: Element, tick: int) -> None:
+        """Stop a running element and everything running below it."""
+        for child in _children(element):
+            if child.state != "completeState":
+                self._stop(child, tick)
+        if isinstance(element, ActionElement):
+            for instance in element.instances:
+                instance.stop()
+        element._move("stopTransition", "completeState", tick)
+
+    def _reset(self, element: Element) -> None:
+        """Back to standby for a maneuver group's next execution."""
+        element.state = "standbyState"
+        element.runs = 0
+        for child in _children(element):
+            self._reset(child)
+
+
+def _children(element: Element) -> list[Element]:
+    if isinstance(element, Story):
+        return list(element.acts)
+    if isinstance(element, Act):
+        return list(element.groups)
+    if isinstance(element, ManeuverGroup):
+        return list(element.maneuvers)
+    if isinstance(element, Maneuver):
+        return list(element.events)
+    if isinstance(element, Event):
+        return list(element.actions)
+    return []

@@ -1,0 +1,395 @@
+"""The scenario's entities on the map: where they are in the road's coordinates, and how
+a scripted entity moves.
+
+Every entity is a highway-env vehicle on the env's road (so the observation, the line
+sensor's occlusion, rendering and collisions see it) plus an :class:`Entity` that holds
+what OpenSCENARIO asks of it. A *scripted* entity (every scenario object but the ego
+once its controller is active) moves along its lane as the storyboard's actions say:
+its state is the lane, the arc length ``u`` along the lane's centre [m], the lateral
+offset ``t`` from the centre [m] (> 0 to the driver's left) and the speed [m/s]; the
+vehicle's pose follows from them at every simulation step.
+
+Positions. OpenSCENARIO places an entity by its reference point, the centre of the rear
+axle for vehicles; its ``BoundingBox`` centre lies ``center.x`` ahead of it. highway-env
+places a vehicle by the centre of its box. :meth:`Entity.reference_point` and
+:meth:`World.place` convert. Road coordinates (:class:`RoadCoordinates`) are
+OpenDRIVE's: the road, the lane id, the reference line's ``s`` [m] and the offset from
+the lane centre along the road's ``t`` axis [m] (left of the reference line's
+direction), whatever the lane's driving direction.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from highway_env.vehicle.kinematics import Vehicle
+
+from aldm_gym.errors import OffRoadError
+
+if TYPE_CHECKING:
+    from aldm_gym.roads.map_road import OpenDriveRoad
+    from aldm_gym.roads.opendrive.map import LaneKey
+
+__all__ = ["BoundingBox", "Entity", "RoadCoordinates", "ScenarioVehicle", "World"]
+
+
+@dataclass(frozen=True)
+class BoundingBox:
+    """An entity's box (OpenSCENARIO ``BoundingBox``): centre relative to the reference
+    point, ISO 8855 (x forward, y left) [m], and dimensions [m]."""
+
+    cx: float
+    cy: float
+    length: float
+    width: float
+    height: float
+
+
+@dataclass(frozen=True)
+class RoadCoordinates:
+    """Where an entity's reference point is on the map, in OpenDRIVE's terms.
+
+    :ivar road_id: the OpenDRIVE road.
+    :ivar lane_id: the OpenDRIVE lane id (> 0 left of the reference line).
+    :ivar s: the reference line's arc length there [m].
+    :ivar offset: offset from the lane centre along the road's ``t`` axis [m].
+    :ivar lane: the map road's key of the lane.
+    :ivar u: arc length along the lane's centre [m].
+    :ivar direction: +1 when the lane is driven along increasing ``s``, -1 against.
+    """
+
+    road_id: str
+    lane_id: int
+    s: float
+    offset: float
+    lane: Any
+    u: float
+    direction: int
+
+
+class ScenarioVehicle(Vehicle):
+    """A highway-env vehicle that the scenario moves (it does not act on its own).
+
+    ``road.step`` calls :meth:`step`, which advances the :class:`Entity`'s script by
+    ``dt`` and sets the pose; collisions are then handled by highway-env as for every
+    vehicle. A crashed scripted vehicle keeps to its script (OpenSCENARIO's actors do
+    not react); the episode's outcome is judged on the ego.
+    """
+
+    entity: Entity | None = None
+
+    def act(self, action: Any = None) -> None:
+        """No action of its own: the scenario moves it."""
+        self.action = {"steering": 0.0, "acceleration": 0.0}
+
+    def step(self, dt: float) -> None:
+        """Advance the script by ``dt`` [s]; then highway-env's lane bookkeeping."""
+        if self.entity is not None and self.entity.world is not None:
+            world = self.entity.world
+            world.advance_ego(dt)  # first, so that actions relative to it see it now
+            world.advance(self.entity, dt)
+        self.impact = None
+        self.on_state_update()
+
+
+@dataclass(eq=False)
+class Entity:
+    """One ``ScenarioObject``: its description, its vehicle and its scripted state.
+
+    :ivar name: the scenario's name for it.
+    :ivar kind: ``"vehicle"``, ``"pedestrian"`` or ``"miscObject"``.
+    :ivar category: the catalog's category (``car``, ``truck``, ``pedestrian``, ...).
+    :ivar box: the bounding box.
+    :ivar max_speed: [m/s] (``Performance``; inf when not given).
+    :ivar max_acceleration: [m/s²].
+    :ivar max_deceleration: [m/s²] (> 0).
+    :ivar is_ego: the function under test (the env's ego vehicle).
+    """
+
+    name: str
+    kind: str
+    category: str
+    box: BoundingBox
+    max_speed: float = math.inf
+    max_acceleration: float = math.inf
+    max_deceleration: float = math.inf
+    is_ego: bool = False
+    vehicle: Any = None
+    world: World | None = None
+    # scripted state
+    scripted: bool = True
+    lane: Any = None
+    u: float = 0.0
+    t: float = 0.0
+    heading_offset: float = 0.0
+    speed: float = 0.0
+    traveled: float = 0.0
+    longitudinal: Any = None
+    lateral: Any = None
+    trajectory: Any = None
+    distance_keeper: Any = None
+    placed: bool = False
+    controller_lateral: bool = False
+    controller_longitudinal: bool = False
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def position(self) -> np.ndarray:
+        """The vehicle's box centre, highway-env's world [m]."""
+        return np.asarray(self.vehicle.position, dtype=np.float64)
+
+    @property
+    def heading(self) -> float:
+        """The vehicle's heading, highway-env's world [rad]."""
+        return float(self.vehicle.heading)
+
+    @property
+    def velocity(self) -> float:
+        """The vehicle's speed [m/s]."""
+        return float(self.vehicle.speed)
+
+    def forward(self) -> np.ndarray:
+        """Unit vector of the heading (highway-env's world)."""
+        h = self.heading
+        return np.array([math.cos(h), math.sin(h)])
+
+    def left(self) -> np.ndarray:
+        """Unit vector to the driver's left (highway-env's world has y down the screen)."""
+        h = self.heading
+        return np.array([math.sin(h), -math.cos(h)])
+
+    def reference_point(self) -> np.ndarray:
+        """OpenSCENARIO's reference point (rear axle centre), highway-env's world [m]."""
+        return self.position - self.box.cx * self.forward() - self.box.cy * self.left()
+
+    def corners(self) -> np.ndarray:
+        """``(4, 2)`` corners of the box, highway-env's world [m]."""
+        c = self.position
+        f, left = self.forward(), self.left()
+        hl, hw = 0.5 * self.box.length, 0.5 * self.box.width
+        return np.array(
+            [c + sx * hl * f + sy * hw * left for sx, sy in ((1, 1), (1, -1), (-1, -1), (-1, 1))]
+        )
+
+
+class World:
+    """The entities of one scenario run on the map, and the run's clock.
+
+    :param road: the map (the scenario's ``RoadNetwork/LogicFile``).
+    """
+
+    def __init__(self, road: OpenDriveRoad) -> None:
+        """An empty world on ``road``."""
+        self.road = road
+        self.network = road.network
+        self.entities: dict[str, Entity] = {}
+        self.time = 0.0
+        """Simulation time [s]."""
+        self.ego: Entity | None = None
+        self._ego_due = False
+
+    def add(self, entity: Entity) -> None:
+        """Add an entity (its vehicle is set by the scene builder)."""
+        entity.world = self
+        self.entities[entity.name] = entity
+        if entity.is_ego:
+            self.ego = entity
+
+    def ego_due(self) -> None:
+        """A simulation step begins: the scripted ego is yet to move."""
+        self._ego_due = True
+
+    def advance_ego(self, dt: float) -> None:
+        """Move the ego by ``dt`` [s] if the scenario drives it and it has not moved in
+        this step. The road moves the env's ego (its vehicle, first in the list) before
+        the scripted entities; a scripted ego moves as the first of them, so that every
+        scripted entity moves on the others' states at the start of the step except the
+        ego's, which it sees at the end (as it sees an active ego)."""
+        ego = self.ego
+        if not self._ego_due or ego is None:
+            return
+        self._ego_due = False
+        if ego.scripted:
+            self.advance(ego, dt)
+            ego.vehicle.on_state_update()
+
+    # ------------------------------------------------------------ road coordinates
+    def _lane(self, key: LaneKey) -> Any:
+        return self.network.get_lane(self.network.index_of[key])
+
+    def coordinates(self, entity: Entity) -> RoadCoordinates:
+        """Where the entity's reference point is, in the road's coordinates.
+
+        The lane is the one that holds the reference point: a scripted entity's own
+        lane while it is inside it, else (the active ego, a scripted entity changing
+        lanes) the driving lane whose centre is nearest.
+
+        :raises OffRoadError: the entity is on no driving lane.
+        """
+        road = self.road
+        inside = (
+            entity.scripted
+            and entity.lane is not None
+            and abs(entity.t) <= 0.5 * float(self._lane(entity.lane).width_at(entity.u))
+        )
+        if inside:
+            key, u, t_left = entity.lane, entity.u, entity.t
+        else:  # the active ego, or a scripted entity outside the lane it moves by
+            pos = road.lane_position(entity.reference_point())
+            key, t_left = pos.lane, pos.offset
+            u = pos.s - road.chain_start(key)
+        rec = road.lane_record(key)
+        s = road.reference_s(key, u)
+        return RoadCoordinates(
+            road_id=rec.road_id,
+            lane_id=int(rec.lane_id),
+            s=s,
+            offset=t_left * rec.direction,
+            lane=key,
+            u=u,
+            direction=int(rec.direction),
+        )
+
+    def road_t(self, entity: Entity) -> float:
+        """The road's ``t`` [m] of the entity's reference point: its distance left of
+        the reference line (OpenDRIVE's sense) at its ``s``."""
+        c = self.coordinates(entity)
+        plan = self.road.map.plan_views[c.road_id]
+        xs, ys, hs = plan.position(np.array([c.s]))
+        ref = entity.reference_point()
+        px, py = float(ref[0]), -float(ref[1])  # highway-env's world back to OpenDRIVE's
+        h = float(hs[0])
+        return (px - float(xs[0])) * -math.sin(h) + (py - float(ys[0])) * math.cos(h)
+
+    def lane_offsets(self, source: Entity, target: Entity) -> tuple[float, float]:
+        """``(|du|, |dt|)`` [m] of the target from the source along and across the
+        source's lane (reference points projected on the lane's centre)."""
+        c = self.coordinates(source)
+        lane = self._lane(c.lane)
+        u_s, lat_s = lane.local_coordinates(source.reference_point())
+        u_t, lat_t = lane.local_coordinates(target.reference_point())
+        return abs(float(u_t) - float(u_s)), abs(float(lat_t) - float(lat_s))
+
+    def locate(
+        self, road_id: str, lane_id: int, s: float, offset: float
+    ) -> tuple[Any, float, float]:
+        """``(lane key, u [m], t [m] > 0 left of the driver)`` of a lane position.
+
+        :raises MapError: no such driving lane at ``s``.
+        """
+        key = self.road.lane_key(road_id, lane_id, s)
+        rec = self.road.lane_record(key)
+        return key, self.road.lane_u(key, s), float(offset) * rec.direction
+
+    # ------------------------------------------------------------ placing and moving
+    def pose(self, key: LaneKey, u: float, t: float) -> tuple[np.ndarray, float]:
+        """World point [m] and the lane's heading [rad] at ``u`` along lane ``key``,
+        ``t`` to the driver's left of its centre (highway-env's lateral is to the right)."""
+        lane = self._lane(key)
+        return np.asarray(lane.position(u, -t), dtype=np.float64), float(lane.heading_at(u))
+
+    def place(
+        self,
+        entity: Entity,
+        key: LaneKey,
+        u: float,
+        t: float,
+        heading_offset: float = 0.0,
+        lateral_speed: float = 0.0,
+    ) -> None:
+        """Put a scripted entity's reference point at ``(key, u, t)``, heading along
+        the lane plus ``heading_offset`` and the direction of its lateral motion."""
+        entity.lane, entity.u, entity.t = key, float(u), float(t)
+        entity.heading_offset = float(heading_offset)
+        entity.placed = True
+        self._update_pose(entity, lateral_speed)
+
+    def place_world(self, entity: Entity, point: np.ndarray, heading: float) -> None:
+        """Put a scripted entity's reference point at a world point [m] with a world
+        heading [rad]; its lane is the nearest driving lane's (for road coordinates).
+
+        :raises OffRoadError: no driving lane near the point.
+        """
+        pos = self.road.lane_position(point)
+        entity.lane = pos.lane
+        entity.u = pos.s - self.road.chain_start(pos.lane)
+        entity.t = pos.offset
+        entity.heading_offset = _wrap(heading - pos.heading)
+        entity.placed = True
+        self._set_vehicle(entity, point, heading)
+
+    def _update_pose(self, entity: Entity, lateral_speed: float) -> None:
+        point, lane_heading = self.pose(entity.lane, entity.u, entity.t)
+        # Moving to the driver's left turns the heading towards it (heading decreases
+        # to the left in highway-env's world).
+        slip = math.atan2(lateral_speed, max(entity.speed, 0.1)) if lateral_speed else 0.0
+        self._set_vehicle(entity, point, lane_heading + entity.heading_offset - slip)
+
+    def _set_vehicle(self, entity: Entity, ref_point: np.ndarray, heading: float) -> None:
+        v = entity.vehicle
+        if v is None:
+            return
+        f = np.array([math.cos(heading), math.sin(heading)])
+        left = np.array([math.sin(heading), -math.cos(heading)])
+        v.position = np.asarray(ref_point + entity.box.cx * f + entity.box.cy * left, dtype=float)
+        v.heading = float(heading)
+        v.speed = float(entity.speed)
+
+    def advance(self, entity: Entity, dt: float) -> None:
+        """Move a scripted entity by ``dt`` [s]: its longitudinal and lateral motions
+        (or its trajectory) set speed and offset, then it drives ``speed · dt`` along
+        its lane, on into the lane's successor at the lane's end."""
+        if not entity.scripted or not entity.placed:
+            return
+        if entity.trajectory is not None:
+            entity.trajectory.advance(self, entity, dt)
+            return
+        if entity.longitudinal is not None:
+            entity.speed = float(entity.longitudinal.speed_after(self, entity, dt))
+        entity.speed = min(max(entity.speed, 0.0), entity.max_speed)
+        lateral_speed = 0.0
+        if entity.lateral is not None:
+            t_before = entity.t
+            entity.t = float(entity.lateral.offset_after(self, entity, dt))
+            lateral_speed = (entity.t - t_before) / dt if dt > 0 else 0.0
+        step = entity.speed * dt
+        entity.traveled += math.hypot(step, lateral_speed * dt)
+        u = entity.u + step
+        key = entity.lane
+        length = self.road.lane_length(key)
+        while u > length:
+            nxt = self.road.successor(key)
+            if nxt is None:
+                u = length  # the lane chain ends: the entity stops at its end
+                entity.speed = 0.0
+                break
+            u -= length
+            key = nxt
+            length = self.road.lane_length(key)
+        entity.lane, entity.u = key, u
+        self._update_pose(entity, lateral_speed)
+
+    def sync(self, entity: Entity) -> None:
+        """Read an entity that moved on its own (the active ego) into its state."""
+        try:
+            c = self.coordinates(entity)
+        except OffRoadError:
+            return
+        entity.lane, entity.u = c.lane, c.u
+        entity.t = c.offset * c.direction
+        entity.speed = entity.velocity
+
+    def change_lane(self, entity: Entity, key: LaneKey) -> None:
+        """Make ``key`` the lane a scripted entity's offset is measured from, keeping
+        its world position (``t`` becomes its offset from the new lane's centre)."""
+        lane = self._lane(key)
+        u, lateral = lane.local_coordinates(entity.reference_point())
+        entity.lane, entity.u, entity.t = key, float(u), -float(lateral)
+
+
+def _wrap(angle: float) -> float:
+    """An angle in (-pi, pi] [rad]."""
+    return (angle + math.pi) % (2.0 * math.pi) - math.pi

@@ -1,0 +1,592 @@
+"""The OpenSCENARIO player against the standard's definitions, on small scenarios.
+
+Each scenario is written with scenariogeneration (tests/scenario/_build.py) on a
+straight road, so every expected value follows from the definition by hand: positions
+at 0.1 s steps, speeds and offsets along the dynamics' shapes, the step at which a
+condition first holds.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import pytest
+from scenariogeneration import xosc
+
+from aldm_gym.errors import ScenarioError
+from aldm_gym.scenario import read_scenario
+from tests.scenario._build import at, at_time, play, step_speed, write
+
+MOTORWAY = Path(__file__).resolve().parents[2] / "aldm_gym" / "roads" / "maps" / "motorway.xodr"
+
+
+def _event(name: str, action: object, trigger: object, priority: object = None) -> xosc.Event:
+    ev = xosc.Event(name, priority or xosc.Priority.override)
+    ev.add_action(f"{name}_action", action)
+    ev.add_trigger(trigger)
+    return ev
+
+
+def test_init_places_by_lane_and_relative_lane_position(tmp_path: Path) -> None:
+    path = write(tmp_path, target=(1, 60.0, 15.0))
+    _, rec = play(path, 1.0)
+    first, later = rec[0], at(rec, 1.0)
+    assert first["Ego"][:3] == (-2, pytest.approx(50.0), pytest.approx(0.0))
+    # dLane +1: the next lane towards +t (left), ds along s
+    assert first["Target"][:3] == (-1, pytest.approx(110.0), pytest.approx(0.0))
+    assert later["Ego"][1] == pytest.approx(70.0) and later["Target"][1] == pytest.approx(125.0)
+    assert later["Target"][3] == 15.0
+
+
+def test_speed_action_linear_rate(tmp_path: Path) -> None:
+    dyn = xosc.TransitionDynamics(xosc.DynamicsShapes.linear, xosc.DynamicsDimension.rate, 2.0)
+    ev = _event("accelerate", xosc.AbsoluteSpeedAction(30.0, dyn), at_time(1.0))
+    path = write(tmp_path, [("Target", [ev])], target=(1, 60.0, 20.0))
+    _, rec = play(path, 8.0)
+    # starts at the first step after 1 s (1.1 s): +2 m/s per second until 30 m/s
+    assert at(rec, 1.1)["Target"][3] == pytest.approx(20.0)
+    assert at(rec, 3.1)["Target"][3] == pytest.approx(24.0)
+    assert at(rec, 7.0)["Target"][3] == pytest.approx(30.0)
+
+
+def test_speed_action_sinusoidal_time_is_half_way_at_half_time(tmp_path: Path) -> None:
+    dyn = xosc.TransitionDynamics(xosc.DynamicsShapes.sinusoidal, xosc.DynamicsDimension.time, 4.0)
+    ev = _event("slow", xosc.AbsoluteSpeedAction(10.0, dyn), at_time(1.0))
+    path = write(tmp_path, [("Target", [ev])])
+    _, rec = play(path, 6.0)
+    assert at(rec, 3.1)["Target"][3] == pytest.approx(15.0)
+    assert at(rec, 2.1)["Target"][3] == pytest.approx(
+        20.0 - 10.0 * 0.5 * (1 - math.cos(math.pi / 4))
+    )
+    assert at(rec, 5.1)["Target"][3] == pytest.approx(10.0)
+
+
+def test_lane_change_sinusoidal_then_state_condition_with_delay(tmp_path: Path) -> None:
+    dyn = xosc.TransitionDynamics(xosc.DynamicsShapes.sinusoidal, xosc.DynamicsDimension.time, 4.0)
+    change = _event("change", xosc.AbsoluteLaneChangeAction(-2, dyn), at_time(1.0))
+    after = _event(
+        "after",
+        step_speed(10.0),
+        xosc.ValueTrigger(
+            "done",
+            1.0,
+            xosc.ConditionEdge.rising,
+            xosc.StoryboardElementStateCondition(
+                xosc.StoryboardElementType.action,
+                "change_action",
+                xosc.StoryboardElementState.endTransition,
+            ),
+        ),
+    )
+    path = write(tmp_path, [("Target", [change, after])], target=(1, 60.0, 20.0))
+    _, rec = play(path, 8.0)
+    # the offset from the target lane (-2) runs from +3.5 m to 0 along the shape; the
+    # lane reported is the one that holds the car (-1 until half way)
+    assert at(rec, 1.1)["Target"][:3] == (-1, pytest.approx(132.0), pytest.approx(0.0))
+    quarter = 3.5 * 0.5 * (1 - math.cos(math.pi / 4))  # the shape at a quarter of 4 s
+    assert at(rec, 2.1)["Target"][:3] == (-1, pytest.approx(152.0), pytest.approx(-quarter))
+    assert at(rec, 3.1)["Target"][:3] == (-2, pytest.approx(172.0), pytest.approx(1.75))
+    assert at(rec, 5.1)["Target"][2] == pytest.approx(0.0, abs=1e-9)
+    # ended at 5.1 s; the next event fires 1 s later
+    assert at(rec, 6.0)["Target"][3] == 20.0 and at(rec, 6.1)["Target"][3] == 10.0
+
+
+def test_lane_offset_duration_from_max_lateral_acceleration(tmp_path: Path) -> None:
+    action = xosc.AbsoluteLaneOffsetAction(
+        1.0, xosc.DynamicsShapes.sinusoidal, 0.5, continuous=False
+    )
+    ev = _event("offset", action, at_time(1.0))
+    path = write(tmp_path, [("Target", [ev])])
+    _, rec = play(path, 6.0)
+    duration = math.pi * math.sqrt(1.0 / (2 * 0.5))  # pi s
+    mid = 1.1 + duration / 2
+    assert at(rec, round(mid, 1))["Target"][2] == pytest.approx(
+        0.5 * (1 - math.cos(math.pi * (round(mid, 1) - 1.1) / duration)), abs=1e-9
+    )
+    assert at(rec, 4.3)["Target"][2] == pytest.approx(1.0)
+
+
+def test_relative_distance_freespace_fires_at_the_step_it_holds(tmp_path: Path) -> None:
+    # same lane, 60 m between reference points = 55 m between boxes, closing at 10 m/s:
+    # below 25 m after 3 s, i.e. first at 3.1 s
+    cond = xosc.EntityTrigger(
+        "close",
+        0,
+        xosc.ConditionEdge.none,
+        xosc.RelativeDistanceCondition(
+            25.0,
+            xosc.Rule.lessThan,
+            xosc.RelativeDistanceType.longitudinal,
+            "Target",
+            freespace=True,
+        ),
+        "Ego",
+    )
+    ev = _event("flee", step_speed(20.0), cond)
+    path = write(tmp_path, [("Target", [ev])], target=(0, 60.0, 10.0))
+    _, rec = play(path, 5.0)
+    assert at(rec, 3.0)["Target"][3] == 10.0
+    assert at(rec, 3.1)["Target"][3] == 20.0
+
+
+def test_rising_edge_and_delay(tmp_path: Path) -> None:
+    ev = _event("late", step_speed(5.0), at_time(2.0, edge=xosc.ConditionEdge.rising, delay=1.5))
+    path = write(tmp_path, [("Target", [ev])])
+    _, rec = play(path, 5.0)
+    assert at(rec, 3.5)["Target"][3] == 20.0
+    assert at(rec, 3.6)["Target"][3] == 5.0
+
+
+def test_override_priority_stops_the_running_event(tmp_path: Path) -> None:
+    slow = xosc.TransitionDynamics(xosc.DynamicsShapes.linear, xosc.DynamicsDimension.time, 20.0)
+    first = _event("long", xosc.AbsoluteSpeedAction(0.0, slow), at_time(1.0))
+    second = _event("short", step_speed(25.0), at_time(2.0), xosc.Priority.override)
+    path = write(tmp_path, [("Target", [first, second])])
+    env, rec = play(path, 4.0)
+    assert 19.0 < at(rec, 2.0)["Target"][3] < 20.0
+    assert at(rec, 2.1)["Target"][3] == 25.0 and at(rec, 3.0)["Target"][3] == 25.0
+    board = env.scenario.storyboard
+    assert board.element("event", "long").transition == "stopTransition"
+    assert board.element("action", "long_action").state == "completeState"
+
+
+def test_stop_trigger_ends_the_episode(tmp_path: Path) -> None:
+    path = write(tmp_path, stop=3.0)
+    _, rec = play(path, 10.0)
+    assert rec[-1]["done"] and rec[-1]["time"] == pytest.approx(3.1)
+    assert not any(r["done"] for r in rec[:-1])
+
+
+def test_controller_activation_hands_the_ego_over(tmp_path: Path) -> None:
+    path = write(tmp_path, activate_at=2.0, target=None, stop=8.0)
+    env, rec = play(path, 8.0)
+    assert not at(rec, 2.0)["active"] and at(rec, 2.1)["active"]
+    # the function keeps the lane and the set speed it took over
+    end = rec[-1]["Ego"]
+    assert end[0] == -2 and abs(end[2]) < 0.2 and end[3] == pytest.approx(20.0, abs=0.5)
+    assert env.vehicle.target_speed == pytest.approx(20.0)
+
+
+def test_same_seed_same_run(tmp_path: Path) -> None:
+    dyn = xosc.TransitionDynamics(xosc.DynamicsShapes.cubic, xosc.DynamicsDimension.rate, 1.0)
+    ev = _event("change", xosc.AbsoluteLaneChangeAction(-2, dyn), at_time(1.0))
+    path = write(tmp_path, [("Target", [ev])], activate_at=0.5, target=(1, 40.0, 15.0))
+    _, a = play(path, 6.0, sensor={"preset": "camera"})
+    _, b = play(path, 6.0, sensor={"preset": "camera"})
+    assert a == b
+
+
+def test_a_scenario_on_a_shipped_map(tmp_path: Path) -> None:
+    path = write(
+        tmp_path, road=MOTORWAY, road_id=1, ego_s=100.0, lane_id=-2, activate_at=1.0, stop=6.0
+    )
+    env, rec = play(path, 7.0)
+    assert rec[0]["Ego"][:2] == (-2, pytest.approx(100.0))
+    assert rec[-1]["done"] and not rec[-1]["crashed"]
+    assert env.highway.map.path.endswith("motorway.xodr")
+
+
+# ---------------------------------------------------------------------- bad input
+def _patched(tmp_path: Path, old: str, new: str, **kwargs: object) -> Path:
+    path = write(tmp_path, **kwargs)  # type: ignore[arg-type]
+    text = path.read_text()
+    assert old in text
+    path.write_text(text.replace(old, new, 1))
+    return path
+
+
+def _line_of(path: Path, needle: str) -> int:
+    return next(i for i, line in enumerate(path.read_text().splitlines(), 1) if needle in line)
+
+
+def test_unsupported_action_names_file_line_and_element(tmp_path: Path) -> None:
+    path = _patched(
+        tmp_path,
+        "<TeleportAction>",
+        '<VisibilityAction graphics="true" traffic="true" sensors="true"/></PrivateAction>'
+        "<PrivateAction><TeleportAction>",
+    )
+    line = _line_of(path, "VisibilityAction")
+    with pytest.raises(
+        ScenarioError, match=rf"scenario\.xosc:{line} <VisibilityAction>.*not supported"
+    ):
+        read_scenario(path)
+
+
+def test_unknown_parameter_reference_is_named(tmp_path: Path) -> None:
+    path = _patched(tmp_path, 'value="20.0"', 'value="$Nope"')
+    with pytest.raises(ScenarioError, match=r"Nope"):
+        read_scenario(path)
+
+
+def test_missing_catalog_entry_is_named(tmp_path: Path) -> None:
+    catalog = tmp_path / "catalogs"
+    catalog.mkdir()
+    (catalog / "vehicles.xosc").write_text(
+        '<OpenSCENARIO><FileHeader revMajor="1" revMinor="1" author="" date="" description=""/>'
+        '<Catalog name="vehicle_catalog"/></OpenSCENARIO>'
+    )
+    path = write(tmp_path)
+    text = path.read_text().replace(
+        "<CatalogLocations/>",
+        "<CatalogLocations><VehicleCatalog>"
+        '<Directory path="./catalogs"/></VehicleCatalog></CatalogLocations>',
+    )
+    start = text.index("<Vehicle name")
+    end = text.index("</Vehicle>") + len("</Vehicle>")
+    text = (
+        text[:start]
+        + '<CatalogReference catalogName="vehicle_catalog" entryName="lorry"/>'
+        + text[end:]
+    )
+    path.write_text(text)
+    with pytest.raises(ScenarioError, match=r"<CatalogReference>.*no entry 'lorry'"):
+        read_scenario(path)
+
+
+def test_position_off_the_map_is_an_error_naming_the_position(tmp_path: Path) -> None:
+    path = write(tmp_path, ego_s=5000.0)
+    with pytest.raises(ScenarioError, match=r"<LanePosition>: the position is not on the map"):
+        play(path, 1.0)
+
+
+def test_state_condition_naming_no_element(tmp_path: Path) -> None:
+    cond = xosc.ValueTrigger(
+        "x",
+        0,
+        xosc.ConditionEdge.none,
+        xosc.StoryboardElementStateCondition(
+            xosc.StoryboardElementType.action, "nothing", xosc.StoryboardElementState.endTransition
+        ),
+    )
+    path = write(tmp_path, [("Target", [_event("e", step_speed(1.0), cond)])])
+    with pytest.raises(ScenarioError, match=r"storyboardElementRef='nothing' names no action"):
+        read_scenario(path)
+
+
+def test_unknown_override_and_variation_file(tmp_path: Path) -> None:
+    path = write(tmp_path)
+    with pytest.raises(ScenarioError, match=r"undeclared parameter Speed"):
+        read_scenario(path, {"Speed": 3})
+    variation = tmp_path / "variation.xosc"
+    variation.write_text(
+        '<OpenSCENARIO><FileHeader revMajor="1" revMinor="1" author="" date="" description=""/>'
+        '<ParameterValueDistribution><ScenarioFile filepath="scenario.xosc"/>'
+        "</ParameterValueDistribution></OpenSCENARIO>"
+    )
+    with pytest.raises(ScenarioError, match=r"a parameter variation file, not a scenario"):
+        read_scenario(variation)
+
+
+def test_both_a_map_and_a_scenario_is_a_config_error(tmp_path: Path) -> None:
+    import gymnasium as gym
+
+    from aldm_gym.errors import ConfigError
+
+    path = write(tmp_path)
+    with pytest.raises(ConfigError, match=r"road\.xodr and scenario\.xosc are both set"):
+        gym.make(
+            "ALDMHighway-v0",
+            config={"scenario": {"xosc": str(path)}, "road": {"xodr": str(MOTORWAY)}},
+        )
+    with pytest.raises(ConfigError, match=r"scenario"):
+        gym.make("ALDMHighway-v0", config={"scenario": {"xosc": str(path), "paramters": {}}})
+
+
+def test_longitudinal_distance_places_the_actor_at_the_time_gap(tmp_path: Path) -> None:
+    # leading the ego by 2 s freespace at 20 m/s: 40 m between the ego's front and the
+    # target's rear, 45 m between the reference points of two 5 m cars
+    action = xosc.LongitudinalDistanceAction(
+        "Ego",
+        freespace=True,
+        continuous=False,
+        timeGap=2.0,
+        displacement=xosc.LongitudinalDisplacement.leadingReferencedEntity,
+    )
+    ev = _event("gap", action, at_time(0.5))
+    path = write(tmp_path, [("Target", [ev])], target=(0, 90.0, 12.0))
+    _, rec = play(path, 2.0)
+    placed = at(rec, 0.6)
+    assert placed["Target"][1] - placed["Ego"][1] == pytest.approx(45.0)
+    assert placed["Target"][3] == pytest.approx(20.0)
+
+
+def test_relative_speed_continuous_follows_its_entity(tmp_path: Path) -> None:
+    dyn = xosc.TransitionDynamics(xosc.DynamicsShapes.step, xosc.DynamicsDimension.time, 0)
+    follow = _event(
+        "follow", xosc.RelativeSpeedAction(-2.0, "Ego", dyn, continuous=True), at_time(0.5)
+    )
+    linear = xosc.TransitionDynamics(xosc.DynamicsShapes.linear, xosc.DynamicsDimension.rate, 1.0)
+    ego_slows = _event("slow", xosc.AbsoluteSpeedAction(14.0, linear), at_time(1.0))
+    path = write(tmp_path, [("Target", [follow]), ("Ego", [ego_slows])], target=(1, 30.0, 25.0))
+    _, rec = play(path, 8.0)
+    for t in (1.0, 3.0, 6.0, 8.0):
+        r = at(rec, t)
+        assert r["Target"][3] == pytest.approx(r["Ego"][3] - 2.0)
+
+
+def test_follow_trajectory_polyline_by_time(tmp_path: Path) -> None:
+    poly = xosc.Polyline(
+        [0.0, 2.0, 4.0],
+        [
+            xosc.LanePosition(200.0, 0.0, -1, 0),
+            xosc.LanePosition(210.0, 0.0, -1, 0),
+            xosc.LanePosition(210.0, -3.5, -1, 0),
+        ],
+    )
+    traj = xosc.Trajectory("walk", False)
+    traj.add_shape(poly)
+    action = xosc.FollowTrajectoryAction(
+        traj, xosc.FollowingMode.position, xosc.ReferenceContext.relative, 1.0, 0.0
+    )
+    ev = _event("walk", action, at_time(1.0))
+    path = write(tmp_path, [("Target", [ev])], target=(1, 150.0, 0.0))
+    _, rec = play(path, 7.0)
+    # started at 1.1 s: half way along the first leg at 2.1 s, at its end at 3.1 s,
+    # a quarter of the way across to the next lane at 3.6 s, there from 5.1 s on
+    assert at(rec, 2.1)["Target"][1] == pytest.approx(205.0)
+    assert at(rec, 3.1)["Target"][1] == pytest.approx(210.0)
+    assert at(rec, 3.6)["Target"][:3] == (-1, pytest.approx(210.0), pytest.approx(-0.875))
+    assert at(rec, 5.1)["Target"][:3] == (-2, pytest.approx(210.0), pytest.approx(0.0, abs=1e-9))
+    assert at(rec, 6.0)["Target"][2] == pytest.approx(0.0, abs=1e-9)
+
+
+def test_time_headway_condition(tmp_path: Path) -> None:
+    # the ego at 20 m/s behind a standing target 100 m ahead (95 m between the boxes):
+    # the headway falls below 2 s once the gap is under 40 m, after 2.75 s: at 2.8 s
+    cond = xosc.EntityTrigger(
+        "headway",
+        0,
+        xosc.ConditionEdge.none,
+        xosc.TimeHeadwayCondition("Target", 2.0, xosc.Rule.lessThan, freespace=True),
+        "Ego",
+    )
+    ev = _event("go", step_speed(30.0), cond)
+    path = write(tmp_path, [("Target", [ev])], target=(0, 100.0, 0.0))
+    _, rec = play(path, 4.0)
+    assert at(rec, 2.7)["Target"][3] == 0.0
+    assert at(rec, 2.8)["Target"][3] == 30.0
+
+
+def test_reset_replays_the_same_run(tmp_path: Path) -> None:
+    dyn = xosc.TransitionDynamics(xosc.DynamicsShapes.sinusoidal, xosc.DynamicsDimension.rate, 1.0)
+    ev = _event("change", xosc.AbsoluteLaneChangeAction(-2, dyn), at_time(1.0))
+    path = write(tmp_path, [("Target", [ev])], activate_at=0.5, target=(1, 30.0, 18.0), stop=6.0)
+    env, first = play(path, 7.0)
+    env.reset(seed=0)
+    again = [r["Target"] for r in _replay(env, len(first) - 1)]
+    assert again == [r["Target"] for r in first[1:]]
+
+
+def _replay(env: object, steps: int) -> list[dict[str, object]]:
+    from tests.scenario._build import _snapshot
+
+    out = []
+    for _ in range(steps):
+        *_, terminated, truncated, info = env.step(1)  # type: ignore[attr-defined]
+        out.append(_snapshot(env.scenario, terminated or truncated, info))  # type: ignore[attr-defined]
+    return out
+
+
+def test_execution_count_repeats_an_event_and_instant_actions_show_transitions(
+    tmp_path: Path,
+) -> None:
+    step = xosc.TransitionDynamics(xosc.DynamicsShapes.step, xosc.DynamicsDimension.time, 0)
+    slower = xosc.Event("slower", xosc.Priority.parallel, maxexecution=3)
+    slower.add_action(
+        "slower_action", xosc.RelativeSpeedAction(-1.0, "Target", step, continuous=False)
+    )
+    slower.add_trigger(at_time(1.0))
+    # an action that starts and ends in one update still shows its startTransition
+    seen = _event(
+        "seen",
+        xosc.AbsoluteLaneOffsetAction(0.5, xosc.DynamicsShapes.step, 1.0),
+        xosc.ValueTrigger(
+            "started",
+            0,
+            xosc.ConditionEdge.none,
+            xosc.StoryboardElementStateCondition(
+                xosc.StoryboardElementType.action,
+                "slower_action",
+                xosc.StoryboardElementState.startTransition,
+            ),
+        ),
+    )
+    path = write(tmp_path, [("Target", [slower, seen])])
+    env, rec = play(path, 3.0)
+    assert [at(rec, t)["Target"][3] for t in (1.0, 1.1, 1.2, 1.3, 2.0)] == [20, 19, 18, 17, 17]
+    assert at(rec, 1.1)["Target"][2] == pytest.approx(0.5)
+    assert env.scenario.storyboard.element("event", "slower").state == "completeState"
+
+
+def test_skip_priority_does_not_start_while_another_event_runs(tmp_path: Path) -> None:
+    slow = xosc.TransitionDynamics(xosc.DynamicsShapes.linear, xosc.DynamicsDimension.time, 5.0)
+    first = _event("long", xosc.AbsoluteSpeedAction(10.0, slow), at_time(1.0))
+    second = _event("skipped", step_speed(30.0), at_time(2.0), xosc.Priority.skip)
+    path = write(tmp_path, [("Target", [first, second])])
+    env, rec = play(path, 4.0)
+    assert at(rec, 3.0)["Target"][3] == pytest.approx(20.0 - 10.0 * 1.9 / 5.0)
+    event = env.scenario.storyboard.element("event", "skipped")
+    assert event.state == "completeState" and event.transitions == ["skipTransition"]
+
+
+def test_an_action_of_the_same_domain_overrides_a_running_one(tmp_path: Path) -> None:
+    slow = xosc.TransitionDynamics(xosc.DynamicsShapes.linear, xosc.DynamicsDimension.time, 20.0)
+    long = _event("long", xosc.AbsoluteSpeedAction(0.0, slow), at_time(1.0))
+    jump = _event("jump", step_speed(25.0), at_time(2.0))
+    # two maneuvers: priorities do not apply, the domain does
+    path = write(tmp_path, [("Target", [long]), ("Target", [jump])])
+    env, rec = play(path, 4.0)
+    assert at(rec, 2.1)["Target"][3] == 25.0 and at(rec, 4.0)["Target"][3] == 25.0
+    action = env.scenario.storyboard.element("action", "long_action")
+    assert action.state == "completeState" and action.transitions[-1] == "stopTransition"
+
+
+def test_an_acts_stop_trigger_stops_its_actions(tmp_path: Path) -> None:
+    slow = xosc.TransitionDynamics(xosc.DynamicsShapes.linear, xosc.DynamicsDimension.time, 10.0)
+    man = xosc.Maneuver("brake")
+    man.add_event(_event("brake", xosc.AbsoluteSpeedAction(0.0, slow), at_time(1.0)))
+    group = xosc.ManeuverGroup("brakers")
+    group.add_actor("Target")
+    group.add_maneuver(man)
+    stop = xosc.ValueTrigger(
+        "halt",
+        0,
+        xosc.ConditionEdge.none,
+        xosc.SimulationTimeCondition(2.0, xosc.Rule.greaterThan),
+        "stop",
+    )
+    act = xosc.Act("braking", at_time(0.0, edge=xosc.ConditionEdge.rising), stop)
+    act.add_maneuver_group(group)
+    story = xosc.Story("story")
+    story.add_act(act)
+    path = write(tmp_path, stories=[story])
+    env, rec = play(path, 4.0)
+    held = at(rec, 2.1)["Target"][3]
+    assert held == pytest.approx(20.0 - 2.0 * 1.0) and at(rec, 4.0)["Target"][3] == held
+    assert env.scenario.storyboard.element("act", "braking").transitions[-1] == "stopTransition"
+
+
+def test_activation_at_time_zero_sets_the_functions_speed(tmp_path: Path) -> None:
+    path = write(tmp_path, activate_at=0.0, target=None, ego_speed=25.0, stop=3.0)
+    env, rec = play(path, 3.0)
+    assert rec[0]["active"] and env.vehicle.target_speed == 25.0
+    assert rec[-1]["Ego"][3] == pytest.approx(25.0, abs=0.3)
+
+
+def test_simulation_time_compares_exact_step_times(tmp_path: Path) -> None:
+    ev = _event("late", step_speed(5.0), at_time(1.2))
+    path = write(tmp_path, [("Target", [ev])])
+    _, rec = play(path, 2.0)
+    assert at(rec, 1.2)["Target"][3] == 20.0 and at(rec, 1.3)["Target"][3] == 5.0
+
+
+def test_the_stop_trigger_ends_an_env_step_early(tmp_path: Path) -> None:
+    import gymnasium as gym
+
+    path = write(tmp_path, stop=3.0)
+    env = gym.make("ALDMHighway-v0", config={"scenario": {"xosc": str(path)}}).unwrapped
+    env.reset(seed=0)
+    ends = [env.step(1)[3] for _ in range(4)]
+    assert ends == [False, False, False, True]
+    assert env.scenario.world.time == pytest.approx(3.1)
+
+
+def test_a_misspelled_element_is_an_error(tmp_path: Path) -> None:
+    ev = _event("e", step_speed(1.0), at_time(1.0))
+    path = _patched(tmp_path, "<StartTrigger>", "<StartTriger>", events=[("Target", [ev])])
+    text = path.read_text().replace(
+        "</StartTrigger>\n                        </Event>",
+        "</StartTriger>\n                        </Event>",
+    )
+    path.write_text(text)
+    line = _line_of(path, "<StartTriger>")
+    with pytest.raises(ScenarioError, match=rf"scenario\.xosc:{line} <StartTriger>.*not supported"):
+        read_scenario(path)
+
+
+def test_time_headway_defaults_to_the_euclidean_distance(tmp_path: Path) -> None:
+    # a target 10 m to the left and 40 m ahead (boxes): the euclidean freespace distance
+    # is under 2 s at 20 m/s only when both are close; longitudinally it would be 40 m
+    cond = xosc.EntityTrigger(
+        "h",
+        0,
+        xosc.ConditionEdge.none,
+        xosc.TimeHeadwayCondition(
+            "Target", 2.01, xosc.Rule.lessThan, freespace=False, alongroute=False
+        ),
+        "Ego",
+    )
+    path = write(
+        tmp_path, [("Target", [_event("go", step_speed(5.0), cond)])], target=(1, 40.0, 20.0)
+    )
+    condition = path.read_text().split("<TimeHeadwayCondition")[1].split("/>")[0]
+    path.write_text(
+        path.read_text().replace(
+            condition,
+            condition.replace(' relativeDistanceType="longitudinal"', "").replace(
+                ' relativeDistanceType="euclidianDistance"', ""
+            ),
+        )
+    )
+    _, rec = play(path, 1.0)
+    # reference points 40 m ahead and 3.5 m across: 40.15 m, 2.008 s at 20 m/s
+    assert rec[1]["Target"][3] == 5.0
+
+
+def test_relative_target_lane_counts_from_the_entitys_left(tmp_path: Path) -> None:
+    road = _two_way(tmp_path)
+    dyn = xosc.TransitionDynamics(xosc.DynamicsShapes.sinusoidal, xosc.DynamicsDimension.time, 2.0)
+    ev = _event("left", xosc.RelativeLaneChangeAction(1, "Target", dyn), at_time(0.5))
+    path = write(
+        tmp_path, [("Target", [ev])], road=road, lane_id=2, ego_s=1500.0, target=(0, -30.0, 20.0)
+    )
+    _, rec = play(path, 4.0)
+    # lane 2 is driven against s; its driver's left is lane 1 (towards the reference line)
+    assert rec[0]["Target"][0] == 2 and rec[-1]["Target"][0] == 1
+
+
+def _two_way(folder: Path) -> Path:
+    from tests.scenario._build import straight_road
+
+    return straight_road(folder, left_lanes=2)
+
+
+def test_subset_covers_every_value_it_can() -> None:
+    from aldm_gym.scenario.parameters import ConcreteRun
+    from aldm_gym.scenario.suite import _subset
+
+    runs = [
+        ConcreteRun(i, {"a": str(a), "b": str(b), "c": str(c)})
+        for i, (a, b, c) in enumerate(
+            (a, b, c) for a in range(7) for b in range(5) for c in range(3)
+        )
+    ]
+    picked = _subset(runs, 7)
+    for name, count in (("a", 7), ("b", 5), ("c", 3)):
+        assert len({r.parameters[name] for r in picked}) == count
+    assert [r.index for r in picked] == sorted(r.index for r in picked)
+
+
+def test_a_route_along_the_lane_chain_is_played_and_another_is_refused(tmp_path: Path) -> None:
+    route = xosc.Route("ahead")
+    route.add_waypoint(xosc.LanePosition(200.0, 0.0, -1, 0), xosc.RouteStrategy.shortest)
+    route.add_waypoint(xosc.LanePosition(900.0, 0.0, -2, 0), xosc.RouteStrategy.shortest)
+    ev = _event("route", xosc.AssignRouteAction(route), at_time(0.5))
+    path = write(tmp_path, [("Target", [ev])])
+    env, _ = play(path, 2.0)
+    assert env.scenario.storyboard.element("action", "route_action").transitions == [
+        "startTransition",
+        "endTransition",
+    ]
+    elsewhere = xosc.Route("elsewhere")
+    # on the motorway the target's lanes run through roads 1-6; road 7 is a ramp
+    elsewhere.add_waypoint(xosc.LanePosition(200.0, 0.0, -1, 1), xosc.RouteStrategy.shortest)
+    elsewhere.add_waypoint(xosc.LanePosition(100.0, 0.0, -1, 7), xosc.RouteStrategy.shortest)
+    ev = _event("route", xosc.AssignRouteAction(elsewhere), at_time(0.5))
+    path = write(
+        tmp_path, [("Target", [ev])], road=MOTORWAY, road_id=1, ego_s=100.0, name="away.xosc"
+    )
+    with pytest.raises(ScenarioError, match=r"the route leaves the roads 'Target' follows"):
+        play(path, 2.0)
