@@ -83,3 +83,5 @@ def main(argv: Sequence[str] | None = None) -> int:
         return int(args.func(args))
     except BadArgument as exc:
         sub.error(str(exc))
+    except KeyboardInterrupt:  # Ctrl-C (or SIGTERM during a training) outside a safe point
+        return 130

@@ -318,12 +318,17 @@ def _train(backend: Backend[Any], report: list[str]) -> None:
     try:
         with stop_on_signal(at_once=backend.stops_at_once) as stop:
             try:
-                if backend.saved is not None:
-                    done, note = restore_newest(backend)
-                    lines = "; ".join([*report, note])
-                    logger.info("resuming %s at %d steps; %s", backend.out, done, lines)
-                else:
-                    backend.build()
+                # Building imports and compiles: an interrupt inside a module's import
+                # leaves a broken module (ImportError: initialization failed), so a
+                # signal waits until the build is done and then stops it here (a
+                # second one stops at once).
+                with signals_deferred(insist=True):
+                    if backend.saved is not None:
+                        done, note = restore_newest(backend)
+                        lines = "; ".join([*report, note])
+                        logger.info("resuming %s at %d steps; %s", backend.out, done, lines)
+                    else:
+                        backend.build()
                 write_json(backend.out / TRAINING_FILE, backend.meta)
                 backend.learn(stop)
             except (KeyboardInterrupt, SystemError) as exc:

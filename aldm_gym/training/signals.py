@@ -65,9 +65,11 @@ def stop_on_signal(at_once: bool) -> Iterator[StopRequest]:
 
 
 @contextmanager
-def signals_deferred() -> Iterator[None]:
+def signals_deferred(insist: bool = False) -> Iterator[None]:
     """Hold SIGINT and SIGTERM back while the block runs (a save completes); they are
-    raised again when it ends, to the handlers then in place.
+    raised again when it ends, to the handlers then in place. With ``insist``, a second
+    signal while the block runs raises ``KeyboardInterrupt`` at once (a user who presses
+    Ctrl-C twice does not wait for a long build).
 
     The handlers are swapped rather than the signals masked: a process with threads
     (torch's, Ray's) takes a signal on any thread that does not mask it, and Python
@@ -76,6 +78,9 @@ def signals_deferred() -> Iterator[None]:
     held: list[int] = []
 
     def hold(signum: int, frame: Any) -> None:
+        if insist and held:
+            held.clear()
+            raise KeyboardInterrupt
         held.append(signum)
 
     try:

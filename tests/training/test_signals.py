@@ -60,3 +60,28 @@ def test_deferred_signals_arrive_after_the_block() -> None:
             os.kill(os.getpid(), signal.SIGTERM)
             assert not stop.requested
         assert stop.requested
+
+
+def test_a_second_signal_ends_an_insisting_deferral_at_once() -> None:
+    # the build of a training holds the first signal (an interrupted import would
+    # leave a broken module) and gives way to a second one
+    reached = []
+    with pytest.raises(KeyboardInterrupt), stop_on_signal(at_once=True):
+        with signals_deferred(insist=True):
+            os.kill(os.getpid(), signal.SIGTERM)
+            reached.append("held")
+            os.kill(os.getpid(), signal.SIGINT)
+            reached.append("not reached")
+    assert reached == ["held"]
+
+
+def test_an_interrupt_outside_a_safe_point_exits_130(monkeypatch: pytest.MonkeyPatch) -> None:
+    from aldm_gym import cli
+
+    def interrupted(args: object) -> int:
+        raise KeyboardInterrupt
+
+    parser = cli.build_parser()
+    monkeypatch.setattr(cli, "build_parser", lambda: parser)
+    parser._subparsers._group_actions[0].choices["plot"].set_defaults(func=interrupted)  # type: ignore[union-attr]
+    assert cli.main(["plot"]) == 130
