@@ -1,0 +1,54 @@
+"""Planning and playing a suite: variation files, subsets, worker processes, Ray."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from aldm_gym.scenario.suite import format_table, plan_suite, play_suite, summarise, write_outputs
+from tests.scenario._build import write
+
+
+def test_a_folder_of_concrete_scenarios_plays_in_two_processes(tmp_path: Path) -> None:
+    write(tmp_path, name="a.xosc", stop=2.0)
+    write(tmp_path, name="b.xosc", stop=3.0, target=None)
+    jobs = plan_suite(tmp_path, ["aldm", "naive"], ["per_dash"])
+    assert [(Path(j.xosc).name, j.detector) for j in jobs] == [
+        ("a.xosc", "aldm"),
+        ("a.xosc", "naive"),
+        ("b.xosc", "aldm"),
+        ("b.xosc", "naive"),
+    ]
+    results = play_suite(jobs, processes=2, progress=False)
+    assert [r.time_s for r in results] == pytest.approx([2.1, 2.1, 3.1, 3.1])
+    assert all(r.finished and not r.error for r in results)
+    rows = summarise(results)
+    write_outputs(results, rows, tmp_path)
+    assert (tmp_path / "scenario_runs.csv").read_text().count("\n") == 5
+    assert "a.xosc" in format_table(rows)
+
+
+def test_a_run_that_cannot_be_played_is_an_error_row(tmp_path: Path) -> None:
+    path = write(tmp_path, ego_s=5000.0)  # off the 2 km road: fails when it starts
+    results = play_suite(plan_suite(path, ["aldm"], ["per_dash"]), processes=1, progress=False)
+    assert "not on the map" in results[0].error and not results[0].passed
+    row = summarise(results)[0]
+    assert row["errors"] == 1 and row["runs"] == 0
+
+
+def test_on_a_ray_cluster(tmp_path: Path) -> None:
+    pytest.importorskip("ray")
+    import ray
+
+    path = write(tmp_path, stop=2.0)
+    try:
+        results = play_suite(
+            plan_suite(path, ["aldm", "ground_truth"], ["per_dash"]),
+            progress=False,
+            address="local",
+        )
+    finally:
+        ray.shutdown()
+    assert [r.detector for r in results] == ["aldm", "ground_truth"]
+    assert all(r.finished and r.passed for r in results)
