@@ -446,19 +446,21 @@ def validate_config(config: Mapping[str, Any]) -> dict[str, Any]:
     return parse_config(config)[1]
 
 
-def load_map(settings: EnvConfig) -> OpenDriveRoad | None:
-    """The map road of settings with ``road.xodr`` (read once per file content and
-    cached), else ``None``.
+def load_map(settings: EnvConfig, scenario: Any = None) -> OpenDriveRoad | None:
+    """The map road of settings with ``road.xodr`` or a scenario (its ``LogicFile``;
+    ``scenario``: the scenario already read, else it is read here), read once per file
+    content and cached; else ``None``.
 
     :raises MapNotFoundError: naming the file.
     :raises MapError: the reader's error naming file, road and element.
     """
     road = settings.road
     if settings.scenario.enabled:
-        from aldm_gym.scenario import read_scenario
+        if scenario is None:
+            from aldm_gym.scenario import read_scenario
 
-        path = read_scenario(settings.scenario.xosc, settings.scenario.parameters).map_path
-        return OpenDriveRoad.from_file(str(path), marking_model=settings.marking_model)
+            scenario = read_scenario(settings.scenario.xosc, settings.scenario.parameters)
+        return OpenDriveRoad.from_file(str(scenario.map_path), marking_model=settings.marking_model)
     if not isinstance(road, MapConfig):
         return None
     return OpenDriveRoad.from_file(

@@ -212,12 +212,18 @@ class ALDMHighwayEnv(AbstractEnv):
 
         :raises ConfigError: naming unknown keys and the allowed ones, or a bad value.
         :raises MapNotFoundError, MapError: ``road.xodr`` names a missing or bad file.
+        :raises ScenarioError: ``scenario.xosc`` names a file the player cannot play.
         """
         merged = merged_config(self.config, config)
         if merged["offscreen_rendering"] is None:
             merged["offscreen_rendering"] = self.render_mode != "human"
         settings, view = parse_config(merged)
-        on_map = load_map(settings)
+        scenario = None
+        if settings.scenario.enabled:
+            from aldm_gym.scenario import read_scenario
+
+            scenario = read_scenario(settings.scenario.xosc, settings.scenario.parameters)
+        on_map = load_map(settings, scenario)
         if on_map is not None:
             # The map sets these (settings and view are this call's own): its lane count,
             # and neighbours searched across connected lanes, which highway-env's reset
@@ -230,7 +236,7 @@ class ALDMHighwayEnv(AbstractEnv):
                 dict.__setitem__(view, key, value)
         self.settings = settings
         self.config: ConfigView = view
-        self._scene = make_scene(settings, on_map)
+        self._scene = make_scene(settings, on_map, scenario)
         self.lka = LKAController(
             **{k: v for k, v in vars(settings.lka).items() if k != "path_range"},
             sensor_x=float(settings.sensor.mount_x),

@@ -250,14 +250,15 @@ class ScenarioScene(MapScene):
 
     :param settings: the env's settings.
     :param road: the scenario's map.
+    :param scenario: the scenario (:func:`~aldm_gym.scenario.read_scenario`).
     """
 
-    def __init__(self, settings: EnvConfig, road: OpenDriveRoad) -> None:
-        """Read the scenario with the settings' parameters (once per configure)."""
-        from aldm_gym.scenario import choose_ego, read_scenario
+    def __init__(self, settings: EnvConfig, road: OpenDriveRoad, scenario: Any) -> None:
+        """Hold the scenario (read once per configure, with the settings' parameters)."""
+        from aldm_gym.scenario import choose_ego
 
         super().__init__(settings, road)
-        self.scenario = read_scenario(settings.scenario.xosc, settings.scenario.parameters)
+        self.scenario = scenario
         self.ego_name = choose_ego(self.scenario, settings.scenario.ego)
         self.runner: Any = None
 
@@ -271,12 +272,12 @@ class ScenarioScene(MapScene):
         return self.runner.populate(traffic, make_ego)
 
 
-def make_scene(settings: EnvConfig, map_road: OpenDriveRoad | None) -> Scene:
-    """The scene builder of ``settings``: a :class:`ScenarioScene` with a scenario, a
+def make_scene(settings: EnvConfig, map_road: OpenDriveRoad | None, scenario: Any = None) -> Scene:
+    """The scene builder of ``settings``: a :class:`ScenarioScene` with ``scenario``, a
     :class:`MapScene` with the map read for ``road.xodr``, else a
     :class:`GeneratedScene`."""
-    if map_road is not None and settings.scenario.enabled:
-        return ScenarioScene(settings, map_road)
+    if map_road is not None and scenario is not None:
+        return ScenarioScene(settings, map_road, scenario)
     if map_road is not None:
         return MapScene(settings, map_road)
     return GeneratedScene(settings)

@@ -143,14 +143,14 @@ def _override(entity: Entity, slot: str, motion: Any) -> None:
     once), stopping the one it replaces."""
     old = getattr(entity, slot)
     if old is not None and old is not motion:
-        old.owner.stop()
+        old.stop()
         setattr(entity, slot, None)
     if slot in ("longitudinal", "lateral") and entity.trajectory is not None:
-        entity.trajectory.owner.stop()
+        entity.trajectory.stop()
     if slot == "trajectory":
-        for other in ("longitudinal", "lateral", "distance_keeper"):
+        for other in ("longitudinal", "lateral"):
             if getattr(entity, other) is not None:
-                getattr(entity, other).owner.stop()
+                getattr(entity, other).stop()
     setattr(entity, slot, motion)
 
 
@@ -199,7 +199,6 @@ class SpeedChange(Instance):
         self.dynamics = dynamics
         self.target = target
         self.continuous = continuous
-        self.owner = self
 
     def start(self, runner: Any) -> None:
         """Fix the start, target and duration; a step is done at once."""
@@ -280,7 +279,6 @@ class LongitudinalDistance(Instance):
         self.continuous = continuous
         self.limits = limits
         self.system = system
-        self.owner = self
 
     def _wanted(self, world: World) -> float:
         """Wanted distance between reference points [m], signed: > 0 when the actor is
@@ -385,7 +383,6 @@ class LaneChange(Instance):
         self.dynamics = dynamics
         self.target = target
         self.target_offset = target_offset
-        self.owner = self
 
     def start(self, runner: Any) -> None:
         """Measure the offset from the target lane; set the duration."""
@@ -444,7 +441,6 @@ class LaneOffset(Instance):
         self.max_acc = max_lateral_acc
         self.target = target
         self.continuous = continuous
-        self.owner = self
 
     def start(self, runner: Any) -> None:
         """Set the duration from the largest lateral acceleration."""
@@ -518,7 +514,6 @@ class FollowTrajectory(Instance):
         self.absolute = absolute
         self.scale = scale
         self.time_offset = offset
-        self.owner = self
 
     def start(self, runner: Any) -> None:
         """Resolve the vertices now; timing from the action's start (relative)."""

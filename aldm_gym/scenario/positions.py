@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from aldm_gym.errors import MapError, OffRoadError, ScenarioError
-from aldm_gym.scenario.world import Entity, World
+from aldm_gym.scenario.world import Entity, World, wrap_angle
 
 __all__ = [
     "LanePos",
@@ -35,6 +35,7 @@ __all__ = [
     "RoadPos",
     "Where",
     "WorldPos",
+    "lane_step",
 ]
 
 
@@ -77,9 +78,13 @@ class Position:
         return ScenarioError(f"{self.where}: the position is not on the map: {exc}")
 
 
-def _wrap(angle: float) -> float:
-    """An angle in (-pi, pi] [rad]."""
-    return (angle + math.pi) % (2.0 * math.pi) - math.pi
+def lane_step(lane_id: int, steps: int) -> int:
+    """The OpenDRIVE lane id ``steps`` lanes from ``lane_id`` along the road's ``t``
+    axis, skipping the centre lane 0 (-1 + 1 is lane 1)."""
+    new = lane_id + steps
+    if lane_id > 0 >= new or lane_id < 0 <= new:
+        new += 1 if steps > 0 else -1
+    return new
 
 
 def _lane_where(
@@ -147,7 +152,7 @@ class RoadPos(Position):
         heading = 0.0
         if o is not None:
             # relative to the lane's direction, or absolute (OpenDRIVE's heading)
-            heading = -o.h if o.relative else _wrap(-o.h - pos.heading)
+            heading = -o.h if o.relative else wrap_angle(-o.h - pos.heading)
         return Where(
             lane=pos.lane,
             u=pos.s - world.road.chain_start(pos.lane),
@@ -187,9 +192,7 @@ class RelativeLanePos(Position):
         """See :class:`Position`."""
         ref = world.entities[self.entity]
         c = world.coordinates(ref)
-        lane_id = c.lane_id + self.d_lane
-        if c.lane_id > 0 >= lane_id or c.lane_id < 0 <= lane_id:
-            lane_id += 1 if self.d_lane > 0 else -1  # no lane 0 between
+        lane_id = lane_step(c.lane_id, self.d_lane)
         try:
             if self.ds is not None:
                 return _lane_where(

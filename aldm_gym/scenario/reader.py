@@ -27,7 +27,13 @@ from lxml import etree
 from aldm_gym.errors import ScenarioError
 from aldm_gym.scenario import actions as A
 from aldm_gym.scenario import conditions as C
-from aldm_gym.scenario.parameters import ParamValue, bind, declarations_from_xml, resolve
+from aldm_gym.scenario.parameters import (
+    ParamValue,
+    bind,
+    declarations_from_xml,
+    resolve,
+    resolve_number,
+)
 from aldm_gym.scenario.positions import (
     LanePos,
     Orientation,
@@ -36,6 +42,7 @@ from aldm_gym.scenario.positions import (
     RelativeObjectPos,
     RoadPos,
     WorldPos,
+    lane_step,
 )
 from aldm_gym.scenario.storyboard import (
     STATES,
@@ -258,14 +265,7 @@ class _Reader:
             if default is _MISSING:
                 raise self.error(el, f"missing attribute {name!r}")
             return default
-        value = resolve(raw, self.params, self.where(el, name))
-        try:
-            number = float(value)
-        except (TypeError, ValueError):
-            raise self.error(el, f"{name}={raw!r} is not a number") from None
-        if not math.isfinite(number):
-            raise self.error(el, f"{name}={raw!r} is not finite")
-        return number
+        return resolve_number(raw, self.params, self.where(el, name))
 
     def integer(self, el: Any, name: str, default: Any = _MISSING) -> int:
         """An integer attribute."""
@@ -653,11 +653,7 @@ class _Reader:
                 def target(world: Any, actor: Entity, ref: str = ref, d: int = d) -> int:
                     # + is the referenced entity's left: along t where it drives along s
                     c = world.coordinates(world.entities[ref])
-                    lane, d = c.lane_id, d * c.direction
-                    new = lane + d
-                    if lane > 0 >= new or lane < 0 <= new:
-                        new += 1 if d > 0 else -1
-                    return new
+                    return lane_step(c.lane_id, d * c.direction)
 
             return lambda actor: A.LaneChange(actor, where, dyn, target, offset)
         self.kids(body, ("LaneOffsetActionDynamics", "LaneOffsetTarget"))

@@ -21,7 +21,7 @@ direction), whatever the lane's driving direction.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -33,7 +33,7 @@ if TYPE_CHECKING:
     from aldm_gym.roads.map_road import OpenDriveRoad
     from aldm_gym.roads.opendrive.map import LaneKey
 
-__all__ = ["BoundingBox", "Entity", "RoadCoordinates", "ScenarioVehicle", "World"]
+__all__ = ["BoundingBox", "Entity", "RoadCoordinates", "ScenarioVehicle", "World", "wrap_angle"]
 
 
 @dataclass(frozen=True)
@@ -130,11 +130,7 @@ class Entity:
     longitudinal: Any = None
     lateral: Any = None
     trajectory: Any = None
-    distance_keeper: Any = None
     placed: bool = False
-    controller_lateral: bool = False
-    controller_longitudinal: bool = False
-    extra: dict[str, Any] = field(default_factory=dict)
 
     @property
     def position(self) -> np.ndarray:
@@ -317,7 +313,7 @@ class World:
         entity.lane = pos.lane
         entity.u = pos.s - self.road.chain_start(pos.lane)
         entity.t = pos.offset
-        entity.heading_offset = _wrap(heading - pos.heading)
+        entity.heading_offset = wrap_angle(heading - pos.heading)
         entity.placed = True
         self._set_vehicle(entity, point, heading)
 
@@ -390,6 +386,6 @@ class World:
         entity.lane, entity.u, entity.t = key, float(u), -float(lateral)
 
 
-def _wrap(angle: float) -> float:
+def wrap_angle(angle: float) -> float:
     """An angle in (-pi, pi] [rad]."""
     return (angle + math.pi) % (2.0 * math.pi) - math.pi
