@@ -9,15 +9,17 @@ that catches those catches these too::
     ├── ConfigError (ValueError)        an unknown setting or a value out of its rules
     ├── InputError (ValueError)         unusable data: wrong shape, NaN/inf, empty
     │   ├── OffRoadError                a world position on no lane of the road
-    │   └── ScenarioError               an OpenSCENARIO file that cannot be played
+    │   ├── ScenarioError               an OpenSCENARIO file that cannot be played
+    │   └── TraceError                  an ASAM OSI trace that cannot be read
     ├── MapError (ValueError)           an OpenDRIVE file that cannot be read or used
     ├── MapNotFoundError (FileNotFoundError)
     ├── CheckpointError (ValueError)    a training output or checkpoint that cannot be used
     │   └── ResumeError                 ... cannot be resumed by this backend
     ├── ClusterError (ValueError)       no Ray cluster at the address, or too few CPUs
     ├── OutputLocked (RuntimeError)     another training holds the output folder
-    └── MissingRLDependencies (ImportError)
-        └── MissingRayDependencies
+    ├── MissingRLDependencies (ImportError)
+    │   └── MissingRayDependencies
+    └── MissingOSIDependencies (ImportError)
 
     AldmGymWarning (UserWarning)
     ├── NumbaCacheWarning               a kernel's cache was unusable: recompiled
@@ -38,6 +40,7 @@ __all__ = [
     "InputError",
     "MapError",
     "MapNotFoundError",
+    "MissingOSIDependencies",
     "MissingRLDependencies",
     "MissingRayDependencies",
     "NumbaCacheWarning",
@@ -45,6 +48,7 @@ __all__ = [
     "OutputLocked",
     "ResumeError",
     "ScenarioError",
+    "TraceError",
     "TrainingWarning",
 ]
 
@@ -70,6 +74,11 @@ class OffRoadError(InputError):
 class ScenarioError(InputError):
     """An OpenSCENARIO file (or a parameter given for it) that cannot be played: the
     message names the file, the line and the element (``file.xosc:57 <SpeedAction>``)."""
+
+
+class TraceError(InputError):
+    """An ASAM OSI trace (or message) that cannot be read or used: the message names
+    the file and the frame (``run.mcap frame 17: no host vehicle``)."""
 
 
 class MapError(AldmGymError, ValueError):
@@ -111,6 +120,10 @@ class MissingRLDependencies(AldmGymError, ImportError):
 
 class MissingRayDependencies(MissingRLDependencies):
     """Ray RLlib or torch is not installed (the ``[ray]`` extra)."""
+
+
+class MissingOSIDependencies(AldmGymError, ImportError):
+    """osi-python or asam-osi-utilities is not installed (the ``[osi]`` extra)."""
 
 
 class AldmGymWarning(UserWarning):

@@ -8,7 +8,7 @@ import pytest
 
 from aldm_gym.cli import main
 
-NESTED = ("scenario",)
+NESTED = ("scenario", "osi")
 """Commands whose usage errors come from an action's parser (``aldm-gym scenario run``)."""
 
 

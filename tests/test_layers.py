@@ -1,6 +1,6 @@
 """The package's shape: modules import only from the layers before them (road →
-sensor → envs → agents → training → cli), and no modules import each other in a
-cycle (function-level imports included; ``TYPE_CHECKING`` ones are typing only)."""
+sensor → osi → scenario → envs → agents → training → cli), and no modules import each
+other in a cycle (function-level imports included; ``TYPE_CHECKING`` ones are typing only)."""
 
 from __future__ import annotations
 
@@ -16,6 +16,7 @@ LAYERS = (
     "config",
     "roads",
     "sensor",
+    "osi",
     "scenario",
     "envs",
     "agents",

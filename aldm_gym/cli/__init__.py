@@ -3,6 +3,9 @@
 * ``aldm-gym compare`` (:mod:`aldm_gym.cli.compare`): naive vs ALDM vs ground truth on
   the same seeded frames of both road models, then in closed loop.
 * ``aldm-gym plot`` (:mod:`aldm_gym.cli.plot`): one frame, naive and ALDM side by side.
+* ``aldm-gym scenario`` (:mod:`aldm_gym.cli.scenario`): OpenSCENARIO files on the env.
+* ``aldm-gym osi`` (:mod:`aldm_gym.cli.osi`): the line sensor and a detector on an
+  ASAM OSI trace.
 * ``aldm-gym train`` (:mod:`aldm_gym.cli.train`): train a PPO lane-change policy.
 * ``aldm-gym evaluate`` (:mod:`aldm_gym.cli.evaluate`): a trained policy against the
   rule-based ones.
@@ -22,10 +25,10 @@ import argparse
 from collections.abc import Sequence
 
 from aldm_gym import __version__
-from aldm_gym.cli import compare, evaluate, plot, scenario, train
+from aldm_gym.cli import compare, evaluate, osi, plot, scenario, train
 from aldm_gym.cli.argtypes import BadArgument
 
-SUBCOMMANDS = (compare, plot, scenario, train, evaluate)
+SUBCOMMANDS = (compare, plot, scenario, osi, train, evaluate)
 """The subcommand modules, in the order of ``aldm-gym --help``."""
 
 

@@ -22,6 +22,7 @@ top level              :class:`EnvConfig` (below)
                        :mod:`aldm_gym.sensor.detectors`)
 ``scenario``           :class:`aldm_gym.scenario.ScenarioConfig` (an OpenSCENARIO
                        file to play)
+``osi``                :class:`aldm_gym.osi.OsiConfig` (an ASAM OSI trace to write)
 =====================  =============================================================
 
 :func:`parse_config` validates a complete configuration once: unknown keys (named,
@@ -52,6 +53,7 @@ from aldm_gym.envs.longitudinal import ACCConfig
 from aldm_gym.envs.observation import ObservationConfig
 from aldm_gym.envs.traffic.mix import TrafficConfig
 from aldm_gym.errors import ConfigError
+from aldm_gym.osi.settings import OsiConfig
 from aldm_gym.roads.highway import MARKING_MODELS, RoadConfig
 from aldm_gym.roads.map_road import OpenDriveRoad
 from aldm_gym.roads.opendrive import DEFAULT_BROKEN_PATTERN, DEFAULT_SAMPLE_STEP
@@ -137,7 +139,7 @@ class EnvConfig:
     ``departure_reward``, ``departure_terminal``, ``info_metrics`` (``info["lane_metrics"]``,
     :mod:`aldm_gym.sensor.lane_metrics`), and the sections ``detector_params``,
     ``sensor``, ``road``, ``lka``, ``acc`` (ACC and AEB), ``traffic`` (trucks),
-    ``scenario`` (an OpenSCENARIO file to play).
+    ``scenario`` (an OpenSCENARIO file to play), ``osi`` (an ASAM OSI trace to write).
     Meanings: ``docs/env.md``.
     """
 
@@ -188,6 +190,7 @@ class EnvConfig:
     acc: ACCConfig = section(ACCConfig)
     traffic: TrafficConfig = section(TrafficConfig)
     scenario: ScenarioConfig = section(ScenarioConfig)
+    osi: OsiConfig = section(OsiConfig)
     progress_reward: float = _reward(0.2)
     lane_keeping_reward: float = _reward(0.3)
     departure_reward: float = _reward(-0.5)
@@ -317,6 +320,7 @@ SECTIONS: dict[str, Any] = {
     "traffic": TrafficConfig,
     "sensor": LineSensorConfig,
     "scenario": ScenarioConfig,
+    "osi": OsiConfig,
 }
 """The config sections declared by one dataclass each (``road`` is a
 :class:`~aldm_gym.roads.highway.RoadConfig` or a :class:`MapConfig`;

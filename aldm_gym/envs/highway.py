@@ -38,6 +38,7 @@ from aldm_gym.envs.config import (
 from aldm_gym.envs.control import LKAController
 from aldm_gym.envs.longitudinal import LongitudinalCommand, LongitudinalController
 from aldm_gym.envs.observation import ALDMObservation
+from aldm_gym.envs.osi_trace import OsiRecorder
 from aldm_gym.envs.perception import Perception
 from aldm_gym.envs.referee import Referee
 from aldm_gym.envs.scene import (
@@ -198,6 +199,8 @@ class ALDMHighwayEnv(AbstractEnv):
         self._space_seed: int | None = None
         self.scenario: ScenarioRunner | None = None
         """This episode's scenario run (``scenario.xosc`` set), else None."""
+        self.osi: OsiRecorder | None = None
+        """The OSI trace writer (``osi.trace`` set), else None."""
         super().__init__(dict(config) if config else None, render_mode)
 
     # ------------------------------------------------------------------ config
@@ -326,6 +329,16 @@ class ALDMHighwayEnv(AbstractEnv):
         self._reset_longitudinal(road)
         self._perceive()
         self._s_before = self.lane_position.s
+        if self.settings.osi.enabled:
+            if self.osi is None or self.osi.settings != self.settings.osi:
+                if self.osi is not None:
+                    self.osi.close()
+                self.osi = OsiRecorder(self.settings.osi)
+            self.osi.start()
+            self.osi.record(self)
+        elif self.osi is not None:
+            self.osi.close()
+            self.osi = None
 
     def _hand_over(self, entity: Any) -> None:
         """The scenario hands the ego to the function: its set speed is the speed it
@@ -421,6 +434,7 @@ class ALDMHighwayEnv(AbstractEnv):
         if not s.manual_control:
             self.action_type.act(action)  # raises InputError on a bad action (None too)
         engine = self.road.engine
+        every_frame = self.osi is not None and self.settings.osi.every == "frame"
         # Nothing but the simulation touches the traffic until the env step ends.
         with engine.holding() if engine is not None else contextlib.nullcontext():
             for frame in range(frames):
@@ -430,10 +444,14 @@ class ALDMHighwayEnv(AbstractEnv):
                 if self.scenario is not None:
                     self.scenario.step(dt)
                 self._perceive()
+                if every_frame:
+                    self.osi.record(self)  # type: ignore[union-attr]
                 if self.scenario is not None and self.scenario.finished:
                     break  # the stop trigger ends the episode at this simulation step
                 if frame < frames - 1:
                     self._automatic_rendering()
+        if self.osi is not None and not every_frame:
+            self.osi.record(self)
         self.enable_auto_render = False
 
     # ------------------------------------------------------------------ outcome
@@ -489,6 +507,12 @@ class ALDMHighwayEnv(AbstractEnv):
                 perception.detection, perception.frame, perception.sensor.config.visibility
             )
         return info
+
+    def close(self) -> None:
+        """Close the viewer and finish the OSI trace (``osi.trace``)."""
+        if self.osi is not None:
+            self.osi.close()
+        super().close()
 
     # ------------------------------------------------------------------ rendering
     def render(self) -> np.ndarray | None:

@@ -9,7 +9,6 @@ ground truth except the detector ``"ground_truth"`` itself (the upper bound).
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import numpy as np
@@ -24,7 +23,7 @@ from aldm_gym.sensor.detectors import Detector, make_detector
 from aldm_gym.sensor.frame import SensorFrame
 from aldm_gym.sensor.lane_detection import LaneDetection
 from aldm_gym.sensor.line_sensor import LineSensor
-from aldm_gym.sensor.tracking import EgoMotion
+from aldm_gym.sensor.tracking import EgoMotion, odometry
 
 __all__ = ["Perception"]
 
@@ -106,16 +105,7 @@ class Perception:
         origin, _ = self.sensor.world_pose((ego.position[0], ego.position[1], heading))
         pose = (float(origin[0]), float(origin[1]), heading)
         last, self._odometry = self._odometry, pose
-        if last is None:
-            return None
-        dt = self.dt
-        speed = math.hypot(pose[0] - last[0], pose[1] - last[1]) / dt
-        # highway-env's heading grows clockwise (its y axis points right of x): the
-        # sensor frame's yaw (ISO 8855, left positive) turns the other way
-        turn = -((pose[2] - last[2] + math.pi) % (2.0 * math.pi) - math.pi)
-        if speed > 200.0 or abs(turn / dt) > 10.0:
-            return None
-        return EgoMotion(speed, turn / dt, dt)
+        return odometry(last, pose, self.dt)
 
     def sense_objects(self, traffic: FastRoad, ego: Any) -> Objects:
         """The other vehicles in the sensor frame (ids: their index in

@@ -87,6 +87,29 @@ class EgoMotion:
         return chord * math.cos(0.5 * dpsi), chord * math.sin(0.5 * dpsi), dpsi
 
 
+def odometry(
+    last: tuple[float, float, float] | None, pose: tuple[float, float, float], dt: float
+) -> EgoMotion | None:
+    """The sensor's motion between two world poses, as odometry would give it.
+
+    :param last: the previous sensor pose ``(x [m], y [m], heading [rad])`` in
+        highway-env's world (``None``: no previous frame).
+    :param pose: the current one.
+    :param dt: time between them [s].
+    :return: the motion, or ``None`` without a previous pose, for a ``dt`` not > 0, or
+        after an implausible jump (faster than 200 m/s or turning faster than 10 rad/s).
+    """
+    if last is None or not dt > 0.0:
+        return None
+    speed = math.hypot(pose[0] - last[0], pose[1] - last[1]) / dt
+    # highway-env's heading grows clockwise (its y axis points right of x): the
+    # sensor frame's yaw (ISO 8855, left positive) turns the other way
+    turn = -((pose[2] - last[2] + math.pi) % (2.0 * math.pi) - math.pi)
+    if speed > 200.0 or abs(turn / dt) > 10.0 or dt > 10.0:
+        return None
+    return EgoMotion(speed, turn / dt, dt)
+
+
 @dataclass(frozen=True)
 class TrackerParams:
     """Parameters of :class:`LaneTracker` (lengths [m]).

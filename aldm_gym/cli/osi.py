@@ -1,0 +1,94 @@
+"""``aldm-gym osi detect``: the line sensor and a detector on an ASAM OSI trace.
+
+``detect IN --out OUT`` reads every ``SensorView`` (or ``GroundTruth``) of a trace
+(``.mcap`` or binary ``.osi``, e.g. written by ``esmini --osi_file`` or by the env's
+``osi.trace``), measures its lane boundaries with the CarMaker line sensor from the
+host vehicle, runs the detector, and writes one ``SensorData`` per frame
+(``DetectedLaneBoundary``: :mod:`aldm_gym.osi`). docs/osi.md.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any
+
+from aldm_gym.cli.argtypes import BadArgument, _check_parent, existing_file, positive_int
+
+MARKING_CHOICES = ("per_dash", "editor")
+"""How boundaries become line objects: each painted stretch, or each boundary."""
+
+
+def trace_out(text: str) -> Path:
+    """An OSI trace to write: ``.mcap`` or ``.osi``, in a writable place."""
+    path = Path(text)
+    if path.suffix.lower() not in (".mcap", ".osi"):
+        raise argparse.ArgumentTypeError(f"{path}: give a .mcap or .osi file name")
+    if path.is_dir():
+        raise argparse.ArgumentTypeError(f"{path} is a folder")
+    _check_parent(path)
+    return path
+
+
+def add_parser(subparsers: Any) -> argparse.ArgumentParser:
+    """Declare ``aldm-gym osi`` with ``detect``."""
+    parser = subparsers.add_parser("osi", help="ASAM OSI traces: lane detection behind a simulator")
+    sub = parser.add_subparsers(dest="osi_command", required=True, metavar="ACTION")
+    det = sub.add_parser("detect", help="SensorView/GroundTruth trace in, SensorData trace out")
+    det.add_argument("input", type=existing_file, metavar="IN", help="a .mcap or .osi trace")
+    det.add_argument("--out", type=trace_out, required=True, help="the SensorData trace to write")
+    det.add_argument("--detector", choices=("aldm", "naive"), default="aldm")
+    det.add_argument(
+        "--tracking", action="store_true", help="the tracking ALDM (lanes carried over frames)"
+    )
+    det.add_argument("--marking-model", choices=MARKING_CHOICES, default="per_dash")
+    det.add_argument(
+        "--type",
+        choices=("SensorView", "GroundTruth"),
+        help="the input's message type (default: an MCAP's SensorView channel, else its "
+        "GroundTruth one; a .osi file's from its name, *_gt.osi, else SensorView)",
+    )
+    det.add_argument("--topic", help="the MCAP channel to read (default: by --type)")
+    det.add_argument(
+        "--jobs",
+        type=positive_int,
+        default=1,
+        help="processes (frames dealt out in turn; not with --tracking)",
+    )
+    det.add_argument("--no-progress", action="store_true", help="no progress bar")
+    det.set_defaults(func=run_detect)
+    return parser
+
+
+def run_detect(args: argparse.Namespace) -> int:
+    """``aldm-gym osi detect``."""
+    from tqdm import tqdm
+
+    from aldm_gym.errors import MissingOSIDependencies, TraceError
+    from aldm_gym.osi import detect_trace
+
+    if args.tracking and args.detector != "aldm":
+        raise BadArgument("--tracking", "tracking is the ALDM's: use it with --detector aldm")
+    if args.tracking and args.jobs > 1:
+        raise BadArgument("--jobs", "the tracking ALDM carries lanes between frames: one job")
+    params = {"tracking": True} if args.tracking else None
+    try:
+        with tqdm(desc="frames", unit="frame", disable=True if args.no_progress else None) as bar:
+            summary = detect_trace(
+                args.input,
+                args.out,
+                detector=args.detector,
+                detector_params=params,
+                marking_model=args.marking_model,
+                message_type=args.type,
+                topic=args.topic,
+                jobs=args.jobs,
+                progress=bar.update,
+            )
+    except MissingOSIDependencies as exc:
+        raise BadArgument("IN", str(exc)) from None
+    except TraceError as exc:
+        raise BadArgument("IN", str(exc)) from None
+    found = ", ".join(f"{k} {100 * v:.0f} %" for k, v in summary.found.items())
+    print(f"{summary.frames} frames -> {summary.out}; lines found: {found}")
+    return 0

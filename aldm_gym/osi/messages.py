@@ -1,0 +1,392 @@
+"""aldm-gym's state as OSI messages: a ``SensorView`` (ground truth) and a ``SensorData``
+(the detector's lanes).
+
+Ids (``osi3.Identifier``), stable within an episode:
+
+| what | id |
+|---|---|
+| a vehicle | ``VEHICLE_ID + its index in the traffic's vehicle list`` (the host's too) |
+| a lane boundary | ``BOUNDARY_ID + its marking index on the road`` |
+| a lane | ``LANE_ID + its lane index`` (the generated road's lane id, a map's lane index) |
+| the sensor | ``SENSOR_ID + the sensor index m`` |
+| a detected line | ``tracking_id``: 1 ``left_adjacent``, 2 ``ego_left``, 3 ``ego_right``, |
+| | 4 ``right_adjacent`` |
+
+Frames: OSI's world frame is right-handed (x east, y north, z up): a highway-env world
+point ``(x, y)`` is ``(x, -y)`` there and a heading ``h`` is ``-h``; on a map this is
+the OpenDRIVE file's own inertial frame. Vehicles have no axles in highway-env: their
+vehicle frame is the centre of the box on the ground (``bbcenter_to_rear = (0, 0,
+-h/2)``), so the sensor's mounting position is the line sensor's ``mount_x/y/z``.
+Detected lines are in the sensor frame (ISO 8855: x forward, y left), as OSI's
+``SensorData`` gives everything but feature data.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+from aldm_gym.osi._bindings import interface_version, osi3
+from aldm_gym.osi.boundaries import BoundarySample
+from aldm_gym.roads.markings import MarkingType
+from aldm_gym.sensor.conditions import CAR_HEIGHT, TRUCK_HEIGHT
+from aldm_gym.sensor.frame import SensorFrame
+from aldm_gym.sensor.lane_detection import LINE_NAMES, LaneDetection
+from aldm_gym.types import FloatArray
+
+VEHICLE_ID = 1
+"""Id of the first vehicle (the traffic's vehicle 0)."""
+BOUNDARY_ID = 1_000_000
+"""Id of marking 0's lane boundary."""
+LANE_ID = 2_000_000
+"""Id of lane 0."""
+SENSOR_ID = 3_000_000
+"""Id of sensor m = 0."""
+
+TRACKING_ID = {name: i + 1 for i, name in enumerate(LINE_NAMES)}
+"""``DetectedLaneBoundary.header.tracking_id`` of each detected line."""
+
+BOUNDARY_TYPE = {
+    int(MarkingType.CONTINUOUS): 3,  # TYPE_SOLID_LINE
+    int(MarkingType.DASHED): 4,  # TYPE_DASHED_LINE
+    int(MarkingType.DOTTED): 5,  # TYPE_BOTTS_DOTS
+}
+"""OSI ``LaneBoundary.Classification.Type`` of each CarMaker line type."""
+BARRIER_TYPE = 14
+"""``TYPE_BARRIER``: a line with height (the generated road's guard rails)."""
+
+BOUNDARY_COLOUR = {0: 3, 1: 4, 2: 1, 3: 6, 4: 7, 5: 5, 6: 9, 7: 8, 8: 1}
+"""OSI ``Color`` of each colour index (0 white, 1 yellow, 2 barrier: other, 3 blue,
+4 green, 5 red, 6 orange, 7 violet, 8 black: other)."""
+
+
+def _version(msg: Any) -> None:
+    major, minor, patch = interface_version()
+    msg.version_major, msg.version_minor, msg.version_patch = major, minor, patch
+
+
+def _timestamp(msg: Any, t: float) -> None:
+    ns = round(float(t) * 1e9)
+    msg.seconds, msg.nanos = divmod(ns, 1_000_000_000)
+
+
+def vehicle_height(vehicle: Any) -> float:
+    """A highway-env vehicle's height [m] (its ``HEIGHT``, else by length as the line
+    sensor's occlusion takes it)."""
+    h = getattr(vehicle, "HEIGHT", None)
+    if h:
+        return float(h)
+    return TRUCK_HEIGHT if float(vehicle.LENGTH) >= 10.0 else CAR_HEIGHT
+
+
+def _base(base: Any, vehicle: Any) -> None:
+    """``BaseMoving`` of a highway-env vehicle in OSI's world frame."""
+    x, y = float(vehicle.position[0]), float(vehicle.position[1])
+    h = float(vehicle.heading)
+    height = vehicle_height(vehicle)
+    speed = float(vehicle.speed)
+    base.dimension.length = float(vehicle.LENGTH)
+    base.dimension.width = float(vehicle.WIDTH)
+    base.dimension.height = height
+    base.position.x, base.position.y, base.position.z = x, -y, 0.5 * height
+    base.orientation.roll, base.orientation.pitch, base.orientation.yaw = 0.0, 0.0, -h
+    base.velocity.x = speed * math.cos(h)
+    base.velocity.y = -speed * math.sin(h)
+    base.velocity.z = 0.0
+
+
+def _moving_object(obj: Any, vehicle: Any, ident: int) -> None:
+    obj.id.value = ident
+    _base(obj.base, vehicle)
+    obj.type = osi3.MovingObject.TYPE_VEHICLE
+    truck = float(vehicle.LENGTH) >= 10.0
+    obj.vehicle_classification.type = (
+        osi3.MovingObject.VehicleClassification.TYPE_HEAVY_TRUCK
+        if truck
+        else osi3.MovingObject.VehicleClassification.TYPE_CAR
+    )
+    b2r = obj.vehicle_attributes.bbcenter_to_rear
+    b2r.x, b2r.y, b2r.z = 0.0, 0.0, -0.5 * vehicle_height(vehicle)
+
+
+def _boundary(lb: Any, sample: BoundarySample, table: Mapping[str, np.ndarray]) -> None:
+    j = sample.marking
+    lb.id.value = BOUNDARY_ID + j
+    height = float(table["height"][j])
+    width = float(table["width"][j])
+    kind = int(table["type"][j])
+    lb.classification.type = BARRIER_TYPE if height > 0.0 else BOUNDARY_TYPE.get(kind, 1)
+    lb.classification.color = BOUNDARY_COLOUR.get(int(table["colour"][j]), 1)
+    # OSI: width and height carry over from the previous point; set on the first only
+    line = lb.boundary_line
+    first = True
+    for x, y, d in zip(
+        sample.xy[:, 0].tolist(), sample.xy[:, 1].tolist(), sample.dash.tolist(), strict=True
+    ):
+        p = line.add()
+        pos = p.position
+        pos.x, pos.y, pos.z = x, -y, 0.0
+        p.dash = d
+        if first:
+            p.width, p.height = width, height
+            first = False
+
+
+def _merge_runs(samples: Sequence[BoundarySample]) -> list[BoundarySample]:
+    """One sample per marking: the runs of a marking joined in x order."""
+    by_marking: dict[int, list[BoundarySample]] = {}
+    for s in samples:
+        by_marking.setdefault(s.marking, []).append(s)
+    out = []
+    for j, runs in by_marking.items():
+        if len(runs) == 1:
+            out.append(runs[0])
+            continue
+        runs.sort(key=lambda r: float(r.x[0]))
+        out.append(
+            BoundarySample(
+                j,
+                np.concatenate([r.xy for r in runs]),
+                np.concatenate([r.x for r in runs]),
+                np.concatenate([r.dash for r in runs]),
+            )
+        )
+    return out
+
+
+def _lanes(gt: Any, lines: Mapping[str, Any], lane_index: int) -> None:
+    """The host's lane and its neighbours, each with its boundary ids."""
+
+    def ids(line: Any) -> list[int]:
+        if line is None:
+            return []
+        if isinstance(line, int | np.integer):
+            return [BOUNDARY_ID + int(line)]
+        return [BOUNDARY_ID + int(j) for j in line]
+
+    rows = [
+        (lane_index, lines.get("ego_left"), lines.get("ego_right"), True),
+        (lane_index - 1, lines.get("left_adjacent"), lines.get("ego_left"), False),
+        (lane_index + 1, lines.get("ego_right"), lines.get("right_adjacent"), False),
+    ]
+    for index, left, right, host in rows:
+        if not host and (left is None or right is None):
+            continue
+        lane = gt.lane.add()
+        lane.id.value = LANE_ID + index
+        c = lane.classification
+        c.type = osi3.Lane.Classification.TYPE_DRIVING
+        c.is_host_vehicle_lane = host
+        c.centerline_is_driving_direction = True
+        for i in ids(left):
+            c.left_lane_boundary_id.add().value = i
+        for i in ids(right):
+            c.right_lane_boundary_id.add().value = i
+    host_lane = gt.lane[0].classification
+    if len(gt.lane) > 1:
+        for lane in gt.lane[1:]:
+            left = lane.id.value < gt.lane[0].id.value
+            ids_ = host_lane.left_adjacent_lane_id if left else host_lane.right_adjacent_lane_id
+            ids_.add().value = lane.id.value
+
+
+def sensor_view(
+    *,
+    t: float,
+    vehicles: Sequence[Any],
+    host: Any,
+    frame: SensorFrame,
+    boundaries: Sequence[BoundarySample],
+    table: Mapping[str, np.ndarray],
+    lines: Mapping[str, Any] | None = None,
+    lane_index: int | None = None,
+    reach: float = 300.0,
+) -> Any:
+    """One ``osi3.SensorView``: the host and the vehicles within ``reach`` [m], the lane
+    boundaries in view (:func:`~aldm_gym.osi.boundaries.sample_boundaries`) and, when
+    ``lines`` (the road's ``boundary_markings``) and ``lane_index`` are given, the
+    host's lane and its neighbours.
+
+    :param t: simulation time [s].
+    :param vehicles: every vehicle of the traffic (ids: their index).
+    :param host: the ego (one of ``vehicles``).
+    :param frame: the sensor frame measured at this step (mounting position, sensor id).
+    :param table: the road's ``marking_table`` (type, colour, width, height).
+    """
+    sv = osi3.SensorView()
+    _version(sv.version)
+    _timestamp(sv.timestamp, t)
+    sv.sensor_id.value = SENSOR_ID + int(frame.sensor_index)
+    _mounting(sv.mounting_position, frame)
+    gt = sv.global_ground_truth
+    _version(gt.version)
+    _timestamp(gt.timestamp, t)
+    hx, hy = float(host.position[0]), float(host.position[1])
+    host_id = None
+    for i, v in enumerate(vehicles):
+        if v is host:
+            host_id = VEHICLE_ID + i
+        elif math.hypot(float(v.position[0]) - hx, float(v.position[1]) - hy) > reach:
+            continue
+        _moving_object(gt.moving_object.add(), v, VEHICLE_ID + i)
+    if host_id is None:  # a host outside the traffic list
+        host_id = VEHICLE_ID + len(vehicles)
+        _moving_object(gt.moving_object.add(), host, host_id)
+    gt.host_vehicle_id.value = host_id
+    sv.host_vehicle_id.value = host_id
+    for sample in _merge_runs(boundaries):
+        _boundary(gt.lane_boundary.add(), sample, table)
+    if lines is not None and lane_index is not None:
+        _lanes(gt, lines, int(lane_index))
+    return sv
+
+
+def _mounting(mp: Any, frame: SensorFrame) -> None:
+    """The sensor's mounting in the vehicle frame (centre of the box on the ground)."""
+    pos, rot = frame.mount_position, frame.mount_rotation
+    mp.position.x, mp.position.y, mp.position.z = (float(v) for v in pos)
+    # the line sensor's mount yaw is left positive in the vehicle frame, as OSI's
+    mp.orientation.roll = float(rot[0])
+    mp.orientation.pitch = float(rot[1])
+    mp.orientation.yaw = float(rot[2])
+
+
+def match_lines(
+    detection: LaneDetection, xs: FloatArray, rows: np.ndarray, ys: FloatArray, gate: float = 0.5
+) -> dict[str, int | None]:
+    """The true marking each detected line lies on: the marking whose y at the line's
+    points differs least (median |dy| over the points it reaches, at least half of
+    them), within ``gate`` [m]; ``None`` for a line not found or on no marking (a
+    ghost).
+
+    :param xs: ``(K,)`` increasing x of the samples [m]; ``rows``/``ys``: the markings
+        sampled there (``(R,)``, ``(R, K)``, NaN where absent), as
+        :meth:`~aldm_gym.roads.MarkedRoad.sample_visible` returns them.
+    """
+    out: dict[str, int | None] = dict.fromkeys(LINE_NAMES)
+    if len(rows) == 0 or len(xs) < 2:
+        return out
+    for name in LINE_NAMES:
+        line = detection.line(name)
+        if len(line) == 0:
+            continue
+        # every marking at the line's x at once: linear between the two samples around
+        i1 = np.clip(np.searchsorted(xs, line[:, 0], side="right"), 1, len(xs) - 1)
+        i0 = i1 - 1
+        f = (line[:, 0] - xs[i0]) / (xs[i1] - xs[i0])
+        inside = (f >= 0.0) & (f <= 1.0)
+        y = ys[:, i0] * (1.0 - f) + ys[:, i1] * f
+        dy = np.abs(y - line[:, 1])
+        dy[:, ~inside] = np.nan
+        reach = np.isfinite(dy).sum(axis=1)
+        enough = reach >= max(2, len(line) // 2)
+        if not enough.any():
+            continue
+        d = np.where(np.isnan(dy), np.inf, dy)
+        d.sort(axis=1)
+        err = d[np.arange(len(rows)), np.maximum(reach - 1, 0) // 2]  # lower median
+        err[~enough] = np.inf
+        r = int(np.argmin(err))
+        if err[r] < gate:
+            out[name] = int(rows[r])
+    return out
+
+
+def line_styles(frame: SensorFrame, lines: Sequence[FloatArray]) -> list[tuple[int, int]]:
+    """CarMaker type and colour of the line objects each detected line runs through:
+    those of the object most of a few of its points lie on (within 0.2 m of one of its
+    points); ``(0, 0)`` for a line on no object."""
+    out = [(0, 0)] * len(lines)
+    pts = frame.all_points
+    if len(pts) == 0:
+        return out
+    owner = np.repeat(np.arange(frame.n_lines), np.diff(frame.line_start))
+    probes = [line[:: max(1, len(line) // 8)] for line in lines]
+    which = np.repeat(np.arange(len(lines)), [len(p) for p in probes])
+    if len(which) == 0:
+        return out
+    probe = np.concatenate(probes)
+    d = np.abs(probe[:, None, 0] - pts[None, :, 0]) + np.abs(probe[:, None, 1] - pts[None, :, 1])
+    nearest = np.argmin(d, axis=1)
+    hit = d[np.arange(len(probe)), nearest] < 0.2
+    for i in range(len(lines)):
+        objects = owner[nearest[hit & (which == i)]]
+        if len(objects):
+            n = int(np.bincount(objects).argmax())
+            out[i] = (int(frame.line_type[n]), int(frame.line_colour[n]))
+    return out
+
+
+def sensor_data(
+    *,
+    t: float,
+    host: Any,
+    frame: SensorFrame,
+    detection: LaneDetection,
+    truth: Mapping[str, int | None] | None = None,
+    cycle: int = 0,
+) -> Any:
+    """One ``osi3.SensorData``: the detector's four lines as ``DetectedLaneBoundary``.
+
+    Each found line gives one boundary in the sensor frame (its points at z = 0), with
+    ``tracking_id`` (:data:`TRACKING_ID`), the id of the true boundary it lies on
+    (``truth``; unset for a ghost), one candidate of
+    probability 1 whose type and colour are those of the line objects it runs through,
+    and ``MEASUREMENT_STATE_MEASURED``. Existence probability and per-point confidence
+    are left unset: naive detection and the ALDM do not estimate them.
+
+    :param host: the host vehicle (``host_vehicle_location``): a highway-env vehicle,
+        an ``osi3.BaseMoving`` to copy, or ``None``.
+    :param truth: per line name, the OSI id of the true boundary it lies on.
+    :param cycle: ``lane_boundary_header.cycle_counter``.
+    """
+    sd = osi3.SensorData()
+    _version(sd.version)
+    _timestamp(sd.timestamp, t)
+    sd.sensor_id.value = SENSOR_ID + int(frame.sensor_index)
+    _mounting(sd.mounting_position, frame)
+    if host is not None:
+        if getattr(getattr(host, "DESCRIPTOR", None), "name", "") == "BaseMoving":
+            sd.host_vehicle_location.CopyFrom(host)
+        else:
+            _base(sd.host_vehicle_location, host)
+    header = sd.lane_boundary_header
+    _timestamp(header.measurement_time, t)
+    header.cycle_counter = int(cycle)
+    header.data_qualifier = osi3.DetectedEntityHeader.DATA_QUALIFIER_AVAILABLE
+    found = [(name, detection.line(name)) for name in LINE_NAMES]
+    found = [(name, line) for name, line in found if len(line)]
+    styles = line_styles(frame, [line for _, line in found])
+    for (name, line), (kind, colour) in zip(found, styles, strict=True):
+        db = sd.lane_boundary.add()
+        db.header.tracking_id.value = TRACKING_ID[name]
+        gt = None if truth is None else truth.get(name)
+        if gt is not None:
+            db.header.ground_truth_id.add().value = int(gt)
+        db.header.measurement_state = osi3.DetectedItemHeader.MEASUREMENT_STATE_MEASURED
+        db.header.sensor_id.add().value = SENSOR_ID + int(frame.sensor_index)
+        cand = db.candidate.add()
+        cand.probability = 1.0
+        cand.classification.type = BOUNDARY_TYPE.get(kind, 0)
+        cand.classification.color = BOUNDARY_COLOUR.get(colour, 0) if kind else 0
+        for x, y in line:
+            p = db.boundary_line.add()
+            p.position.x, p.position.y, p.position.z = float(x), float(y), 0.0
+    return sd
+
+
+def detection_from_data(sd: Any) -> dict[str, FloatArray]:
+    """The detected lines of an ``osi3.SensorData`` by name (sensor frame, ``(K, 2)``
+    [m]): the inverse of :func:`sensor_data` for the lines it wrote."""
+    names = {v: k for k, v in TRACKING_ID.items()}
+    out = {name: np.zeros((0, 2)) for name in LINE_NAMES}
+    for db in sd.lane_boundary:
+        name = names.get(int(db.header.tracking_id.value))
+        if name is None:
+            continue
+        pts = [(p.position.x, p.position.y) for p in db.boundary_line]
+        out[name] = np.array(pts, dtype=np.float64).reshape(-1, 2)
+    return out

@@ -1,0 +1,292 @@
+"""OSI ground truth -> the CarMaker line sensor's frame.
+
+A ``SensorView`` (or a bare ``GroundTruth``) carries the road's paint as
+``LaneBoundary`` polylines with dash states, and the host vehicle among the moving
+objects. :class:`ViewReader` turns each into a
+:class:`~aldm_gym.roads.PolylineRoad` (every boundary a marking, its painted
+stretches from the dash states: :func:`~aldm_gym.osi.boundaries.painted_intervals`)
+and measures it with the line sensor from the host's sensor pose, so everything
+downstream (naive, ALDM, the tracker) runs unchanged: with ``marking_model="per_dash"``
+each painted stretch is a line object, with ``"editor"`` each boundary.
+
+Static ground truth: a message without lane boundaries reuses the last ones read
+(simulators may send static data once); a message with the same boundaries as the
+last reuses their road (no rebuild).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+
+from aldm_gym.config import build_config
+from aldm_gym.errors import InputError, TraceError
+from aldm_gym.osi.boundaries import OPEN_END, painted_intervals
+from aldm_gym.osi.messages import BOUNDARY_TYPE
+from aldm_gym.roads.markings import MARKING_MODELS, MarkingType
+from aldm_gym.roads.polyline import MarkingCurve, PolylineRoad
+from aldm_gym.sensor.frame import SensorFrame
+from aldm_gym.sensor.line_sensor import LineSensor, LineSensorConfig
+
+_TYPE_FROM_OSI = {osi: cm for cm, osi in BOUNDARY_TYPE.items()}
+_COLOUR_FROM_OSI = {3: 0, 4: 1, 6: 3, 7: 4, 5: 5, 9: 6, 8: 7, 1: 0}
+_RAISED = {11: 0.75, 12: 0.15, 13: 1.0, 14: 0.75, 15: 3.0}
+"""OSI boundary types that stand above the road (guard rail, curb, structure, barrier,
+sound barrier) -> a continuous line object with this height [m] if the points give none."""
+_NO_PAINT_COLOUR = 2  # COLOR_NONE: a logical boundary without paint
+
+END_STUB = 1e-3
+"""Length of the straight stub added at each end of a boundary [m]."""
+
+
+@dataclass(frozen=True)
+class HostPose:
+    """The host vehicle of one message.
+
+    :ivar id: its OSI id.
+    :ivar pose: ``(x [m], y [m], heading [rad])`` of its box centre in highway-env's
+        world (OSI's y and yaw mirrored).
+    :ivar mount: the sensor's position relative to the box centre, ``x`` forward and
+        ``y`` left [m], its height above the road ``z`` [m] (the road at z = 0), and its
+        yaw [rad], as the line sensor's ``mount_x/y/z/yaw``.
+    """
+
+    id: int
+    pose: tuple[float, float, float]
+    mount: tuple[float, float, float, float]
+
+
+def _time(msg: Any) -> float:
+    ts = msg.timestamp
+    return float(ts.seconds) + 1e-9 * float(ts.nanos)
+
+
+def _fail(where: str, what: str) -> TraceError:
+    return TraceError(f"{where}: {what}")
+
+
+def _boundary_curve(lb: Any, where: str) -> MarkingCurve | None:
+    """One ``LaneBoundary`` as a marking curve (``None``: nothing painted)."""
+    c = lb.classification
+    kind = int(c.type)
+    height = 0.0
+    if kind in _RAISED:
+        ctype = int(MarkingType.CONTINUOUS)
+        height = _RAISED[kind]
+    elif kind in _TYPE_FROM_OSI:
+        ctype = _TYPE_FROM_OSI[kind]
+    else:
+        return None  # no line, road or grass edge, unknown, other
+    if int(c.color) == _NO_PAINT_COLOUR:
+        return None
+    pts = lb.boundary_line
+    n = len(pts)
+    ident = int(lb.id.value)
+    if n < 2:
+        raise _fail(where, f"lane boundary {ident} has {n} point(s); a boundary needs 2 or more")
+    rows = np.array([(q.x, q.y, p.dash) for p in pts for q in (p.position,)])
+    dash = rows[:, 2].astype(np.int64)
+    if not np.isfinite(rows[:, :2]).all():
+        raise _fail(where, f"lane boundary {ident} has a NaN or infinite point")
+    first = pts[0]
+    width = float(first.width) if first.HasField("width") and first.width > 0.0 else 0.15
+    if first.HasField("height") and first.height > 0.0:
+        height = float(first.height)
+    xy = np.stack([rows[:, 0], -rows[:, 1]], axis=1)  # OSI -> highway-env world
+    # drop repeated points (a dash end on a sample); the later state wins unless it
+    # only continues
+    step = np.hypot(*np.diff(xy, axis=0).T)
+    keep = np.concatenate([[True], step > 1e-9])
+    if not keep.all():
+        for i in np.flatnonzero(~keep):
+            k = i - 1
+            while not keep[k]:
+                k -= 1
+            if dash[i] != 3:  # not DASH_CONTINUE
+                dash[k] = dash[i]
+        xy, dash = xy[keep], dash[keep]
+    if len(xy) < 2:
+        raise _fail(where, f"lane boundary {ident} has all its points in one place")
+    u = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))])
+    iv = painted_intervals(u, dash, botts=ctype == int(MarkingType.DOTTED), width=width)
+    iv = np.clip(iv, 0.0, u[-1] + OPEN_END)
+    iv = iv[iv[:, 1] - iv[:, 0] > 1e-9]
+    if len(iv) == 0:
+        return None
+    if len(iv) > 1 and np.any(iv[1:, 0] < iv[:-1, 1]):  # overlapping dots: merge
+        merged = [iv[0].copy()]
+        for lo, hi in iv[1:]:
+            if lo < merged[-1][1]:
+                merged[-1][1] = max(merged[-1][1], hi)
+            else:
+                merged.append(np.array([lo, hi]))
+        iv = np.array(merged)
+    # The sensor samples a polyline from its first vertex up to (not at) its last, in
+    # x computed through the world frame (last bits differ): a short stub at each end,
+    # painted as that end is, makes the end points inner points, measured like the rest.
+    t0 = (xy[1] - xy[0]) / max(float(u[1]), 1e-12)
+    t1 = (xy[-1] - xy[-2]) / max(float(u[-1] - u[-2]), 1e-12)
+    xy = np.concatenate([[xy[0] - END_STUB * t0], xy, [xy[-1] + END_STUB * t1]])
+    iv = iv + END_STUB
+    if iv[0, 0] <= END_STUB + 1e-9:
+        iv[0, 0] = 0.0
+    if iv[-1, 1] >= u[-1] + END_STUB:
+        iv[-1, 1] = u[-1] + 2.0 * END_STUB + OPEN_END
+    return MarkingCurve(
+        xy=xy,
+        painted=iv,
+        type=ctype,
+        colour=_COLOUR_FROM_OSI.get(int(c.color), 0),
+        width=width,
+        height=height,
+    )
+
+
+class ViewReader:
+    """Turns OSI ``SensorView`` or ``GroundTruth`` messages into line-sensor frames.
+
+    :param sensor: the line sensor's settings (a :class:`LineSensorConfig` or its
+        fields); its mount is used only when a message has no mounting position.
+    :param marking_model: ``"per_dash"`` (each painted stretch a line object) or
+        ``"editor"`` (each boundary one object).
+    :param source: the file name, for error messages.
+    :param seed: seed of the sensor's noise, if it has any.
+    """
+
+    def __init__(
+        self,
+        sensor: LineSensorConfig | Mapping[str, Any] | None = None,
+        marking_model: str = "per_dash",
+        source: str = "<message>",
+        seed: int | None = None,
+    ) -> None:
+        if marking_model not in MARKING_MODELS:
+            raise InputError(
+                f"marking_model must be one of {list(MARKING_MODELS)}, got {marking_model!r}"
+            )
+        self.config: LineSensorConfig = build_config(LineSensorConfig, sensor, where="sensor")
+        self.marking_model = marking_model
+        self.source = source
+        self.seed = seed
+        self._sensors: dict[tuple[float, ...], LineSensor] = {}
+        self._key: tuple[bytes, ...] | None = None
+        self._road: PolylineRoad | None = None
+        self.road: PolylineRoad | None = None
+        """The road of the last message read."""
+        self.host: HostPose | None = None
+        """The host of the last message read."""
+        self.host_base: Any = None
+        """The host's ``osi3.BaseMoving`` in the last message read."""
+        self.boundary_ids: list[int] = []
+        """OSI id of each marking of :attr:`road` (the painted boundaries, in order)."""
+
+    def _sensor(self, mount: tuple[float, float, float, float]) -> LineSensor:
+        sensor = self._sensors.get(mount)
+        if sensor is None:
+            c = self.config
+            mx, my, mz, myaw = mount
+            cfg = replace(c, mount_x=mx, mount_y=my, mount_z=max(0.0, mz), mount_yaw=myaw)
+            sensor = self._sensors[mount] = LineSensor(cfg, seed=self.seed)
+        return sensor
+
+    def _host(self, msg: Any, gt: Any, where: str) -> HostPose:
+        is_view = msg.DESCRIPTOR.name == "SensorView"
+        host_id = None
+        if is_view and msg.HasField("host_vehicle_id"):
+            host_id = int(msg.host_vehicle_id.value)
+        elif gt.HasField("host_vehicle_id"):
+            host_id = int(gt.host_vehicle_id.value)
+        if host_id is None:
+            raise _fail(where, "no host vehicle (host_vehicle_id is not set)")
+        host = next((o for o in gt.moving_object if int(o.id.value) == host_id), None)
+        if host is None:
+            raise _fail(where, f"no host vehicle: no moving object has the host's id {host_id}")
+        base = host.base
+        x, y, yaw = float(base.position.x), float(base.position.y), float(base.orientation.yaw)
+        if not all(math.isfinite(v) for v in (x, y, yaw)):
+            raise _fail(where, f"the host vehicle {host_id} has a NaN or infinite pose")
+        b2r = host.vehicle_attributes.bbcenter_to_rear
+        if is_view and msg.HasField("mounting_position"):
+            mp = msg.mounting_position
+            mount = (
+                float(b2r.x + mp.position.x),
+                float(b2r.y + mp.position.y),
+                float(base.position.z + b2r.z + mp.position.z),
+                float(mp.orientation.yaw),
+            )
+        else:
+            c = self.config
+            mount = (c.mount_x, c.mount_y, c.mount_z, c.mount_yaw)
+        # yaw: OSI's is left positive; the line sensor's mount yaw too
+        self.host_base = base
+        return HostPose(host_id, (x, -y, -yaw), mount)
+
+    def _road_of(self, gt: Any, where: str) -> PolylineRoad:
+        boundaries = gt.lane_boundary
+        if len(boundaries) == 0:
+            if self._road is None:
+                raise _fail(where, "no lane boundaries (and none in an earlier frame)")
+            return self._road
+        key = tuple(lb.SerializeToString() for lb in boundaries)
+        if key == self._key and self._road is not None:
+            return self._road
+        curves, ids = [], []
+        for lb in boundaries:
+            curve = _boundary_curve(lb, where)
+            if curve is not None:
+                curves.append(curve)
+                ids.append(int(lb.id.value))
+        if not curves:
+            raise _fail(where, "no painted lane boundary (every one has no line or no colour)")
+        self._road = PolylineRoad(curves, self.marking_model)
+        self._key = key
+        self.boundary_ids = ids
+        return self._road
+
+    def frame(self, msg: Any, index: int = 0) -> SensorFrame:
+        """The line sensor's frame of one message.
+
+        :param msg: an ``osi3.SensorView`` or ``osi3.GroundTruth``.
+        :param index: the message's frame number (for error messages).
+        :raises TraceError: naming the file and frame: another message type, no host
+            vehicle, a boundary with fewer than two points or non-finite points, no
+            painted boundary.
+        """
+        where = f"{self.source} frame {index}"
+        name = getattr(getattr(msg, "DESCRIPTOR", None), "name", type(msg).__name__)
+        if name == "SensorView":
+            if not msg.HasField("global_ground_truth") and not msg.HasField("host_vehicle_id"):
+                raise _fail(
+                    where,
+                    "a SensorView without ground truth or host vehicle: is this a trace of "
+                    "another message type (e.g. SensorData)?",
+                )
+            gt = msg.global_ground_truth
+            t = _time(msg) if msg.HasField("timestamp") else _time(gt)
+        elif name == "GroundTruth":
+            gt, t = msg, _time(msg)
+        else:
+            raise _fail(where, f"expected an osi3.SensorView or osi3.GroundTruth, got {name}")
+        host = self._host(msg, gt, where)
+        road = self._road_of(gt, where)
+        self.road, self.host = road, host
+        return self.sensor.measure(road, host.pose, t)
+
+    @property
+    def sensor(self) -> LineSensor:
+        """The line sensor at the last host's mount."""
+        if self.host is None:
+            raise InputError("no message read yet")
+        return self._sensor(self.host.mount)
+
+    def odometry_pose(self) -> tuple[float, float, float]:
+        """The last frame's sensor position and the host's heading ``(x, y, heading)``
+        in highway-env's world (what :func:`~aldm_gym.sensor.tracking.odometry` takes)."""
+        if self.host is None:
+            raise InputError("no message read yet")
+        origin, _ = self.sensor.world_pose(self.host.pose)
+        return float(origin[0]), float(origin[1]), float(self.host.pose[2])
