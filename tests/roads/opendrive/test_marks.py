@@ -26,6 +26,9 @@ from ._xodr import (
     write_xodr,
 )
 
+DATA = Path(__file__).parent / "data"
+"""Public OpenDRIVE maps (see the README there)."""
+
 # ---------------------------------------------------------------- lanes and road marks
 
 
@@ -250,3 +253,17 @@ def test_double_marks_and_no_paint(tmp_path: Path) -> None:
     lane = odr.lanes[("1", 0, -2)]
     outer = next(i for i, m in enumerate(odr.markings) if m is lines[round(-3.5 - half, 6)])
     assert (lane.right == -1).all() and (lane.left == outer).all()
+
+
+def test_public_map_broken_lines_get_the_stand_in_pattern() -> None:
+    # esmini's e6mini.xodr (tests/roads/opendrive/data): 'broken' marks without <type>
+    # at up to 7 m from a gently curved reference line: 4 m dashes every 12 m of s.
+    with pytest.warns(UserWarning):  # its userData, objects and signals are skipped
+        odr = OpenDriveMap.from_file(DATA / "e6mini.xodr")
+    dashed = [m for m in odr.markings if m.type == MarkingType.DASHED]
+    assert len(dashed) == 4
+    for m in dashed:
+        s_ends = np.interp(m.painted, m.u, m.s)
+        starts = 12.0 * np.arange(len(m.painted))
+        np.testing.assert_allclose(s_ends[:, 0], starts, atol=1e-6)
+        np.testing.assert_allclose(s_ends[:, 1], np.minimum(starts + 4.0, m.s[-1]), atol=1e-6)
