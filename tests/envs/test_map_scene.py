@@ -487,9 +487,9 @@ def test_aldm_keeps_its_lane_on_the_shipped_maps(name: str, seed: int) -> None:
     assert _closed_loop(name, "aldm", seed) == (0, 30)
 
 
-@pytest.mark.parametrize(("name", "seed"), [("motorway", 1), ("two_plus_one", 0)])
+@pytest.mark.parametrize(("name", "seed"), [("motorway", 2), ("two_plus_one", 0)])
 def test_naive_departs_on_the_shipped_maps(name: str, seed: int) -> None:
-    """The naive detector on per-dash objects leaves its lane (6 of 8 seeds on both maps)."""
+    """The naive detector on per-dash objects leaves its lane (5 of 8 seeds on both maps)."""
     departures, _ = _closed_loop(name, "naive", seed)
     assert departures >= 1
 

@@ -12,7 +12,7 @@ import pytest
 
 import aldm_gym
 from aldm_gym.roads.map_road import OpenDriveRoad
-from aldm_gym.roads.opendrive import OpenDriveMap
+from aldm_gym.roads.opendrive import DEFAULT_BROKEN_PATTERN, OpenDriveMap
 from aldm_gym.roads.opendrive.bridges import BRIDGE_CLEARANCE, Crossing, levels
 from aldm_gym.sensor import LineSensor, detect_lanes, score_detection
 from aldm_gym.sensor.conditions import overpass_rows
@@ -144,13 +144,14 @@ def test_a_broken_line_on_the_bridge_is_dashes(maps: dict[str, Path]) -> None:
     joined = np.all(lines[1:, :2] == lines[:-1, 2:4], axis=1)
     runs = np.split(lines, np.flatnonzero(~joined) + 1)
     lengths = [np.hypot(r[:, 2] - r[:, 0], r[:, 3] - r[:, 1]).sum() for r in runs]
-    # The broken centre line in dashes of the reader's default 6 m (the first and last
-    # may be cut by the road's ends), the two solid edges whole.
+    # The broken centre line in dashes of the reader's default pattern (the last one
+    # may be cut by the road's end), the two solid edges whole.
+    dash = DEFAULT_BROKEN_PATTERN[0]
     assert sorted(lengths)[-2:] == pytest.approx([120.0, 120.0])
     dashes = sorted(lengths)[:-2]
     assert len(dashes) >= 5
-    assert all(0.0 < d <= 6.0 + 1e-9 for d in dashes)
-    assert sum(d == pytest.approx(6.0) for d in dashes) >= len(dashes) - 2
+    assert all(0.0 < d <= dash + 1e-9 for d in dashes)
+    assert sum(d == pytest.approx(dash) for d in dashes) >= len(dashes) - 2
 
 
 def test_a_climbing_bridge_keeps_its_height_over_the_road_below(maps: dict[str, Path]) -> None:

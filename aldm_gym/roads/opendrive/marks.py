@@ -6,10 +6,14 @@ Each line becomes a :class:`MarkPiece`; pieces that continue one another (across
 records, lane sections and linked roads, meeting within :data:`CHAIN_TOLERANCE` with
 the same type, colour, width and height) are chained into one :class:`MarkingLine`.
 
-Dashes are measured along the painted line itself (its own arc length u), so a 6 m
-dash stays 6 m on the inside and the outside of a curve. Where a chained line
-continues with the same dash pattern, the pattern's phase carries over: the dash that
-is being painted at a boundary continues, whatever the next record's ``sOffset`` says.
+Dashes are placed as esmini's RoadManager places them when it generates OSI lane
+boundaries (``OpenDrive::SetRoadMarkOSIPoints``): a line's ``<line length space>``
+pattern starts at the record's start plus the line's ``sOffset`` and is stepped in the
+road's reference s, so a dash at lateral offset t of a reference line of curvature κ is
+``length (1 − κ t)`` long on the ground. The pattern restarts at every road-mark record
+and so at every lane section; a dash still being painted where its record ends is cut
+there. Dashes are kept as intervals of the line's own arc length u
+(:attr:`MarkingLine.painted`), converted from s along the piece's vertices.
 """
 
 from __future__ import annotations
@@ -26,17 +30,14 @@ from aldm_gym.roads.opendrive.lanes import SectionSamples
 from aldm_gym.roads.opendrive.parse import RoadMark
 from aldm_gym.types import FloatArray
 
-DEFAULT_BROKEN_PATTERN = (6.0, 12.0)
-"""(dash, gap) [m] of a ``broken`` mark without an explicit pattern (the paper's)."""
+DEFAULT_BROKEN_PATTERN = (4.0, 8.0)
+"""(dash, gap) [m] of a ``broken`` mark without an explicit pattern (esmini's stand-in)."""
 
 BOTTS_DOTS_PATTERN = (0.1, 1.1)
 """(dot, gap) [m] of ``botts dots`` without an explicit pattern: 10 cm dots every 1.2 m."""
 
-DOUBLE_MARK_GAP = 0.12
-"""Clear gap between the two lines of a double mark (``solid solid`` etc.) [m]."""
-
-MARK_WIDTH = {"standard": 0.15, "bold": 0.30}
-"""Painted width [m] by ``weight`` when neither the line nor the mark gives one."""
+MARK_WIDTH = {"standard": 0.15, "bold": 0.20}
+"""Painted width [m] by ``weight`` when neither the line nor the mark gives one (esmini's)."""
 
 CURB_HEIGHT = 0.15
 """Height of a ``curb`` mark without a ``height`` attribute [m]."""
@@ -80,8 +81,8 @@ class MarkPiece:
     :ivar width: painted width [m].
     :ivar height: height above the road [m].
     :ivar lane_change: the record's ``laneChange`` or None.
-    :ivar pattern: (dash, gap) [m] or None for a continuous line.
-    :ivar pattern_start: reference s where the first dash starts [m].
+    :ivar painted_s: (K, 2) painted intervals ``[s_start, s_end]`` in reference s [m],
+        increasing, within ``[s[0], s[-1]]``: one row per dash, one for a continuous line.
     """
 
     road_id: str
@@ -97,8 +98,7 @@ class MarkPiece:
     width: float
     height: float
     lane_change: str | None
-    pattern: tuple[float, float] | None
-    pattern_start: float
+    painted_s: FloatArray
 
     @property
     def style(self) -> tuple[int, int, float, float]:
@@ -142,7 +142,7 @@ class _LineSpec:
     width: float
     colour: int
     pattern: tuple[float, float] | None
-    pattern_s_offset: float
+    s_offset: float
     type: MarkingType
 
 
@@ -168,7 +168,7 @@ def _line_specs(
                     width=ln.width if ln.width is not None else default_width,
                     colour=COLOUR_INDEX[ln.color] if ln.color else colour,
                     pattern=pattern,
-                    pattern_s_offset=ln.s_offset,
+                    s_offset=ln.s_offset,
                     type=MarkingType.DOTTED if dotted and pattern else kind,
                 )
             )
@@ -177,10 +177,11 @@ def _line_specs(
         return []
     names = ["botts"] if dotted else mark.type.split()
     # Double marks name their lines from the inside of the road outward (the centre
-    # lane's from left to right); inside is towards the reference line.
-    half = 0.5 * (default_width + DOUBLE_MARK_GAP)
+    # lane's from left to right); inside is towards the reference line. The two lines
+    # lie at ±w from the border, as esmini's stand-in lines of ``solid solid`` and
+    # ``broken broken``.
     first = -1.0 if border > 0 else 1.0
-    offsets = [0.0] if len(names) == 1 else [first * half, -first * half]
+    offsets = [0.0] if len(names) == 1 else [first * default_width, -first * default_width]
     specs = []
     for name, t in zip(names, offsets, strict=True):
         if name == "broken":
@@ -195,6 +196,40 @@ def _line_specs(
 
 def _arc_length(xy: FloatArray) -> FloatArray:
     return np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))))
+
+
+_RECORD_END = 1e-9
+"""A dash starting closer than this before its record's end is not painted [m]."""
+
+
+def record_dashes(
+    start: float, record: tuple[float, float], pattern: tuple[float, float] | None
+) -> FloatArray:
+    """Painted intervals of one line of one road-mark record, in reference s.
+
+    As esmini's ``SetRoadMarkOSIPoints``: dash k spans ``[start + k p, start + k p +
+    dash]`` (``p = dash + gap``) cut at the record's end, for every k whose dash starts
+    before that end; a continuous line runs from ``start`` to the record's end.
+
+    :param start: reference s where the line's pattern starts (the record's start plus
+        the line's ``sOffset``) [m].
+    :param record: ``(s_start, s_end)`` of the record [m]; paint before its start is
+        not kept.
+    :param pattern: ``(dash, gap)`` [m] (``dash > 0``, ``dash + gap > 0``), or None
+        for a continuous line.
+    :returns: (K, 2) intervals ``[s_start, s_end]`` [m], increasing, none empty.
+    """
+    lo, hi = record
+    if pattern is None:
+        rows = np.array([[start, hi]])
+    else:
+        dash, gap = pattern
+        period = dash + gap
+        count = max(0, math.floor((hi - _RECORD_END - start) / period) + 1)
+        starts = start + period * np.arange(count)
+        rows = np.stack([starts, np.minimum(starts + dash, hi)], axis=1)
+    rows[:, 0] = np.maximum(rows[:, 0], lo)
+    return rows[rows[:, 1] - rows[:, 0] > 1e-9]
 
 
 def section_pieces(
@@ -247,8 +282,7 @@ def section_pieces(
                         width=spec.width,
                         height=height,
                         lane_change=mark.lane_change,
-                        pattern=spec.pattern,
-                        pattern_start=a + spec.pattern_s_offset,
+                        painted_s=record_dashes(a + spec.s_offset, (a, b), spec.pattern),
                     )
                 )
     return pieces
@@ -342,17 +376,6 @@ def _walks(n: int, joins: Sequence[tuple[int, int]]) -> list[list[tuple[int, boo
     return chains
 
 
-def _dashes(origin: float, pattern: tuple[float, float], lo: float, hi: float) -> FloatArray:
-    """Dashes ``origin + n (dash + gap) + [0, dash]`` clipped to ``[lo, hi]``: (K, 2)."""
-    dash, gap = pattern
-    period = dash + gap
-    n0 = math.floor((lo - origin) / period) - 1
-    n1 = math.ceil((hi - origin) / period) + 1
-    starts = origin + period * np.arange(n0, n1 + 1)
-    out = np.stack([np.maximum(starts, lo), np.minimum(starts + dash, hi)], axis=1)
-    return out[out[:, 1] - out[:, 0] > 1e-9]
-
-
 def _merge(intervals: Sequence[FloatArray]) -> FloatArray:
     if not intervals:
         return np.zeros((0, 2))
@@ -372,7 +395,6 @@ def _merge(intervals: Sequence[FloatArray]) -> FloatArray:
 def _build(pieces: Sequence[MarkPiece], chain: Sequence[tuple[int, bool]]) -> MarkingLine:
     xy_parts, u_parts, s_parts, painted = [], [], [], []
     u_end = 0.0
-    carried: tuple[tuple[float, float], float] | None = None  # (pattern, origin in chain u)
     road_ids: list[str] = []
     for n, (k, rev) in enumerate(chain):
         p = pieces[k]
@@ -388,23 +410,9 @@ def _build(pieces: Sequence[MarkPiece], chain: Sequence[tuple[int, bool]]) -> Ma
         s_parts.append(s)
         if not road_ids or road_ids[-1] != p.road_id:
             road_ids.append(p.road_id)
-        lo, hi = u_end, u_end + length
-        if p.pattern is None:
-            painted.append(np.array([[lo, hi]]))
-            carried = None
-        else:
-            if carried is not None and carried[0] == p.pattern:
-                origin = carried[1]
-            else:
-                start = float(np.interp(p.pattern_start, p.s, p.u))
-                if rev:
-                    origin = lo + length - start - p.pattern[0]
-                    hi = lo + length - start
-                else:
-                    origin = lo + start
-                    lo = origin
-            painted.append(_dashes(origin, p.pattern, lo, hi))
-            carried = (p.pattern, origin)
+        # Each dash from reference s to the piece's own arc length, along its vertices.
+        dashes = np.interp(p.painted_s, p.s, p.u)
+        painted.append(u_end + ((length - dashes[:, ::-1]) if rev else dashes))
         u_end += length
     first = pieces[chain[0][0]]
     return MarkingLine(

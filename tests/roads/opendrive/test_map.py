@@ -12,7 +12,7 @@ import pytest
 
 import aldm_gym
 from aldm_gym.roads.markings import MarkingType
-from aldm_gym.roads.opendrive import OpenDriveMap
+from aldm_gym.roads.opendrive import MarkingLine, OpenDriveMap
 from aldm_gym.roads.opendrive.parse import (
     Arc,
     Spiral,
@@ -71,7 +71,13 @@ def test_markings_chain_across_linked_roads_forward_and_reversed(tmp_path: Path)
     assert m.road_ids == ("1", "2", "3")
     assert m.u[-1] == pytest.approx(255.0)
     np.testing.assert_allclose(m.xy[[0, -1]], [[0.0, -3.5], [255.0, -3.5]], atol=1e-9)
-    np.testing.assert_allclose(np.diff(m.painted[:, 0]), 18.0, atol=1e-9)  # phase carried
+    # Each road restarts the pattern at its own s = 0 (road 2 from x = 200, westward);
+    # road 2's last dash (x = 194 to 200) and road 3's first touch: one interval.
+    starts = np.concatenate([18.0 * np.arange(6), 104.0 + 18.0 * np.arange(5)])
+    expected = np.concatenate(
+        [np.stack([starts, starts + 6.0], 1), [[194, 206], [218, 224], [236, 242], [254, 255]]]
+    )
+    np.testing.assert_allclose(m.painted, expected, atol=1e-9)
     assert len(odr.markings) == 2  # that line and the centre line
     assert odr.successors("1", -1, 0) == [("2", 0, 1)]
     assert odr.successors("2", 1, 0) == [("3", 0, -1)]
@@ -210,7 +216,8 @@ def test_scenariogeneration_file_reads_back(tmp_path: Path) -> None:
     odr = OpenDriveMap.from_file(path)
     m = marking_at(odr, 1.0, -3.5)
     assert m.type == MarkingType.DASHED and len(odr.markings) == 4
-    np.testing.assert_allclose(np.diff(m.painted[:, 0]), 12.0, atol=1e-9)
+    # 3 m / 9 m stepped in the road's s (the line is off-centre in curves).
+    np.testing.assert_allclose(np.diff(np.interp(m.painted[:, 0], m.u, m.s)), 12.0, atol=1e-6)
 
 
 # ---------------------------------------------------------------- shipped maps
@@ -218,8 +225,20 @@ def test_scenariogeneration_file_reads_back(tmp_path: Path) -> None:
 MAPS = Path(aldm_gym.__file__).parent / "roads" / "maps"
 
 
-@pytest.mark.parametrize("name", ["motorway.xodr", "two_plus_one.xodr", "features.xodr"])
-def test_shipped_map_loads(name: str) -> None:
+def _dash_lengths_in_s(m: MarkingLine) -> np.ndarray:
+    """Reference-s length of each painted interval that lies within one road."""
+    jump = np.flatnonzero(np.abs(np.diff(m.s)) > 1.0)  # the line passes onto another road
+    lo, hi = m.u[jump], m.u[jump + 1]
+    within = ~((m.painted[:, :1] < hi) & (m.painted[:, 1:] > lo)).any(axis=1)
+    s_ends = np.interp(m.painted[within], m.u, m.s)
+    return np.abs(s_ends[:, 1] - s_ends[:, 0])
+
+
+@pytest.mark.parametrize(
+    ("name", "dashes"),
+    [("motorway.xodr", (6.0,)), ("two_plus_one.xodr", (4.0,)), ("features.xodr", (4.0, 6.0))],
+)
+def test_shipped_map_loads(name: str, dashes: tuple[float, ...]) -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         odr = OpenDriveMap.from_file(MAPS / name)
@@ -228,8 +247,12 @@ def test_shipped_map_loads(name: str) -> None:
         assert m.xy.shape == (len(m.u), 2) and (np.diff(m.u) > 0).all()
         assert (m.painted[:, 0] >= -1e-9).all() and (m.painted[:, 1] <= m.u[-1] + 1e-9).all()
         if m.type == MarkingType.DASHED:
-            # 6 m / 12 m along the painted line, explicit or by default.
-            np.testing.assert_allclose(np.diff(m.painted[:, 0]), 18.0, atol=1e-6)
+            # Explicit 6 m dashes or the default 4 m ones in the road's s; the last one
+            # of a record is cut at its end, and one cut there and the next record's
+            # first, touching it, are one painted interval.
+            ds = _dash_lengths_in_s(m)
+            whole = np.isclose(ds[:, None], dashes, atol=1e-6).any(axis=1)
+            assert whole.mean() > 0.9 and (ds <= 2 * max(dashes) + 1e-6).all()
     for key, lane in odr.lanes.items():
         mid = 0.5 * (lane.s0 + lane.s1)
         x, y, _ = odr.lane_pose(key[0], key[2], mid)
