@@ -61,8 +61,9 @@ def _tracking() -> None:
 
 def _the_rest() -> None:
     """Every kernel the robust ALDM does not use: the sensor with noise on a generated
-    and a polyline road, paper mode, the naive detector, the env (traffic, observation,
-    ACC) with the naive and ground-truth detectors, the camera preset and a map."""
+    and a polyline road, paper mode, the naive detector, the OSI point decoder, the env
+    (traffic, observation, ACC) with the naive and ground-truth detectors, the camera
+    preset and a map."""
     import numpy as np
 
     import aldm_gym  # noqa: F401  (registers the env)
@@ -79,6 +80,13 @@ def _the_rest() -> None:
     xy = np.column_stack([np.arange(0.0, 300.0, 1.0), np.zeros(300)])
     poly = PolylineRoad([MarkingCurve(xy, np.array([[0.0, 6.0], [18.0, 24.0]]))])
     LineSensor().measure(poly, (10.0, 0.0, 0.0))
+    from aldm_gym.osi.boundaries import _curve, _run_points
+    from aldm_gym.osi.wire import decode_points, encode_points
+
+    _run_points(np.arange(3.0), np.zeros(3), np.arange(3.0), np.array([[0.5, 1.5]]))
+
+    rows = decode_points(encode_points(2, np.arange(3.0), np.zeros(3), np.full(3, 3)))
+    _curve(rows, False, 0.15, 1e-3, np.empty((5, 2)), np.empty(5), np.empty((4, 2)))
     _env_steps(_HELPER_ENVS)
 
 

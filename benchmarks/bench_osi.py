@@ -8,8 +8,10 @@ costs the env.
    wall time of the parallel part). ``detect_trace`` end to end (reading and writing
    the files included) is timed too.
 2. **Writing.** Env steps per second without a trace and with ``osi.trace`` (one
-   SensorView + SensorData per env step, MCAP), rounds alternating in one process,
-   the same seeds: the ratio is the trace's cost. Usage::
+   SensorView + SensorData per env step, MCAP), rounds alternating in one process
+   (which goes first alternates too), the same seeds: the ratio is the trace's cost.
+   The time spent inside the writer over the rest of the traced steps is printed too:
+   the slowdown without the noise of two separate runs. Usage::
 
     .venv/bin/python -m benchmarks.bench_osi [--rounds 5] [--steps 20]
 """
@@ -51,7 +53,8 @@ def _process(part: int, parts: int) -> int:
     return n
 
 
-def _env_rate(trace: Path | None, steps: int, seed: int) -> float:
+def _env_rate(trace: Path | None, steps: int, seed: int) -> tuple[float, float]:
+    """Env steps per second, and the seconds spent writing the trace (0 without)."""
     import gymnasium as gym
 
     config: dict[str, Any] = {"duration": 1000}
@@ -60,12 +63,23 @@ def _env_rate(trace: Path | None, steps: int, seed: int) -> float:
     env = gym.make("ALDMHighway-v0", config=config)
     env.reset(seed=seed)
     env.step(1)
+    recorder = env.unwrapped.osi
+    spent = [0.0]
+    if recorder is not None:
+        record = recorder.record
+
+        def timed(inner: Any) -> None:
+            start = time.perf_counter()
+            record(inner)
+            spent[0] += time.perf_counter() - start
+
+        recorder.record = timed
     start = time.perf_counter()
     for _ in range(steps):
         env.step(1)
     rate = steps / (time.perf_counter() - start)
     env.close()
-    return rate
+    return rate, spent[0]
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -113,15 +127,24 @@ def main(argv: list[str] | None = None) -> None:
             f"detect_trace end to end (read, detect, write): jobs=1 {n / ends[1]:.0f} frames/s, "
             f"jobs=2 {n / ends[2]:.0f} frames/s"
         )
-        ratios = []
+        ratios, shares = [], []
         for r in range(args.rounds):
-            plain = _env_rate(None, args.steps, 100 + r)
-            traced = _env_rate(Path(tmp) / f"env{r}.mcap", args.steps, 100 + r)
+            order = (None, Path(tmp) / f"env{r}.mcap")
+            rates = {}
+            for trace in order if r % 2 == 0 else order[::-1]:
+                rates[trace is not None] = _env_rate(trace, args.steps, 100 + r)
+            (plain, _), (traced, spent) = rates[False], rates[True]
             ratios.append(traced / plain)
-            print(f"round {r}: {plain:.1f} steps/s plain, {traced:.1f} with the trace")
+            # the writing's own time against the rest of the traced steps
+            wall = args.steps / traced
+            shares.append(spent / (wall - spent))
+            print(
+                f"round {r}: {plain:.1f} steps/s plain, {traced:.1f} with the trace "
+                f"({1e3 * spent / args.steps:.2f} ms per step writing it)"
+            )
         print(
-            f"env steps/s with a trace / without: median {statistics.median(ratios):.2f}x "
-            f"(slowdown {100 * (1 - statistics.median(ratios)):.0f} %)"
+            f"env steps/s with a trace / without: median {statistics.median(ratios):.2f}x; "
+            f"writing / the rest of a traced step: median {100 * statistics.median(shares):.0f} %"
         )
 
 

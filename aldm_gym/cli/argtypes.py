@@ -164,8 +164,9 @@ def key_value(text: str) -> tuple[str, Any]:
     return key, parsed
 
 
-def _check_parent(path: Path) -> None:
-    """The nearest existing ancestor of ``path`` is a writable folder."""
+def check_parent(path: Path) -> None:
+    """The nearest existing ancestor of ``path`` is a writable folder (else
+    ``argparse.ArgumentTypeError``)."""
     parent = path.absolute().parent
     while not parent.exists():
         parent = parent.parent
@@ -184,7 +185,7 @@ def output_dir(text: str) -> Path:
         if not os.access(path, os.W_OK | os.X_OK):
             raise argparse.ArgumentTypeError(f"{path} is not writable")
         return path
-    _check_parent(path)
+    check_parent(path)
     return path
 
 
@@ -199,7 +200,7 @@ def image_file(text: str) -> Path:
         )
     if path.exists() and not os.access(path, os.W_OK):
         raise argparse.ArgumentTypeError(f"{path} is not writable")
-    _check_parent(path)
+    check_parent(path)
     return path
 
 

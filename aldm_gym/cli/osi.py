@@ -13,7 +13,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from aldm_gym.cli.argtypes import BadArgument, _check_parent, existing_file, positive_int
+from aldm_gym.cli.argtypes import BadArgument, check_parent, existing_file, positive_int
 
 MARKING_CHOICES = ("per_dash", "editor")
 """How boundaries become line objects: each painted stretch, or each boundary."""
@@ -26,7 +26,7 @@ def trace_out(text: str) -> Path:
         raise argparse.ArgumentTypeError(f"{path}: give a .mcap or .osi file name")
     if path.is_dir():
         raise argparse.ArgumentTypeError(f"{path} is a folder")
-    _check_parent(path)
+    check_parent(path)
     return path
 
 

@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from aldm_gym.osi.boundaries import sample_boundaries
-from aldm_gym.osi.messages import BOUNDARY_ID, match_lines, sensor_data, sensor_view
+from aldm_gym.osi.messages import BOUNDARY_ID, sensor_data, sensor_view
 from aldm_gym.osi.settings import OsiConfig
 from aldm_gym.osi.trace import TraceWriter
 
@@ -67,12 +67,10 @@ class OsiRecorder:
             lines=lines,
             lane_index=_lane_index(lane),
         )
-        rows, ys, _ = road.sample_visible(frame.origin, frame.yaw, xs)
-        truth = {
-            name: (None if j is None else BOUNDARY_ID + j)
-            for name, j in match_lines(det, xs, rows, ys).items()
-        }
-        data = sensor_data(t=t, host=ego, frame=frame, detection=det, truth=truth, cycle=self.cycle)
+        ids = range(BOUNDARY_ID, BOUNDARY_ID + len(road.marking_table["type"]))
+        data = sensor_data(
+            t=t, host=ego, frame=frame, detection=det, boundary_ids=ids, cycle=self.cycle
+        )
         self.writer.write(view)
         self.writer.write(data)
         self.cycle += 1

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 from aldm_gym.osi.boundaries import BoundarySample, painted_intervals, sample_boundaries
 from aldm_gym.osi.detect import TRACE_DETECTORS, DetectSummary, OsiLaneSensor, detect_trace
-from aldm_gym.osi.messages import match_lines, sensor_data, sensor_view
+from aldm_gym.osi.messages import line_objects, sensor_data, sensor_view
 from aldm_gym.osi.reader import HostPose, ViewReader
 from aldm_gym.osi.settings import OsiConfig
 from aldm_gym.osi.trace import TraceWriter, read_messages
@@ -33,7 +33,7 @@ __all__ = [
     "TraceWriter",
     "ViewReader",
     "detect_trace",
-    "match_lines",
+    "line_objects",
     "painted_intervals",
     "read_messages",
     "sample_boundaries",

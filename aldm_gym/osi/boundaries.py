@@ -22,6 +22,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from aldm_gym.errors import InputError
@@ -72,67 +73,132 @@ def marking_intervals(table: Mapping[str, np.ndarray], j: int, lo: float, hi: fl
     return rows[(rows[:, 1] > lo) & (rows[:, 0] < hi)]
 
 
-def _merged(intervals: FloatArray) -> FloatArray:
-    """Sorted intervals with those that touch or overlap joined, empty ones dropped."""
-    iv = intervals[intervals[:, 1] - intervals[:, 0] > _TIE]
-    if len(iv) < 2:
-        return iv
-    iv = iv[np.argsort(iv[:, 0], kind="stable")]
-    out = [iv[0].copy()]
-    for lo, hi in iv[1:]:
-        if lo <= out[-1][1] + _TIE:
-            out[-1][1] = max(out[-1][1], hi)
+def _run_points_py(
+    x: FloatArray,
+    y: FloatArray,
+    u: FloatArray,
+    intervals: FloatArray,
+    px: FloatArray,
+    py: FloatArray,
+    state: np.ndarray,
+) -> int:
+    """Points and dash states of one contiguous run of samples (x increasing), into
+    ``px``, ``py``, ``state`` (room for ``len(x) + 2 len(intervals)``); their number.
+
+    Samples inside paint (``[u0, u1)`` along the marking's arc length ``u``) are
+    ``CONTINUE``; a point is added where the paint starts (``START``) and ends
+    (``END``), interpolated linearly in ``u`` between samples, and a sample on such an
+    edge gives way to it; samples in gaps are left out (OSI needs only the dash ends).
+    A run that begins or ends inside paint begins or ends with a ``CONTINUE`` sample
+    (the view cuts it); a stretch beginning within ``_TIE`` after the first sample
+    counts as begun there. ``intervals``: sorted by start; touching or overlapping ones
+    are joined, empty ones dropped.
+
+    Plain-Python reference of ``_run_points`` (same code, compiled once)."""
+    k = len(x)
+    if k < 2:
+        return 0
+    # join touching and overlapping intervals
+    iv = np.empty((len(intervals), 2))
+    m = 0
+    for r in range(len(intervals)):
+        lo = intervals[r, 0]
+        hi = intervals[r, 1]
+        if hi - lo <= _TIE:
+            continue
+        if m > 0 and lo <= iv[m - 1, 1] + _TIE:
+            iv[m - 1, 1] = max(iv[m - 1, 1], hi)
         else:
-            out.append(np.array([lo, hi]))
-    return np.array(out)
+            iv[m, 0] = lo
+            iv[m, 1] = hi
+            m += 1
+    if m == 0:
+        return 0
+    rising = u[k - 1] >= u[0]
+    umin = min(u[0], u[k - 1])
+    umax = max(u[0], u[k - 1])
+    # the paint edges strictly inside the run, in x order: (t, entering paint)
+    ne = 0
+    e_t = np.empty(2 * m)
+    e_in = np.empty(2 * m, dtype=np.bool_)
+    for q in range(2 * m):
+        r = q if rising else 2 * m - 1 - q  # u grows with x, or falls
+        ue = iv[r // 2, r % 2]
+        if not (umin + _TIE < ue < umax - _TIE):
+            continue
+        # the sample segment that crosses ue (u monotonic along the run)
+        lo_i = 0
+        hi_i = k - 1
+        while hi_i - lo_i > 1:
+            mid = (lo_i + hi_i) // 2
+            if (u[mid] <= ue) == rising:
+                lo_i = mid
+            else:
+                hi_i = mid
+        e_t[ne] = lo_i + (ue - u[lo_i]) / (u[hi_i] - u[lo_i])
+        # a start enters paint where u grows with x, an end where it falls
+        e_in[ne] = (r % 2 == 0) == rising
+        ne += 1
+    n = 0
+    e = 0
+    for i in range(k):
+        while e < ne and e_t[e] < i - _TIE:
+            t = e_t[e]
+            j = int(t)
+            f = t - j
+            px[n] = x[j] + f * (x[j + 1] - x[j])
+            py[n] = y[j] + f * (y[j + 1] - y[j])
+            state[n] = DASH_START if e_in[e] else DASH_END
+            n += 1
+            e += 1
+        if e < ne and abs(e_t[e] - i) <= _TIE:  # an edge on this sample
+            px[n] = x[i]
+            py[n] = y[i]
+            state[n] = DASH_START if e_in[e] else DASH_END
+            n += 1
+            e += 1
+            continue
+        uq = u[i]
+        if i == 0:
+            uq = uq + (2.0 * _TIE if rising else -2.0 * _TIE)
+        on = False
+        for r in range(m):  # few intervals per run
+            if iv[r, 0] <= uq < iv[r, 1]:
+                on = True
+                break
+        if on:
+            px[n] = x[i]
+            py[n] = y[i]
+            state[n] = DASH_CONTINUE
+            n += 1
+    if n > 0 and state[n - 1] == DASH_START:  # a dash that begins at the run's end
+        n -= 1
+    return n
+
+
+_run_points_kernel = numba.njit(cache=True)(_run_points_py)
 
 
 def _run_points(
     x: FloatArray, y: FloatArray, u: FloatArray, intervals: FloatArray
 ) -> tuple[FloatArray, FloatArray, np.ndarray]:
-    """Points and dash states of one contiguous run of samples (x increasing).
-
-    Samples inside paint are ``CONTINUE``; a point is added where the paint starts
-    (``START``) and ends (``END``), interpolated linearly in ``u`` between samples;
-    samples in gaps are left out (OSI needs only the dash ends). A run that begins or
-    ends inside paint begins or ends with a ``CONTINUE`` sample (the view cuts it).
-    """
-    k = len(x)
-    none = (np.zeros(0), np.zeros(0), np.zeros(0, dtype=np.int64))
-    if k < 2:
-        return none
-    iv = _merged(np.asarray(intervals, dtype=np.float64).reshape(-1, 2))
-    if len(iv) == 0:
-        return none
-    rising = u[-1] >= u[0]
-    idx = np.arange(k, dtype=np.float64)
-    us, ts = (u, idx) if rising else (u[::-1], idx[::-1])
-    umin, umax = float(us[0]), float(us[-1])
-    # samples on paint ([u0, u1) along u; a stretch beginning within _TIE after the
-    # first sample counts as begun there)
-    probe = u.copy()
-    probe[0] += 2.0 * _TIE if rising else -2.0 * _TIE
-    q = np.searchsorted(iv[:, 0], probe, side="right") - 1
-    on = (q >= 0) & (probe < iv[np.maximum(q, 0), 1])
-    # paint edges strictly inside the run: where x grows, an interval's start enters
-    # paint when u grows with x and leaves it when u falls
-    e_u = iv.reshape(-1)
-    e_enter = np.tile([rising, not rising], len(iv))
-    inner = (e_u > umin + _TIE) & (e_u < umax - _TIE)
-    e_t = np.interp(e_u[inner], us, ts)
-    e_state = np.where(e_enter[inner], DASH_START, DASH_END)
-    # a sample on an edge gives way to it
-    keep = on.copy()
-    if len(e_t):
-        near = np.abs(np.arange(k)[:, None] - e_t[None, :]).min(axis=1) <= _TIE
-        keep &= ~near
-    t = np.concatenate([np.flatnonzero(keep).astype(np.float64), e_t])
-    state = np.concatenate([np.full(int(keep.sum()), DASH_CONTINUE), e_state])
-    order = np.argsort(t, kind="stable")
-    t, state = t[order], state[order]
-    if len(state) and state[-1] == DASH_START:  # a dash that begins at the run's end
-        t, state = t[:-1], state[:-1]
-    return np.interp(t, idx, x), np.interp(t, idx, y), state.astype(np.int64)
+    """:func:`_run_points_py` as arrays ``(px, py, state)``."""
+    x = np.ascontiguousarray(x, dtype=np.float64)
+    iv = np.asarray(intervals, dtype=np.float64).reshape(-1, 2)
+    iv = iv[np.argsort(iv[:, 0], kind="stable")]
+    size = len(x) + 2 * len(iv)
+    px, py = np.empty(size), np.empty(size)
+    state = np.empty(size, dtype=np.int64)
+    n = _run_points_kernel(
+        x,
+        np.ascontiguousarray(y, dtype=np.float64),
+        np.ascontiguousarray(u, dtype=np.float64),
+        iv,
+        px,
+        py,
+        state,
+    )
+    return px[:n], py[:n], state[:n]
 
 
 def sample_boundaries(
@@ -190,35 +256,148 @@ def painted_intervals(
     :raises InputError: ``u`` and ``dash`` of different lengths.
     """
     u = np.asarray(u, dtype=np.float64)
-    dash = np.asarray(dash)
+    dash = np.asarray(dash, dtype=np.int64)
     if u.shape != dash.shape:
         raise InputError(f"u and dash must have the same length, got {u.shape} and {dash.shape}")
-    if len(u) == 0:
-        return np.zeros((0, 2))
-    marked = (dash == DASH_START) | (dash == DASH_END) | (dash == DASH_GAP)
-    if botts and not marked.any():
-        half = 0.5 * width
-        return np.stack([u - half, u + half], axis=1)
-    if not marked.any():
-        return np.array([[u[0], u[-1] + OPEN_END]]) if len(u) >= 2 else np.zeros((0, 2))
-    out = []
-    start: float | None = None
-    first = int(dash[0])
-    if first in (DASH_CONTINUE, DASH_END):
-        start = float(u[0])
-    for i in range(len(u)):
-        d = int(dash[i])
+    out = np.empty((len(u) + 1, 2))
+    k = _painted(u, dash, bool(botts), float(width), out)
+    return out[:k].copy()
+
+
+def _painted_py(u: FloatArray, dash: np.ndarray, botts: bool, width: float, out: FloatArray) -> int:
+    """:func:`painted_intervals` into ``out`` (``(N + 1, 2)``); the number of rows.
+
+    Plain-Python reference of ``_painted`` (same code, compiled once)."""
+    n = len(u)
+    if n == 0:
+        return 0
+    marked = False
+    for i in range(n):
+        d = dash[i]
+        if d == DASH_START or d == DASH_END or d == DASH_GAP:
+            marked = True
+            break
+    if not marked:
+        if botts:
+            for i in range(n):
+                out[i, 0] = u[i] - 0.5 * width
+                out[i, 1] = u[i] + 0.5 * width
+            return n
+        if n < 2:
+            return 0
+        out[0, 0] = u[0]
+        out[0, 1] = u[n - 1] + OPEN_END
+        return 1
+    # START opens paint (so does the first point when it continues or ends a stretch),
+    # END closes it at its point, GAP at the point before it
+    k = 0
+    open_ = dash[0] == DASH_CONTINUE or dash[0] == DASH_END
+    start = u[0]
+    for i in range(n):
+        d = dash[i]
         if d == DASH_START:
-            if start is None:
-                start = float(u[i])
-        elif d == DASH_END:
-            if start is not None and u[i] > start:
-                out.append((start, float(u[i])))
-            start = None
-        elif d == DASH_GAP:
-            if start is not None and i > 0 and u[i - 1] > start:
-                out.append((start, float(u[i - 1])))
-            start = None
-    if start is not None and u[-1] > start:
-        out.append((start, float(u[-1]) + OPEN_END))
-    return np.asarray(out, dtype=np.float64).reshape(-1, 2)
+            if not open_:
+                open_ = True
+                start = u[i]
+        elif d == DASH_END or d == DASH_GAP:
+            if open_:
+                stop = u[i] if d == DASH_END else u[i - 1] if i > 0 else start
+                if stop > start:
+                    out[k, 0] = start
+                    out[k, 1] = stop
+                    k += 1
+            open_ = False
+    if open_ and u[n - 1] > start:
+        out[k, 0] = start
+        out[k, 1] = u[n - 1] + OPEN_END
+        k += 1
+    return k
+
+
+_painted = numba.njit(cache=True)(_painted_py)
+
+
+def _curve_py(
+    rows: FloatArray,
+    botts: bool,
+    width: float,
+    stub: float,
+    xy: FloatArray,
+    u: FloatArray,
+    iv: FloatArray,
+) -> tuple[int, int]:
+    """One OSI boundary's points (``rows``: x, y, dash, as :func:`~aldm_gym.osi.wire.
+    decode_points` gives them) as a marking curve in highway-env's world: repeated
+    points dropped (the later dash state wins unless it only continues), a straight
+    ``stub`` [m] added at each end, arc lengths, and the painted intervals
+    (:func:`painted_intervals`, merged where dots overlap, the stubs painted as their
+    ends). Fills ``xy`` ``(N + 2, 2)``, ``u`` ``(N + 2,)``, ``iv`` ``(N + 1, 2)``;
+    returns ``(vertices, intervals)``, vertices 0 when fewer than two points differ.
+
+    Plain-Python reference of ``_curve`` (same code, compiled once)."""
+    n = rows.shape[1]
+    dash = np.empty(n, dtype=np.int64)
+    m = 0
+    for i in range(n):
+        x = rows[0, i]
+        y = -rows[1, i]  # OSI -> highway-env world
+        d = np.int64(rows[2, i])
+        if m > 0 and abs(x - xy[m, 0]) + abs(y - xy[m, 1]) <= 1e-9:
+            if d != DASH_CONTINUE:
+                dash[m - 1] = d
+            continue
+        m += 1
+        xy[m, 0] = x
+        xy[m, 1] = y
+        dash[m - 1] = d
+    if m < 2:
+        return 0, 0
+    # arc length of the points, from 0 at the first
+    pu = np.empty(m)
+    pu[0] = 0.0
+    for i in range(1, m):
+        pu[i] = pu[i - 1] + np.hypot(xy[i + 1, 0] - xy[i, 0], xy[i + 1, 1] - xy[i, 1])
+    raw = np.empty((m + 1, 2))
+    k = _painted(pu, dash[:m], botts, width, raw)
+    length = pu[m - 1]
+    # clip to the boundary, drop empty ones, merge overlapping (dots)
+    q = 0
+    for r in range(k):
+        lo = max(raw[r, 0], 0.0)
+        hi = min(raw[r, 1], length + OPEN_END)
+        if hi - lo <= 1e-9:
+            continue
+        if q > 0 and lo < iv[q - 1, 1]:
+            iv[q - 1, 1] = max(iv[q - 1, 1], hi)
+            continue
+        iv[q, 0] = lo
+        iv[q, 1] = hi
+        q += 1
+    if q == 0:
+        return m + 2, 0
+    for r in range(q):  # along the curve with its first stub
+        iv[r, 0] += stub
+        iv[r, 1] += stub
+    # the stubs: straight on, painted as their ends are
+    d0x = xy[2, 0] - xy[1, 0]
+    d0y = xy[2, 1] - xy[1, 1]
+    s0 = np.hypot(d0x, d0y)
+    d1x = xy[m, 0] - xy[m - 1, 0]
+    d1y = xy[m, 1] - xy[m - 1, 1]
+    s1 = np.hypot(d1x, d1y)
+    xy[0, 0] = xy[1, 0] - stub * d0x / s0
+    xy[0, 1] = xy[1, 1] - stub * d0y / s0
+    xy[m + 1, 0] = xy[m, 0] + stub * d1x / s1
+    xy[m + 1, 1] = xy[m, 1] + stub * d1y / s1
+    u[0] = 0.0
+    for i in range(m):
+        u[i + 1] = pu[i] + stub
+    u[m + 1] = u[m] + stub
+    if iv[0, 0] <= stub + 1e-9:
+        iv[0, 0] = 0.0
+    if iv[q - 1, 1] >= length + stub:
+        iv[q - 1, 1] = u[m + 1] + OPEN_END
+    return m + 2, q
+
+
+_curve = numba.njit(cache=True)(_curve_py)

@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from aldm_gym.errors import ConfigError
-from aldm_gym.osi.messages import match_lines, sensor_data
+from aldm_gym.osi.messages import sensor_data
 from aldm_gym.osi.reader import ViewReader
 from aldm_gym.osi.trace import TraceWriter, read_messages
 from aldm_gym.sensor.detectors import DETECTORS, Detector, make_detector
@@ -85,14 +85,13 @@ class OsiLaneSensor:
         road = reader.road
         assert road is not None
         det = self.detection = self.detector(frame, road, None, motion=motion)
-        xs = reader.sensor.config.x_grid
-        rows, ys, _ = road.sample_visible(frame.origin, frame.yaw, xs)
-        truth = {
-            name: (None if j is None else reader.boundary_ids[j])
-            for name, j in match_lines(det, xs, rows, ys).items()
-        }
         sd = sensor_data(
-            t=t, host=reader.host_base, frame=frame, detection=det, truth=truth, cycle=self._cycle
+            t=t,
+            host=reader.host_base,
+            frame=frame,
+            detection=det,
+            boundary_ids=reader.boundary_ids,
+            cycle=self._cycle,
         )
         self._cycle += 1
         return sd

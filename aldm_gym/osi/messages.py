@@ -31,6 +31,7 @@ import numpy as np
 
 from aldm_gym.osi._bindings import interface_version, osi3
 from aldm_gym.osi.boundaries import BoundarySample
+from aldm_gym.osi.wire import encode_points
 from aldm_gym.roads.markings import MarkingType
 from aldm_gym.sensor.conditions import CAR_HEIGHT, TRUCK_HEIGHT
 from aldm_gym.sensor.frame import SensorFrame
@@ -120,19 +121,13 @@ def _boundary(lb: Any, sample: BoundarySample, table: Mapping[str, np.ndarray]) 
     kind = int(table["type"][j])
     lb.classification.type = BARRIER_TYPE if height > 0.0 else BOUNDARY_TYPE.get(kind, 1)
     lb.classification.color = BOUNDARY_COLOUR.get(int(table["colour"][j]), 1)
-    # OSI: width and height carry over from the previous point; set on the first only
-    line = lb.boundary_line
-    first = True
-    for x, y, d in zip(
-        sample.xy[:, 0].tolist(), sample.xy[:, 1].tolist(), sample.dash.tolist(), strict=True
-    ):
-        p = line.add()
-        pos = p.position
-        pos.x, pos.y, pos.z = x, -y, 0.0
-        p.dash = d
-        if first:
-            p.width, p.height = width, height
-            first = False
+    # OSI: width and height carry over from the previous point: set on the first only;
+    # the rest in bulk (wire.encode_points, parsed back by the bindings)
+    xy, dash = sample.xy, sample.dash
+    p = lb.boundary_line.add()
+    p.position.x, p.position.y, p.position.z = float(xy[0, 0]), -float(xy[0, 1]), 0.0
+    p.width, p.height, p.dash = width, height, int(dash[0])
+    lb.MergeFromString(encode_points(2, xy[1:, 0], -xy[1:, 1], dash[1:]))
 
 
 def _merge_runs(samples: Sequence[BoundarySample]) -> list[BoundarySample]:
@@ -254,52 +249,16 @@ def _mounting(mp: Any, frame: SensorFrame) -> None:
     mp.orientation.yaw = float(rot[2])
 
 
-def match_lines(
-    detection: LaneDetection, xs: FloatArray, rows: np.ndarray, ys: FloatArray, gate: float = 0.5
-) -> dict[str, int | None]:
-    """The true marking each detected line lies on: the marking whose y at the line's
-    points differs least (median |dy| over the points it reaches, at least half of
-    them), within ``gate`` [m]; ``None`` for a line not found or on no marking (a
+def line_objects(frame: SensorFrame, lines: Sequence[FloatArray]) -> list[tuple[int, int, int]]:
+    """What each detected line runs through, read from the frame's line objects: the
+    ``(type, colour, marking)`` of the object most of a few of its points lie on (within
+    0.2 m of one of that object's points); ``(0, 0, -1)`` for a line on no object.
+
+    ``marking`` is the object's *ground truth* (:attr:`SensorFrame.line_marking`): the
+    road's marking the detected line lies on, -1 for clutter or a line on none (a
     ghost).
-
-    :param xs: ``(K,)`` increasing x of the samples [m]; ``rows``/``ys``: the markings
-        sampled there (``(R,)``, ``(R, K)``, NaN where absent), as
-        :meth:`~aldm_gym.roads.MarkedRoad.sample_visible` returns them.
     """
-    out: dict[str, int | None] = dict.fromkeys(LINE_NAMES)
-    if len(rows) == 0 or len(xs) < 2:
-        return out
-    for name in LINE_NAMES:
-        line = detection.line(name)
-        if len(line) == 0:
-            continue
-        # every marking at the line's x at once: linear between the two samples around
-        i1 = np.clip(np.searchsorted(xs, line[:, 0], side="right"), 1, len(xs) - 1)
-        i0 = i1 - 1
-        f = (line[:, 0] - xs[i0]) / (xs[i1] - xs[i0])
-        inside = (f >= 0.0) & (f <= 1.0)
-        y = ys[:, i0] * (1.0 - f) + ys[:, i1] * f
-        dy = np.abs(y - line[:, 1])
-        dy[:, ~inside] = np.nan
-        reach = np.isfinite(dy).sum(axis=1)
-        enough = reach >= max(2, len(line) // 2)
-        if not enough.any():
-            continue
-        d = np.where(np.isnan(dy), np.inf, dy)
-        d.sort(axis=1)
-        err = d[np.arange(len(rows)), np.maximum(reach - 1, 0) // 2]  # lower median
-        err[~enough] = np.inf
-        r = int(np.argmin(err))
-        if err[r] < gate:
-            out[name] = int(rows[r])
-    return out
-
-
-def line_styles(frame: SensorFrame, lines: Sequence[FloatArray]) -> list[tuple[int, int]]:
-    """CarMaker type and colour of the line objects each detected line runs through:
-    those of the object most of a few of its points lie on (within 0.2 m of one of its
-    points); ``(0, 0)`` for a line on no object."""
-    out = [(0, 0)] * len(lines)
+    out = [(0, 0, -1)] * len(lines)
     pts = frame.all_points
     if len(pts) == 0:
         return out
@@ -316,7 +275,11 @@ def line_styles(frame: SensorFrame, lines: Sequence[FloatArray]) -> list[tuple[i
         objects = owner[nearest[hit & (which == i)]]
         if len(objects):
             n = int(np.bincount(objects).argmax())
-            out[i] = (int(frame.line_type[n]), int(frame.line_colour[n]))
+            out[i] = (
+                int(frame.line_type[n]),
+                int(frame.line_colour[n]),
+                int(frame.line_marking[n]),
+            )
     return out
 
 
@@ -326,21 +289,22 @@ def sensor_data(
     host: Any,
     frame: SensorFrame,
     detection: LaneDetection,
-    truth: Mapping[str, int | None] | None = None,
+    boundary_ids: Sequence[int] | None = None,
     cycle: int = 0,
 ) -> Any:
     """One ``osi3.SensorData``: the detector's four lines as ``DetectedLaneBoundary``.
 
     Each found line gives one boundary in the sensor frame (its points at z = 0), with
-    ``tracking_id`` (:data:`TRACKING_ID`), the id of the true boundary it lies on
-    (``truth``; unset for a ghost), one candidate of
-    probability 1 whose type and colour are those of the line objects it runs through,
-    and ``MEASUREMENT_STATE_MEASURED``. Existence probability and per-point confidence
+    ``tracking_id`` (:data:`TRACKING_ID`), the id of the true boundary it lies on (that
+    of the line objects it runs through, :func:`line_objects`; unset for a ghost), one
+    candidate of probability 1 whose type and colour are those objects', and
+    ``MEASUREMENT_STATE_MEASURED``. Existence probability and per-point confidence
     are left unset: naive detection and the ALDM do not estimate them.
 
     :param host: the host vehicle (``host_vehicle_location``): a highway-env vehicle,
         an ``osi3.BaseMoving`` to copy, or ``None``.
-    :param truth: per line name, the OSI id of the true boundary it lies on.
+    :param boundary_ids: the OSI id of each marking index of the frame's road
+        (``None``: no ground-truth ids).
     :param cycle: ``lane_boundary_header.cycle_counter``.
     """
     sd = osi3.SensorData()
@@ -359,22 +323,19 @@ def sensor_data(
     header.data_qualifier = osi3.DetectedEntityHeader.DATA_QUALIFIER_AVAILABLE
     found = [(name, detection.line(name)) for name in LINE_NAMES]
     found = [(name, line) for name, line in found if len(line)]
-    styles = line_styles(frame, [line for _, line in found])
-    for (name, line), (kind, colour) in zip(found, styles, strict=True):
+    objects = line_objects(frame, [line for _, line in found])
+    for (name, line), (kind, colour, marking) in zip(found, objects, strict=True):
         db = sd.lane_boundary.add()
         db.header.tracking_id.value = TRACKING_ID[name]
-        gt = None if truth is None else truth.get(name)
-        if gt is not None:
-            db.header.ground_truth_id.add().value = int(gt)
+        if marking >= 0 and boundary_ids is not None:
+            db.header.ground_truth_id.add().value = int(boundary_ids[marking])
         db.header.measurement_state = osi3.DetectedItemHeader.MEASUREMENT_STATE_MEASURED
         db.header.sensor_id.add().value = SENSOR_ID + int(frame.sensor_index)
         cand = db.candidate.add()
         cand.probability = 1.0
         cand.classification.type = BOUNDARY_TYPE.get(kind, 0)
         cand.classification.color = BOUNDARY_COLOUR.get(colour, 0) if kind else 0
-        for x, y in line:
-            p = db.boundary_line.add()
-            p.position.x, p.position.y, p.position.z = float(x), float(y), 0.0
+        db.MergeFromString(encode_points(3, line[:, 0], line[:, 1]))
     return sd
 
 

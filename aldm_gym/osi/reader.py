@@ -25,8 +25,9 @@ import numpy as np
 
 from aldm_gym.config import build_config
 from aldm_gym.errors import InputError, TraceError
-from aldm_gym.osi.boundaries import OPEN_END, painted_intervals
+from aldm_gym.osi.boundaries import _curve
 from aldm_gym.osi.messages import BOUNDARY_TYPE
+from aldm_gym.osi.wire import decode_points
 from aldm_gym.roads.markings import MARKING_MODELS, MarkingType
 from aldm_gym.roads.polyline import MarkingCurve, PolylineRoad
 from aldm_gym.sensor.frame import SensorFrame
@@ -69,8 +70,9 @@ def _fail(where: str, what: str) -> TraceError:
     return TraceError(f"{where}: {what}")
 
 
-def _boundary_curve(lb: Any, where: str) -> MarkingCurve | None:
-    """One ``LaneBoundary`` as a marking curve (``None``: nothing painted)."""
+def _boundary_curve(lb: Any, where: str, data: bytes | None = None) -> MarkingCurve | None:
+    """One ``LaneBoundary`` as a marking curve (``None``: nothing painted); ``data``:
+    its serialized bytes, if at hand."""
     c = lb.classification
     kind = int(c.type)
     height = 0.0
@@ -88,56 +90,31 @@ def _boundary_curve(lb: Any, where: str) -> MarkingCurve | None:
     ident = int(lb.id.value)
     if n < 2:
         raise _fail(where, f"lane boundary {ident} has {n} point(s); a boundary needs 2 or more")
-    rows = np.array([(q.x, q.y, p.dash) for p in pts for q in (p.position,)])
-    dash = rows[:, 2].astype(np.int64)
-    if not np.isfinite(rows[:, :2]).all():
+    try:
+        rows = decode_points(lb.SerializeToString() if data is None else data, 2, where)
+    except InputError as exc:
+        raise _fail(where, f"lane boundary {ident}: {exc}") from None
+    if not np.isfinite(rows[:2]).all():
         raise _fail(where, f"lane boundary {ident} has a NaN or infinite point")
     first = pts[0]
     width = float(first.width) if first.HasField("width") and first.width > 0.0 else 0.15
     if first.HasField("height") and first.height > 0.0:
         height = float(first.height)
-    xy = np.stack([rows[:, 0], -rows[:, 1]], axis=1)  # OSI -> highway-env world
-    # drop repeated points (a dash end on a sample); the later state wins unless it
-    # only continues
-    step = np.hypot(*np.diff(xy, axis=0).T)
-    keep = np.concatenate([[True], step > 1e-9])
-    if not keep.all():
-        for i in np.flatnonzero(~keep):
-            k = i - 1
-            while not keep[k]:
-                k -= 1
-            if dash[i] != 3:  # not DASH_CONTINUE
-                dash[k] = dash[i]
-        xy, dash = xy[keep], dash[keep]
-    if len(xy) < 2:
-        raise _fail(where, f"lane boundary {ident} has all its points in one place")
-    u = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))])
-    iv = painted_intervals(u, dash, botts=ctype == int(MarkingType.DOTTED), width=width)
-    iv = np.clip(iv, 0.0, u[-1] + OPEN_END)
-    iv = iv[iv[:, 1] - iv[:, 0] > 1e-9]
-    if len(iv) == 0:
-        return None
-    if len(iv) > 1 and np.any(iv[1:, 0] < iv[:-1, 1]):  # overlapping dots: merge
-        merged = [iv[0].copy()]
-        for lo, hi in iv[1:]:
-            if lo < merged[-1][1]:
-                merged[-1][1] = max(merged[-1][1], hi)
-            else:
-                merged.append(np.array([lo, hi]))
-        iv = np.array(merged)
-    # The sensor samples a polyline from its first vertex up to (not at) its last, in
-    # x computed through the world frame (last bits differ): a short stub at each end,
+    # The sensor samples a polyline from its first vertex up to (not at) its last, in x
+    # computed through the world frame (last bits differ): a short stub at each end,
     # painted as that end is, makes the end points inner points, measured like the rest.
-    t0 = (xy[1] - xy[0]) / max(float(u[1]), 1e-12)
-    t1 = (xy[-1] - xy[-2]) / max(float(u[-1] - u[-2]), 1e-12)
-    xy = np.concatenate([[xy[0] - END_STUB * t0], xy, [xy[-1] + END_STUB * t1]])
-    iv = iv + END_STUB
-    if iv[0, 0] <= END_STUB + 1e-9:
-        iv[0, 0] = 0.0
-    if iv[-1, 1] >= u[-1] + END_STUB:
-        iv[-1, 1] = u[-1] + 2.0 * END_STUB + OPEN_END
+    xy = np.empty((n + 2, 2))
+    u = np.empty(n + 2)
+    iv = np.empty((n + 1, 2))
+    nv, ni = _curve(rows, ctype == int(MarkingType.DOTTED), width, END_STUB, xy, u, iv)
+    if nv == 0:
+        raise _fail(where, f"lane boundary {ident} has all its points in one place")
+    if ni == 0:
+        return None
+    xy, u, iv = xy[:nv], u[:nv], iv[:ni]
     return MarkingCurve(
         xy=xy,
+        u=u,
         painted=iv,
         type=ctype,
         colour=_COLOUR_FROM_OSI.get(int(c.color), 0),
@@ -235,8 +212,8 @@ class ViewReader:
         if key == self._key and self._road is not None:
             return self._road
         curves, ids = [], []
-        for lb in boundaries:
-            curve = _boundary_curve(lb, where)
+        for lb, data in zip(boundaries, key, strict=True):
+            curve = _boundary_curve(lb, where, data)
             if curve is not None:
                 curves.append(curve)
                 ids.append(int(lb.id.value))

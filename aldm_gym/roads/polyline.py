@@ -48,6 +48,8 @@ class MarkingCurve:
     :ivar colour: colour index (0 white, 1 yellow, ...).
     :ivar width: painted width [m].
     :ivar height: height above the road [m] (> 0 for curbs and barriers).
+    :ivar u: ``(N,)`` arc length along ``xy`` [m] when the caller has it (saves
+        :class:`PolylineMarkings` computing it); ``None``: computed.
     """
 
     xy: FloatArray
@@ -56,6 +58,7 @@ class MarkingCurve:
     colour: int = 0
     width: float = 0.15
     height: float = 0.0
+    u: FloatArray | None = None
 
 
 def arc_length(xy: FloatArray) -> FloatArray:
@@ -84,7 +87,9 @@ class PolylineMarkings:
                 raise InputError(f"marking {j}: xy must be (N >= 2, 2), got {xy.shape}")
             if not np.all(np.isfinite(xy)):
                 raise InputError(f"marking {j}: xy holds NaN or inf")
-            u = arc_length(xy)
+            u = arc_length(xy) if c.u is None else np.asarray(c.u, dtype=np.float64)
+            if u.shape != (len(xy),) or u[0] != 0.0:
+                raise InputError(f"marking {j}: u must be (N,) arc lengths from 0")
             if not np.all(np.diff(u) > 0.0):
                 raise InputError(f"marking {j}: repeated vertices")
             p = np.asarray(c.painted, dtype=np.float64).reshape(-1, 2)
@@ -107,24 +112,33 @@ class PolylineMarkings:
         return len(self.curves)
 
     def _build_chunks(self) -> None:
-        mark, i0, i1, cen, rad = [], [], [], [], []
+        # Chunks of CHUNK segments per marking (consecutive chunks share a vertex): their
+        # bounding box's centre and the farthest vertex from it, all markings at once.
+        i0_parts, i1_parts, mark_parts = [], [], []
         for j in range(len(self.curves)):
             a, b = int(self.start[j]), int(self.start[j + 1])
-            for c0 in range(a, b - 1, CHUNK):
-                c1 = min(c0 + CHUNK + 1, b)  # share the last vertex with the next chunk
-                pts = self.xy[c0:c1]
-                lo, hi = pts.min(axis=0), pts.max(axis=0)
-                centre = 0.5 * (lo + hi)
-                mark.append(j)
-                i0.append(c0)
-                i1.append(c1)
-                cen.append(centre)
-                rad.append(float(np.max(np.hypot(*(pts - centre).T))))
-        self.chunk_mark = np.asarray(mark, dtype=np.int64)
-        self.chunk_i0 = np.asarray(i0, dtype=np.int64)
-        self.chunk_i1 = np.asarray(i1, dtype=np.int64)
-        self.chunk_centre = np.ascontiguousarray(np.asarray(cen, dtype=np.float64))
-        self.chunk_radius = np.asarray(rad, dtype=np.float64)
+            c0 = np.arange(a, b - 1, CHUNK, dtype=np.int64)
+            i0_parts.append(c0)
+            i1_parts.append(np.minimum(c0 + CHUNK + 1, b))
+            mark_parts.append(np.full(len(c0), j, dtype=np.int64))
+        i0 = np.concatenate(i0_parts)
+        i1 = np.concatenate(i1_parts)
+        # vertex ranges [i0, i1) overlap by one vertex: gather them explicitly
+        lengths = i1 - i0
+        owner = np.repeat(np.arange(len(i0)), lengths)
+        index = np.arange(int(lengths.sum())) - np.repeat(np.cumsum(lengths) - lengths, lengths)
+        pts = self.xy[np.repeat(i0, lengths) + index]
+        starts = np.cumsum(lengths) - lengths
+        lo = np.minimum.reduceat(pts, starts, axis=0)
+        hi = np.maximum.reduceat(pts, starts, axis=0)
+        centre = 0.5 * (lo + hi)
+        rel = pts - centre[owner]
+        dist = np.hypot(rel[:, 0], rel[:, 1])
+        self.chunk_mark = np.concatenate(mark_parts)
+        self.chunk_i0 = i0
+        self.chunk_i1 = i1
+        self.chunk_centre = np.ascontiguousarray(centre, dtype=np.float64)
+        self.chunk_radius = np.maximum.reduceat(dist, starts)
 
     def near(self, origin: FloatArray, reach: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Polylines with a chunk within ``reach`` [m] of ``origin``: ``(rows, lo, hi)``,
