@@ -204,6 +204,17 @@ def image_file(text: str) -> Path:
     return path
 
 
+def trace_file(text: str) -> Path:
+    """An ASAM OSI trace to write: a ``.mcap`` or ``.osi`` file name in a writable place."""
+    path = Path(text)
+    if path.suffix.lower() not in (".mcap", ".osi"):
+        raise argparse.ArgumentTypeError(f"{path}: give a .mcap or .osi file name")
+    if path.is_dir():
+        raise argparse.ArgumentTypeError(f"{path} is a folder")
+    check_parent(path)
+    return path
+
+
 def existing_file(text: str) -> Path:
     """A readable file that exists."""
     path = Path(text)

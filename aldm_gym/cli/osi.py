@@ -10,24 +10,12 @@ host vehicle, runs the detector, and writes one ``SensorData`` per frame
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 from typing import Any
 
-from aldm_gym.cli.argtypes import BadArgument, check_parent, existing_file, positive_int
+from aldm_gym.cli.argtypes import BadArgument, existing_file, positive_int, trace_file
 
 MARKING_CHOICES = ("per_dash", "editor")
 """How boundaries become line objects: each painted stretch, or each boundary."""
-
-
-def trace_out(text: str) -> Path:
-    """An OSI trace to write: ``.mcap`` or ``.osi``, in a writable place."""
-    path = Path(text)
-    if path.suffix.lower() not in (".mcap", ".osi"):
-        raise argparse.ArgumentTypeError(f"{path}: give a .mcap or .osi file name")
-    if path.is_dir():
-        raise argparse.ArgumentTypeError(f"{path} is a folder")
-    check_parent(path)
-    return path
 
 
 def add_parser(subparsers: Any) -> argparse.ArgumentParser:
@@ -36,7 +24,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="osi_command", required=True, metavar="ACTION")
     det = sub.add_parser("detect", help="SensorView/GroundTruth trace in, SensorData trace out")
     det.add_argument("input", type=existing_file, metavar="IN", help="a .mcap or .osi trace")
-    det.add_argument("--out", type=trace_out, required=True, help="the SensorData trace to write")
+    det.add_argument("--out", type=trace_file, required=True, help="the SensorData trace to write")
     det.add_argument("--detector", choices=("aldm", "naive"), default="aldm")
     det.add_argument(
         "--tracking", action="store_true", help="the tracking ALDM (lanes carried over frames)"

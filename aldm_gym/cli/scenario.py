@@ -28,6 +28,7 @@ from aldm_gym.cli.argtypes import (
     output_dir,
     positive_int,
     ray_address,
+    trace_file,
 )
 
 DETECTOR_CHOICES = ("naive", "aldm", "ground_truth")
@@ -67,6 +68,13 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     run.add_argument("--detector", choices=DETECTOR_CHOICES, default="aldm")
     run.add_argument("--marking-model", choices=MARKING_CHOICES, default="per_dash")
     run.add_argument("--video", type=gif_file, help="an animated GIF of the run (e.g. run.gif)")
+    run.add_argument(
+        "--osi",
+        type=trace_file,
+        metavar="TRACE",
+        help="write the run as ASAM OSI SensorView + SensorData (a .mcap or .osi trace; "
+        "needs the [osi] extra)",
+    )
     run.set_defaults(func=run_one)
     suite = sub.add_parser("suite", help="play a folder of scenarios or a variation file")
     suite.add_argument(
@@ -110,7 +118,7 @@ def _scenario_error(argument: str, exc: Exception) -> BadArgument:
 
 def run_one(args: argparse.Namespace) -> int:
     """``aldm-gym scenario run``."""
-    from aldm_gym.errors import MapError, MapNotFoundError, ScenarioError
+    from aldm_gym.errors import MapError, MapNotFoundError, MissingOSIDependencies, ScenarioError
     from aldm_gym.scenario.criteria import run_scenario
 
     frames: list[Any] | None = [] if args.video is not None else None
@@ -120,10 +128,13 @@ def run_one(args: argparse.Namespace) -> int:
             dict(args.param),
             detector=args.detector,
             marking_model=args.marking_model,
+            config={"osi": {"trace": str(args.osi)}} if args.osi is not None else None,
             frames=frames,
         )
     except (ScenarioError, MapError, MapNotFoundError) as exc:  # the file, its map, a --param
         raise _scenario_error("FILE.xosc", exc) from None
+    except MissingOSIDependencies as exc:
+        raise _scenario_error("--osi", exc) from None
     verdict = "PASS" if result.passed else "FAIL"
     print(f"{result.scenario} ({args.detector}, {args.marking_model}): {verdict}")
     for name, ok, detail in (
@@ -145,6 +156,8 @@ def run_one(args: argparse.Namespace) -> int:
         f"  min TTC {_fmt(result.min_ttc_s)} s; {result.time_s:.1f} s simulated; "
         f"{'stop trigger fired' if result.finished else 'ended before the stop trigger'}"
     )
+    if args.osi is not None:
+        print(f"wrote the OSI trace {args.osi}")
     if frames:
         from aldm_gym.scenario.video import write_gif
 
