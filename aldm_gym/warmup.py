@@ -86,7 +86,7 @@ def _the_rest() -> None:
     _run_points(np.arange(3.0), np.zeros(3), np.arange(3.0), np.array([[0.5, 1.5]]))
 
     rows = decode_points(encode_points(2, np.arange(3.0), np.zeros(3), np.full(3, 3)))
-    _curve(rows, False, 0.15, 1e-3, np.empty((5, 2)), np.empty(5), np.empty((4, 2)))
+    _curve(rows, False, False, 0.15, 1e-3, np.empty((5, 2)), np.empty(5), np.empty((4, 2)))
     _env_steps(_HELPER_ENVS)
 
 

@@ -8,16 +8,20 @@ file at the next reset or when the env closes.
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
 
 from aldm_gym.osi.boundaries import sample_boundaries
-from aldm_gym.osi.messages import BOUNDARY_ID, sensor_data, sensor_view
+from aldm_gym.osi.messages import BOUNDARY_ID, LANE_ID, sensor_data, sensor_view
 from aldm_gym.osi.settings import OsiConfig
 from aldm_gym.osi.trace import TraceWriter
 
 __all__ = ["OsiRecorder"]
+
+BEHIND = 10.0
+"""The ground truth written reaches this far behind the sensor [m]."""
 
 
 class OsiRecorder:
@@ -31,6 +35,7 @@ class OsiRecorder:
         self.episode = -1
         self.writer: TraceWriter | None = None
         self.cycle = 0
+        self._lanes: dict[Any, int] = {}
 
     def start(self) -> None:
         """A new episode: close the last trace, open the next. An episode that ended
@@ -49,23 +54,25 @@ class OsiRecorder:
         perception, road = env.perception, env.highway
         frame, det = perception.frame, perception.detection
         t = frame.timestamp
-        # the sensor's own grid: where else a road is sampled can change how far it
-        # follows a marking that bends away
-        xs = perception.sensor.config.x_grid
+        config = perception.sensor.config
+        # the sensor's own grid (a reader with the same sensor meets the same vertices),
+        # and at its spacing back to BEHIND behind the sensor (the host's surroundings)
+        steps = math.ceil((config.fov_start + BEHIND) / config.dx)
+        back = config.fov_start - config.dx * np.arange(steps, 0, -1)
+        xs = np.concatenate([back, config.x_grid])
         boundaries = sample_boundaries(road, frame.origin, frame.yaw, xs)
         lane = env.lane_position.lane
         lines = road.boundary_markings(lane, frame.origin)
-        vehicles = env.road.vehicles
         ego = env.vehicle
         view = sensor_view(
             t=t,
-            vehicles=vehicles,
+            vehicles=env.road.vehicles,
             host=ego,
             frame=frame,
             boundaries=boundaries,
             table=road.marking_table,
             lines=lines,
-            lane_index=_lane_index(lane),
+            lane_ids={name: self._lane_id(key) for name, key in _lane_keys(lane).items()},
         )
         ids = range(BOUNDARY_ID, BOUNDARY_ID + len(road.marking_table["type"]))
         data = sensor_data(
@@ -75,6 +82,16 @@ class OsiRecorder:
         self.writer.write(data)
         self.cycle += 1
 
+    def _lane_id(self, key: Any) -> int:
+        """A lane's OSI id: ``LANE_ID`` + a generated road's lane id; on a map the next
+        free number for each lane key (highway-env's ``(from, to, index)``), kept for
+        the env's life."""
+        if isinstance(key, int | np.integer):
+            return LANE_ID + int(key)
+        if key not in self._lanes:
+            self._lanes[key] = LANE_ID + len(self._lanes)
+        return self._lanes[key]
+
     def close(self) -> None:
         """Finish the current trace (if any)."""
         if self.writer is not None:
@@ -82,10 +99,10 @@ class OsiRecorder:
             self.writer = None
 
 
-def _lane_index(lane: Any) -> int | None:
-    """An integer lane index of a lane id (a generated road's int; a map's last field)."""
+def _lane_keys(lane: Any) -> dict[str, Any]:
+    """The host lane's key and its neighbours' (highway-env numbers lanes from the
+    left: index − 1 is the lane to the left)."""
     if isinstance(lane, int | np.integer):
-        return int(lane)
-    if isinstance(lane, tuple) and lane and isinstance(lane[-1], int | np.integer):
-        return int(lane[-1])
-    return None
+        return {"host": int(lane), "left": int(lane) - 1, "right": int(lane) + 1}
+    a, b, i = lane
+    return {"host": lane, "left": (a, b, i - 1), "right": (a, b, i + 1)}

@@ -86,9 +86,10 @@ def _run_points_py(
     ``px``, ``py``, ``state`` (room for ``len(x) + 2 len(intervals)``); their number.
 
     Samples inside paint (``[u0, u1)`` along the marking's arc length ``u``) are
-    ``CONTINUE``; a point is added where the paint starts (``START``) and ends
-    (``END``), interpolated linearly in ``u`` between samples, and a sample on such an
-    edge gives way to it; samples in gaps are left out (OSI needs only the dash ends).
+    ``CONTINUE``, samples in gaps ``GAP`` (they keep the gap on the marking: a chord
+    across a 12 m gap would leave it by L²/8R); a point is added where the paint starts
+    (``START``) and ends (``END``), interpolated linearly in ``u`` between samples, and
+    a sample on such an edge gives way to it.
     A run that begins or ends inside paint begins or ends with a ``CONTINUE`` sample
     (the view cuts it); a stretch beginning within ``_TIE`` after the first sample
     counts as begun there. ``intervals``: sorted by start; touching or overlapping ones
@@ -166,11 +167,10 @@ def _run_points_py(
             if iv[r, 0] <= uq < iv[r, 1]:
                 on = True
                 break
-        if on:
-            px[n] = x[i]
-            py[n] = y[i]
-            state[n] = DASH_CONTINUE
-            n += 1
+        px[n] = x[i]
+        py[n] = y[i]
+        state[n] = DASH_CONTINUE if on else DASH_GAP
+        n += 1
     if n > 0 and state[n - 1] == DASH_START:  # a dash that begins at the run's end
         n -= 1
     return n
@@ -229,7 +229,7 @@ def sample_boundaries(
             if len(iv) == 0:
                 continue
             px, py, dash = _run_points(xs[run], ys[r, run], u, iv)
-            if len(dash) < 2:
+            if len(dash) < 2 or (dash == DASH_GAP).all():
                 continue
             # sensor frame -> highway-env world: forward (c, s), left (s, -c)
             xy = np.stack([origin[0] + px * c + py * s, origin[1] + px * s - py * c], axis=1)
@@ -238,18 +238,24 @@ def sample_boundaries(
 
 
 def painted_intervals(
-    u: FloatArray, dash: np.ndarray, botts: bool = False, width: float = 0.1
+    u: FloatArray,
+    dash: np.ndarray,
+    botts: bool = False,
+    width: float = 0.1,
+    dashed: bool = False,
 ) -> FloatArray:
     """Painted stretches of one OSI boundary, as intervals ``[u0, u1]`` of its arc length.
 
     Points in order: ``DASH_START`` opens a stretch, ``DASH_END`` closes it,
-    ``DASH_CONTINUE`` lies on one and ``DASH_GAP`` between two. A boundary that starts
-    on a ``CONTINUE`` or ``END`` point starts inside paint (a view cut inside a dash);
-    a stretch still open at the last point ends :data:`OPEN_END` beyond it. Without any ``START``,
-    ``END`` or ``GAP`` (``DASH_UNKNOWN``/``OTHER`` everywhere, a solid line) the whole
-    boundary is painted; for Botts' dots (``botts``) without dash states every point
-    is a dot ``width`` [m] long (OSI: "one BoundaryPoint position has to define each
-    Botts' dot").
+    ``DASH_CONTINUE`` lies on one (and opens one where none is open: a view cut inside
+    a dash) and ``DASH_GAP`` lies between two (it closes an open stretch at the point
+    before it). A stretch still open at the last point ends :data:`OPEN_END` beyond it.
+    Without any ``START``, ``END``, ``GAP`` or ``CONTINUE`` (``DASH_UNKNOWN``/``OTHER``
+    everywhere): a dashed line (``dashed``) has its dashes between points 0 and 1, 2
+    and 3, ... (OSI: "one BoundaryPoint has to be at the start and another at the end
+    of each dashed line segment"; esmini writes its dashes so), Botts' dots (``botts``)
+    a dot ``width`` [m] long at every point (OSI: "one BoundaryPoint position has to
+    define each Botts' dot"), anything else is painted all along.
 
     :param u: ``(N,)`` arc length of the points along the boundary [m], increasing.
     :param dash: ``(N,)`` dash states.
@@ -260,11 +266,13 @@ def painted_intervals(
     if u.shape != dash.shape:
         raise InputError(f"u and dash must have the same length, got {u.shape} and {dash.shape}")
     out = np.empty((len(u) + 1, 2))
-    k = _painted(u, dash, bool(botts), float(width), out)
+    k = _painted(u, dash, bool(botts), float(width), bool(dashed), out)
     return out[:k].copy()
 
 
-def _painted_py(u: FloatArray, dash: np.ndarray, botts: bool, width: float, out: FloatArray) -> int:
+def _painted_py(
+    u: FloatArray, dash: np.ndarray, botts: bool, width: float, dashed: bool, out: FloatArray
+) -> int:
     """:func:`painted_intervals` into ``out`` (``(N + 1, 2)``); the number of rows.
 
     Plain-Python reference of ``_painted`` (same code, compiled once)."""
@@ -274,7 +282,7 @@ def _painted_py(u: FloatArray, dash: np.ndarray, botts: bool, width: float, out:
     marked = False
     for i in range(n):
         d = dash[i]
-        if d == DASH_START or d == DASH_END or d == DASH_GAP:
+        if d == DASH_START or d == DASH_END or d == DASH_GAP or d == DASH_CONTINUE:
             marked = True
             break
     if not marked:
@@ -283,19 +291,27 @@ def _painted_py(u: FloatArray, dash: np.ndarray, botts: bool, width: float, out:
                 out[i, 0] = u[i] - 0.5 * width
                 out[i, 1] = u[i] + 0.5 * width
             return n
+        if dashed:
+            k = 0
+            for i in range(0, n - 1, 2):
+                if u[i + 1] > u[i]:
+                    out[k, 0] = u[i]
+                    out[k, 1] = u[i + 1]
+                    k += 1
+            return k
         if n < 2:
             return 0
         out[0, 0] = u[0]
         out[0, 1] = u[n - 1] + OPEN_END
         return 1
-    # START opens paint (so does the first point when it continues or ends a stretch),
-    # END closes it at its point, GAP at the point before it
+    # START (or CONTINUE, or the first point when it ends a stretch) opens paint, END
+    # closes it at its point, GAP at the point before it
     k = 0
-    open_ = dash[0] == DASH_CONTINUE or dash[0] == DASH_END
+    open_ = dash[0] == DASH_END
     start = u[0]
     for i in range(n):
         d = dash[i]
-        if d == DASH_START:
+        if d == DASH_START or d == DASH_CONTINUE:
             if not open_:
                 open_ = True
                 start = u[i]
@@ -320,6 +336,7 @@ _painted = numba.njit(cache=True)(_painted_py)
 def _curve_py(
     rows: FloatArray,
     botts: bool,
+    dashed: bool,
     width: float,
     stub: float,
     xy: FloatArray,
@@ -328,7 +345,7 @@ def _curve_py(
 ) -> tuple[int, int]:
     """One OSI boundary's points (``rows``: x, y, dash, as :func:`~aldm_gym.osi.wire.
     decode_points` gives them) as a marking curve in highway-env's world: repeated
-    points dropped (the later dash state wins unless it only continues), a straight
+    points dropped (the later dash state wins if it is START, END or GAP), a straight
     ``stub`` [m] added at each end, arc lengths, and the painted intervals
     (:func:`painted_intervals`, merged where dots overlap, the stubs painted as their
     ends). Fills ``xy`` ``(N + 2, 2)``, ``u`` ``(N + 2,)``, ``iv`` ``(N + 1, 2)``;
@@ -343,7 +360,7 @@ def _curve_py(
         y = -rows[1, i]  # OSI -> highway-env world
         d = np.int64(rows[2, i])
         if m > 0 and abs(x - xy[m, 0]) + abs(y - xy[m, 1]) <= 1e-9:
-            if d != DASH_CONTINUE:
+            if d == DASH_START or d == DASH_END or d == DASH_GAP:
                 dash[m - 1] = d
             continue
         m += 1
@@ -358,7 +375,7 @@ def _curve_py(
     for i in range(1, m):
         pu[i] = pu[i - 1] + np.hypot(xy[i + 1, 0] - xy[i, 0], xy[i + 1, 1] - xy[i, 1])
     raw = np.empty((m + 1, 2))
-    k = _painted(pu, dash[:m], botts, width, raw)
+    k = _painted(pu, dash[:m], botts, width, dashed, raw)
     length = pu[m - 1]
     # clip to the boundary, drop empty ones, merge overlapping (dots)
     q = 0

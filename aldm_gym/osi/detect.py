@@ -92,6 +92,8 @@ class OsiLaneSensor:
             detection=det,
             boundary_ids=reader.boundary_ids,
             cycle=self._cycle,
+            mounting=reader.mounting,
+            sensor_id=reader.sensor_id,
         )
         self._cycle += 1
         return sd

@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 
 from aldm_gym.osi._bindings import interface_version, osi3
-from aldm_gym.osi.boundaries import BoundarySample
+from aldm_gym.osi.boundaries import DASH_END, DASH_START, BoundarySample
 from aldm_gym.osi.wire import encode_points
 from aldm_gym.roads.markings import MarkingType
 from aldm_gym.sensor.conditions import CAR_HEIGHT, TRUCK_HEIGHT
@@ -56,8 +56,8 @@ BOUNDARY_TYPE = {
     int(MarkingType.DOTTED): 5,  # TYPE_BOTTS_DOTS
 }
 """OSI ``LaneBoundary.Classification.Type`` of each CarMaker line type."""
-BARRIER_TYPE = 14
-"""``TYPE_BARRIER``: a line with height (the generated road's guard rails)."""
+GUARD_RAIL_TYPE = 11
+"""``TYPE_GUARD_RAIL``: a line with height (the generated road's guard rails)."""
 
 BOUNDARY_COLOUR = {0: 3, 1: 4, 2: 1, 3: 6, 4: 7, 5: 5, 6: 9, 7: 8, 8: 1}
 """OSI ``Color`` of each colour index (0 white, 1 yellow, 2 barrier: other, 3 blue,
@@ -93,7 +93,8 @@ def _base(base: Any, vehicle: Any) -> None:
     base.dimension.width = float(vehicle.WIDTH)
     base.dimension.height = height
     base.position.x, base.position.y, base.position.z = x, -y, 0.5 * height
-    base.orientation.roll, base.orientation.pitch, base.orientation.yaw = 0.0, 0.0, -h
+    yaw = math.remainder(-h, 2.0 * math.pi)  # OSI prefers [-pi, pi]
+    base.orientation.roll, base.orientation.pitch, base.orientation.yaw = 0.0, 0.0, yaw
     base.velocity.x = speed * math.cos(h)
     base.velocity.y = -speed * math.sin(h)
     base.velocity.z = 0.0
@@ -113,21 +114,34 @@ def _moving_object(obj: Any, vehicle: Any, ident: int) -> None:
     b2r.x, b2r.y, b2r.z = 0.0, 0.0, -0.5 * vehicle_height(vehicle)
 
 
-def _boundary(lb: Any, sample: BoundarySample, table: Mapping[str, np.ndarray]) -> None:
+def _boundary(lb: Any, sample: BoundarySample, table: Mapping[str, np.ndarray]) -> bool:
+    """Fill ``lb`` from a sample; False when it has fewer than two points (not kept)."""
     j = sample.marking
     lb.id.value = BOUNDARY_ID + j
     height = float(table["height"][j])
     width = float(table["width"][j])
     kind = int(table["type"][j])
-    lb.classification.type = BARRIER_TYPE if height > 0.0 else BOUNDARY_TYPE.get(kind, 1)
+    lb.classification.type = GUARD_RAIL_TYPE if height > 0.0 else BOUNDARY_TYPE.get(kind, 1)
     lb.classification.color = BOUNDARY_COLOUR.get(int(table["colour"][j]), 1)
-    # OSI: width and height carry over from the previous point: set on the first only;
-    # the rest in bulk (wire.encode_points, parsed back by the bindings)
     xy, dash = sample.xy, sample.dash
-    p = lb.boundary_line.add()
-    p.position.x, p.position.y, p.position.z = float(xy[0, 0]), -float(xy[0, 1]), 0.0
-    p.width, p.height, p.dash = width, height, int(dash[0])
-    lb.MergeFromString(encode_points(2, xy[1:, 0], -xy[1:, 1], dash[1:]))
+    if kind == int(MarkingType.DOTTED):
+        # OSI: "one BoundaryPoint position has to define each Botts' dot": the centre
+        # of each dot, its width the dot's length along the line (a round dot), no state
+        starts = np.flatnonzero(dash == DASH_START)
+        ends = np.flatnonzero(dash == DASH_END)
+        ends = ends[np.searchsorted(ends, starts[0]) :] if len(starts) else ends
+        pairs = min(len(starts), len(ends))
+        if pairs < 2:
+            return False  # a boundary needs two points
+        a, b = xy[starts[:pairs]], xy[ends[:pairs]]
+        centre = 0.5 * (a + b)
+        size = np.hypot(*(b - a).T)
+        rise = np.full(pairs, height)
+        lb.MergeFromString(encode_points(2, centre[:, 0], -centre[:, 1], width=size, height=rise))
+        return True
+    # width and height on every point (OSI lets them carry over; viewers read each)
+    lb.MergeFromString(encode_points(2, xy[:, 0], -xy[:, 1], dash, width=width, height=height))
+    return True
 
 
 def _merge_runs(samples: Sequence[BoundarySample]) -> list[BoundarySample]:
@@ -152,40 +166,47 @@ def _merge_runs(samples: Sequence[BoundarySample]) -> list[BoundarySample]:
     return out
 
 
-def _lanes(gt: Any, lines: Mapping[str, Any], lane_index: int) -> None:
-    """The host's lane and its neighbours, each with its boundary ids."""
+def _lanes(gt: Any, lines: Mapping[str, Any], lane_ids: Mapping[str, int]) -> None:
+    """The host's lane and the lanes beside it that exist, each with the ids of its
+    boundaries that are in the message, and their adjacency both ways.
+
+    :param lane_ids: OSI lane id of ``"host"``, ``"left"`` and ``"right"``.
+    """
+    present = {int(lb.id.value) for lb in gt.lane_boundary}
 
     def ids(line: Any) -> list[int]:
         if line is None:
             return []
-        if isinstance(line, int | np.integer):
-            return [BOUNDARY_ID + int(line)]
-        return [BOUNDARY_ID + int(j) for j in line]
+        marks = [int(line)] if isinstance(line, int | np.integer) else [int(j) for j in line]
+        return [BOUNDARY_ID + j for j in marks if BOUNDARY_ID + j in present]
 
     rows = [
-        (lane_index, lines.get("ego_left"), lines.get("ego_right"), True),
-        (lane_index - 1, lines.get("left_adjacent"), lines.get("ego_left"), False),
-        (lane_index + 1, lines.get("ego_right"), lines.get("right_adjacent"), False),
+        ("host", lines.get("ego_left"), lines.get("ego_right")),
+        ("left", lines.get("left_adjacent"), lines.get("ego_left")),
+        ("right", lines.get("ego_right"), lines.get("right_adjacent")),
     ]
-    for index, left, right, host in rows:
-        if not host and (left is None or right is None):
+    lanes = {}
+    for name, left, right in rows:
+        if name != "host" and (left is None or right is None):
             continue
         lane = gt.lane.add()
-        lane.id.value = LANE_ID + index
+        lane.id.value = int(lane_ids[name])
         c = lane.classification
         c.type = osi3.Lane.Classification.TYPE_DRIVING
-        c.is_host_vehicle_lane = host
+        c.is_host_vehicle_lane = name == "host"
         c.centerline_is_driving_direction = True
         for i in ids(left):
             c.left_lane_boundary_id.add().value = i
         for i in ids(right):
             c.right_lane_boundary_id.add().value = i
-    host_lane = gt.lane[0].classification
-    if len(gt.lane) > 1:
-        for lane in gt.lane[1:]:
-            left = lane.id.value < gt.lane[0].id.value
-            ids_ = host_lane.left_adjacent_lane_id if left else host_lane.right_adjacent_lane_id
-            ids_.add().value = lane.id.value
+        lanes[name] = c
+    host = lanes["host"]
+    if "left" in lanes:
+        host.left_adjacent_lane_id.add().value = int(lane_ids["left"])
+        lanes["left"].right_adjacent_lane_id.add().value = int(lane_ids["host"])
+    if "right" in lanes:
+        host.right_adjacent_lane_id.add().value = int(lane_ids["right"])
+        lanes["right"].left_adjacent_lane_id.add().value = int(lane_ids["host"])
 
 
 def sensor_view(
@@ -197,13 +218,14 @@ def sensor_view(
     boundaries: Sequence[BoundarySample],
     table: Mapping[str, np.ndarray],
     lines: Mapping[str, Any] | None = None,
-    lane_index: int | None = None,
+    lane_ids: Mapping[str, int] | None = None,
     reach: float = 300.0,
 ) -> Any:
     """One ``osi3.SensorView``: the host and the vehicles within ``reach`` [m], the lane
     boundaries in view (:func:`~aldm_gym.osi.boundaries.sample_boundaries`) and, when
-    ``lines`` (the road's ``boundary_markings``) and ``lane_index`` are given, the
-    host's lane and its neighbours.
+    ``lines`` (the road's ``boundary_markings``) and ``lane_ids`` (OSI ids of the
+    ``"host"``, ``"left"`` and ``"right"`` lanes) are given, the host's lane and its
+    neighbours.
 
     :param t: simulation time [s].
     :param vehicles: every vehicle of the traffic (ids: their index).
@@ -233,9 +255,10 @@ def sensor_view(
     gt.host_vehicle_id.value = host_id
     sv.host_vehicle_id.value = host_id
     for sample in _merge_runs(boundaries):
-        _boundary(gt.lane_boundary.add(), sample, table)
-    if lines is not None and lane_index is not None:
-        _lanes(gt, lines, int(lane_index))
+        if not _boundary(gt.lane_boundary.add(), sample, table):
+            del gt.lane_boundary[-1]
+    if lines is not None and lane_ids is not None:
+        _lanes(gt, lines, lane_ids)
     return sv
 
 
@@ -291,12 +314,16 @@ def sensor_data(
     detection: LaneDetection,
     boundary_ids: Sequence[int] | None = None,
     cycle: int = 0,
+    mounting: Any = None,
+    sensor_id: int | None = None,
 ) -> Any:
     """One ``osi3.SensorData``: the detector's four lines as ``DetectedLaneBoundary``.
 
-    Each found line gives one boundary in the sensor frame (its points at z = 0), with
+    Each found line gives one boundary in the sensor frame (its points on the road,
+    ``mount_z`` below the sensor), with
     ``tracking_id`` (:data:`TRACKING_ID`), the id of the true boundary it lies on (that
-    of the line objects it runs through, :func:`line_objects`; unset for a ghost), one
+    of the line objects it runs through, :func:`line_objects`; unset for a line on no
+    object: a ghost, or a stretch the tracking ALDM carries over from earlier frames), one
     candidate of probability 1 whose type and colour are those objects', and
     ``MEASUREMENT_STATE_MEASURED``. Existence probability and per-point confidence
     are left unset: naive detection and the ALDM do not estimate them.
@@ -306,12 +333,21 @@ def sensor_data(
     :param boundary_ids: the OSI id of each marking index of the frame's road
         (``None``: no ground-truth ids).
     :param cycle: ``lane_boundary_header.cycle_counter``.
+    :param mounting: an ``osi3.MountingPosition`` to copy (the input's, in the input's
+        vehicle frame); ``None``: the frame's mount (aldm-gym's vehicle frame).
+    :param sensor_id: the sensor's id (``None``: :data:`SENSOR_ID` + its index).
     """
     sd = osi3.SensorData()
     _version(sd.version)
     _timestamp(sd.timestamp, t)
-    sd.sensor_id.value = SENSOR_ID + int(frame.sensor_index)
-    _mounting(sd.mounting_position, frame)
+    sensor = SENSOR_ID + int(frame.sensor_index) if sensor_id is None else int(sensor_id)
+    sd.sensor_id.value = sensor
+    if mounting is not None:
+        sd.mounting_position.CopyFrom(mounting)
+    else:
+        _mounting(sd.mounting_position, frame)
+    # the sensor frame's origin is the mounting position: the road lies mount_z below it
+    road_z = -float(frame.mount_position[2])
     if host is not None:
         if getattr(getattr(host, "DESCRIPTOR", None), "name", "") == "BaseMoving":
             sd.host_vehicle_location.CopyFrom(host)
@@ -330,12 +366,12 @@ def sensor_data(
         if marking >= 0 and boundary_ids is not None:
             db.header.ground_truth_id.add().value = int(boundary_ids[marking])
         db.header.measurement_state = osi3.DetectedItemHeader.MEASUREMENT_STATE_MEASURED
-        db.header.sensor_id.add().value = SENSOR_ID + int(frame.sensor_index)
+        db.header.sensor_id.add().value = sensor
         cand = db.candidate.add()
         cand.probability = 1.0
         cand.classification.type = BOUNDARY_TYPE.get(kind, 0)
         cand.classification.color = BOUNDARY_COLOUR.get(colour, 0) if kind else 0
-        db.MergeFromString(encode_points(3, line[:, 0], line[:, 1]))
+        db.MergeFromString(encode_points(3, line[:, 0], line[:, 1], z=road_z))
     return sd
 
 

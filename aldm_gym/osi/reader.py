@@ -24,7 +24,8 @@ from typing import Any
 import numpy as np
 
 from aldm_gym.config import build_config
-from aldm_gym.errors import InputError, TraceError
+from aldm_gym.errors import ConfigError, InputError, TraceError
+from aldm_gym.osi._bindings import osi3 as _osi3
 from aldm_gym.osi.boundaries import _curve
 from aldm_gym.osi.messages import BOUNDARY_TYPE
 from aldm_gym.osi.wire import decode_points
@@ -42,6 +43,9 @@ _NO_PAINT_COLOUR = 2  # COLOR_NONE: a logical boundary without paint
 
 END_STUB = 1e-3
 """Length of the straight stub added at each end of a boundary [m]."""
+
+_NOWHERE = MarkingCurve(xy=np.array([[1e9, 1e9], [1e9 + 1.0, 1e9]]), painted=np.zeros((0, 2)))
+"""An unpainted marking far away: the road of a message with nothing painted."""
 
 
 @dataclass(frozen=True)
@@ -106,7 +110,8 @@ def _boundary_curve(lb: Any, where: str, data: bytes | None = None) -> MarkingCu
     xy = np.empty((n + 2, 2))
     u = np.empty(n + 2)
     iv = np.empty((n + 1, 2))
-    nv, ni = _curve(rows, ctype == int(MarkingType.DOTTED), width, END_STUB, xy, u, iv)
+    botts, dashed = ctype == int(MarkingType.DOTTED), ctype == int(MarkingType.DASHED)
+    nv, ni = _curve(rows, botts, dashed, width, END_STUB, xy, u, iv)
     if nv == 0:
         raise _fail(where, f"lane boundary {ident} has all its points in one place")
     if ni == 0:
@@ -160,14 +165,23 @@ class ViewReader:
         """The host's ``osi3.BaseMoving`` in the last message read."""
         self.boundary_ids: list[int] = []
         """OSI id of each marking of :attr:`road` (the painted boundaries, in order)."""
+        self.mounting: Any = None
+        """The sensor's ``osi3.MountingPosition`` in the host's vehicle frame (the
+        message's own, or the line sensor's mount placed there)."""
+        self.sensor_id: int | None = None
+        """The message's ``sensor_id``, if it has one."""
 
-    def _sensor(self, mount: tuple[float, float, float, float]) -> LineSensor:
+    def _sensor(self, mount: tuple[float, float, float, float], where: str = "") -> LineSensor:
         sensor = self._sensors.get(mount)
         if sensor is None:
             c = self.config
             mx, my, mz, myaw = mount
-            cfg = replace(c, mount_x=mx, mount_y=my, mount_z=max(0.0, mz), mount_yaw=myaw)
-            sensor = self._sensors[mount] = LineSensor(cfg, seed=self.seed)
+            try:
+                cfg = replace(c, mount_x=mx, mount_y=my, mount_z=max(0.0, mz), mount_yaw=myaw)
+                sensor = LineSensor(cfg, seed=self.seed)
+            except ConfigError as exc:
+                raise _fail(where or self.source, f"the sensor's mounting: {exc}") from None
+            self._sensors[mount] = sensor
         return sensor
 
     def _host(self, msg: Any, gt: Any, where: str) -> HostPose:
@@ -187,27 +201,37 @@ class ViewReader:
         if not all(math.isfinite(v) for v in (x, y, yaw)):
             raise _fail(where, f"the host vehicle {host_id} has a NaN or infinite pose")
         b2r = host.vehicle_attributes.bbcenter_to_rear
+        mounting = _osi3.MountingPosition()
         if is_view and msg.HasField("mounting_position"):
             mp = msg.mounting_position
+            mounting.CopyFrom(mp)
+            # from the box centre; the height above the road from the box's bottom
             mount = (
                 float(b2r.x + mp.position.x),
                 float(b2r.y + mp.position.y),
-                float(base.position.z + b2r.z + mp.position.z),
+                float(0.5 * base.dimension.height + b2r.z + mp.position.z),
                 float(mp.orientation.yaw),
             )
-        else:
+        else:  # the line sensor's own mount, from the box centre
             c = self.config
             mount = (c.mount_x, c.mount_y, c.mount_z, c.mount_yaw)
+            # ... written in the host's vehicle frame (at bbcenter_to_rear)
+            mounting.position.x = c.mount_x - b2r.x
+            mounting.position.y = c.mount_y - b2r.y
+            mounting.position.z = c.mount_z - 0.5 * base.dimension.height - b2r.z
+            mounting.orientation.yaw = c.mount_yaw
+        if not all(math.isfinite(v) for v in mount):
+            raise _fail(where, f"the host vehicle {host_id}'s sensor mounting is not finite")
         # yaw: OSI's is left positive; the line sensor's mount yaw too
         self.host_base = base
+        self.mounting = mounting
+        self.sensor_id = int(msg.sensor_id.value) if is_view and msg.HasField("sensor_id") else None
         return HostPose(host_id, (x, -y, -yaw), mount)
 
     def _road_of(self, gt: Any, where: str) -> PolylineRoad:
         boundaries = gt.lane_boundary
-        if len(boundaries) == 0:
-            if self._road is None:
-                raise _fail(where, "no lane boundaries (and none in an earlier frame)")
-            return self._road
+        if len(boundaries) == 0 and len(gt.lane) == 0 and self._road is not None:
+            return self._road  # static ground truth sent in an earlier frame
         key = tuple(lb.SerializeToString() for lb in boundaries)
         if key == self._key and self._road is not None:
             return self._road
@@ -217,9 +241,9 @@ class ViewReader:
             if curve is not None:
                 curves.append(curve)
                 ids.append(int(lb.id.value))
-        if not curves:
-            raise _fail(where, "no painted lane boundary (every one has no line or no colour)")
-        self._road = PolylineRoad(curves, self.marking_model)
+        # nothing painted in view: the sensor sees nothing (one far, unseen marking keeps
+        # the road well formed)
+        self._road = PolylineRoad(curves or [_NOWHERE], self.marking_model)
         self._key = key
         self.boundary_ids = ids
         return self._road
@@ -230,8 +254,10 @@ class ViewReader:
         :param msg: an ``osi3.SensorView`` or ``osi3.GroundTruth``.
         :param index: the message's frame number (for error messages).
         :raises TraceError: naming the file and frame: another message type, no host
-            vehicle, a boundary with fewer than two points or non-finite points, no
-            painted boundary.
+            vehicle, a mounting the line sensor cannot take, a boundary with fewer than
+            two points or non-finite points. A message with nothing painted gives a
+            frame without line objects; one with neither lane boundaries nor lanes
+            keeps the last boundaries read (static ground truth sent once).
         """
         where = f"{self.source} frame {index}"
         name = getattr(getattr(msg, "DESCRIPTOR", None), "name", type(msg).__name__)
@@ -251,7 +277,7 @@ class ViewReader:
         host = self._host(msg, gt, where)
         road = self._road_of(gt, where)
         self.road, self.host = road, host
-        return self.sensor.measure(road, host.pose, t)
+        return self._sensor(host.mount, where).measure(road, host.pose, t)
 
     @property
     def sensor(self) -> LineSensor:

@@ -98,6 +98,7 @@ class TraceWriter:
 
             meta = prepare_required_file_metadata()
             meta.update(
+                version=version,  # the OSI release the trace conforms to
                 min_osi_version=version,
                 max_osi_version=version,
                 description=description,

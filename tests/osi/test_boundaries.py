@@ -108,11 +108,22 @@ def test_run_points_put_dash_ends_between_samples() -> None:
         ([DASH_START, DASH_CONTINUE, DASH_GAP, DASH_START, DASH_END], [[0, 1], [3, 4]]),
         ([0, 0, 0, 0, 0], [[0, 4 + OPEN_END]]),  # a solid line: no states
         ([DASH_GAP, DASH_START, DASH_END, DASH_GAP, DASH_GAP], [[1, 2]]),
+        # CONTINUE after a gap: on a dash whose start the view missed
+        (
+            [DASH_GAP, DASH_CONTINUE, DASH_END, DASH_GAP, DASH_CONTINUE, DASH_CONTINUE],
+            [[1, 2], [4, 5 + OPEN_END]],
+        ),
     ],
 )
 def test_painted_intervals_from_dash_states(dash: list[int], expect: list) -> None:
     got = painted_intervals(np.arange(float(len(dash))), np.array(dash))
     np.testing.assert_allclose(got, np.array(expect, dtype=float))
+
+
+def test_dashed_lines_without_states_pair_their_points() -> None:
+    """OSI: a point at the start and one at the end of each dash (esmini's way)."""
+    got = painted_intervals(np.array([0.0, 3.0, 12.0, 15.0, 24.0]), np.zeros(5), dashed=True)
+    np.testing.assert_allclose(got, [[0, 3], [12, 15]])
 
 
 def test_botts_dots_without_states_are_one_dot_per_point() -> None:

@@ -14,20 +14,41 @@ from aldm_gym.osi.trace import binary_path
 from tests.osi.conftest import ROADS, record
 
 
+def _objects(frame, dotted: bool) -> tuple[np.ndarray, list]:
+    """The points and (type, colour, length) of the frame's dotted objects or of the rest."""
+    keep = [n for n in range(frame.n_lines) if (frame.line_type[n] == 3) == dotted]
+    pts = [frame.line_points(n) for n in keep]
+    rows = [
+        (int(frame.line_type[n]), int(frame.line_colour[n]), len(p))
+        for n, p in zip(keep, pts, strict=True)
+    ]
+    return (np.concatenate(pts) if pts else np.zeros((0, 3))), rows
+
+
 def _same(a, b) -> None:
-    assert a.all_points.shape == b.all_points.shape
-    np.testing.assert_allclose(a.all_points, b.all_points, rtol=0.0, atol=1e-9)
-    np.testing.assert_array_equal(a.line_start, b.line_start)
-    np.testing.assert_array_equal(a.line_type, b.line_type)
-    np.testing.assert_array_equal(a.line_colour, b.line_colour)
-    assert a.n_left == b.n_left
+    # Every object but Botts' dots: the same points, objects and order.
+    pa, ra = _objects(a, dotted=False)
+    pb, rb = _objects(b, dotted=False)
+    assert ra == rb
+    np.testing.assert_allclose(pa, pb, rtol=0.0, atol=1e-9)
+    # Botts' dots travel as one point per dot (OSI's rule), so a dot's ends and the line
+    # between dots (a chord of 1.2 m: 1.8 mm off the marking at R 100 m) are known to a
+    # few millimetres: a grid point that grazes a dot's end may fall on either side
+    da, _ = _objects(a, dotted=True)
+    db, _ = _objects(b, dotted=True)
+    assert abs(len(da) - len(db)) <= 2
+    if len(da) and len(db):
+        gap = np.abs(da[:, None, :2] - db[None, :, :2]).sum(axis=2).min(axis=1)
+        assert np.sort(gap)[: min(len(da), len(db))].max() < 3e-3
+    if not len(da) and not len(db):
+        assert a.n_left == b.n_left
     # The relevant line: the object whose first point is nearest to the middle axis. On a
     # straight road the dashes of one marking tie up to the last bits, which differ after
     # a round trip through the world frame: compare the distance, not the index.
     for side in ("left", "right"):
-        pa, pb = a.relevant_line_points(side), b.relevant_line_points(side)
-        assert len(pa) > 0 and len(pb) > 0
-        assert abs(abs(pa[0, 1] - a.axis_y) - abs(pb[0, 1] - b.axis_y)) < 1e-9
+        pa_, pb_ = a.relevant_line_points(side), b.relevant_line_points(side)
+        assert len(pa_) > 0 and len(pb_) > 0
+        assert abs(abs(pa_[0, 1] - a.axis_y) - abs(pb_[0, 1] - b.axis_y)) < 1e-9
 
 
 @pytest.mark.parametrize("road", sorted(ROADS))
@@ -75,11 +96,12 @@ def test_written_messages_carry_the_required_fields(env_trace) -> None:
             assert msg.HasField("mounting_position")
             for lb in gt.lane_boundary:
                 assert lb.id.value >= BOUNDARY_ID
-                assert lb.classification.type in (3, 4, 14)  # solid, dashed, barrier
+                assert lb.classification.type in (3, 4, 11)  # solid, dashed, guard rail
                 assert lb.classification.color == 3  # white
                 assert len(lb.boundary_line) >= 2
                 states = {p.dash for p in lb.boundary_line}
-                assert states <= {2, 3, 4}  # START, CONTINUE, END
+                assert states <= {2, 3, 4, 5}  # START, CONTINUE, END, GAP
+                assert all(p.HasField("width") and p.width > 0 for p in lb.boundary_line)
             host = next(o for o in gt.moving_object if o.id.value == gt.host_vehicle_id.value)
             assert host.base.dimension.length > 0 and host.type == 2  # TYPE_VEHICLE
             assert len(gt.lane) >= 2 and gt.lane[0].classification.is_host_vehicle_lane

@@ -30,6 +30,15 @@ def test_encoded_points_are_what_the_bindings_write(points: list) -> None:
         p.position.x, p.position.y, p.position.z = x, y, 0.0
         p.dash = d
     assert bulk.SerializeToString() == each.SerializeToString()
+    sized, each_sized = LaneBoundary(), LaneBoundary()
+    sized.MergeFromString(
+        encode_points(2, arr[:, 0], arr[:, 1], arr[:, 2].astype(int), z=-1.5, width=0.2, height=0.1)
+    )
+    for x, y, d in points:
+        p = each_sized.boundary_line.add()
+        p.position.x, p.position.y, p.position.z = x, y, -1.5
+        p.width, p.height, p.dash = 0.2, 0.1, d
+    assert sized.SerializeToString() == each_sized.SerializeToString()
     det_bulk, det_each = DetectedLaneBoundary(), DetectedLaneBoundary()
     det_bulk.MergeFromString(encode_points(3, arr[:, 0], arr[:, 1]))
     for x, y, _ in points:
@@ -86,14 +95,24 @@ def test_decoded_points_are_what_the_bindings_read(points: list, extras: bool) -
     np.testing.assert_array_equal(out[:, :n], rows)
 
 
-def test_malformed_bytes_are_an_error() -> None:
+@pytest.mark.parametrize("cut", [1, 3, 9, 20])
+def test_malformed_bytes_are_an_error(cut: int) -> None:
     lb = LaneBoundary()
     for i in range(3):
         p = lb.boundary_line.add()
         p.position.x = float(i)
+        p.width = 0.1
     data = lb.SerializeToString()
     with pytest.raises(InputError, match="here: malformed"):
-        decode_points(data[:-3], where="here")
+        decode_points(data[:-cut], where="here")
+    out = np.empty((4, 64))
+    buf = np.frombuffer(data[:-cut], dtype=np.uint8)
+    assert _decode_points_py(buf, 2, out) == -1
+
+
+def test_a_runaway_varint_is_an_error() -> None:
+    with pytest.raises(InputError, match="malformed"):
+        decode_points(bytes([0x12, 0x05]) + bytes([0xFF] * 12))
 
 
 def test_encode_checks_its_input() -> None:
@@ -101,3 +120,5 @@ def test_encode_checks_its_input() -> None:
         encode_points(2, np.zeros(3), np.zeros(2))
     with pytest.raises(InputError, match=r"0\.\.5"):
         encode_points(2, np.zeros(1), np.zeros(1), np.array([7]))
+    with pytest.raises(InputError, match="both width and height"):
+        encode_points(2, np.zeros(1), np.zeros(1), width=0.1)
