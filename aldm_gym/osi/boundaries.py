@@ -216,15 +216,19 @@ def sample_boundaries(
     table = road.marking_table
     c, s = float(np.cos(yaw)), float(np.sin(yaw))
     out = []
+    seen = np.isfinite(ys) & np.isfinite(us)
+    counts = seen.sum(axis=1)
     for r, j in enumerate(rows):
-        ok = np.isfinite(ys[r]) & np.isfinite(us[r])
-        if ok.sum() < 2:
+        if counts[r] < 2:
             continue
-        idx = np.flatnonzero(ok)
-        breaks = np.flatnonzero(np.diff(idx) > 1)
-        for run in np.split(idx, breaks + 1):
+        idx = np.flatnonzero(seen[r])
+        if idx[-1] - idx[0] + 1 == len(idx):  # one run (the usual case)
+            runs: list = [slice(int(idx[0]), int(idx[-1]) + 1)]
+        else:
+            runs = np.split(idx, np.flatnonzero(np.diff(idx) > 1) + 1)
+        for run in runs:
             u = us[r, run]
-            lo, hi = float(u.min()), float(u.max())
+            lo, hi = (float(u[0]), float(u[-1])) if u[-1] >= u[0] else (float(u[-1]), float(u[0]))
             iv = marking_intervals(table, int(j), lo, hi)
             if len(iv) == 0:
                 continue
