@@ -157,3 +157,20 @@ class ALDMAction:
     def get_available_actions(self) -> list[int]:
         """All meta actions (refused ones are no-ops)."""
         return [int(a) for a in MetaAction]
+
+    def action_mask(self) -> np.ndarray:
+        """Which meta actions act now, ``(5,)`` bool in :class:`MetaAction` order: IDLE,
+        FASTER and SLOWER always; LANE_LEFT / LANE_RIGHT where a lane change would
+        start (:meth:`SensorVehicle.lane_change_available
+        <aldm_gym.envs.vehicle.SensorVehicle.lane_change_available>`: the detected
+        adjacent lane exists and no change is under way).
+
+        :raises InputError: with ``ContinuousAction`` (masks are for meta actions).
+        """
+        if self.continuous:
+            raise InputError("action masks are for the meta actions (DiscreteMetaAction)")
+        ego = self.env.vehicle
+        mask = np.ones(len(MetaAction), dtype=bool)
+        mask[MetaAction.LANE_LEFT] = ego.lane_change_available(+1)
+        mask[MetaAction.LANE_RIGHT] = ego.lane_change_available(-1)
+        return mask

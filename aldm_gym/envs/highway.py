@@ -496,6 +496,8 @@ class ALDMHighwayEnv(AbstractEnv):
             self.vehicle,
         )
         info.update(outcome.step_info(self.vehicle, referee, detection, target))
+        if not self.action_type.continuous:
+            info["action_mask"] = self.action_type.action_mask()
         if self.scenario is not None:
             info["scenario"] = {
                 "time": self.scenario.world.time,
@@ -507,6 +509,16 @@ class ALDMHighwayEnv(AbstractEnv):
                 perception.detection, perception.frame, perception.sensor.config.visibility
             )
         return info
+
+    def action_masks(self) -> np.ndarray:
+        """Which meta actions act now (``(5,)`` bool, :class:`MetaAction` order): lane
+        changes only towards a detected adjacent lane and when none is under way, the
+        rest always. The method sb3-contrib's ``MaskablePPO`` calls (through wrappers:
+        ``env.get_wrapper_attr("action_masks")()``); also ``info["action_mask"]``.
+
+        :raises InputError: with ``ContinuousAction``.
+        """
+        return self.action_type.action_mask()
 
     def close(self) -> None:
         """Close the viewer and finish the OSI trace (``osi.trace``)."""

@@ -29,6 +29,11 @@ from aldm_gym.types import FloatArray
 _ACTION = ActionConfig()
 
 
+MIN_TARGET_PATH = 2
+"""A lane change needs a target path of at least this many points (the detected
+adjacent lane's centre)."""
+
+
 class SensorVehicle(FastBicycleStep, BatchedLaneUpdate, Vehicle):
     """The ego vehicle: laterally controlled only from the detected lanes.
 
@@ -102,7 +107,7 @@ class SensorVehicle(FastBicycleStep, BatchedLaneUpdate, Vehicle):
         elif action in (MetaAction.LANE_LEFT, MetaAction.LANE_RIGHT) and self.lane_change == 0:
             direction = 1 if action == MetaAction.LANE_LEFT else -1
             path = self._adjacent_path(direction)
-            if len(path) < 2:
+            if len(path) < MIN_TARGET_PATH:
                 self.lane_change_refused = True
             else:
                 self.lane_change = direction
@@ -110,6 +115,12 @@ class SensorVehicle(FastBicycleStep, BatchedLaneUpdate, Vehicle):
                 self.lane_change_elapsed = 0.0
                 self.lane_change_target_y = float(path[0, 1])
         self.target_speed = float(self.target_speeds[self.speed_index])
+
+    def lane_change_available(self, direction: int) -> bool:
+        """Whether a lane change to the left (+1) or right (-1) would start now: none is
+        under way (the action is ignored then) and the adjacent lane on that side is
+        detected (else it is refused): the rule :meth:`set_meta_action` applies."""
+        return self.lane_change == 0 and len(self._adjacent_path(direction)) >= MIN_TARGET_PATH
 
     def _adjacent_path(self, direction: int) -> FloatArray:
         """Centre path of the detected adjacent lane (+1 left, -1 right), or empty."""

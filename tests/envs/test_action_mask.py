@@ -1,0 +1,67 @@
+"""Action masks: the meta actions that act now, by the rule the env refuses by."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import aldm_gym  # noqa: F401  (registers the env)
+from aldm_gym.envs.actions import MetaAction
+from aldm_gym.errors import InputError
+
+LEFT, RIGHT = int(MetaAction.LANE_LEFT), int(MetaAction.LANE_RIGHT)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_the_mask_says_which_lane_changes_start(seed: int) -> None:
+    env = gym.make("ALDMHighway-v0", config={"vehicles_count": 10, "duration": 30})
+    _, info = env.reset(seed=seed)
+    masks = env.get_wrapper_attr("action_masks")
+    rng = np.random.default_rng(seed)
+    tried = {True: 0, False: 0}
+    for _ in range(30):
+        mask = masks()
+        assert mask.dtype == bool and mask.shape == (5,)
+        np.testing.assert_array_equal(info["action_mask"], mask)
+        assert mask[[1, 3, 4]].all()  # IDLE, FASTER, SLOWER always act
+        ego = env.unwrapped.vehicle
+        before = (ego.lane_change, ego.lane_changes_completed, ego.lane_changes_aborted)
+        action = int(rng.choice([LEFT, RIGHT, 1, 1]))
+        _, _, terminated, truncated, info = env.step(action)
+        if action in (LEFT, RIGHT):
+            tried[bool(mask[action])] += 1
+            direction = 1 if action == LEFT else -1
+            started = ego.lane_change == direction or (
+                ego.lane_changes_completed + ego.lane_changes_aborted > before[1] + before[2]
+            )
+            if mask[action]:
+                assert started and not info["lane_change_refused"]
+            elif before[0] == 0:  # no change under way: the env refuses it
+                assert info["lane_change_refused"]
+            else:  # one under way: the action is ignored, not refused
+                assert not info["lane_change_refused"]
+        if terminated or truncated:
+            break
+    assert tried[True] > 0 and tried[False] > 0  # both kinds were tried
+    env.close()
+
+
+def test_no_lane_change_to_the_left_of_the_leftmost_lane() -> None:
+    env = gym.make("ALDMHighway-v0", config={"vehicles_count": 0, "initial_lane_id": 0})
+    _, info = env.reset(seed=0)
+    assert not info["action_mask"][LEFT] and info["action_mask"][RIGHT]
+    _, _, _, _, info = env.step(LEFT)
+    assert info["lane_change_refused"]
+    _, _, _, _, info = env.step(RIGHT)
+    assert info["lane_change"] == -1 and not info["action_mask"][RIGHT]  # under way
+    env.close()
+
+
+def test_continuous_actions_have_no_mask() -> None:
+    env = gym.make("ALDMHighway-v0", config={"action": {"type": "ContinuousAction"}})
+    _, info = env.reset(seed=0)
+    assert "action_mask" not in info
+    with pytest.raises(InputError, match="meta actions"):
+        env.get_wrapper_attr("action_masks")()
+    env.close()
