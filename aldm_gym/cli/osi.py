@@ -12,7 +12,13 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from aldm_gym.cli.argtypes import BadArgument, existing_file, positive_int, trace_file
+from aldm_gym.cli.argtypes import (
+    BadArgument,
+    existing_file,
+    key_value,
+    positive_int,
+    trace_file,
+)
 
 MARKING_CHOICES = ("per_dash", "editor")
 """How boundaries become line objects: each painted stretch, or each boundary."""
@@ -30,6 +36,15 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         "--tracking", action="store_true", help="the tracking ALDM (lanes carried over frames)"
     )
     det.add_argument("--marking-model", choices=MARKING_CHOICES, default="per_dash")
+    det.add_argument(
+        "--sensor",
+        type=key_value,
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="a line-sensor setting, repeatable, e.g. preset=camera or mount_x=2.0 "
+        "(LineSensorConfig; the mount applies to a GroundTruth input, which has none)",
+    )
     det.add_argument(
         "--type",
         choices=("SensorView", "GroundTruth"),
@@ -60,6 +75,14 @@ def run_detect(args: argparse.Namespace) -> int:
     if args.tracking and args.jobs > 1:
         raise BadArgument("--jobs", "the tracking ALDM carries lanes between frames: one job")
     params = {"tracking": True} if args.tracking else None
+    from aldm_gym.config import build_config
+    from aldm_gym.errors import ConfigError
+    from aldm_gym.sensor.line_sensor import LineSensorConfig
+
+    try:
+        sensor = build_config(LineSensorConfig, dict(args.sensor), where="sensor")
+    except ConfigError as exc:
+        raise BadArgument("--sensor", str(exc)) from None
     try:
         with tqdm(desc="frames", unit="frame", disable=True if args.no_progress else None) as bar:
             summary = detect_trace(
@@ -68,6 +91,7 @@ def run_detect(args: argparse.Namespace) -> int:
                 detector=args.detector,
                 detector_params=params,
                 marking_model=args.marking_model,
+                sensor=sensor,
                 message_type=args.type,
                 topic=args.topic,
                 jobs=args.jobs,

@@ -367,6 +367,10 @@ def test_cli_detect(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
         ["osi", "detect", str(src), "--out", str(out), "--tracking", "--jobs", "2"], capsys
     )
     assert "--jobs" in err
+    err = usage_error(["osi", "detect", str(src), "--out", str(out), "--sensor", "bogus=1"], capsys)
+    assert "--sensor" in err and "bogus" in err
+    args = ["osi", "detect", str(src), "--out", str(out), "--no-progress"]
+    assert main([*args, "--sensor", "preset=camera", "--sensor", "mount_x=2.0"]) == 0
     src.write_bytes(src.read_bytes()[:-5])
     err = usage_error(["osi", "detect", str(src), "--out", str(out), "--no-progress"], capsys)
     assert "c_gt.osi frame 2" in err
