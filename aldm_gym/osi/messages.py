@@ -33,7 +33,7 @@ from aldm_gym.osi._bindings import interface_version, osi3
 from aldm_gym.osi.boundaries import DASH_END, DASH_START, BoundarySample
 from aldm_gym.osi.wire import encode_points
 from aldm_gym.roads.markings import MarkingType
-from aldm_gym.sensor.conditions import CAR_HEIGHT, TRUCK_HEIGHT
+from aldm_gym.sensor.conditions import TRUCK_LENGTH, vehicle_height
 from aldm_gym.sensor.frame import SensorFrame
 from aldm_gym.sensor.lane_detection import LINE_NAMES, LaneDetection
 from aldm_gym.types import FloatArray
@@ -74,15 +74,6 @@ def _timestamp(msg: Any, t: float) -> None:
     msg.seconds, msg.nanos = divmod(ns, 1_000_000_000)
 
 
-def vehicle_height(vehicle: Any) -> float:
-    """A highway-env vehicle's height [m] (its ``HEIGHT``, else by length as the line
-    sensor's occlusion takes it)."""
-    h = getattr(vehicle, "HEIGHT", None)
-    if h:
-        return float(h)
-    return TRUCK_HEIGHT if float(vehicle.LENGTH) >= 10.0 else CAR_HEIGHT
-
-
 def _base(base: Any, vehicle: Any) -> None:
     """``BaseMoving`` of a highway-env vehicle in OSI's world frame."""
     x, y = float(vehicle.position[0]), float(vehicle.position[1])
@@ -104,7 +95,7 @@ def _moving_object(obj: Any, vehicle: Any, ident: int) -> None:
     obj.id.value = ident
     _base(obj.base, vehicle)
     obj.type = osi3.MovingObject.TYPE_VEHICLE
-    truck = float(vehicle.LENGTH) >= 10.0
+    truck = float(vehicle.LENGTH) >= TRUCK_LENGTH
     obj.vehicle_classification.type = (
         osi3.MovingObject.VehicleClassification.TYPE_HEAVY_TRUCK
         if truck

@@ -61,11 +61,14 @@ OLD_ANGLE = (math.radians(1.0), math.radians(4.0))
 SPECK_BAND = 10.0
 """Specks lie at ``|y| <= SPECK_BAND`` [m] of the sensor's axis."""
 
+TRUCK_LENGTH = 10.0
+"""A vehicle this long or longer counts as a truck [m]."""
+
 CAR_HEIGHT = 1.5
-"""Height of an occluding vehicle shorter than 10 m without a ``HEIGHT`` [m]."""
+"""Height of a vehicle shorter than :data:`TRUCK_LENGTH` without a ``HEIGHT`` [m]."""
 
 TRUCK_HEIGHT = 4.0
-"""Height of an occluding vehicle of 10 m or longer without a ``HEIGHT`` [m]."""
+"""Height of a vehicle of :data:`TRUCK_LENGTH` or longer without a ``HEIGHT`` [m]."""
 
 _MASK32 = 0xFFFFFFFF
 _SALT_DASH = 1
@@ -356,15 +359,23 @@ _clutter = numba.njit(cache=True)(_clutter_py)
 
 
 # ------------------------------------------------------------------- occlusion
+def vehicle_height(vehicle: Any) -> float:
+    """A highway-env vehicle's height [m]: its ``HEIGHT``, else :data:`TRUCK_HEIGHT`
+    when it is :data:`TRUCK_LENGTH` or longer, else :data:`CAR_HEIGHT`."""
+    h = getattr(vehicle, "HEIGHT", None)
+    if h:
+        return float(h)
+    return TRUCK_HEIGHT if vehicle.LENGTH >= TRUCK_LENGTH else CAR_HEIGHT
+
+
 def occluder_array(vehicles: Any) -> FloatArray:
     """World footprints of ``vehicles`` as an ``(V, 6)`` array.
 
     :param vehicles: highway-env vehicles (``position``, ``heading``, ``LENGTH``,
         ``WIDTH``, optional ``HEIGHT`` > 0) or an ``(V, 6)`` array of world
         ``(x, y, heading, length, width, height)`` [m, rad] (returned as it is).
-    :return: ``(V, 6)`` rows ``(x, y, heading, length, width, height)``. A vehicle
-        without ``HEIGHT`` is :data:`TRUCK_HEIGHT` tall when 10 m or longer, else
-        :data:`CAR_HEIGHT`.
+    :return: ``(V, 6)`` rows ``(x, y, heading, length, width, height)``, the height
+        by :func:`vehicle_height`.
     :raises InputError: an array of another shape or with non-finite values.
     """
     if isinstance(vehicles, np.ndarray):
@@ -377,10 +388,7 @@ def occluder_array(vehicles: Any) -> FloatArray:
         return arr
     flat: list[float] = []
     for v in vehicles:
-        x, y = v.position[0], v.position[1]
-        length = v.LENGTH
-        h = getattr(v, "HEIGHT", None) or (TRUCK_HEIGHT if length >= 10.0 else CAR_HEIGHT)
-        flat += (x, y, v.heading, length, v.WIDTH, h)
+        flat += (v.position[0], v.position[1], v.heading, v.LENGTH, v.WIDTH, vehicle_height(v))
     return np.array(flat, dtype=np.float64).reshape(-1, 6)
 
 
