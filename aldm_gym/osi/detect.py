@@ -9,7 +9,7 @@ result; :func:`detect_trace` runs it over a trace file (``aldm-gym osi detect``)
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -117,18 +117,18 @@ def _ground_truth(message: Any) -> Any:
     return message.global_ground_truth if message.DESCRIPTOR.name == "SensorView" else message
 
 
-def _detect_part(
-    path: str, settings: dict[str, Any], part: int, parts: int
-) -> tuple[list[tuple[int, bytes]], dict[str, int]]:
-    """Frames ``index % parts == part`` of a trace: ``(index, SensorData bytes)`` and
-    the found-line counts. Skipped frames still hand their lane boundaries on (static
-    ground truth sent once)."""
-    message_type, topic = settings.pop("message_type"), settings.pop("topic")
-    model = OsiLaneSensor(**settings, source=path)
-    found = dict.fromkeys(LINE_NAMES, 0)
-    out = []
+def _frames(
+    model: OsiLaneSensor,
+    messages: Iterable[tuple[int, Any]],
+    found: dict[str, int],
+    part: int = 0,
+    parts: int = 1,
+) -> Iterator[tuple[int, Any]]:
+    """``(index, SensorData)`` of the frames ``index % parts == part``, counting the
+    lines found into ``found``. Skipped frames still hand their lane boundaries on
+    (static ground truth sent once)."""
     static: Any = None
-    for index, message in read_messages(path, message_type, topic):
+    for index, message in messages:
         if index % parts != part:
             if len(_ground_truth(message).lane_boundary):
                 static = message
@@ -136,11 +136,24 @@ def _detect_part(
         if static is not None and not len(_ground_truth(message).lane_boundary):
             model.reader.frame(static, index)  # the boundaries this frame reuses
         static = None
-        out.append((index, model.step(message, index).SerializeToString()))
+        data = model.step(message, index)
         det = model.detection
         assert det is not None
         for name in LINE_NAMES:
             found[name] += int(det.found(name))
+        yield index, data
+
+
+def _detect_part(
+    path: str, settings: dict[str, Any], part: int, parts: int
+) -> tuple[list[tuple[int, bytes]], dict[str, int]]:
+    """Frames ``index % parts == part`` of a trace (:func:`_frames`) in a worker:
+    ``(index, SensorData bytes)`` and the found-line counts."""
+    message_type, topic = settings.pop("message_type"), settings.pop("topic")
+    model = OsiLaneSensor(**settings, source=path)
+    found = dict.fromkeys(LINE_NAMES, 0)
+    messages = read_messages(path, message_type, topic)
+    out = [(i, sd.SerializeToString()) for i, sd in _frames(model, messages, found, part, parts)]
     return out, found
 
 
@@ -181,12 +194,8 @@ def detect_trace(
     n = 0
     with TraceWriter(out, ("SensorData",), description=f"aldm-gym {detector}") as writer:
         if jobs == 1:
-            for index, message in read_messages(path, message_type, topic):
-                writer.write(model.step(message, index))
-                det = model.detection
-                assert det is not None
-                for name in LINE_NAMES:
-                    found[name] += int(det.found(name))
+            for _, data in _frames(model, read_messages(path, message_type, topic), found):
+                writer.write(data)
                 n += 1
                 if progress is not None:
                     progress(1)
