@@ -21,6 +21,8 @@ class Policy(Protocol):
     """What :func:`run_episode` needs of a policy: SB3's ``predict``.
 
     ``IdlePolicy``, ``RuleBasedLCA``, ``LKAController`` and SB3 models all satisfy it.
+    A policy whose ``uses_action_masks`` attribute is true (a MaskablePPO model) is also
+    given ``action_masks=info["action_mask"]``.
     """
 
     def predict(
@@ -116,8 +118,12 @@ def run_episode(env: Any, policy: Policy, seed: int, max_steps: int | None = Non
     aborted = int(info.get("lane_changes_aborted", 0))
     phantom_before = False
     done = False
+    masked = bool(getattr(policy, "uses_action_masks", False))
     while not done and (max_steps is None or stats.steps < max_steps):
-        action, _ = policy.predict(obs, deterministic=True)
+        if masked:
+            action, _ = policy.predict(obs, deterministic=True, action_masks=info["action_mask"])
+        else:
+            action, _ = policy.predict(obs, deterministic=True)
         action = _scalar_action(action)
         lane_before = int(info["lane_index"])
         completed_before = int(info["lane_changes_completed"])

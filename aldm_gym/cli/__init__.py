@@ -7,6 +7,8 @@
 * ``aldm-gym osi`` (:mod:`aldm_gym.cli.osi`): the line sensor and a detector on an
   ASAM OSI trace.
 * ``aldm-gym train`` (:mod:`aldm_gym.cli.train`): train a PPO lane-change policy.
+* ``aldm-gym tune`` (:mod:`aldm_gym.cli.tune`): a hyperparameter search over short
+  trainings.
 * ``aldm-gym evaluate`` (:mod:`aldm_gym.cli.evaluate`): a trained policy against the
   rule-based ones.
 
@@ -25,10 +27,10 @@ import argparse
 from collections.abc import Sequence
 
 from aldm_gym import __version__
-from aldm_gym.cli import compare, evaluate, osi, plot, scenario, train
+from aldm_gym.cli import compare, evaluate, osi, plot, scenario, train, tune
 from aldm_gym.cli.argtypes import BadArgument
 
-SUBCOMMANDS = (compare, plot, scenario, osi, train, evaluate)
+SUBCOMMANDS = (compare, plot, scenario, osi, train, tune, evaluate)
 """The subcommand modules, in the order of ``aldm-gym --help``."""
 
 

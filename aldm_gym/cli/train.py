@@ -1,5 +1,8 @@
 """``aldm-gym train``: train (or resume) a PPO lane-change policy.
 
+``--algo maskable-ppo`` trains sb3-contrib's MaskablePPO on the env's action masks
+(SB3 backend).
+
 ``--backend sb3`` (the default) trains with stable-baselines3 on this machine
 (:func:`~aldm_gym.training.sb3.backend.train`); ``--backend rllib`` with Ray RLlib on a
 local Ray instance or, with ``--address``, on a running cluster
@@ -33,8 +36,10 @@ from aldm_gym.cli.argtypes import (
     fraction,
     int_in,
     make_output_dir,
+    non_negative_float,
     non_negative_int,
     output_dir,
+    positive_float,
     positive_int,
     ray_address,
     seed,
@@ -59,6 +64,7 @@ from aldm_gym.training.outputs import (
 from aldm_gym.training.rllib.backend import TB_RUN, train_rllib
 from aldm_gym.training.sb3.backend import train
 from aldm_gym.training.settings import (
+    ALGORITHMS,
     DEFAULT_CHECKPOINT_FREQ,
     DEFAULT_COLLISION_REWARD,
     DEFAULT_TIMESTEPS,
@@ -110,6 +116,14 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         default=None,
         help="sb3: stable-baselines3 on this machine; rllib: Ray RLlib, local or on a "
         "cluster ([ray] extra) (sb3; --resume: the training's)",
+    )
+    parser.add_argument(
+        "--algo",
+        choices=tuple(ALGORITHMS),
+        default=None,
+        help="ppo: stable-baselines3's PPO; maskable-ppo: sb3-contrib's MaskablePPO, which "
+        "never samples a lane change the env's action mask rules out (sb3 backend only) "
+        "(ppo; --resume: the training's)",
     )
     parser.add_argument(
         "--detector", choices=DETECTORS, default=None, help="lanes in the observation (aldm)"
@@ -200,6 +214,25 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         help=f"weight of the collision penalty in the reward ({DEFAULT_COLLISION_REWARD}; "
         "the env's default is -1)",
     )
+    parser.add_argument(
+        "--overtaking-reward",
+        type=config_setting(*_ENV_CONFIG, "overtaking_reward"),
+        default=None,
+        help="weight of the overtaking term (vehicles passed minus passed by) in the reward "
+        "(env: 0)",
+    )
+    parser.add_argument(
+        "--learning-rate",
+        type=positive_float,
+        default=None,
+        help=f"initial learning rate ({PPOParams.learning_rate})",
+    )
+    parser.add_argument(
+        "--ent-coef",
+        type=non_negative_float,
+        default=None,
+        help=f"entropy bonus weight ({PPOParams.ent_coef})",
+    )
     parser.add_argument("--seed", type=seed, default=None, help="seed of envs and network (0)")
     parser.add_argument("--out", type=output_dir, default=Path("out/train"), help="output folder")
     parser.add_argument(
@@ -226,6 +259,8 @@ def _backend(args: argparse.Namespace, meta: dict[str, Any] | None) -> str:
         raise BadArgument(
             "--backend", f"{backend} contradicts the training being resumed ({saved}); omit it"
         )
+    if backend != "sb3" and args.algo not in (None, "ppo"):
+        raise BadArgument("--algo", f"{args.algo} is trained on --backend sb3 only")
     for other, dests in _ONLY.items():
         if other == backend:
             continue
@@ -239,12 +274,17 @@ def _backend(args: argparse.Namespace, meta: dict[str, Any] | None) -> str:
 def _check_resume(args: argparse.Namespace, meta: dict[str, Any]) -> None:
     """Refuse flags that contradict the training being resumed (:class:`BadArgument`)."""
     cfg = meta["env_config"]
+    algo = {name: key for key, name in ALGORITHMS.items()}.get(meta.get("algorithm", "PPO"))
     for name, value, saved in (
+        ("--algo", args.algo, algo),
         ("--detector", args.detector, cfg["detector"]),
         ("--marking-model", args.marking_model, cfg["marking_model"]),
         ("--duration", args.duration, cfg.get("duration")),
         ("--vehicles", args.vehicles, cfg.get("vehicles_count")),
         ("--collision-reward", args.collision_reward, cfg.get("collision_reward")),
+        ("--overtaking-reward", args.overtaking_reward, cfg.get("overtaking_reward")),
+        ("--learning-rate", args.learning_rate, meta["ppo"]["learning_rate"]),
+        ("--ent-coef", args.ent_coef, meta["ppo"]["ent_coef"]),
         ("--n-steps", args.n_steps, meta["ppo"]["n_steps"]),
         ("--lr-schedule", args.lr_schedule, meta["ppo"].get("lr_schedule", "constant")),
         ("--gamma", args.gamma, meta["ppo"]["gamma"]),
@@ -260,6 +300,7 @@ def _common_settings(args: argparse.Namespace, quick: bool) -> dict[str, Any]:
     """The keyword arguments both backends' training functions take from the flags."""
     n_steps = args.n_steps or (QUICK_N_STEPS if quick else PPOParams.n_steps)
     return {
+        "algo": args.algo or "ppo",
         "detector": args.detector or "aldm",
         "marking_model": args.marking_model or "per_dash",
         "timesteps": args.timesteps or (QUICK_TIMESTEPS if quick else None),
@@ -270,8 +311,13 @@ def _common_settings(args: argparse.Namespace, quick: bool) -> dict[str, Any]:
         "collision_reward": (
             DEFAULT_COLLISION_REWARD if args.collision_reward is None else args.collision_reward
         ),
+        "overtaking_reward": args.overtaking_reward,
         "params": PPOParams(
             n_steps=n_steps,
+            learning_rate=(
+                PPOParams.learning_rate if args.learning_rate is None else args.learning_rate
+            ),
+            ent_coef=PPOParams.ent_coef if args.ent_coef is None else args.ent_coef,
             gamma=PPOParams.gamma if args.gamma is None else args.gamma,
             lr_schedule=args.lr_schedule or PPOParams.lr_schedule,
         ),

@@ -136,6 +136,7 @@ class EnvConfig:
     ``vehicles_density``, the reward weights, ``reward_speed_range`` [m/s],
     ``normalize_reward``, ``offroad_terminal``. aldm-gym's: ``initial_speed`` [m/s],
     ``marking_model``, ``detector``, ``progress_reward``, ``lane_keeping_reward``,
+    ``overtaking_reward``,
     ``departure_reward``, ``departure_terminal``, ``info_metrics`` (``info["lane_metrics"]``,
     :mod:`aldm_gym.sensor.lane_metrics`), and the sections ``detector_params``,
     ``sensor``, ``road``, ``lka``, ``acc`` (ACC and AEB), ``traffic`` (trucks),
@@ -194,6 +195,7 @@ class EnvConfig:
     progress_reward: float = _reward(0.2)
     lane_keeping_reward: float = _reward(0.3)
     departure_reward: float = _reward(-0.5)
+    overtaking_reward: float = _reward(0.0)
     departure_terminal: bool = setting(False)
     info_metrics: bool = setting(False)
 

@@ -119,8 +119,8 @@ class ALDMHighwayEnv(AbstractEnv):
     ## Rewards
 
     ``r = Σ_k w_k · r_k`` with weights from the config (``*_reward`` keys), then, if
-    ``normalize_reward``, mapped linearly from ``[collision + departure, positive sum]``
-    to ``[0, 1]``:
+    ``normalize_reward``, mapped linearly from the least possible sum (collision +
+    departure - overtaking) to the greatest (the positive weights) onto ``[0, 1]``:
 
     | term                  | default | value                                          |
     |-----------------------|---------|------------------------------------------------|
@@ -131,6 +131,7 @@ class ALDMHighwayEnv(AbstractEnv):
     | `lane_keeping_reward` | 0.3     | max(0, 1 - abs(offset) / (lane width / 2))     |
     | `right_lane_reward`   | 0.0     | lane id / (lanes - 1), 1 on the rightmost lane |
     | `lane_change_reward`  | 0.0     | 1 if the action was LANE_LEFT/RIGHT            |
+    | `overtaking_reward`   | 0.0     | vehicles passed - passed by, clipped to [-1, 1]|
 
     ## Episode End
 
@@ -196,6 +197,7 @@ class ALDMHighwayEnv(AbstractEnv):
         self.acc_command: LongitudinalCommand | None = None
         """The longitudinal controller's output at the last simulation step."""
         self._s_before = 0.0
+        self._passing_before: dict[int, float] = {}
         self._space_seed: int | None = None
         self.scenario: ScenarioRunner | None = None
         """This episode's scenario run (``scenario.xosc`` set), else None."""
@@ -430,6 +432,7 @@ class ALDMHighwayEnv(AbstractEnv):
         dt = 1.0 / s.simulation_frequency
         assert self.referee is not None
         self._s_before = self.lane_position.s
+        self._passing_before = outcome.passing_positions(self.vehicle, self.road.vehicles)
         self.referee.begin_step()
         if not s.manual_control:
             self.action_type.act(action)  # raises InputError on a bad action (None too)
@@ -464,6 +467,10 @@ class ALDMHighwayEnv(AbstractEnv):
             self._s_before,
             self.referee.departed_step,
             self.action_type.is_lane_change(action),
+            outcome.net_overtakes(
+                self._passing_before,
+                outcome.passing_positions(self.vehicle, self.road.vehicles),
+            ),
         )
 
     def _reward(self, action: Any) -> float:

@@ -29,8 +29,45 @@ REWARD_TERMS = (
     "lane_keeping_reward",
     "right_lane_reward",
     "lane_change_reward",
+    "overtaking_reward",
 )
 """The reward terms, each weighted by the setting of the same name."""
+
+TERM_RANGES: dict[str, tuple[float, float]] = {"overtaking_reward": (-1.0, 1.0)}
+"""The range of each term that is not [0, 1] (for ``normalize_reward``)."""
+
+PASSING_WINDOW = (60.0, 15.0)
+"""Where another vehicle counts for ``overtaking_reward``: within this distance ahead or
+behind and to either side of the ego, in the ego's frame [m], before and after the step."""
+
+
+def passing_positions(ego: Any, vehicles: Any) -> dict[int, float]:
+    """How far ahead of the ego each other vehicle within :data:`PASSING_WINDOW` is:
+    ``{id(vehicle): x}``, x along the ego's heading [m] (> 0 ahead)."""
+    reach, side = PASSING_WINDOW
+    cos_h, sin_h = math.cos(ego.heading), math.sin(ego.heading)
+    ex, ey = float(ego.position[0]), float(ego.position[1])
+    out: dict[int, float] = {}
+    for vehicle in vehicles:
+        if vehicle is ego:
+            continue
+        dx, dy = float(vehicle.position[0]) - ex, float(vehicle.position[1]) - ey
+        x = dx * cos_h + dy * sin_h
+        if abs(x) <= reach and abs(dy * cos_h - dx * sin_h) <= side:
+            out[id(vehicle)] = x
+    return out
+
+
+def net_overtakes(before: dict[int, float], after: dict[int, float]) -> int:
+    """Vehicles the ego passed minus vehicles that passed the ego between two
+    :func:`passing_positions` (only those in the window at both times count)."""
+    net = 0
+    for key, x_after in after.items():
+        x_before = before.get(key)
+        if x_before is None:
+            continue
+        net += int(x_before > 0.0 >= x_after) - int(x_before <= 0.0 < x_after)
+    return net
 
 
 def reward_terms(
@@ -40,13 +77,17 @@ def reward_terms(
     s_before: float,
     departed: bool,
     lane_change: bool,
+    overtakes: int = 0,
 ) -> dict[str, float]:
-    """The reward terms of a policy step, each in [0, 1] (``info["rewards"]``).
+    """The reward terms of a policy step (``info["rewards"]``), each in [0, 1] but
+    those of :data:`TERM_RANGES`.
 
     :param pos: the ego's true lane position after the step.
     :param s_before: its arc length before the step [m].
     :param departed: a lane departure happened during the step.
     :param lane_change: the action requested a lane change.
+    :param overtakes: vehicles passed minus vehicles passed by during the step
+        (:func:`net_overtakes`).
     """
     lo, hi = settings.reward_speed_range
     forward_speed = ego.speed * math.cos(ego.heading - pos.heading)
@@ -59,18 +100,24 @@ def reward_terms(
         "lane_keeping_reward": float(max(0.0, 1.0 - abs(pos.offset) / (0.5 * pos.width))),
         "right_lane_reward": pos.index / max(pos.lanes - 1, 1),
         "lane_change_reward": float(lane_change),
+        "overtaking_reward": float(np.clip(overtakes, -1, 1)),
     }
 
 
 def reward(settings: EnvConfig, terms: dict[str, float]) -> float:
     """``Σ_k w_k · r_k`` with the weights of the settings; with ``normalize_reward``
-    mapped linearly from ``[sum of negative weights, sum of positive weights]`` to
-    ``[0, 1]``."""
+    mapped linearly from the least to the greatest possible sum (each term at the end
+    of its range, [0, 1] or :data:`TERM_RANGES`, that makes ``w_k · r_k`` least or
+    greatest: for [0, 1] terms the sums of the negative and of the positive weights)
+    to ``[0, 1]``."""
     weights = {name: getattr(settings, name) for name in terms}
     total = sum(weights[name] * value for name, value in terms.items())
     if settings.normalize_reward:
-        neg = sum(min(w, 0.0) for w in weights.values())
-        pos = sum(max(w, 0.0) for w in weights.values())
+        neg = pos = 0.0
+        for name, w in weights.items():
+            lo, hi = TERM_RANGES.get(name, (0.0, 1.0))
+            neg += min(w * lo, w * hi)
+            pos += max(w * lo, w * hi)
         if pos > neg:
             total = utils.lmap(total, [neg, pos], [0.0, 1.0])
     return float(total)

@@ -38,7 +38,13 @@ from pathlib import Path
 from typing import Any, ClassVar, Generic, Protocol, TypeVar
 
 from aldm_gym import ENV_ID
-from aldm_gym.errors import CheckpointError, MissingRLDependencies, ResumeError, TrainingWarning
+from aldm_gym.errors import (
+    CheckpointError,
+    ConfigError,
+    MissingRLDependencies,
+    ResumeError,
+    TrainingWarning,
+)
 from aldm_gym.training.lock import output_lock
 from aldm_gym.training.outputs import (
     TRAINING_FILE,
@@ -107,10 +113,13 @@ class Backend(ABC, Generic[C]):
     :cvar stops_at_once: the first signal stops the training at once (its last
         consistent state is always at hand), rather than at the end of the chunk of
         training in progress.
+    :cvar algorithms: the algorithms it trains (class names, ``training.json``'s
+        ``algorithm``; :data:`~aldm_gym.training.settings.ALGORITHMS`).
     """
 
     name: ClassVar[str]
     stops_at_once: ClassVar[bool]
+    algorithms: ClassVar[tuple[str, ...]] = ("PPO",)
 
     def __init__(
         self, out: Path, meta: Mapping[str, Any], saved: Mapping[str, Any] | None, progress: bool
@@ -130,6 +139,19 @@ class Backend(ABC, Generic[C]):
     def require() -> None:
         """Import the backend's libraries, or raise
         :class:`~aldm_gym.errors.MissingRLDependencies` saying how to install them."""
+
+    @classmethod
+    def require_algorithm(cls, algorithm: str) -> None:
+        """Refuse an algorithm this backend does not train (and, in a subclass, import
+        what it needs).
+
+        :raises ConfigError: naming the algorithm and the backend's ones.
+        """
+        if algorithm not in cls.algorithms:
+            known = ", ".join(cls.algorithms)
+            raise ConfigError(
+                f"the {_TITLES.get(cls.name, cls.name)} backend trains {known}, not {algorithm}"
+            )
 
     def session(self) -> AbstractContextManager[Any]:
         """What the training runs in (the RLlib backend's Ray instance); nothing here."""
@@ -250,6 +272,7 @@ def train_with(
     params: PPOParams | None,
     resume: bool,
     progress: bool,
+    algorithm: str = "PPO",
     **options: Any,
 ) -> B:
     """Train (or resume) with a backend, holding the lock of ``out``; the backend,
@@ -260,11 +283,14 @@ def train_with(
     :param config: the ``ALDMHighway-v0`` config of a new training
         (:func:`~aldm_gym.training.settings.env_config`).
     :param params: hyperparameters of a new training (None: the defaults).
+    :param algorithm: the algorithm of a new training (a class name of
+        :data:`~aldm_gym.training.settings.ALGORITHMS`; a resume keeps the saved one).
     :param options: the backend's own arguments.
     :raises FileExistsError: ``out`` holds a training and ``resume`` is False.
     :raises FileNotFoundError: ``resume`` without a ``training.json`` in ``out``.
     :raises ResumeError: ``resume`` of another backend's training.
-    :raises ConfigError: a run setting out of range.
+    :raises ConfigError: a run setting out of range, or an algorithm the backend does
+        not train.
     :raises OutputLocked: another training is writing ``out``.
     :raises KeyboardInterrupt: stopped by a signal (after saving a checkpoint).
     """
@@ -282,10 +308,12 @@ def train_with(
         run, report = resolve_run_settings(given, saved, backend_type.name)
         if saved is not None:
             config, params = saved["env_config"], PPOParams.saved(saved["ppo"])
+            algorithm = str(saved.get("algorithm", "PPO"))
         else:
             config, params = dict(config), params or PPOParams()
+        backend_type.require_algorithm(algorithm)
         meta = {
-            "algorithm": "PPO",
+            "algorithm": algorithm,
             "backend": backend_type.name,
             "env_id": ENV_ID,
             "env_config": config,

@@ -4,7 +4,7 @@ Output folder of a training (``aldm-gym train --out <out>``), both backends::
 
     <out>/training.json        backend, env config, hyperparameters, run settings
     <out>/train.lock           held (``flock``) by the training writing the folder
-    <out>/tb/                  tensorboard events (SB3: PPO_1/, RLlib: RLlib_PPO/)
+    <out>/tb/                  tensorboard events (SB3: PPO_1/ or MaskablePPO_1/, RLlib: RLlib_PPO/)
 
     stable-baselines3 (:mod:`aldm_gym.training.sb3`):
     <out>/model.zip            final model

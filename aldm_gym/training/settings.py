@@ -43,6 +43,23 @@ VALIDATION_SEED = 20_000
 LR_SCHEDULES = ("constant", "linear")
 """Learning-rate schedules of :class:`PPOParams`."""
 
+ALGORITHMS: dict[str, str] = {"ppo": "PPO", "maskable-ppo": "MaskablePPO"}
+"""The learning algorithms by ``--algo`` name, each to its class name (``training.json``'s
+``algorithm``): stable-baselines3's PPO, and sb3-contrib's MaskablePPO, which samples
+only the actions the env's ``action_masks()`` allows (lane changes only towards a
+detected adjacent lane)."""
+
+
+def algorithm_name(algo: str) -> str:
+    """The class name of ``--algo`` ``algo`` (:data:`ALGORITHMS`).
+
+    :raises ConfigError: an unknown algorithm, naming the known ones.
+    """
+    if algo not in ALGORITHMS:
+        raise ConfigError(f"algo must be one of {tuple(ALGORITHMS)}, got {algo!r}")
+    return ALGORITHMS[algo]
+
+
 RUN_DEFAULTS: dict[str, dict[str, int]] = {
     "sb3": {
         "timesteps": DEFAULT_TIMESTEPS,
@@ -127,10 +144,13 @@ def env_config(
     duration: float | None = None,
     vehicles_count: int | None = None,
     collision_reward: float | None = None,
+    overtaking_reward: float | None = None,
 ) -> dict[str, Any]:
     """The ``ALDMHighway-v0`` config of a training (only keys that differ from defaults).
 
     :param collision_reward: weight of the collision term of the reward (env: -1).
+    :param overtaking_reward: weight of the overtaking term (vehicles passed minus
+        passed by; env: 0).
     :raises ConfigError: unknown detector or marking model.
     """
     if detector not in DETECTORS:
@@ -144,6 +164,8 @@ def env_config(
         config["vehicles_count"] = int(vehicles_count)
     if collision_reward is not None:
         config["collision_reward"] = float(collision_reward)
+    if overtaking_reward is not None:
+        config["overtaking_reward"] = float(overtaking_reward)
     return config
 
 

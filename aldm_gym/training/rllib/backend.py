@@ -49,7 +49,12 @@ from aldm_gym.training.rllib.checkpoints import (
 )
 from aldm_gym.training.rllib.cluster import connect
 from aldm_gym.training.rllib.config import ppo_config
-from aldm_gym.training.settings import DEFAULT_COLLISION_REWARD, PPOParams, env_config
+from aldm_gym.training.settings import (
+    DEFAULT_COLLISION_REWARD,
+    PPOParams,
+    algorithm_name,
+    env_config,
+)
 from aldm_gym.training.signals import StopRequest
 
 logger = logging.getLogger(__name__)
@@ -271,9 +276,11 @@ def train_rllib(
     duration: float | None = None,
     vehicles_count: int | None = None,
     collision_reward: float | None = DEFAULT_COLLISION_REWARD,
+    overtaking_reward: float | None = None,
     params: PPOParams | None = None,
     resume: bool = False,
     progress: bool = True,
+    algo: str = "ppo",
 ) -> int:
     """Train (or resume) a PPO policy with RLlib; return the steps trained [env steps].
 
@@ -288,8 +295,11 @@ def train_rllib(
     :param seed: seed of the envs and networks (0).
     :param checkpoint_freq: checkpoint every this many env steps (default
         :data:`~aldm_gym.training.settings.DEFAULT_CHECKPOINT_FREQ`), and at the end.
-    :param duration, vehicles_count, collision_reward: env overrides, as for
+    :param duration, vehicles_count, collision_reward, overtaking_reward: env overrides, as for
         :func:`~aldm_gym.training.sb3.backend.train`.
+    :param algo: ``"ppo"``, the one algorithm of this backend (``"maskable-ppo"`` is
+        refused with a :class:`~aldm_gym.errors.ConfigError`: action masks are trained
+        on the SB3 backend only).
     :param resume: continue from the newest complete checkpoint of ``out`` with the env
         config, hyperparameters and run settings of its ``training.json`` (settings
         given here override the saved ones).
@@ -312,10 +322,13 @@ def train_rllib(
             "seed": seed,
             "checkpoint_freq": checkpoint_freq,
         },
-        config=env_config(detector, marking_model, duration, vehicles_count, collision_reward),
+        config=env_config(
+            detector, marking_model, duration, vehicles_count, collision_reward, overtaking_reward
+        ),
         params=params,
         resume=resume,
         progress=progress,
+        algorithm=algorithm_name(algo),
         address=address,
     )
     return backend.steps

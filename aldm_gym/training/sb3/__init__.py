@@ -25,7 +25,7 @@ from typing import Any
 from aldm_gym.errors import MissingRLDependencies
 from aldm_gym.training.backend import import_extra
 
-__all__ = ["MissingRLDependencies", "import_sb3"]
+__all__ = ["MissingRLDependencies", "import_sb3", "model_class"]
 
 
 def import_sb3() -> Any:
@@ -39,3 +39,28 @@ def import_sb3() -> Any:
     import stable_baselines3
 
     return stable_baselines3
+
+
+def model_class(algorithm: str) -> Any:
+    """The SB3 model class of an algorithm name (``training.json``'s ``algorithm``):
+    stable-baselines3's ``PPO``, or sb3-contrib's ``MaskablePPO``.
+
+    :raises MissingRLDependencies: its library is missing.
+    :raises ValueError: an algorithm without an SB3 class.
+    """
+    import_sb3()
+    if algorithm == "PPO":
+        from stable_baselines3 import PPO
+
+        return PPO
+    if algorithm == "MaskablePPO":
+        import_extra(
+            ("sb3_contrib",),
+            MissingRLDependencies,
+            "MaskablePPO needs sb3-contrib",
+            "rl",
+        )
+        from sb3_contrib import MaskablePPO
+
+        return MaskablePPO
+    raise ValueError(f"no SB3 model class for the algorithm {algorithm!r}")

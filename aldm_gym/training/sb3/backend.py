@@ -49,7 +49,7 @@ from aldm_gym.training.outputs import (
     VECNORM_FILE,
     write_bytes_atomic,
 )
-from aldm_gym.training.sb3 import import_sb3
+from aldm_gym.training.sb3 import import_sb3, model_class
 from aldm_gym.training.sb3.checkpoints import (
     Checkpoint,
     Snapshot,
@@ -63,6 +63,7 @@ from aldm_gym.training.settings import (
     DEFAULT_COLLISION_REWARD,
     RUN_DEFAULTS,
     PPOParams,
+    algorithm_name,
     env_config,
 )
 from aldm_gym.training.signals import StopRequest
@@ -85,6 +86,7 @@ class SB3Backend(Backend[Checkpoint]):
 
     name: ClassVar[str] = "sb3"
     stops_at_once: ClassVar[bool] = True
+    algorithms: ClassVar[tuple[str, ...]] = ("PPO", "MaskablePPO")
 
     def __init__(
         self,
@@ -110,6 +112,12 @@ class SB3Backend(Backend[Checkpoint]):
         """Import stable-baselines3 and torch (:func:`~aldm_gym.training.sb3.import_sb3`)."""
         import_sb3()
 
+    @classmethod
+    def require_algorithm(cls, algorithm: str) -> None:
+        """Refuse an unknown algorithm; import sb3-contrib for MaskablePPO."""
+        super().require_algorithm(algorithm)
+        model_class(algorithm)
+
     @contextmanager
     def session(self) -> Iterator[None]:
         """Torch on one thread: the envs need the cores; the MLP is tiny."""
@@ -129,7 +137,6 @@ class SB3Backend(Backend[Checkpoint]):
     def restore(self, checkpoint: Checkpoint) -> str:
         """Load the model and normalisation of ``checkpoint`` onto new envs; with the
         saved ``n_envs`` and ``seed``, put the envs and RNGs back as they were."""
-        from stable_baselines3 import PPO
         from stable_baselines3.common.vec_env import VecNormalize
 
         run, saved = self.meta, self.saved or {}
@@ -142,8 +149,10 @@ class SB3Backend(Backend[Checkpoint]):
         self.venv = make_vec_env(run["env_config"], run["n_envs"], run["seed"] + done)
         self.venv = VecNormalize.load(str(checkpoint.vecnormalize), self.venv)
         self.venv.training = True
-        # PPO.load takes n_envs from venv and rebuilds the rollout buffer for it.
-        self.model = PPO.load(checkpoint.model, env=self.venv, device="cpu")
+        # load takes n_envs from venv and rebuilds the rollout buffer for it.
+        self.model = model_class(run["algorithm"]).load(
+            checkpoint.model, env=self.venv, device="cpu"
+        )
         self.model.tensorboard_log = str(self.out / TENSORBOARD_DIR)
         self.done, self.resumed = done, True
         if exact:
@@ -157,8 +166,7 @@ class SB3Backend(Backend[Checkpoint]):
         )
 
     def build(self) -> None:
-        """A new PPO model on new, normalised envs."""
-        from stable_baselines3 import PPO
+        """A new model (PPO or MaskablePPO) on new, normalised envs."""
         from stable_baselines3.common.vec_env import VecNormalize
 
         run, params = self.meta, self.params
@@ -167,7 +175,7 @@ class SB3Backend(Backend[Checkpoint]):
             norm_reward=False,
             clip_obs=10.0,
         )
-        self.model = PPO(
+        self.model = model_class(run["algorithm"])(
             "MultiInputPolicy",
             self.venv,
             n_steps=params.n_steps,
@@ -223,7 +231,7 @@ class SB3Backend(Backend[Checkpoint]):
                 total_timesteps=self.meta["timesteps"] - self.done,
                 callback=callbacks,
                 reset_num_timesteps=not self.resumed,
-                tb_log_name="PPO",
+                tb_log_name=self.meta["algorithm"],
             )
         # The state after the last update (also when resumed with nothing left to do),
         # taken while the envs are open.
@@ -264,6 +272,7 @@ class SB3Backend(Backend[Checkpoint]):
 def train(
     out: Path,
     *,
+    algo: str = "ppo",
     detector: str = "aldm",
     marking_model: str = "per_dash",
     timesteps: int | None = None,
@@ -273,6 +282,7 @@ def train(
     duration: float | None = None,
     vehicles_count: int | None = None,
     collision_reward: float | None = DEFAULT_COLLISION_REWARD,
+    overtaking_reward: float | None = None,
     params: PPOParams | None = None,
     validation_freq: int | None = None,
     validation_episodes: int | None = None,
@@ -285,6 +295,9 @@ def train(
 
     :param out: output folder (its files: :mod:`aldm_gym.training.outputs`); held
         locked while training.
+    :param algo: ``"ppo"`` (stable-baselines3) or ``"maskable-ppo"`` (sb3-contrib's
+        MaskablePPO: actions the env's ``action_masks()`` rules out are never sampled);
+        a resume keeps the training's own.
     :param timesteps: total policy steps of the training (counting steps done before a
         resume), rounded up to whole rollouts (``n_steps × n_envs``); default
         :data:`~aldm_gym.training.settings.DEFAULT_TIMESTEPS`.
@@ -292,8 +305,8 @@ def train(
     :param seed: seed of the envs (``seed + i`` for the i-th) and the network (0).
     :param checkpoint_freq: save a checkpoint every this many steps [policy steps]
         (default :data:`~aldm_gym.training.settings.DEFAULT_CHECKPOINT_FREQ`).
-    :param duration, vehicles_count, collision_reward: env overrides (None: the env's
-        defaults).
+    :param duration, vehicles_count, collision_reward, overtaking_reward: env overrides
+        (None: the env's defaults).
 
     The defaults (one env, 49152 steps, collision weight -2, linearly decaying learning
     rate) are the recipe of ``docs/results.md`` (b). It is sensitive to the rollout size:
@@ -331,10 +344,13 @@ def train(
             "validation_freq": validation_freq,
             "validation_episodes": validation_episodes,
         },
-        config=env_config(detector, marking_model, duration, vehicles_count, collision_reward),
+        config=env_config(
+            detector, marking_model, duration, vehicles_count, collision_reward, overtaking_reward
+        ),
         params=params,
         resume=resume,
         progress=progress,
+        algorithm=algorithm_name(algo),
         verbose=verbose,
         callback=callback,
     )

@@ -6,14 +6,18 @@ import pickle
 from pathlib import Path
 from typing import Any
 
-from aldm_gym.errors import CheckpointError
+from aldm_gym.errors import CheckpointError, InputError
 from aldm_gym.training.outputs import TRAINING_FILE, find_training_file, read_training_record
-from aldm_gym.training.sb3 import import_sb3
+from aldm_gym.training.sb3 import model_class
 from aldm_gym.training.sb3.checkpoints import vecnormalize_for
 
 
 class NormalizedModel:
     """A trained model with its frozen observation normalisation, SB3 ``predict``.
+
+    A MaskablePPO model takes the env's action mask (``info["action_mask"]``) in
+    ``predict(..., action_masks=...)``; :attr:`uses_action_masks` tells
+    :func:`~aldm_gym.agents.episodes.run_episode` to pass it.
 
     :ivar model: the SB3 model.
     :ivar vecnormalize: its ``VecNormalize`` (statistics only), or None.
@@ -22,6 +26,11 @@ class NormalizedModel:
     def __init__(self, model: Any, vecnormalize: Any = None) -> None:
         self.model = model
         self.vecnormalize = vecnormalize
+
+    @property
+    def uses_action_masks(self) -> bool:
+        """The model acts on the env's action mask (MaskablePPO)."""
+        return type(self.model).__name__ == "MaskablePPO"
 
     @property
     def num_timesteps(self) -> int:
@@ -34,12 +43,29 @@ class NormalizedModel:
         state: Any = None,
         episode_start: Any = None,
         deterministic: bool = True,
+        action_masks: Any = None,
     ) -> tuple[Any, Any]:
-        """``(action, state)``; observations normalised as in training."""
+        """``(action, state)``; observations normalised as in training.
+
+        :param action_masks: the env's action mask (``(5,)`` bool), for a MaskablePPO
+            model (None: every action allowed); refused by a PPO model.
+        :raises InputError: a mask given to a model that does not use one.
+        """
         if self.vecnormalize is not None:
             observation = self.vecnormalize.normalize_obs(observation)
+        kwargs: dict[str, Any] = {}
+        if action_masks is not None:
+            if not self.uses_action_masks:
+                raise InputError(
+                    f"{type(self.model).__name__} takes no action_masks (MaskablePPO does)"
+                )
+            kwargs["action_masks"] = action_masks
         return self.model.predict(
-            observation, state=state, episode_start=episode_start, deterministic=deterministic
+            observation,
+            state=state,
+            episode_start=episode_start,
+            deterministic=deterministic,
+            **kwargs,
         )
 
 
@@ -51,11 +77,9 @@ def load_policy(model_path: Path) -> tuple[NormalizedModel, dict[str, Any]]:
         parent folder.
     :raises CheckpointError: the model, its normalisation or its ``training.json`` is
         corrupt (naming the file).
-    :raises MissingRLDependencies: stable-baselines3 / torch missing.
+    :raises MissingRLDependencies: stable-baselines3 / torch missing (or sb3-contrib
+        for a MaskablePPO model).
     """
-    import_sb3()
-    from stable_baselines3 import PPO
-
     model_path = Path(model_path)
     if not model_path.is_file():
         raise FileNotFoundError(f"no model file {model_path}")
@@ -65,8 +89,13 @@ def load_policy(model_path: Path) -> tuple[NormalizedModel, dict[str, Any]]:
             f"no {TRAINING_FILE} next to {model_path} (written by aldm-gym train)"
         )
     meta = read_training_record(meta_path)
+    algorithm = str(meta.get("algorithm", "PPO"))
     try:
-        model = PPO.load(model_path, device="cpu")
+        cls = model_class(algorithm)
+    except ValueError as exc:
+        raise CheckpointError(f"{meta_path}: {exc}") from None
+    try:
+        model = cls.load(model_path, device="cpu")
     except Exception as exc:  # a corrupt zip fails in zipfile, pickle or torch
         raise CheckpointError(
             f"{model_path}: not a readable model ({type(exc).__name__}: {exc})"

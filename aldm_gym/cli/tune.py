@@ -1,0 +1,114 @@
+"""``aldm-gym tune``: a hyperparameter search over short trainings (optuna).
+
+Runs :func:`~aldm_gym.training.tune.tune`: ``--trials`` ``aldm-gym train`` runs of
+``--timesteps`` steps each, ``--jobs`` at once, with hyperparameters from
+:data:`~aldm_gym.training.tune.SEARCH_SPACE`, each scored on its validation seeds. It
+writes ``<out>/trials.csv`` and ``<out>/best.json`` (with the command that trains the
+best trial's hyperparameters with the full budget); a folder with a study continues it.
+optuna is imported only when the command runs (the ``[tune]`` extra).
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+from typing import Any
+
+from tqdm import tqdm
+
+from aldm_gym.cli.argtypes import int_in, make_output_dir, output_dir, positive_int, seed
+from aldm_gym.errors import MissingRLDependencies
+from aldm_gym.roads.highway import MARKING_MODELS
+from aldm_gym.sensor.detectors import DETECTORS
+from aldm_gym.training.settings import (
+    ALGORITHMS,
+    DEFAULT_VALIDATION_EPISODES,
+    DEFAULT_VALIDATION_FREQ,
+)
+
+DEFAULT_TRIALS = 12
+"""Default ``--trials``."""
+
+DEFAULT_TRIAL_TIMESTEPS = 16_384
+"""Default ``--timesteps`` of one trial [policy steps]."""
+
+
+def add_parser(subparsers: Any) -> argparse.ArgumentParser:
+    """Declare ``aldm-gym tune`` and its arguments."""
+    parser = subparsers.add_parser(
+        "tune", help="search PPO hyperparameters over short trainings (optuna)"
+    )
+    parser.add_argument("--trials", type=positive_int, default=DEFAULT_TRIALS, help="trials in all")
+    parser.add_argument(
+        "--jobs", type=int_in(1, 64), default=2, help="trials at once, a process each"
+    )
+    parser.add_argument(
+        "--timesteps",
+        type=positive_int,
+        default=DEFAULT_TRIAL_TIMESTEPS,
+        help="policy steps of each trial",
+    )
+    parser.add_argument("--algo", choices=tuple(ALGORITHMS), default="maskable-ppo")
+    parser.add_argument("--detector", choices=DETECTORS, default="aldm")
+    parser.add_argument("--marking-model", choices=MARKING_MODELS, default="per_dash")
+    parser.add_argument("--seed", type=seed, default=0, help="training seed of every trial")
+    parser.add_argument("--sampler-seed", type=seed, default=0, help="seed of optuna's sampler")
+    parser.add_argument(
+        "--validation-freq",
+        type=positive_int,
+        default=DEFAULT_VALIDATION_FREQ,
+        help="validate every this many steps",
+    )
+    parser.add_argument(
+        "--validation-episodes",
+        type=positive_int,
+        default=DEFAULT_VALIDATION_EPISODES,
+        help="episodes per validation (the score's)",
+    )
+    parser.add_argument("--out", type=output_dir, default=Path("out/tune"), help="output folder")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parser.set_defaults(func=run)
+    return parser
+
+
+def run(args: argparse.Namespace) -> int:
+    """``aldm-gym tune``."""
+    from aldm_gym.training.tune import BEST_FILE, TRIALS_TABLE, tune
+
+    out = make_output_dir(args.out)
+    fixed = {
+        "algo": args.algo,
+        "detector": args.detector,
+        "marking_model": args.marking_model,
+        "timesteps": args.timesteps,
+        "seed": args.seed,
+        "validation_freq": args.validation_freq,
+        "validation_episodes": args.validation_episodes,
+    }
+    t0 = time.perf_counter()
+    with tqdm(total=args.trials, desc="trials", unit="trial", disable=args.no_progress) as bar:
+
+        def on_trial(trial: Any) -> None:
+            bar.update(1)
+            if trial.value is not None:
+                bar.set_postfix(last=f"{trial.value:.2f}")
+
+        try:
+            best = tune(
+                out,
+                trials=args.trials,
+                jobs=args.jobs,
+                seed=args.sampler_seed,
+                fixed=fixed,
+                on_trial=on_trial,
+            )
+        except MissingRLDependencies as exc:
+            raise SystemExit(f"aldm-gym tune: {exc}") from None
+    print(
+        f"{best['trials']} trials in {time.perf_counter() - t0:.0f} s; best trial "
+        f"{best['trial']} (score {best['score']:.2f}: {best['kept'].get('mean_speed', 0):.2f} "
+        f"m/s, success {best['kept'].get('success_rate', 0):.2f} on the validation seeds); "
+        f"wrote {out / TRIALS_TABLE} and {out / BEST_FILE}\ntrain it with: {best['command']}"
+    )
+    return 0

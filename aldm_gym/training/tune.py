@@ -1,0 +1,257 @@
+"""A hyperparameter search over short trainings: :func:`tune` (``aldm-gym tune``).
+
+Each trial is one ``aldm-gym train`` run (a subprocess, in ``<out>/trials/<n>/``) with
+hyperparameters an optuna TPE sampler proposes from :data:`SEARCH_SPACE`; ``jobs``
+trials run at once. A trial is scored on its validation episodes (seeds
+``VALIDATION_SEED ..``, never the evaluation seeds) by the model the training kept
+(``best_model.zip``, the best mean return):
+
+    score = mean speed [m/s] - FAILURE_PENALTY * (1 - success rate)
+
+so an episode with a collision or a lane departure in 20 costs 0.5 m/s. The reward's
+weights are part of the search, so the mean return is not comparable across trials;
+the score is what the results compare (speed, with no more collisions or departures).
+
+Why optuna: its TPE sampler is the standard for few, expensive trials, its study is
+stored in SQLite (``<out>/study.db``), so an interrupted search continues where it
+stopped with the trials already done, and its trials table is the record the docs
+quote. It is the ``[tune]`` extra.
+
+Files: ``<out>/study.db`` (the optuna study), ``<out>/trials/<n>/`` (each training and
+its ``train.log``), ``<out>/trials.csv`` (one row per trial: number, state, score,
+hyperparameters, kept steps, wall time) and ``<out>/best.json`` (the best trial and the
+``aldm-gym train`` command that trains it with the full budget).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import logging
+import shlex
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from aldm_gym.errors import MissingRLDependencies
+from aldm_gym.training.backend import import_extra
+from aldm_gym.training.outputs import VALIDATION_FILE, write_json
+
+logger = logging.getLogger(__name__)
+
+FAILURE_PENALTY = 10.0
+"""Score lost per unit of failed-episode share [m/s] (one failure in 20 costs 0.5)."""
+
+STUDY_FILE = "study.db"
+"""The optuna study (SQLite) in the search's folder."""
+
+TRIALS_DIR = "trials"
+"""Sub-folder of the trials' trainings."""
+
+TRIALS_TABLE = "trials.csv"
+"""One row per trial."""
+
+BEST_FILE = "best.json"
+"""The best trial and the command that trains it."""
+
+
+@dataclass(frozen=True)
+class Choice:
+    """A categorical hyperparameter: one of ``values``."""
+
+    values: tuple[Any, ...]
+
+
+@dataclass(frozen=True)
+class LogRange:
+    """A continuous hyperparameter, sampled log-uniformly in ``[low, high]``."""
+
+    low: float
+    high: float
+
+
+SEARCH_SPACE: dict[str, Choice | LogRange] = {
+    "gamma": Choice((0.8, 0.9, 0.95)),
+    "learning_rate": LogRange(1e-4, 1e-3),
+    "n_steps": Choice((128, 256, 512)),
+    "ent_coef": LogRange(1e-3, 5e-2),
+    "collision_reward": Choice((-1.0, -2.0, -3.0)),
+    "overtaking_reward": Choice((0.0, 0.1, 0.3)),
+}
+"""What the search varies: each name is an ``aldm-gym train`` flag (``_`` for ``-``)."""
+
+
+class TrialFailed(RuntimeError):
+    """A trial's training exited with an error (its ``train.log`` says why)."""
+
+
+def import_optuna() -> Any:
+    """Import optuna, or raise :class:`~aldm_gym.errors.MissingRLDependencies` saying
+    how to install the ``[tune]`` extra."""
+    import_extra(("optuna",), MissingRLDependencies, "the search needs optuna", "rl,tune")
+    import optuna
+
+    return optuna
+
+
+def score(validation: Mapping[str, Any]) -> tuple[float, dict[str, Any]]:
+    """A trial's score from its ``validation.json`` (the kept model's row), and that row.
+
+    :raises TrialFailed: no validation was recorded.
+    """
+    rows = [h for h in validation.get("history", []) if h["steps"] == validation.get("best_steps")]
+    if not rows:
+        raise TrialFailed("the training recorded no validation")
+    row = rows[0]
+    return float(row["mean_speed"]) - FAILURE_PENALTY * (1.0 - float(row["success_rate"])), row
+
+
+def train_command(
+    params: Mapping[str, Any],
+    fixed: Mapping[str, Any],
+    out: Path,
+    python: str = sys.executable,
+    progress: bool = False,
+) -> list[str]:
+    """The ``aldm-gym train`` command line of a trial (``python -m aldm_gym train``).
+
+    :param params: the sampled hyperparameters (names of :data:`SEARCH_SPACE`); floats
+        are passed with 4 significant digits (what the trial trains with).
+    :param fixed: the other flags (``algo``, ``detector``, ``timesteps``, ...; None
+        values are left out).
+    """
+    cmd = [python, "-m", "aldm_gym", "train", "--out", str(out)]
+    if not progress:
+        cmd.append("--no-progress")
+    for name, value in {**fixed, **params}.items():
+        if value is not None:
+            text = f"{value:.4g}" if isinstance(value, float) else str(value)
+            cmd += ["--" + name.replace("_", "-"), text]
+    return cmd
+
+
+def _suggest(trial: Any) -> dict[str, Any]:
+    params: dict[str, Any] = {}
+    for name, space in SEARCH_SPACE.items():
+        if isinstance(space, Choice):
+            params[name] = trial.suggest_categorical(name, list(space.values))
+        else:
+            params[name] = trial.suggest_float(name, space.low, space.high, log=True)
+    return params
+
+
+def _run_trial(trial: Any, out: Path, fixed: Mapping[str, Any]) -> float:
+    """Train one trial in a subprocess and score it."""
+    params = _suggest(trial)
+    folder = out / TRIALS_DIR / f"{trial.number:03d}"
+    cmd = train_command(params, fixed, folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
+    with open(folder / "train.log", "w") as log:
+        code = subprocess.run(cmd, stdout=log, stderr=subprocess.STDOUT, check=False).returncode
+    trial.set_user_attr("wall_s", round(time.perf_counter() - t0, 1))
+    if code != 0:
+        raise TrialFailed(f"trial {trial.number} exited with {code}; see {folder / 'train.log'}")
+    value, row = score(json.loads((folder / VALIDATION_FILE).read_text()))
+    for key in ("steps", "mean_speed", "success_rate", "collisions"):
+        trial.set_user_attr(key, row[key])
+    baselines = json.loads((folder / VALIDATION_FILE).read_text()).get("baselines", {})
+    if "rule_based" in baselines:
+        trial.set_user_attr("rule_based_speed", baselines["rule_based"]["mean_speed"])
+    return value
+
+
+def tune(
+    out: Path,
+    *,
+    trials: int = 12,
+    jobs: int = 2,
+    seed: int = 0,
+    fixed: Mapping[str, Any] | None = None,
+    on_trial: Callable[[Any], None] | None = None,
+) -> dict[str, Any]:
+    """Run (or continue) the search until ``trials`` trials have finished; the best.
+
+    :param out: the search's folder (see the module docstring); a folder with a study
+        continues it.
+    :param trials: trials in all, counting those of an earlier run [trials].
+    :param jobs: trials at once (each is a training in its own process).
+    :param seed: seed of the sampler (the trainings use ``fixed["seed"]``).
+    :param fixed: the flags every trial's ``aldm-gym train`` gets (``algo``,
+        ``detector``, ``marking_model``, ``timesteps``, ``seed``,
+        ``validation_freq``, ``validation_episodes``, ...).
+    :param on_trial: called with each finished trial.
+    :return: ``best.json``'s content.
+    :raises MissingRLDependencies: optuna missing.
+    :raises TrialFailed: no trial finished.
+    """
+    optuna = import_optuna()
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    fixed = dict(fixed or {})
+    study = optuna.create_study(
+        study_name="aldm-gym",
+        storage=f"sqlite:///{out / STUDY_FILE}",
+        load_if_exists=True,
+        direction="maximize",
+        sampler=optuna.samplers.TPESampler(seed=seed, n_startup_trials=min(6, trials)),
+    )
+    done = sum(t.state.name == "COMPLETE" for t in study.trials)
+    callbacks = [] if on_trial is None else [lambda _study, trial: on_trial(trial)]
+    if trials > done:
+        study.optimize(
+            lambda trial: _run_trial(trial, out, fixed),
+            n_trials=trials - done,
+            n_jobs=jobs,
+            catch=(TrialFailed,),
+            callbacks=callbacks,
+        )
+    write_table(study.trials, out / TRIALS_TABLE)
+    complete = [t for t in study.trials if t.state.name == "COMPLETE"]
+    if not complete:
+        raise TrialFailed(f"no trial finished; see the train.log files in {out / TRIALS_DIR}")
+    best = max(complete, key=lambda t: t.value)
+    record = {
+        "trial": best.number,
+        "score": best.value,
+        "params": best.params,
+        "kept": best.user_attrs,
+        "fixed": fixed,
+        "command": shlex.join(
+            [
+                "aldm-gym",
+                *train_command(best.params, _full_budget(fixed), Path("OUT"), progress=True)[3:],
+            ]
+        ),
+        "trials": len(complete),
+    }
+    write_json(out / BEST_FILE, record)
+    return record
+
+
+def _full_budget(fixed: Mapping[str, Any]) -> dict[str, Any]:
+    """The best trial's flags without the search's budget (the full training's own)."""
+    return {k: v for k, v in fixed.items() if k != "timesteps"}
+
+
+def write_table(trials: Sequence[Any], path: Path) -> None:
+    """One row per trial: number, state, score, hyperparameters and what it kept."""
+    extra = ("steps", "mean_speed", "success_rate", "collisions", "rule_based_speed", "wall_s")
+    with open(path, "w", newline="") as fh:
+        writer = csv.writer(fh)
+        writer.writerow(["trial", "state", "score", *SEARCH_SPACE, *extra])
+        for t in trials:
+            writer.writerow(
+                [
+                    t.number,
+                    t.state.name,
+                    "" if t.value is None else f"{t.value:.4f}",
+                    *(t.params.get(name, "") for name in SEARCH_SPACE),
+                    *(t.user_attrs.get(name, "") for name in extra),
+                ]
+            )
