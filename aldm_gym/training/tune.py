@@ -134,6 +134,12 @@ def train_command(
     return cmd
 
 
+def launch(cmd: Sequence[str], log: Path) -> int:
+    """Run a trial's training, its output to ``log``; its exit code."""
+    with open(log, "w") as fh:
+        return subprocess.run(cmd, stdout=fh, stderr=subprocess.STDOUT, check=False).returncode
+
+
 def _suggest(trial: Any) -> dict[str, Any]:
     params: dict[str, Any] = {}
     for name, space in SEARCH_SPACE.items():
@@ -151,8 +157,7 @@ def _run_trial(trial: Any, out: Path, fixed: Mapping[str, Any]) -> float:
     cmd = train_command(params, fixed, folder)
     folder.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
-    with open(folder / "train.log", "w") as log:
-        code = subprocess.run(cmd, stdout=log, stderr=subprocess.STDOUT, check=False).returncode
+    code = launch(cmd, folder / "train.log")
     trial.set_user_attr("wall_s", round(time.perf_counter() - t0, 1))
     if code != 0:
         raise TrialFailed(f"trial {trial.number} exited with {code}; see {folder / 'train.log'}")

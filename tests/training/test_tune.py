@@ -1,0 +1,120 @@
+"""``aldm-gym tune``: the search's bookkeeping (scores, table, best command, continuing a
+study, failed trials), with a stand-in for the training each trial runs."""
+
+from __future__ import annotations
+
+import csv
+import json
+import subprocess
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+import pytest
+
+pytest.importorskip("optuna")
+
+from aldm_gym.training import tune as tune_module
+from aldm_gym.training.tune import (
+    FAILURE_PENALTY,
+    SEARCH_SPACE,
+    TrialFailed,
+    score,
+    train_command,
+    tune,
+)
+
+FAKE_TRAIN = """
+import json, sys
+args = dict(zip(sys.argv[1::2], sys.argv[2::2]))
+gamma = float(args["--gamma"])
+if gamma == 0.95 and args.get("--fail") == "1":
+    sys.exit(3)
+row = {"steps": 64, "mean_return": 1.0, "mean_speed": 20 + 10 * gamma,
+       "success_rate": 0.9 if float(args["--collision-reward"]) == -1 else 1.0, "collisions": 0}
+json.dump({"best_steps": 64, "history": [row],
+           "baselines": {"rule_based": {"mean_speed": 25.0}}},
+          open(args["--out"] + "/validation.json", "w"))
+"""
+
+
+@pytest.fixture
+def fake_training(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Trials run :data:`FAKE_TRAIN` instead of a training: speed from gamma, a
+    failure in 10 episodes with collision weight -1."""
+
+    def launch(cmd: Sequence[str], log: Path) -> int:
+        assert list(cmd[1:4]) == ["-m", "aldm_gym", "train"] and "--no-progress" in cmd
+        flags = [a for a in cmd[4:] if a != "--no-progress"]
+        return subprocess.run([sys.executable, "-c", FAKE_TRAIN, *flags], check=False).returncode
+
+    monkeypatch.setattr(tune_module, "launch", launch)
+
+
+def test_score_is_the_kept_models_speed_less_the_failures() -> None:
+    rows = [
+        {"steps": 10, "mean_speed": 30.0, "success_rate": 0.5},
+        {"steps": 20, "mean_speed": 25.0, "success_rate": 0.9},
+    ]
+    value, row = score({"best_steps": 20, "history": rows})
+    assert row is rows[1]
+    assert value == pytest.approx(25.0 - FAILURE_PENALTY * 0.1)
+    with pytest.raises(TrialFailed, match="no validation"):
+        score({"best_steps": 5, "history": rows})
+
+
+def test_train_command_passes_every_flag() -> None:
+    cmd = train_command(
+        {"learning_rate": 0.000123456, "n_steps": 256},
+        {"algo": "maskable-ppo", "seed": None},
+        Path("o"),
+        python="py",
+    )
+    assert cmd == [
+        *("py", "-m", "aldm_gym", "train", "--out", "o", "--no-progress"),
+        *("--algo", "maskable-ppo", "--learning-rate", "0.0001235", "--n-steps", "256"),
+    ]
+
+
+def test_search_writes_table_and_best_and_continues(tmp_path: Path, fake_training: None) -> None:
+    seen: list[int] = []
+    best = tune(
+        tmp_path,
+        trials=4,
+        jobs=2,
+        fixed={"timesteps": 64},
+        on_trial=lambda t: seen.append(t.number),
+    )
+    assert sorted(seen) == [0, 1, 2, 3]
+    with open(tmp_path / "trials.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    assert [r["trial"] for r in rows] == ["0", "1", "2", "3"]
+    assert list(rows[0])[3 : 3 + len(SEARCH_SPACE)] == list(SEARCH_SPACE)
+    scores = {int(r["trial"]): float(r["score"]) for r in rows}
+    assert best["trial"] == max(scores, key=scores.get)
+    expected = 20 + 10 * best["params"]["gamma"]
+    if best["params"]["collision_reward"] == -1.0:
+        expected -= FAILURE_PENALTY * 0.1
+    assert best["score"] == pytest.approx(expected)
+    assert best["kept"]["rule_based_speed"] == 25.0
+    # The command trains the best trial with the full budget (no --timesteps).
+    assert best["command"].startswith("aldm-gym train --out OUT")
+    assert "--timesteps" not in best["command"] and "--no-progress" not in best["command"]
+    assert json.loads((tmp_path / "best.json").read_text())["trial"] == best["trial"]
+
+    # The same folder continues the study: two more trials, four kept.
+    again = tune(tmp_path, trials=6, jobs=1, fixed={"timesteps": 64})
+    assert again["trials"] == 6
+    assert sorted(p.name for p in (tmp_path / "trials").iterdir()) == [f"{i:03d}" for i in range(6)]
+
+
+def test_failed_trials_are_recorded_not_fatal(tmp_path: Path, fake_training: None) -> None:
+    best = tune(tmp_path, trials=6, jobs=1, seed=1, fixed={"fail": 1})
+    with open(tmp_path / "trials.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    failed = [r for r in rows if r["state"] == "FAIL"]
+    # The sampler seeded 1 proposes gamma 0.95 (which the stand-in fails) in six trials.
+    assert len(rows) == 6 and failed
+    assert [r for r in rows if r["gamma"] == "0.95"] == failed
+    assert all(r["score"] == "" for r in failed)
+    assert best["trials"] == 6 - len(failed) and best["params"]["gamma"] != 0.95
