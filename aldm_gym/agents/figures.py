@@ -22,11 +22,13 @@ _TRACES = {
 """matplotlib style of each detector's offset trace (others: grey)."""
 
 
-def plot_validation(record: dict[str, Any], path: Path) -> None:
+def plot_validation(record: dict[str, Any], path: Path, label: str = "PPO") -> None:
     """Plot a ``validation.json`` record: return, collisions and speed over training.
 
     Horizontal lines: IDLE and the rule-based LCA on the same seeds; the dotted
     vertical line marks the kept (best) model.
+
+    :param label: the trained policy's legend (its algorithm).
     """
     import matplotlib
 
@@ -43,7 +45,7 @@ def plot_validation(record: dict[str, Any], path: Path) -> None:
     )
     fig, axes = plt.subplots(len(panels), 1, figsize=(6.4, 6.4), sharex=True)
     for ax, (key, label) in zip(axes, panels, strict=True):
-        ax.plot(steps, [h[key] for h in history], "o-", color="C0", label="PPO")
+        ax.plot(steps, [h[key] for h in history], "o-", color="C0", label=label)
         colours = {"idle": "C7", "rule_based": "C2"}
         for name, base in record.get("baselines", {}).items():
             ax.axhline(base[key], color=colours.get(name, "C1"), ls="--", lw=1, label=name)
@@ -53,6 +55,61 @@ def plot_validation(record: dict[str, Any], path: Path) -> None:
     axes[0].legend(fontsize=8, loc="best")
     axes[-1].set_xlabel("training steps")
     fig.suptitle(f"validation on seeds {record['seeds'][0]}..{record['seeds'][1]}", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def plot_learning_curves(
+    groups: Mapping[str, list[tuple[str, dict[str, Any]]]], path: Path, label: str = "PPO"
+) -> None:
+    """Validation curves of several trainings: mean speed and collisions over training
+    steps, one column per group (e.g. per detector), one line per training (seed).
+
+    :param groups: ``title -> [(run label, validation.json record)]``; the dashed lines
+        are the first record's baselines (IDLE, rule-based LCA) on the same seeds, and
+        a ring marks each run's kept model.
+    :param label: the trained policies' name in the titles.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    titles = list(groups)
+    fig, axes = plt.subplots(
+        2, len(titles), figsize=(4.6 * len(titles), 6.0), sharex=True, squeeze=False
+    )
+    colours = {"idle": "C7", "rule_based": "C2"}
+    names = {"idle": "IDLE", "rule_based": "rule-based LCA"}
+    for col, title in enumerate(titles):
+        runs = groups[title]
+        for key, ax in zip(("mean_speed", "collisions"), axes[:, col], strict=True):
+            for i, (run, record) in enumerate(runs):
+                steps = [h["steps"] for h in record["history"]]
+                values = [h[key] for h in record["history"]]
+                ax.plot(steps, values, "o-", ms=3, lw=1.2, color=f"C{i % 10}", label=run)
+                kept = [h[key] for h in record["history"] if h["steps"] == record["best_steps"]]
+                if kept:
+                    ax.plot(record["best_steps"], kept[0], "o", ms=9, mfc="none", color=f"C{i}")
+            if runs:
+                for name, base in runs[0][1].get("baselines", {}).items():
+                    ax.axhline(
+                        base[key],
+                        color=colours.get(name, "C1"),
+                        ls="--",
+                        lw=1,
+                        label=names.get(name, name),
+                    )
+            ax.grid(alpha=0.3)
+        seeds = runs[0][1]["seeds"] if runs else [0, 0]
+        n = seeds[1] - seeds[0] + 1
+        axes[0, col].set_title(f"{label}, {title} observations", fontsize=10)
+        axes[0, col].set_ylabel("mean speed [m/s]")
+        axes[1, col].set_ylabel(f"collisions [of {n} episodes]")
+        axes[1, col].set_xlabel("training steps")
+        axes[0, col].legend(fontsize=7, loc="lower right")
+    fig.suptitle("validation during training (ring: the kept model)", fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

@@ -290,7 +290,7 @@ class ValidationCallback(BaseCallback):
             "history": self.history,
         }
         write_json(self.out / VALIDATION_FILE, record)
-        plot_validation(record, self.out / VALIDATION_PLOT)
+        plot_validation(record, self.out / VALIDATION_PLOT, label=type(self.model).__name__)
         report(format_validation(row, self.baselines, self.n_episodes, self.best is row))
 
 
