@@ -42,8 +42,10 @@ from __future__ import annotations
 import copy
 import dataclasses
 import importlib
+import os
 from collections.abc import Mapping
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any, NoReturn
 
 from aldm_gym.config import Rule, check_keys, rules, section, setting, validate
@@ -52,7 +54,7 @@ from aldm_gym.envs.control import LKAConfig
 from aldm_gym.envs.longitudinal import ACCConfig
 from aldm_gym.envs.observation import ObservationConfig
 from aldm_gym.envs.traffic.mix import TrafficConfig
-from aldm_gym.errors import ConfigError
+from aldm_gym.errors import ConfigError, ScenarioError
 from aldm_gym.osi.settings import OsiConfig
 from aldm_gym.roads.highway import MARKING_MODELS, RoadConfig
 from aldm_gym.roads.map_road import OpenDriveRoad
@@ -452,6 +454,21 @@ def validate_config(config: Mapping[str, Any]) -> dict[str, Any]:
     return parse_config(config)[1]
 
 
+def read_config_scenario(settings: EnvConfig) -> Any:
+    """The scenario ``scenario.xosc`` names, read with ``scenario.parameters``.
+
+    :raises ScenarioError: the file is missing (the message names the config key) or
+        the player cannot play it (the message names file, line and element).
+    """
+    from aldm_gym.scenario import read_scenario
+
+    xosc = settings.scenario.xosc
+    if not Path(xosc).is_file():
+        where = "" if Path(xosc).is_absolute() else f" (relative to {os.getcwd()!r})"
+        raise ScenarioError(f"scenario.xosc={xosc!r}: no such scenario file{where}")
+    return read_scenario(xosc, settings.scenario.parameters)
+
+
 def load_map(settings: EnvConfig, scenario: Any = None) -> OpenDriveRoad | None:
     """The map road of settings with ``road.xodr`` or a scenario (its ``LogicFile``;
     ``scenario``: the scenario already read, else it is read here), read once per file
@@ -463,9 +480,7 @@ def load_map(settings: EnvConfig, scenario: Any = None) -> OpenDriveRoad | None:
     road = settings.road
     if settings.scenario.enabled:
         if scenario is None:
-            from aldm_gym.scenario import read_scenario
-
-            scenario = read_scenario(settings.scenario.xosc, settings.scenario.parameters)
+            scenario = read_config_scenario(settings)
         return OpenDriveRoad.from_file(str(scenario.map_path), marking_model=settings.marking_model)
     if not isinstance(road, MapConfig):
         return None

@@ -34,6 +34,7 @@ from aldm_gym.envs.config import (
     map_lanes_count,
     merged_config,
     parse_config,
+    read_config_scenario,
 )
 from aldm_gym.envs.control import LKAController
 from aldm_gym.envs.longitudinal import LongitudinalCommand, LongitudinalController
@@ -225,9 +226,7 @@ class ALDMHighwayEnv(AbstractEnv):
         settings, view = parse_config(merged)
         scenario = None
         if settings.scenario.enabled:
-            from aldm_gym.scenario import read_scenario
-
-            scenario = read_scenario(settings.scenario.xosc, settings.scenario.parameters)
+            scenario = read_config_scenario(settings)
         on_map = load_map(settings, scenario)
         if on_map is not None:
             # The map sets these (settings and view are this call's own): its lane count,

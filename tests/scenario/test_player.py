@@ -220,6 +220,16 @@ def test_unknown_parameter_reference_is_named(tmp_path: Path) -> None:
         read_scenario(path)
 
 
+def test_a_missing_scenario_in_the_env_config_names_the_key(tmp_path: Path) -> None:
+    import gymnasium as gym
+
+    from aldm_gym import ENV_ID
+
+    missing = tmp_path / "nope.xosc"
+    with pytest.raises(ScenarioError, match=r"scenario\.xosc=.*nope\.xosc.*no such scenario"):
+        gym.make(ENV_ID, config={"scenario": {"xosc": str(missing)}}).reset(seed=0)
+
+
 def test_missing_catalog_entry_is_named(tmp_path: Path) -> None:
     catalog = tmp_path / "catalogs"
     catalog.mkdir()
