@@ -1,7 +1,7 @@
 """``aldm-gym train``: train (or resume) a PPO lane-change policy.
 
-``--algo maskable-ppo`` trains sb3-contrib's MaskablePPO on the env's action masks
-(SB3 backend).
+``--algo maskable-ppo`` trains PPO on the env's action masks (sb3-contrib's
+MaskablePPO, or RLlib's action-masking module).
 
 ``--backend sb3`` (the default) trains with stable-baselines3 on this machine
 (:func:`~aldm_gym.training.sb3.backend.train`); ``--backend rllib`` with Ray RLlib on a
@@ -121,9 +121,9 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         "--algo",
         choices=tuple(ALGORITHMS),
         default=None,
-        help="ppo: stable-baselines3's PPO; maskable-ppo: sb3-contrib's MaskablePPO, which "
-        "never samples a lane change the env's action mask rules out (sb3 backend only) "
-        "(ppo; --resume: the training's)",
+        help="ppo: PPO; maskable-ppo: PPO that never samples a lane change the env's action "
+        "mask rules out (sb3: sb3-contrib's MaskablePPO; rllib: RLlib's action-masking "
+        "module) (ppo; --resume: the training's)",
     )
     parser.add_argument(
         "--detector", choices=DETECTORS, default=None, help="lanes in the observation (aldm)"
@@ -259,8 +259,6 @@ def _backend(args: argparse.Namespace, meta: dict[str, Any] | None) -> str:
         raise BadArgument(
             "--backend", f"{backend} contradicts the training being resumed ({saved}); omit it"
         )
-    if backend != "sb3" and args.algo not in (None, "ppo"):
-        raise BadArgument("--algo", f"{args.algo} is trained on --backend sb3 only")
     for other, dests in _ONLY.items():
         if other == backend:
             continue

@@ -71,7 +71,8 @@ def evaluate(
     :param detector, marking_model: override the training env's (None: as trained).
     :return: rows (``idle``, ``rule_based``, ``model``) with the
         :func:`~aldm_gym.agents.episodes.summarize` metrics and ``policy``; and the
-        evaluation's env config, model metadata and, per policy, each episode's mean
+        evaluation's env config, model metadata (``algorithm``: ``"PPO"`` or
+        ``"MaskablePPO"``; ``timesteps``) and, per policy, each episode's mean
         speed [m/s] and whether it collided (``per_episode``, in seed order).
     :raises FileNotFoundError, CheckpointError: see
         :func:`~aldm_gym.training.models.load_policy`.
@@ -109,6 +110,7 @@ def evaluate(
         "env_config": config,
         "trained_on": meta["env_config"],
         "timesteps": int(policy.num_timesteps),
+        "algorithm": meta.get("algorithm", "PPO"),
         "seeds": [seed, seed + episodes - 1],
         "per_episode": per_episode,
     }

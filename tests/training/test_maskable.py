@@ -114,17 +114,12 @@ def test_ppo_model_refuses_a_mask(tmp_path: Path) -> None:
     env.close()
 
 
-def test_rllib_backend_refuses_maskable_ppo(capsys: pytest.CaptureFixture, tmp_path: Path) -> None:
-    argv = ["train", "--backend", "rllib", "--algo", "maskable-ppo", "--out", str(tmp_path / "r")]
-    assert "argument --algo: maskable-ppo is trained on --backend sb3 only" in usage_error(
-        argv, capsys
-    )
-
-
-def test_backend_refuses_an_algorithm_it_does_not_train() -> None:
+def test_both_backends_train_both_algorithms_and_name_the_others() -> None:
     from aldm_gym.training.rllib.backend import RLlibBackend
     from aldm_gym.training.sb3.backend import SB3Backend
 
-    SB3Backend.require_algorithm("MaskablePPO")
-    with pytest.raises(ConfigError, match="the RLlib backend trains PPO, not MaskablePPO"):
-        RLlibBackend.require_algorithm("MaskablePPO")
+    for backend in (SB3Backend, RLlibBackend):
+        backend.require_algorithm("PPO")
+        backend.require_algorithm("MaskablePPO")
+    with pytest.raises(ConfigError, match="the RLlib backend trains PPO, MaskablePPO, not DQN"):
+        RLlibBackend.require_algorithm("DQN")

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from aldm_gym.errors import InputError
 from aldm_gym.training.rllib.checkpoints import checkpoint_steps, newest_checkpoint
 from aldm_gym.training.settings import PPOParams
 
@@ -226,3 +227,113 @@ def test_sigterm_finishes_the_iteration_and_saves_it(rllib: object, tmp_path: Pa
     assert "stopping after this iteration" in err and "continue with --resume" in err
     saved = newest_checkpoint(out)
     assert saved is not None and checkpoint_steps(saved) >= 64  # no checkpoint was due
+
+
+def test_masked_ppo_config_adds_the_mask_after_the_filter(rllib: object) -> None:
+    import gymnasium as gym
+
+    from aldm_gym.training.rllib.config import ppo_config
+    from aldm_gym.training.rllib.masking import AddActionMask, MaskedPPOModule, masked_space
+
+    cfg = ppo_config(SHORT, PPOParams(), timesteps=1024, masked=True)
+    pieces = [type(p).__name__ for p in cfg._env_to_module_connector(None, None, None)]
+    assert pieces == ["FlattenObservations", "MeanStdFilter", "AddActionMask"]
+    assert cfg.rl_module_spec.module_class is MaskedPPOModule
+    assert cfg.rl_module_spec.model_config["fcnet_hiddens"] == [128, 128]
+    space = masked_space(gym.spaces.Box(-1.0, 1.0, (7,)), 5)
+    assert space["action_mask"].shape == (5,) and space["observations"].shape == (7,)
+    piece = AddActionMask()
+    with pytest.raises(InputError, match="action masks need discrete actions"):
+        piece.recompute_output_observation_space(space["observations"], space["observations"])
+
+
+class _Episode:
+    def __init__(self, info: dict) -> None:
+        self.info = info
+
+    def get_infos(self, index: int) -> dict:
+        return self.info
+
+
+def test_the_mask_piece_reads_the_info_and_names_a_missing_mask(rllib: object) -> None:
+    from aldm_gym.training.rllib.masking import AddActionMask
+
+    piece = AddActionMask()
+    obs = np.arange(3.0)
+    out = piece.preprocess(obs, _Episode({"action_mask": np.array([1, 0, 1, 1, 0], bool)}))
+    assert out["action_mask"].dtype == np.float32
+    assert out["action_mask"].tolist() == [1, 0, 1, 1, 0] and out["observations"] is obs
+    with pytest.raises(InputError, match="the env's info has no 'action_mask'"):
+        piece.preprocess(obs, _Episode({"speed": 1.0}))
+
+
+@pytest.fixture(scope="module")
+def masked(rllib: object, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """``aldm-gym train --backend rllib --algo maskable-ppo``: 64 steps, then resumed
+    to 128 without ``--algo`` (the training's algorithm is kept)."""
+    from aldm_gym.cli import main
+
+    out = tmp_path_factory.mktemp("masked")
+    argv = ["train", "--backend", "rllib", "--num-env-runners", "1", "--n-steps", "64"]
+    argv += ["--duration", "10", "--checkpoint-freq", "64", "--no-progress", "--out", str(out)]
+    assert main([*argv, "--algo", "maskable-ppo", "--timesteps", "64"]) == 0
+    assert main([*argv, "--timesteps", "128", "--resume"]) == 0
+    return out
+
+
+def test_a_masked_checkpoint_never_chooses_a_masked_action(masked: Path) -> None:
+    import gymnasium as gym
+
+    from aldm_gym import ENV_ID
+    from aldm_gym.training.models import load_policy
+
+    meta = json.loads((masked / "training.json").read_text())
+    assert meta["algorithm"] == "MaskablePPO" and meta["timesteps"] == 128
+    policy, meta = load_policy(masked / "rllib_model")
+    assert policy.uses_action_masks and policy.num_timesteps == 128
+    env = gym.make(ENV_ID, config=meta["env_config"])
+    obs, info = env.reset(seed=3)
+    free = policy.logits(obs, np.ones(5, bool))
+    for allowed in ([1, 1, 1, 1, 1], [0, 1, 0, 1, 1], [1, 0, 1, 0, 0], [0, 0, 0, 0, 1]):
+        mask = np.array(allowed, bool)
+        logits = policy.logits(obs, mask)
+        assert np.array_equal(logits[mask], free[mask])  # the mask changes only the others
+        assert np.all(logits[~mask] < -1e38)
+        assert mask[int(policy.predict(obs, action_masks=mask)[0])]
+        drawn = {int(policy.predict(obs, deterministic=False, action_masks=mask)[0])}
+        assert all(mask[a] for a in drawn)
+    # No mask given: every action allowed.
+    assert np.array_equal(policy.logits(obs), free)
+    with pytest.raises(InputError, match="5 booleans, one per action"):
+        policy.logits(obs, np.ones(3, bool))
+    # Stochastic play on the env's masks issues no command the env refuses.
+    for _ in range(40):
+        action, _ = policy.predict(obs, deterministic=False, action_masks=info["action_mask"])
+        obs, _, terminated, truncated, info = env.step(action)
+        assert not info["lane_change_refused"]
+        if terminated or truncated:
+            obs, info = env.reset()
+    env.close()
+
+
+def test_an_unmasked_checkpoint_refuses_a_mask(trained: Path) -> None:
+    import gymnasium as gym
+
+    from aldm_gym import ENV_ID
+    from aldm_gym.training.models import load_policy
+
+    policy, meta = load_policy(trained / "rllib_model")
+    env = gym.make(ENV_ID, config=meta["env_config"])
+    obs, info = env.reset(seed=0)
+    assert not policy.uses_action_masks
+    with pytest.raises(InputError, match="trained without action masks"):
+        policy.predict(obs, action_masks=info["action_mask"])
+    env.close()
+
+
+def test_evaluate_gives_a_masked_checkpoint_the_env_mask(masked: Path) -> None:
+    from aldm_gym.training.model_evaluation import evaluate
+
+    rows, info = evaluate(masked / "rllib_model", episodes=2, progress=False)
+    assert [r["policy"] for r in rows] == ["idle", "rule_based", "model"]
+    assert info["timesteps"] == 128 and info["algorithm"] == "MaskablePPO"

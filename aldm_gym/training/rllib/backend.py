@@ -126,6 +126,7 @@ class RLlibBackend(Backend[CheckpointRef]):
 
     name: ClassVar[str] = "rllib"
     stops_at_once: ClassVar[bool] = False
+    algorithms: ClassVar[tuple[str, ...]] = ("PPO", "MaskablePPO")
 
     def __init__(
         self,
@@ -186,6 +187,7 @@ class RLlibBackend(Backend[CheckpointRef]):
             timesteps=meta["timesteps"],
             num_env_runners=meta["num_env_runners"],
             seed=meta["seed"] + done,
+            masked=meta["algorithm"] == "MaskablePPO",
         ).build_algo()
         self.steps = self.last_saved = done
 
@@ -297,9 +299,8 @@ def train_rllib(
         :data:`~aldm_gym.training.settings.DEFAULT_CHECKPOINT_FREQ`), and at the end.
     :param duration, vehicles_count, collision_reward, overtaking_reward: env overrides, as for
         :func:`~aldm_gym.training.sb3.backend.train`.
-    :param algo: ``"ppo"``, the one algorithm of this backend (``"maskable-ppo"`` is
-        refused with a :class:`~aldm_gym.errors.ConfigError`: action masks are trained
-        on the SB3 backend only).
+    :param algo: ``"ppo"``, or ``"maskable-ppo"``: PPO through RLlib's action-masking
+        module (:mod:`aldm_gym.training.rllib.masking`); a resume keeps the training's.
     :param resume: continue from the newest complete checkpoint of ``out`` with the env
         config, hyperparameters and run settings of its ``training.json`` (settings
         given here override the saved ones).

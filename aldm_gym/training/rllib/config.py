@@ -13,7 +13,10 @@ RLlib's current API stack (RLModule, Learner, EnvRunner, ConnectorV2):
   norm clipped at 0.5, no value clipping, separate 128×128 tanh networks for policy
   and value; the rollout of one update is ``n_steps`` per env runner (SB3: per env);
   a ``"linear"`` learning rate decays to 0 over the budget as RLlib's piecewise
-  schedule over sampled env steps.
+  schedule over sampled env steps;
+* with ``masked`` (MaskablePPO), the pipeline adds the step's ``info["action_mask"]``
+  after the filter and RLlib's action-masking module applies it
+  (:mod:`aldm_gym.training.rllib.masking`).
 """
 
 from __future__ import annotations
@@ -48,6 +51,7 @@ def ppo_config(
     timesteps: int,
     num_env_runners: int = DEFAULT_ENV_RUNNERS,
     seed: int = 0,
+    masked: bool = False,
 ) -> Any:
     """RLlib's ``PPOConfig`` of a training (see the module docstring for the mapping).
 
@@ -55,6 +59,7 @@ def ppo_config(
     :param timesteps: the budget [env steps] (the end of a linear learning rate).
     :param num_env_runners: remote env runners (0: sample in the driver).
     :param seed: seed of the env runners' envs and of the networks.
+    :param masked: mask the actions the env rules out (MaskablePPO).
     """
     import_rllib()
     from ray.rllib.algorithms.ppo import PPOConfig
@@ -65,6 +70,18 @@ def ppo_config(
     lr: Any = params.learning_rate
     if params.lr_schedule == "linear":
         lr = [[0, params.learning_rate], [int(timesteps), 0.0]]
+    model_config = {
+        "fcnet_hiddens": list(params.net_arch),
+        "fcnet_activation": "tanh",
+        "vf_share_layers": False,
+    }
+    connectors: Any = flatten_and_normalise
+    module: dict[str, Any] = {"model_config": model_config}
+    if masked:
+        from aldm_gym.training.rllib.masking import masked_connectors, masking_module_spec
+
+        connectors = masked_connectors
+        module = {"rl_module_spec": masking_module_spec(model_config)}
     return (
         PPOConfig()
         .environment(RLLIB_ENV_ID, env_config={"config": dict(config)})
@@ -72,7 +89,7 @@ def ppo_config(
             num_env_runners=num_env_runners,
             num_envs_per_env_runner=1,
             rollout_fragment_length="auto",
-            env_to_module_connector=flatten_and_normalise,
+            env_to_module_connector=connectors,
         )
         .training(
             train_batch_size_per_learner=rollout,
@@ -88,13 +105,7 @@ def ppo_config(
             vf_clip_param=float("inf"),
             grad_clip=0.5,
         )
-        .rl_module(
-            model_config={
-                "fcnet_hiddens": list(params.net_arch),
-                "fcnet_activation": "tanh",
-                "vf_share_layers": False,
-            }
-        )
+        .rl_module(**module)
         .debugging(seed=seed, log_level="ERROR")
         .reporting(metrics_num_episodes_for_smoothing=100)
     )

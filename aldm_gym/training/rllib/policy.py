@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from aldm_gym.errors import CheckpointError
+from aldm_gym.errors import CheckpointError, InputError
 from aldm_gym.training.outputs import TRAINING_FILE, find_training_file, read_training_record
 from aldm_gym.training.rllib import MissingRayDependencies, import_rllib
 from aldm_gym.training.rllib.checkpoints import (
@@ -32,6 +32,11 @@ class RLlibPolicy:
     then the training's running mean/std, frozen here: playing does not change the
     statistics), the RLModule gives the action logits; deterministic play takes their
     argmax (RLlib's own choice with ``explore=False``).
+
+    A checkpoint of a masked training (``--algo maskable-ppo``) takes the env's action
+    mask (``predict(..., action_masks=info["action_mask"])``, :attr:`uses_action_masks`):
+    its pipeline ends in :class:`~aldm_gym.training.rllib.masking.AddActionMask`, which
+    reads it from the step's info as in training.
 
     :param path: an RLlib checkpoint folder written by a training.
     :ivar num_timesteps: env steps trained when the checkpoint was written.
@@ -58,12 +63,38 @@ class RLlibPolicy:
                 piece._update_stats = False
         self._rng = np.random.default_rng(0)
 
-    def logits(self, observation: Mapping[str, Any]) -> np.ndarray:
-        """The action logits of one (unbatched) observation, shape ``(n_actions,)``."""
+    @property
+    def uses_action_masks(self) -> bool:
+        """The checkpoint acts on the env's action mask (a masked training's)."""
+        from aldm_gym.training.rllib.masking import AddActionMask
+
+        return any(isinstance(piece, AddActionMask) for piece in self.pipeline.connectors)
+
+    def logits(self, observation: Mapping[str, Any], action_masks: Any = None) -> np.ndarray:
+        """The action logits of one (unbatched) observation, shape ``(n_actions,)``;
+        for a masked checkpoint, those the mask rules out are (about) -3.4e38.
+
+        :param action_masks: the env's action mask, for a masked checkpoint (None:
+            every action allowed).
+        :raises InputError: a mask given to an unmasked checkpoint.
+        """
         import torch
         from ray.rllib.env.single_agent_episode import SingleAgentEpisode
 
-        episode = SingleAgentEpisode(observations=[dict(observation)])
+        info: dict[str, Any] = {}
+        if self.uses_action_masks:
+            from aldm_gym.training.rllib.masking import MASK_KEY
+
+            n = int(self.module.action_space.n)
+            mask = np.ones(n) if action_masks is None else np.asarray(action_masks, np.float64)
+            if mask.shape != (n,) or not np.isin(mask, (0.0, 1.0)).all():
+                raise InputError(
+                    f"action_masks must be {n} booleans, one per action; got {action_masks!r}"
+                )
+            info[MASK_KEY] = mask
+        elif action_masks is not None:
+            raise InputError("this RLlib checkpoint was trained without action masks")
+        episode = SingleAgentEpisode(observations=[dict(observation)], infos=[info])
         batch = self.pipeline(
             rl_module=self.module, batch={}, episodes=[episode], explore=False, shared_data={}
         )
@@ -77,9 +108,11 @@ class RLlibPolicy:
         state: Any = None,
         episode_start: Any = None,
         deterministic: bool = True,
+        action_masks: Any = None,
     ) -> tuple[np.ndarray, Any]:
-        """``(action, state)`` for one observation, as SB3's ``predict``."""
-        logits = self.logits(observation)
+        """``(action, state)`` for one observation, as SB3's ``predict`` (``action_masks``:
+        see :meth:`logits`)."""
+        logits = self.logits(observation, action_masks)
         if deterministic:
             return np.asarray(int(np.argmax(logits))), state
         p = np.exp(logits - logits.max())
