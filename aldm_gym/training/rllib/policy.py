@@ -62,13 +62,10 @@ class RLlibPolicy:
             if hasattr(piece, "_update_stats"):  # MeanStdFilter: freeze the statistics
                 piece._update_stats = False
         self._rng = np.random.default_rng(0)
-
-    @property
-    def uses_action_masks(self) -> bool:
-        """The checkpoint acts on the env's action mask (a masked training's)."""
         from aldm_gym.training.rllib.masking import AddActionMask
 
-        return any(isinstance(piece, AddActionMask) for piece in self.pipeline.connectors)
+        self.uses_action_masks = any(isinstance(p, AddActionMask) for p in self.pipeline.connectors)
+        """The checkpoint acts on the env's action mask (a masked training's)."""
 
     def logits(self, observation: Mapping[str, Any], action_masks: Any = None) -> np.ndarray:
         """The action logits of one (unbatched) observation, shape ``(n_actions,)``;
