@@ -27,21 +27,13 @@ from typing import Any
 
 from aldm_gym import ENV_ID
 from aldm_gym.training.rllib import import_rllib
+from aldm_gym.training.rllib.connectors import flatten_and_normalise
 from aldm_gym.training.settings import DEFAULT_ENV_RUNNERS, PPOParams
 
 RLLIB_ENV_ID = f"aldm_gym:{ENV_ID}"
 """The env as RLlib's workers make it: gymnasium imports ``aldm_gym`` first."""
 
-
-def flatten_and_normalise(env: Any = None, spaces: Any = None, device: Any = None) -> list[Any]:
-    """The env-to-module connectors: flatten the Dict observation, then normalise it.
-
-    RLlib calls it (with the env, the spaces and the device) in every env runner; it is
-    module-level so Ray can ship it by reference.
-    """
-    from ray.rllib.connectors.env_to_module import FlattenObservations, MeanStdFilter
-
-    return [FlattenObservations(), MeanStdFilter(clip_by_value=10.0)]
+__all__ = ["RLLIB_ENV_ID", "flatten_and_normalise", "ppo_config"]
 
 
 def ppo_config(

@@ -28,6 +28,7 @@ import numpy as np
 
 from aldm_gym.errors import InputError
 from aldm_gym.training.rllib import import_rllib
+from aldm_gym.training.rllib.connectors import flatten_and_normalise
 
 import_rllib()
 
@@ -99,10 +100,8 @@ class AddActionMask(SingleAgentObservationPreprocessor):
 
 def masked_connectors(env: Any = None, spaces: Any = None, device: Any = None) -> list[Any]:
     """The env-to-module connectors of the masked path: flatten, normalise (as
-    :func:`~aldm_gym.training.rllib.config.flatten_and_normalise`), then
+    :func:`~aldm_gym.training.rllib.connectors.flatten_and_normalise`), then
     :class:`AddActionMask`."""
-    from aldm_gym.training.rllib.config import flatten_and_normalise
-
     return [*flatten_and_normalise(env, spaces, device), AddActionMask()]
 
 
