@@ -1,13 +1,16 @@
 """Speed of :func:`aldm_gym.sensor.detect_lanes` as a ratio to ``np.argsort``.
 
-Two frames: the paper's worst case (§ALDM, eq. 1: 100 lines × 100 points = 10,000
+Four frames: the paper's worst case (§ALDM, eq. 1: 100 lines × 100 points = 10,000
 points; here 100 parallel continuous markings 3.5 m apart, sampled every 2 m with a
-per-line phase, 2 cm noise) and a typical 4-lane per-dash highway frame. For each,
-the best of 15 repeats of ``detect_lanes`` is divided by the best time of
-``np.argsort`` of the same x coordinates in the same run, repeats interleaved
-(sorting is the floor of any method that orders points). The plain-Python
-reference (all kernels run as Python with ``NUMBA_DISABLE_JIT=1``) is timed on the
-typical frame.
+per-line phase, 2 cm noise); the CarMaker-grid worst case (100 straight solid lines
+3.5 m apart, every line at the sensor's x grid x = 5.52 + 2p, no noise: exact ties in
+x across lines and in y along each line, as CarMaker's sensor delivers a straight
+road); a typical 4-lane per-dash highway frame; and a 4-line CarMaker-grid frame.
+For each, the best of 15 repeats of ``detect_lanes`` is divided by the best time of
+``np.argsort`` of the same frame's x coordinates in the same run, repeats
+interleaved (sorting is the floor of any method that orders points). The
+plain-Python reference (all kernels run as Python with ``NUMBA_DISABLE_JIT=1``) is
+timed on the typical frame.
 
 Run: ``.venv/bin/python benchmarks/bench_aldm.py``
 """
@@ -48,6 +51,20 @@ def typical_frame(seed: int = 0) -> np.ndarray:
     return pts
 
 
+def grid_worst_case_frame(seed: int = 0) -> np.ndarray:
+    """100 straight solid lines 3.5 m apart at the sensor's x grid, no noise, shuffled."""
+    import _synthetic as S
+
+    return S.grid_frame(100, seed=seed)
+
+
+def grid_typical_frame(seed: int = 0) -> np.ndarray:
+    """4 straight solid lines 3.5 m apart at the sensor's x grid (392 points)."""
+    import _synthetic as S
+
+    return S.grid_frame(4, seed=seed)
+
+
 def best_alternating(fns: list, number: int, repeat: int = 15) -> list[float]:
     """Best time per call of each of ``fns``, repeats interleaved (the machine is noisy)."""
     times = [[] for _ in fns]
@@ -73,7 +90,9 @@ def main() -> None:
     rows = []
     for name, pts in (
         ("worst case 10,000 pts", worst_case_frame()),
+        ("CarMaker grid 100 lines", grid_worst_case_frame()),
         ("typical 4-lane per-dash", typical_frame()),
+        ("CarMaker grid 4 lines", grid_typical_frame()),
     ):
         x = pts[:, 0].copy()
         number = 100 if len(pts) > 2000 else 1000

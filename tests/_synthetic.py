@@ -4,10 +4,11 @@ A road is a reference line of constant curvature through the sensor (x forward, 
 left) with markings at lateral offsets ``d(s)`` (piecewise linear in arc length s,
 so lanes can open, close or end). Each marking is sampled about every 2 m along s
 (CarMaker's point spacing, with a random phase per marking so that x values of
-different markings differ, as in the real sensor), clipped to the field of view
+different markings differ), clipped to the field of view
 x in [5.52, 200] m, painted 6 m / gap 12 m when dashed, then lateral noise and
 dropout are applied. Object ids follow the two road models: ``"editor"`` (one object
-per marking) and ``"per_dash"`` (one per dash).
+per marking) and ``"per_dash"`` (one per dash). :func:`grid_frame` is the other
+sampling, CarMaker's own: every line at the sensor's x grid, so x values tie exactly.
 """
 
 from __future__ import annotations
@@ -188,3 +189,33 @@ def worst_case_fig45(radius: float = -500.0, lane_width: float = 3.75) -> SynthR
     for mk in road.markings:
         mk.phase = 5.5 - 6.0
     return road
+
+
+def grid_frame(
+    n_lines: int,
+    *,
+    spacing: float = 3.5,
+    radius: float = np.inf,
+    seed: int = 0,
+) -> np.ndarray:
+    """Solid lines as CarMaker's line sensor samples them: every line at the sensor's x
+    grid (``x = 5.52 + 2 p``, :attr:`~aldm_gym.sensor.line_sensor.LineSensorConfig.x_grid`),
+    so the frame's x values tie exactly across lines, and on a straight road each
+    line's y values tie too. No noise, no dropout; rows shuffled (seeded).
+
+    :param n_lines: parallel lines, ``spacing`` [m] apart, centred on the sensor (an
+        even count puts the sensor mid-lane).
+    :param radius: signed curve radius [m], > 0 left; ``inf`` straight. A curved line
+        is ``y = offset + x^2 / (2 radius)`` on the same x grid.
+    :return: ``(n_lines * 98, 3)`` points (x, y, z = 0) [m].
+    """
+    from aldm_gym.sensor.line_sensor import LineSensorConfig
+
+    x = LineSensorConfig().x_grid
+    bend = np.zeros_like(x) if np.isinf(radius) else x * x / (2.0 * radius)
+    lines = [
+        np.column_stack([x, (j - 0.5 * (n_lines - 1)) * spacing + bend, np.zeros_like(x)])
+        for j in range(n_lines)
+    ]
+    pts = np.concatenate(lines) if lines else np.zeros((0, 3))
+    return pts[np.random.default_rng(seed).permutation(len(pts))]

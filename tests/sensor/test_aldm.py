@@ -132,6 +132,34 @@ def test_straight_road_lines_sorted_13_points_within_data(mode: str) -> None:
     assert np.all(np.isfinite(det.trajectory)) and len(det.trajectory) > 10
 
 
+@pytest.mark.parametrize(
+    ("n_lines", "radius", "mode"),
+    [
+        (4, np.inf, "robust"),
+        (4, np.inf, "paper"),
+        (4, 500.0, "robust"),
+        (4, -500.0, "robust"),
+        (100, np.inf, "robust"),
+        (100, np.inf, "paper"),
+        (100, -500.0, "robust"),
+    ],
+)
+def test_carmaker_grid_frame_lines(n_lines: int, radius: float, mode: str) -> None:
+    """Every line sampled at the sensor's x grid (exact ties in x, and in y on a straight
+    road): the four lines nearest the sensor, on their markings over the whole grid."""
+    pts = S.grid_frame(n_lines, radius=radius)
+    det = detect_lanes(pts, mode=mode)
+    offsets = {"left_adjacent": 5.25, "ego_left": 1.75, "ego_right": -1.75, "right_adjacent": -5.25}
+    reach = 199.52 if mode == "robust" else 183.52  # paper: no window past the view range
+    for name, offset in offsets.items():
+        line = det.line(name)
+        assert line.shape == (13, 2)
+        assert line[0, 0] == 5.52 and line[-1, 0] == reach
+        bend = 0.0 if np.isinf(radius) else line[:, 0] ** 2 / (2.0 * radius)
+        np.testing.assert_allclose(line[:, 1], offset + bend, rtol=0.0, atol=0.005)
+    assert same(det, detect_lanes(pts[::-1], mode=mode))
+
+
 def test_all_points_output_holds_measured_points_in_paper_mode() -> None:
     _road, pts = frame(7, noise=0.01)
     det = detect_lanes(pts, mode="paper", n_points=0)

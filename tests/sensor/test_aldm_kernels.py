@@ -9,9 +9,13 @@ import subprocess
 import sys
 from pathlib import Path
 
+import _synthetic as S
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
+import aldm_gym
 from aldm_gym.sensor.aldm import _packed, detect_lanes, make_params
 from aldm_gym.sensor.aldm_kernels import fit, grid, layout, output, robust, sort
 
@@ -59,12 +63,13 @@ def test_leaf_kernels_python_and_numba_agree_exactly() -> None:
 
 @pytest.mark.parametrize("kind", ["uniform", "ties", "crowded", "constant", "empty"])
 def test_start_region_y_order_is_a_sort(kind: str) -> None:
-    """The start region's y order (the one bucket sort on ``ys[:m]``) is ascending."""
+    """The start region's y order (the one bucket sort on ``ys[:m]``) is the stable
+    ascending order."""
     rng = np.random.default_rng(7)
     ys = rng.uniform(-180.0, 180.0, 1200)
     if kind == "ties":
         ys = np.round(ys / 10.0) * 10.0
-    elif kind == "crowded":  # most values in a few buckets (argsort path), one far outlier
+    elif kind == "crowded":  # most values in a few buckets (further passes), one far outlier
         ys[:1000] = np.round(rng.uniform(0.0, 1.0, 1000), 2)
         ys[1000] = -1e4
     elif kind == "constant":
@@ -72,30 +77,87 @@ def test_start_region_y_order_is_a_sort(kind: str) -> None:
     m = 0 if kind == "empty" else 1000  # only ys[:m] counts
     for order in (sort.bucket_order, sort.bucket_order_py):
         yo = order(ys[:m], ys[:m])
-        np.testing.assert_array_equal(np.sort(yo), np.arange(m))
-        np.testing.assert_array_equal(ys[yo], np.sort(ys[:m]))
+        np.testing.assert_array_equal(yo, np.argsort(ys[:m], kind="stable"))
 
 
-@pytest.mark.parametrize("kind", ["uniform", "ties", "crowded", "subnormal_range"])
-def test_bucket_order_is_the_lexicographic_order(kind: str) -> None:
-    """``_bucket_order(k1, k2)`` orders like ``np.lexsort((k2, k1))`` (as values)."""
+def _sort_keys(kind: str) -> tuple[np.ndarray, np.ndarray]:
+    """``(k1, k2)`` of a named case of :func:`test_bucket_order_is_the_stable_lexsort`."""
     rng = np.random.default_rng(11)
     k1 = rng.uniform(0.0, 200.0, 2000)
     k2 = rng.uniform(-50.0, 50.0, 2000)
     if kind == "ties":
         k1, k2 = np.round(k1), np.round(k2)
-    elif kind == "crowded":
+    elif kind == "crowded":  # a few crowded buckets of mixed x, one far outlier
         k1[:1900] = np.round(rng.uniform(0.0, 1.0, 1900), 1)
         k1[0] = 1e4
-    elif kind == "subnormal_range":
+    elif kind in ("grid", "grid_curve", "grid_duplicates"):  # columns of exact x ties
+        pts = S.grid_frame(100, radius=500.0 if kind == "grid_curve" else np.inf)
+        if kind == "grid_duplicates":  # also exact (x, y) ties
+            pts = np.concatenate([pts, pts[:3000]])
+        k1, k2 = pts[:, 0], pts[:, 1]
+    elif kind == "one_column":  # one x: a pass over y only
+        k1 = np.full(2000, 5.52)
+    elif kind == "constant":  # all (x, y) tie: index order
+        k1, k2 = np.zeros(2000), np.full(2000, -0.0)
+    elif kind == "subnormal_range":  # too narrow to bucket: comparison sort
         k1 = np.where(rng.random(2000) < 0.5, 0.0, 5e-324)
+    elif kind == "tiny_range":  # two adjacent doubles: still bucketed
+        k1 = np.where(rng.random(2000) < 0.5, 1.0, np.nextafter(1.0, 2.0))
+    elif kind == "huge":  # hi - lo would overflow
+        k1 = rng.choice([-1.7e308, -1e300, 0.0, 3.0, 1e307, 1.7e308], 2000)
+        k2 = rng.choice([-np.finfo(float).max, 0.0, np.finfo(float).max], 2000)
+    elif kind == "geometric":  # each pass splits off a few: still crowded after the last
+        k1 = 2.0 ** -rng.permutation(2000).astype(float)
+    return k1, k2
+
+
+@pytest.mark.parametrize(
+    "kind",
+    [
+        "uniform",
+        "ties",
+        "crowded",
+        "grid",
+        "grid_curve",
+        "grid_duplicates",
+        "one_column",
+        "constant",
+        "subnormal_range",
+        "tiny_range",
+        "huge",
+        "geometric",
+    ],
+)
+def test_bucket_order_is_the_stable_lexsort(kind: str) -> None:
+    """``bucket_order(k1, k2)`` is ``np.lexsort((k2, k1))`` exactly: lexicographic, ties
+    in (k1, k2) in index order; the plain-Python twin never overflows."""
+    k1, k2 = _sort_keys(kind)
     want = np.lexsort((k2, k1))
     for order in (sort.bucket_order, sort.bucket_order_py):
-        with np.errstate(over="ignore"):  # plain Python: m / (sub-normal range) is inf
+        with np.errstate(over="raise", divide="raise", invalid="raise"):
             got = order(k1, k2)
-        np.testing.assert_array_equal(np.sort(got), np.arange(len(k1)))
-        np.testing.assert_array_equal(k1[got], k1[want])
-        np.testing.assert_array_equal(k2[got], k2[want])
+        np.testing.assert_array_equal(got, want)
+
+
+@settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    n=st.integers(0, 600),
+    distinct=st.tuples(st.integers(1, 60), st.integers(1, 60)),
+    scale=st.sampled_from([1.0, 200.0, 1e-310, 1e-200, 1e300, 1.7e308]),
+)
+def test_bucket_order_is_the_stable_lexsort_on_tied_keys(
+    seed: int, n: int, distinct: tuple[int, int], scale: float
+) -> None:
+    """Keys drawn from a few values (columns of ties, as on the sensor's x grid), at
+    any magnitude: the order of ``np.lexsort((k2, k1))``, compiled and plain Python."""
+    rng = np.random.default_rng(seed)
+    k1 = rng.choice(rng.uniform(-1.0, 1.0, distinct[0]) * scale, n)
+    k2 = rng.choice(rng.uniform(-1.0, 1.0, distinct[1]) * scale, n)
+    want = np.lexsort((k2, k1))
+    np.testing.assert_array_equal(sort.bucket_order(k1, k2), want)
+    with np.errstate(over="raise", divide="raise", invalid="raise"):
+        np.testing.assert_array_equal(sort.bucket_order_py(k1, k2), want)
 
 
 def test_fit_sums_update_adds_and_drops_exactly() -> None:
@@ -207,10 +269,58 @@ def test_fully_plain_python_run_agrees_with_numba(tmp_path: Path) -> None:
             np.testing.assert_array_equal(np.array(value).reshape(-1, 2), getattr(det, name))
 
 
+@pytest.mark.slow
+def test_grid_frames_match_a_plain_python_run_with_np_lexsort(tmp_path: Path) -> None:
+    """CarMaker-grid frames (columns of exact x ties): the compiled pipeline gives bit
+    for bit what every kernel as plain Python gives with the bucket sort replaced by
+    ``np.lexsort`` (NUMBA_DISABLE_JIT=1, a subprocess)."""
+    frames = {
+        "4 straight": S.grid_frame(4),
+        "4 curve": S.grid_frame(4, radius=-500.0),
+        "100 straight": S.grid_frame(100),
+    }
+    frames["100 straight"] = frames["100 straight"][frames["100 straight"][:, 0] < 60.0]
+    np.savez(tmp_path / "frames.npz", **frames)
+    code = (
+        "import json, numpy as np\n"
+        "from aldm_gym.sensor.aldm import detect_lanes\n"
+        "from aldm_gym.sensor.aldm_kernels import robust, sort\n"
+        "def lexsort_order(k1, k2):\n"
+        "    return np.lexsort((k2, k1))\n"
+        "sort.bucket_order = robust.bucket_order = lexsort_order\n"
+        f"frames = np.load({str(tmp_path / 'frames.npz')!r})\n"
+        "out = {}\n"
+        "for key in frames.files:\n"
+        "    d = detect_lanes(frames[key])\n"
+        "    out[key] = {n: getattr(d, n).tolist() for n in "
+        "('left_adjacent', 'ego_left', 'ego_right', 'right_adjacent', 'trajectory')}\n"
+        "print(json.dumps(out))\n"
+    )
+    # The package this process imported, also where an installed copy is another one.
+    root = str(Path(aldm_gym.__file__).resolve().parents[1])
+    path = os.pathsep.join(filter(None, [root, os.environ.get("PYTHONPATH")]))
+    env = dict(os.environ, NUMBA_DISABLE_JIT="1", PYTHONPATH=path)
+    res = subprocess.run(
+        [sys.executable, "-c", code],
+        env=env,
+        capture_output=True,
+        text=True,
+        check=True,
+        cwd=Path(__file__).resolve().parents[1],
+    )
+    plain = json.loads(res.stdout.strip().splitlines()[-1])
+    for key, pts in frames.items():
+        det = detect_lanes(pts)
+        assert len(det.ego_left) == len(det.ego_right) == 13
+        for name, value in plain[key].items():
+            np.testing.assert_array_equal(np.array(value).reshape(-1, 2), getattr(det, name))
+
+
 # ----------------------------------------------------------------- canonical order
-@pytest.mark.parametrize("kind", ["uniform", "ties", "crowded", "signed_zero"])
+@pytest.mark.parametrize("kind", ["uniform", "ties", "crowded", "signed_zero", "grid"])
 def test_gather_is_the_lexicographic_sort_of_the_valid_points(kind: str) -> None:
-    """The bucket sort equals np.lexsort by (x, y) of the kept rows, also for crowded buckets."""
+    """The bucket sort equals np.lexsort by (x, y) of the kept rows, also for crowded
+    buckets and columns of tied x."""
     rng = np.random.default_rng(5)
     pts = rng.uniform(-10.0, 300.0, (3000, 3))
     pts[:, 2] *= 0.003
@@ -222,6 +332,8 @@ def test_gather_is_the_lexicographic_sort_of_the_valid_points(kind: str) -> None
     elif kind == "signed_zero":
         pts[:300, 0] = -0.0
         pts[300:600, 1] = -0.0
+    elif kind == "grid":  # CarMaker's x grid: columns of exact x ties, straight lines
+        pts[:, :2] = S.grid_frame(40)[:3000, :2]
     pts[rng.integers(0, 3000, 20)] = np.nan
     keep = (pts[:, 0] >= 0) & (pts[:, 0] <= 500) & (np.abs(pts[:, 1]) <= 500)
     keep &= np.abs(pts[:, 2]) <= 0.5
