@@ -17,8 +17,11 @@ failing line is put in one class, checked in this order:
   marking within 10 m of that x: the line left a measured marking, e.g. for clutter)
   and ``unseen`` (nothing measured there: the line there is carried or extrapolated).
 
-Run: ``.venv/bin/python -m benchmarks.tracking_failures [--seeds 20] [--list]``
-(about 1.5 s per episode once the kernels are compiled).
+``--tracking model`` runs the lane-model filter (``detector_params={"tracking":
+"model"}``) instead, ``--tracking none`` the single-frame ALDM.
+
+Run: ``.venv/bin/python -m benchmarks.tracking_failures [--seeds 20] [--tracking
+tracker|model|none] [--list]`` (about 1.5 s per episode once the kernels are compiled).
 """
 
 from __future__ import annotations
@@ -35,6 +38,8 @@ SEEN_DX = 10.0
 """A true marking point within this x distance [m] of the first bad point ..."""
 SEEN_DY = 0.15
 """... and within this lateral distance [m] of the marking counts as measured."""
+TRACKING: dict[str, bool | str] = {"tracker": True, "model": "model", "none": False}
+"""``--tracking`` choices and their ``detector_params["tracking"]``."""
 
 
 def classify(env: Any, name: str) -> tuple[str, float, float]:
@@ -81,12 +86,18 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--first", type=int, default=0, help="first seed")
     parser.add_argument("--trucks", type=float, default=0.15, help="traffic.truck_share")
     parser.add_argument("--preset", default="camera", help="sensor preset ('none': ideal)")
+    parser.add_argument(
+        "--tracking",
+        choices=tuple(TRACKING),
+        default="tracker",
+        help="the point-level tracker, the lane-model filter, or single frame",
+    )
     parser.add_argument("--list", action="store_true", help="print every failing line")
     args = parser.parse_args(argv)
     config = {
         "marking_model": "per_dash",
         "detector": "aldm",
-        "detector_params": {"tracking": True},
+        "detector_params": {"tracking": TRACKING[args.tracking]},
         "sensor": {} if args.preset == "none" else {"preset": args.preset},
         "traffic": {"truck_share": args.trucks},
     }

@@ -160,22 +160,44 @@ class TrackerParams:
 
 
 TRACKER_KEYS: tuple[str, ...] = ("tracking", *TrackerParams.__dataclass_fields__)
-"""The ``detector_params`` keys of the tracker (the others are :class:`ALDMParams`)."""
+"""The ``detector_params`` keys of the tracker (the others are :class:`ALDMParams` and
+the lane-model filter's)."""
+
+TRACKING_CHOICES: tuple[bool | str, ...] = (False, True, "model")
+"""Values of ``detector_params["tracking"]``: single frame, the point-level
+:class:`LaneTracker`, the lane-model filter
+(:class:`~aldm_gym.sensor.lane_filter.LaneModelFilter`)."""
 
 
 def split_params(params: dict[str, Any]) -> tuple[bool, TrackerParams, ALDMParams]:
     """``detector_params`` of ``"aldm"`` -> ``(tracking, tracker params, ALDM params)``.
 
+    ``tracking="model"`` (the lane-model filter) is parsed by
+    :func:`~aldm_gym.sensor.lane_filter.split_filter_params`.
+
     :raises ConfigError: an unknown key (naming the allowed ones), a bad value, a
-        non-boolean ``tracking``, or tracker settings without ``tracking=True``.
+        ``tracking`` other than true or false, tracker settings without
+        ``tracking=True``, or the filter's settings without ``tracking="model"``.
     """
-    check_keys("aldm config", params, {*ALDMParams.__dataclass_fields__, *TRACKER_KEYS})
+    from aldm_gym.sensor.lane_filter import FILTER_KEYS  # it imports this module
+
+    check_keys(
+        "aldm config", params, {*ALDMParams.__dataclass_fields__, *TRACKER_KEYS, *FILTER_KEYS}
+    )
     tracking = params.get("tracking", False)
     if not isinstance(tracking, (bool, np.bool_)):
-        raise ConfigError(f"aldm.tracking must be true or false, got {tracking!r}")
+        raise ConfigError(
+            f"aldm.tracking must be one of {list(TRACKING_CHOICES)} (False: single frame, "
+            f"True: the point-level tracker, 'model': the lane-model filter), got {tracking!r}"
+        )
     track = {k: v for k, v in params.items() if k in TrackerParams.__dataclass_fields__}
     if track and not tracking:
         raise ConfigError(f"aldm settings {sorted(track)} need tracking=True")
+    filt = sorted(k for k in params if k in FILTER_KEYS)
+    if filt:
+        raise ConfigError(
+            f"aldm settings {filt} are the lane-model filter's: they need tracking='model'"
+        )
     aldm = {k: v for k, v in params.items() if k not in TRACKER_KEYS}
     return (
         bool(tracking),
@@ -318,6 +340,7 @@ class LaneTracker:
 __all__ = [
     "MIN_SUPPORT",
     "TRACKER_KEYS",
+    "TRACKING_CHOICES",
     "EgoMotion",
     "LaneTracker",
     "TrackerParams",
