@@ -23,8 +23,10 @@ Each frame:
    standard deviation of the line at its x (the state's covariance and the point's
    noise), clipped to ``[gate_min, gate_max]``.
 3. **Update** with all associated points at once (information form), robustly:
-   iteratively re-weighted least squares with Huber weights (``huber`` standard
-   deviations) against clutter, old markings and seams inside the gate.
+   iteratively re-weighted least squares with Tukey's biweight (``tukey`` standard
+   deviations: a redescending M-estimator, so points beyond it, a tar seam beside a
+   dashed line, an old marking, get no weight at all) against clutter inside the
+   gate.
 4. **Existence.** A line supported by at least :data:`MIN_SUPPORT` points in the
    frame is *hit*: its confidence ``p`` rises, ``p += hit_gain (1 - p)``; otherwise
    it falls, ``p -= miss_loss p``. A line without a hit for ``drop_length`` metres of
@@ -98,11 +100,15 @@ class FilterParams:
         standard deviations ...
     :ivar gate_min: ... but at least this ...
     :ivar gate_max: ... and at most this (well below half a lane width).
-    :ivar huber: Huber's threshold of the robust update, in standard deviations.
+    :ivar tukey: the robust update's Tukey biweight threshold, in standard
+        deviations (a point farther from the updated line has no weight).
 
     Process noise (standard deviations per square root of the travel [1/sqrt(m)]):
 
-    :ivar q_offset: of each line's offset [m] (the odometry's lateral error).
+    :ivar q_offset: of the lines' common offset [m] (the odometry's lateral error:
+        all lines move together) ...
+    :ivar q_width: ... and of each line's own offset [m] (lane widths change
+        slowly: a line seen for a while holds its distance to its neighbours).
     :ivar q_heading: of ``tan(psi)`` [-] (the odometry's yaw error).
     :ivar q_curvature: of ``c0`` [1/m].
     :ivar q_curvature_rate: of ``c1`` [1/m^2] (the road's clothoids begin and end).
@@ -130,13 +136,14 @@ class FilterParams:
     """
 
     model_range: float = setting(100.0, lo=20.0, hi=1000.0)
-    point_std: float = setting(0.08, lo=0.0, lo_open=True, hi=10.0)
-    point_std_slope: float = setting(0.0008, lo=0.0, hi=1.0)
+    point_std: float = setting(0.05, lo=0.0, lo_open=True, hi=10.0)
+    point_std_slope: float = setting(0.0006, lo=0.0, hi=1.0)
     gate_sigmas: float = setting(4.0, lo=0.0, lo_open=True, hi=100.0)
     gate_min: float = setting(0.4, lo=0.0, lo_open=True, hi=10.0)
     gate_max: float = setting(1.2, lo="gate_min", hi=10.0)
-    huber: float = setting(1.5, lo=0.0, lo_open=True, hi=100.0)
+    tukey: float = setting(3.5, lo=0.0, lo_open=True, hi=100.0)
     q_offset: float = setting(0.03, lo=0.0, hi=10.0)
+    q_width: float = setting(0.005, lo=0.0, hi=10.0)
     q_heading: float = setting(0.002, lo=0.0, hi=1.0)
     q_curvature: float = setting(2.0e-5, lo=0.0, hi=1.0)
     q_curvature_rate: float = setting(5.0e-7, lo=0.0, hi=1.0)
@@ -369,12 +376,12 @@ class LaneModelFilter:
         x = f @ self._x
         x[0] -= math.tan(dpsi) * SCALE  # the new x axis turned by dpsi (small angles)
         x[N_GEOMETRY:] -= dy
-        q = np.empty(n)
-        q[0] = fp.q_heading * SCALE
-        q[1] = fp.q_curvature * SCALE**2
-        q[2] = fp.q_curvature_rate * SCALE**3
-        q[N_GEOMETRY:] = fp.q_offset
-        p = f @ self._p @ f.T + np.diag(q * q * travel)
+        q = np.zeros((n, n))
+        q[0, 0] = (fp.q_heading * SCALE) ** 2
+        q[1, 1] = (fp.q_curvature * SCALE**2) ** 2
+        q[2, 2] = (fp.q_curvature_rate * SCALE**3) ** 2
+        q[N_GEOMETRY:, N_GEOMETRY:] = fp.q_offset**2 + fp.q_width**2 * np.eye(n - N_GEOMETRY)
+        p = f @ self._p @ f.T + q * travel
         self._x, self._p = x, 0.5 * (p + p.T)
         self._far = self._far - dx
 
@@ -427,7 +434,7 @@ class LaneModelFilter:
 
     def _correct(self, x: FloatArray, y: FloatArray, line: np.ndarray) -> FloatArray:
         """The robust update with the associated points; the support of each line
-        (the sum of its points' Huber weights)."""
+        (the sum of its points' robust weights)."""
         take = line >= 0
         self.n_used = int(np.count_nonzero(take))
         support = np.zeros(len(self._ids))
@@ -441,8 +448,8 @@ class LaneModelFilter:
         self, x: FloatArray, y: FloatArray, line: np.ndarray, weight: FloatArray | None
     ) -> FloatArray:
         """The Kalman update in information form with points ``(x, y)`` on lines
-        ``line``: Huber-weighted, re-weighted three times unless ``weight`` is
-        given. Returns the final weights."""
+        ``line``: re-weighted three times by Tukey's biweight unless ``weight``
+        is given. Returns the final weights."""
         fp = self.filter
         n = len(self._x)
         g, _ = self._rows(x, line)
@@ -451,7 +458,16 @@ class LaneModelFilter:
         x0 = self._x.copy()
         h_y0 = self._x[N_GEOMETRY:][line]
         r0 = y - (h_y0 + g @ x0[:N_GEOMETRY])
-        w = np.ones(len(x)) if weight is None else weight
+        if weight is None:
+            # the first weights from the innovation: the residual to the prediction
+            # over its standard deviation (the state's and the point's)
+            pg = self._p[:N_GEOMETRY, :N_GEOMETRY]
+            var = np.einsum("nj,jk,nk->n", g, pg, g) + sigma * sigma
+            var += 2.0 * np.einsum("nj,jn->n", g, self._p[:N_GEOMETRY, N_GEOMETRY + line])
+            var += self._p[N_GEOMETRY + line, N_GEOMETRY + line]
+            w = self._tukey(np.abs(r0) / np.sqrt(np.maximum(var, sigma * sigma)))
+        else:
+            w = weight
         delta = np.zeros(n)
         for _ in range(1 if weight is not None else 3):
             ws = w / (sigma * sigma)
@@ -471,11 +487,15 @@ class LaneModelFilter:
             if weight is not None:
                 break
             e = np.abs(r0 - (delta[N_GEOMETRY:][line] + g @ delta[:N_GEOMETRY])) / sigma
-            w = np.where(e <= fp.huber, 1.0, fp.huber / np.maximum(e, fp.huber))
+            w = self._tukey(e)
         cov = np.linalg.inv(info)
         self._x = x0 + delta
         self._p = 0.5 * (cov + cov.T)
         return w
+
+    def _tukey(self, e: FloatArray) -> FloatArray:
+        """Tukey's biweight of normalised residuals ``e``."""
+        return np.square(np.maximum(1.0 - np.square(e / self.filter.tukey), 0.0))
 
     def _existence(self, x: FloatArray, line: np.ndarray, support: FloatArray, travel: float) -> None:
         """Hits and misses, the lines' far ends, and the lines dropped."""
