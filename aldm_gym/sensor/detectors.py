@@ -11,8 +11,9 @@ Only ``ground_truth`` reads ``road`` and ``lane_id`` (the true lane); the others
 frame alone. ``motion`` (:class:`~aldm_gym.sensor.tracking.EgoMotion`, the sensor's
 motion since the previous frame) is read only by the tracking ALDM
 (``{"tracking": True}``) and the lane-model filter (``{"tracking": "model"}``), the
-stateful detectors: a fresh detector from :func:`make_detector` has no tracks. Detectors are small picklable objects (no
-closures), so an environment holding one can be copied and pickled.
+stateful detectors: a fresh detector from :func:`make_detector` has no tracks.
+Detectors are small picklable objects (no closures), so an environment holding one
+can be copied and pickled.
 
 Every detector takes ``path_range``: its :attr:`LaneDetection.trajectory` fits each
 ego line on its points with x <= ``path_range`` (at least 4 points), through the one
@@ -30,8 +31,8 @@ from aldm_gym.errors import ConfigError
 from aldm_gym.sensor.aldm import detect_lanes
 from aldm_gym.sensor.frame import SensorFrame
 from aldm_gym.sensor.ground_truth import ground_truth_detect
-from aldm_gym.sensor.lane_filter import LaneModelFilter, split_filter_params
 from aldm_gym.sensor.lane_detection import LaneDetection
+from aldm_gym.sensor.lane_filter import LaneModelFilter, split_filter_params
 from aldm_gym.sensor.naive import naive_detect
 from aldm_gym.sensor.tracking import EgoMotion, LaneTracker, split_params
 from aldm_gym.sensor.trajectory import fit_reach
@@ -239,7 +240,8 @@ def make_detector(
     ``aldm`` takes :class:`~aldm_gym.sensor.aldm.ALDMParams` fields,
     ``tracking=True`` with :class:`~aldm_gym.sensor.tracking.TrackerParams` fields for
     the tracking ALDM, and ``tracking="model"`` with
-    :class:`~aldm_gym.sensor.lane_filter.FilterParams` fields for the lane-model filter; ``naive`` takes ``lane_width``; ``ground_truth`` takes none.
+    :class:`~aldm_gym.sensor.lane_filter.FilterParams` fields for the lane-model filter;
+    ``naive`` takes ``lane_width``; ``ground_truth`` takes none.
 
     :param path_range: every detector's trajectory fits each ego line on its points
         with x <= this (at least 4 points) [m]; ``None``: the whole line. With 80 it is

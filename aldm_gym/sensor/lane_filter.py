@@ -36,9 +36,13 @@ Each frame:
    along the shared shape; a cluster of at least ``birth_points`` of them within
    ``birth_width`` laterally, spanning ``birth_span`` in x and at least
    ``min_spacing`` from every line, is a new line (a lane opening, the lane a lane
-   change brings into view).
-6. **Roles.** Lines of confidence at least ``min_confidence`` get the roles by the
-   sign of their offset at the sensor: the nearest on the left is the ego-left
+   change brings into view). A cluster closer to a line that has had no hit for
+   ``reseat_length`` of travel *re-seats* that line: its offset is set there (id
+   and role kept), its uncertainty reset (a line started on clutter, or lost).
+6. **Roles.** Confirmed lines (whose confidence has reached ``min_confidence``
+   once; a confirmed line stays until it is dropped, so a hidden ego line keeps its
+   role and is drawn from the model) get the roles by the sign of their offset at
+   the sensor: the nearest on the left is the ego-left
    line. A lane change moves the offsets through 0 and so re-labels the lines; the
    ids stay.
 
@@ -50,6 +54,7 @@ on the frame: its lines are the first measurements. The decisions are listed in
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass, field
 from typing import Any
@@ -80,6 +85,10 @@ offsets follow them."""
 START_X_MAX = 20.0
 """Lines are drawn from the nearest point of the frame, but from no farther than this
 [m] (the score's start region is 25 m)."""
+
+START_INFLATION = 4.0
+"""The covariance from the single-frame ALDM's lines is multiplied by this before the
+frame's points update it (the lines' points are correlated)."""
 
 MIN_EXTENT = 10.0
 """A line shorter than this in x [m] is not drawn."""
@@ -117,7 +126,8 @@ class FilterParams:
 
     :ivar hit_gain: confidence gained on a hit (a fraction of what is missing to 1).
     :ivar miss_loss: confidence lost on a miss (a fraction of it).
-    :ivar min_confidence: lines at least this confident are reported.
+    :ivar min_confidence: a line is confirmed, and from then on reported until it
+        is dropped, once its confidence reaches this.
     :ivar birth_confidence: confidence of a line born from points.
     :ivar drop_length: a line without a hit for this much travel is dropped.
     :ivar min_spacing: two lines are never closer than this at the sensor.
@@ -133,6 +143,8 @@ class FilterParams:
     :ivar birth_span: ... spanning at least this much in x.
     :ivar max_offset: lines farther than this laterally are dropped, and none is
         born there.
+    :ivar reseat_length: a line without a hit for this much travel is re-seated
+        onto a cluster of free points within ``min_spacing`` of it (0: never).
     """
 
     model_range: float = setting(100.0, lo=20.0, hi=1000.0)
@@ -159,6 +171,7 @@ class FilterParams:
     birth_width: float = setting(0.4, lo=0.0, lo_open=True, hi=10.0)
     birth_span: float = setting(12.0, lo=0.0, hi=1000.0)
     max_offset: float = setting(12.0, lo=1.0, hi=100.0)
+    reseat_length: float = setting(10.0, lo=0.0, hi=1.0e4)
 
     def __post_init__(self) -> None:
         validate(self, "filter")
@@ -249,12 +262,15 @@ class LaneModelFilter:
         self._conf = np.zeros(0)
         self._miss = np.zeros(0)
         self._far = np.zeros(0)
+        self._confirmed = np.zeros(0, dtype=bool)
         self._next_id = 0
         self._last_ids: tuple[int, ...] = (-1,) * len(LINE_NAMES)
         self.n_used = 0
         """Points associated with a line in the last frame."""
         self.n_born = 0
         """Lines born from points since the reset."""
+        self.n_reseated = 0
+        """Lines re-seated onto a cluster of free points since the reset."""
         self.n_starts = 0
         """Times the model was started from the single-frame ALDM since the reset."""
 
@@ -355,10 +371,15 @@ class LaneModelFilter:
         self._conf = np.full(n, 0.5 + 0.5 * fp.min_confidence)
         self._miss = np.zeros(n)
         self._far = np.array([float(v[-1]) for v in xs])
+        self._confirmed = np.ones(n, dtype=bool)
         self.n_starts += 1
         if n:
-            x = np.concatenate(xs)
-            self._solve(x, np.concatenate(ys), np.concatenate(which), np.ones(len(x)))
+            # robust too: a traced line bent onto clutter near the car keeps the
+            # offset of the most of its points
+            self._solve(np.concatenate(xs), np.concatenate(ys), np.concatenate(which), None)
+            # the 13 points per line are a fit, not independent measurements: the
+            # frame's own points follow in the same update
+            self._p = self._p * START_INFLATION
 
     def _predict(self, dx: float, dy: float, dpsi: float, travel: float) -> None:
         """Move the model into the new sensor frame: the origin advances ``dx`` along
@@ -450,7 +471,6 @@ class LaneModelFilter:
         """The Kalman update in information form with points ``(x, y)`` on lines
         ``line``: re-weighted three times by Tukey's biweight unless ``weight``
         is given. Returns the final weights."""
-        fp = self.filter
         n = len(self._x)
         g, _ = self._rows(x, line)
         sigma = self._sigma(x)
@@ -497,7 +517,9 @@ class LaneModelFilter:
         """Tukey's biweight of normalised residuals ``e``."""
         return np.square(np.maximum(1.0 - np.square(e / self.filter.tukey), 0.0))
 
-    def _existence(self, x: FloatArray, line: np.ndarray, support: FloatArray, travel: float) -> None:
+    def _existence(
+        self, x: FloatArray, line: np.ndarray, support: FloatArray, travel: float
+    ) -> None:
         """Hits and misses, the lines' far ends, and the lines dropped."""
         fp = self.filter
         hit = support >= MIN_SUPPORT
@@ -505,6 +527,7 @@ class LaneModelFilter:
             hit, self._conf + fp.hit_gain * (1.0 - self._conf), self._conf * (1.0 - fp.miss_loss)
         )
         self._miss = np.where(hit, 0.0, self._miss + travel)
+        self._confirmed |= self._conf >= fp.min_confidence
         if len(x):
             far = np.full(len(self._ids), -np.inf)
             take = line >= 0
@@ -514,7 +537,7 @@ class LaneModelFilter:
         keep = (self._miss <= fp.drop_length) & (np.abs(offsets) <= fp.max_offset)
         # of two lines too close, the less confident goes (on a tie the younger)
         order = np.argsort(offsets, kind="stable")
-        for a, b in zip(order[:-1], order[1:], strict=True):
+        for a, b in itertools.pairwise(order):
             if keep[a] and keep[b] and offsets[b] - offsets[a] < fp.min_spacing:
                 weaker = a if (self._conf[a], -self._ids[a]) < (self._conf[b], -self._ids[b]) else b
                 keep[weaker] = False
@@ -528,6 +551,7 @@ class LaneModelFilter:
         self._p = self._p[np.ix_(idx, idx)]
         self._ids, self._conf = self._ids[keep], self._conf[keep]
         self._miss, self._far = self._miss[keep], self._far[keep]
+        self._confirmed = self._confirmed[keep]
 
     def _birth(self, x: FloatArray, y: FloatArray, line: np.ndarray) -> None:
         """New lines from clusters of the points no line took (moved onto x = 0 along
@@ -554,10 +578,26 @@ class LaneModelFilter:
             span = float(np.ptp(fx[members]))
             if span < fp.birth_span or abs(centre) > fp.max_offset:
                 continue
-            if len(lines) and np.min(np.abs(lines - centre)) < fp.min_spacing:
-                continue
+            if len(lines):
+                j = int(np.argmin(np.abs(lines - centre)))
+                if abs(lines[j] - centre) < fp.min_spacing:
+                    if 0.0 < fp.reseat_length <= self._miss[j]:
+                        self._reseat(j, centre, float(np.max(fx[members])))
+                        return
+                    continue
             self._add_line(centre, float(np.max(fx[members])))
             return
+
+    def _reseat(self, j: int, offset: float, far: float) -> None:
+        """Line ``j`` set onto ``offset`` [m]: uncorrelated with the rest, 0.3 m
+        uncertain; id, role and confidence kept."""
+        k = N_GEOMETRY + j
+        self._x[k] = offset
+        self._p[k, :] = 0.0
+        self._p[:, k] = 0.0
+        self._p[k, k] = 0.3**2
+        self._far[j] = far
+        self.n_reseated += 1
 
     def _add_line(self, offset: float, far: float) -> None:
         """A new line at ``offset`` [m]: uncorrelated with the shape, 0.3 m uncertain."""
@@ -571,15 +611,15 @@ class LaneModelFilter:
         self._conf = np.append(self._conf, self.filter.birth_confidence)
         self._miss = np.append(self._miss, 0.0)
         self._far = np.append(self._far, far)
+        self._confirmed = np.append(self._confirmed, False)
         self.n_born += 1
 
     # -- output ------------------------------------------------------------------------
 
     def _roles(self) -> list[int]:
         """The model's line index of each role in :data:`LINE_NAMES` order (-1: none)."""
-        fp = self.filter
         offsets = self._x[N_GEOMETRY:]
-        shown = np.flatnonzero(self._conf >= fp.min_confidence)
+        shown = np.flatnonzero(self._confirmed)
         left = shown[offsets[shown] > 0.0]
         right = shown[offsets[shown] <= 0.0]
         left = left[np.argsort(offsets[left], kind="stable")]
@@ -601,8 +641,7 @@ class LaneModelFilter:
         fp = self.filter
         n_points = self.params.n_points if self.params.n_points >= 2 else 13
         roles = self._roles()
-        shown = self._conf >= fp.min_confidence
-        seen = self._far[shown & (self._miss == 0.0)]
+        seen = self._far[self._confirmed & (self._miss == 0.0)]
         shared = float(np.max(seen)) if len(seen) else -math.inf
         fields: dict[str, FloatArray] = {}
         conf = np.zeros(len(LINE_NAMES))
