@@ -429,6 +429,14 @@ class LaneModelFilter:
         k = 1.0 / np.maximum(1.0 - y0 * (a2 / SCALE**2), 0.5)
         return y0[None, :] + (a1 * u)[:, None] + np.outer(a2 * u2 + a3 * u3, k)
 
+    def _line_y(self, i: int, x: FloatArray) -> FloatArray:
+        """Line ``i``'s y at ``x`` [m] (as :meth:`_predicted`, for one line)."""
+        u, u2, u3 = self._shape(x)
+        a1, a2, a3 = self._x[:N_GEOMETRY]
+        y0 = self._x[N_GEOMETRY + i]
+        k = 1.0 / max(1.0 - y0 * (a2 / SCALE**2), 0.5)
+        return y0 + a1 * u + k * (a2 * u2 + a3 * u3)
+
     def _sigma(self, x: FloatArray) -> FloatArray:
         """A point's lateral standard deviation at ``x`` [m]."""
         return self.filter.point_std + self.filter.point_std_slope * x
@@ -462,7 +470,7 @@ class LaneModelFilter:
         if self.n_used == 0:
             return support
         w = self._solve(x[take], y[take], line[take], None)
-        np.add.at(support, line[take], w)
+        support += np.bincount(line[take], weights=w, minlength=len(support))
         return support
 
     def _solve(
@@ -494,8 +502,9 @@ class LaneModelFilter:
             info = prior_info.copy()
             gw = g * ws[:, None]
             info[:N_GEOMETRY, :N_GEOMETRY] += g.T @ gw
-            cross = np.zeros((N_GEOMETRY, n - N_GEOMETRY))
-            np.add.at(cross.T, line, gw)
+            cross = np.array(
+                [np.bincount(line, weights=gw[:, j], minlength=n - N_GEOMETRY) for j in range(3)]
+            )
             info[:N_GEOMETRY, N_GEOMETRY:] += cross
             info[N_GEOMETRY:, :N_GEOMETRY] += cross.T
             diag = np.bincount(line, weights=ws, minlength=n - N_GEOMETRY)
@@ -655,8 +664,7 @@ class LaneModelFilter:
             if far - near < MIN_EXTENT:
                 continue
             xs = np.linspace(near, far, n_points)
-            ys = self._predicted(xs)[:, i]
-            fields[name] = np.column_stack((xs, ys))
+            fields[name] = np.column_stack((xs, self._line_y(i, xs)))
             conf[r] = self._conf[i]
             ids[r] = int(self._ids[i])
         left, right = fields.get("ego_left"), fields.get("ego_right")
