@@ -32,9 +32,9 @@ from aldm_gym.sensor.aldm import detect_lanes
 from aldm_gym.sensor.frame import SensorFrame
 from aldm_gym.sensor.ground_truth import ground_truth_detect
 from aldm_gym.sensor.lane_detection import LaneDetection
-from aldm_gym.sensor.lane_filter import LaneModelFilter, split_filter_params
+from aldm_gym.sensor.lane_filter import LaneModelFilter, split_aldm_params
 from aldm_gym.sensor.naive import naive_detect
-from aldm_gym.sensor.tracking import EgoMotion, LaneTracker, split_params
+from aldm_gym.sensor.tracking import EgoMotion, LaneTracker
 from aldm_gym.sensor.trajectory import fit_reach
 
 
@@ -181,12 +181,10 @@ class GroundTruthDetector:
 
 
 def _make_aldm(params: Mapping[str, Any], path_range: float | None) -> Detector:
-    params = dict(params)
-    if isinstance(params.get("tracking"), str) and params["tracking"] == "model":
-        filt, aldm = split_filter_params(params)
+    _, tracker, filt, aldm = split_aldm_params(dict(params))
+    if filt is not None:
         return ModelALDMDetector(aldm, filt, path_range)
-    tracking, tracker, aldm = split_params(params)
-    if tracking:
+    if tracker is not None:
         return TrackingALDMDetector(aldm, tracker, path_range)
     return ALDMDetector(aldm, path_range)
 

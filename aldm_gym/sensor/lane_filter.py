@@ -19,9 +19,9 @@ Each frame:
    turned by the yaw change; the process noise grows with the travel (see
    :class:`FilterParams`).
 2. **Associate** every raw sensor point up to ``model_range`` with the nearest
-   predicted line whose gate it falls in: ``gate_sigmas`` times the predicted
+   predicted line whose gate it falls in: ``association_sigmas`` times the predicted
    standard deviation of the line at its x (the state's covariance and the point's
-   noise), clipped to ``[gate_min, gate_max]``.
+   noise), clipped to ``[association_min, association_max]``.
 3. **Update** with all associated points at once (information form), robustly:
    iteratively re-weighted least squares with Tukey's biweight (``tukey`` standard
    deviations: a redescending M-estimator, so points beyond it, a tar seam beside a
@@ -65,7 +65,7 @@ from aldm_gym.config import build_config, check_keys, setting, validate
 from aldm_gym.errors import ConfigError
 from aldm_gym.sensor.aldm import ALDMParams, as_points, detect_lanes_checked, make_params
 from aldm_gym.sensor.lane_detection import LINE_NAMES, LaneDetection
-from aldm_gym.sensor.tracking import TRACKER_KEYS, EgoMotion
+from aldm_gym.sensor.tracking import TRACKER_KEYS, EgoMotion, TrackerParams, split_params
 from aldm_gym.sensor.trajectory import DEFAULT_LANE_WIDTH, PATH_STEP, driving_trajectory, fit_reach
 from aldm_gym.types import FloatArray
 
@@ -105,10 +105,10 @@ class FilterParams:
     :ivar point_std: standard deviation of a point's lateral position at x = 0 (the
         sensor's noise and what the cubic model misses) ...
     :ivar point_std_slope: ... plus this much per metre ahead [m/m].
-    :ivar gate_sigmas: a point is associated with a line within this many predicted
+    :ivar association_sigmas: a point is associated with a line within this many predicted
         standard deviations ...
-    :ivar gate_min: ... but at least this ...
-    :ivar gate_max: ... and at most this (well below half a lane width).
+    :ivar association_min: ... but at least this ...
+    :ivar association_max: ... and at most this (well below half a lane width).
     :ivar tukey: the robust update's Tukey biweight threshold, in standard
         deviations (a point farther from the updated line has no weight).
 
@@ -131,7 +131,7 @@ class FilterParams:
     :ivar birth_confidence: confidence of a line born from points.
     :ivar drop_length: a line without a hit for this much travel is dropped.
     :ivar min_spacing: two lines are never closer than this at the sensor.
-    :ivar tail_length: a line is drawn beyond its own farthest point at most this far,
+    :ivar extend_length: a line is drawn beyond its own farthest point at most this far,
         up to where the other lines are seen (the car ahead hides the ego lane's lines,
         not the lane beside).
 
@@ -150,9 +150,9 @@ class FilterParams:
     model_range: float = setting(100.0, lo=20.0, hi=1000.0)
     point_std: float = setting(0.05, lo=0.0, lo_open=True, hi=10.0)
     point_std_slope: float = setting(0.0006, lo=0.0, hi=1.0)
-    gate_sigmas: float = setting(4.0, lo=0.0, lo_open=True, hi=100.0)
-    gate_min: float = setting(0.4, lo=0.0, lo_open=True, hi=10.0)
-    gate_max: float = setting(1.2, lo="gate_min", hi=10.0)
+    association_sigmas: float = setting(4.0, lo=0.0, lo_open=True, hi=100.0)
+    association_min: float = setting(0.4, lo=0.0, lo_open=True, hi=10.0)
+    association_max: float = setting(1.2, lo="association_min", hi=10.0)
     tukey: float = setting(3.5, lo=0.0, lo_open=True, hi=100.0)
     q_offset: float = setting(0.03, lo=0.0, hi=10.0)
     q_width: float = setting(0.005, lo=0.0, hi=10.0)
@@ -165,7 +165,7 @@ class FilterParams:
     birth_confidence: float = setting(0.4, lo=0.0, hi=1.0)
     drop_length: float = setting(60.0, lo=0.0, hi=1.0e4)
     min_spacing: float = setting(2.5, lo=0.0, lo_open=True, hi=10.0)
-    tail_length: float = setting(60.0, lo=0.0, hi=1000.0)
+    extend_length: float = setting(60.0, lo=0.0, hi=1000.0)
     birth_range: float = setting(60.0, lo=10.0, hi=1000.0)
     birth_points: int = setting(6, lo=3, hi=1000, integer=True)
     birth_width: float = setting(0.4, lo=0.0, lo_open=True, hi=10.0)
@@ -183,15 +183,45 @@ class FilterParams:
 
 
 FILTER_KEYS: tuple[str, ...] = tuple(FilterParams.__dataclass_fields__)
-"""The ``detector_params`` keys of the lane-model filter (besides ``tracking``)."""
+"""The ``detector_params`` keys of the lane-model filter (besides ``tracking``); none
+is a key of :class:`ALDMParams` or of the tracker."""
+
+
+def split_aldm_params(
+    params: dict[str, Any],
+) -> tuple[bool | str, TrackerParams | None, FilterParams | None, ALDMParams]:
+    """``detector_params`` of ``"aldm"`` -> ``(tracking, tracker params, filter params,
+    ALDM params)``: ``tracking`` is one of :data:`~aldm_gym.sensor.tracking.
+    TRACKING_CHOICES`; the tracker's parameters are ``None`` unless it is ``True``, the
+    filter's unless it is ``"model"``.
+
+    :raises ConfigError: an unknown key (naming the allowed ones), a bad value, a
+        ``tracking`` not among the choices (naming them), or settings of the tracker
+        or the filter without the ``tracking`` that reads them.
+    """
+    check_keys(
+        "aldm config", params, {*ALDMParams.__dataclass_fields__, *TRACKER_KEYS, *FILTER_KEYS}
+    )
+    tracking = params.get("tracking", False)
+    if isinstance(tracking, str) and tracking == "model":
+        filt, aldm = split_filter_params(params)
+        return "model", None, filt, aldm
+    extra = sorted(k for k in params if k in FILTER_KEYS)
+    if extra and isinstance(tracking, (bool, np.bool_)):
+        raise ConfigError(
+            f"aldm settings {extra} are the lane-model filter's: they need tracking='model'"
+        )
+    on, tracker, aldm = split_params(params)
+    return on, tracker if on else None, None, aldm
 
 
 def split_filter_params(params: dict[str, Any]) -> tuple[FilterParams, ALDMParams]:
     """``detector_params`` of ``"aldm"`` with ``tracking="model"`` -> ``(filter params,
     ALDM params)`` (the ALDM starts the model).
 
-    :raises ConfigError: an unknown key (naming the allowed ones), a bad value, or
-        settings of the point-level tracker (they need ``tracking=True``).
+    :raises ConfigError: an unknown key (naming the allowed ones), a bad value, a
+        ``tracking`` other than ``"model"``, or settings of the point-level tracker
+        (they need ``tracking=True``).
     """
     check_keys(
         "aldm config", params, {*ALDMParams.__dataclass_fields__, *TRACKER_KEYS, *FILTER_KEYS}
@@ -453,7 +483,8 @@ class LaneModelFilter:
         var = np.einsum("nj,jk,nk->n", g, pg, g)[:, None]
         var = var + 2.0 * (g @ self._p[:N_GEOMETRY, N_GEOMETRY:])
         var = var + np.diag(self._p)[N_GEOMETRY:][None, :] + (self._sigma(x) ** 2)[:, None]
-        gate = np.clip(fp.gate_sigmas * np.sqrt(np.maximum(var, 0.0)), fp.gate_min, fp.gate_max)
+        spread = fp.association_sigmas * np.sqrt(np.maximum(var, 0.0))
+        gate = np.clip(spread, fp.association_min, fp.association_max)
         dist = np.abs(res)
         dist[dist > gate] = np.inf
         line = np.argmin(dist, axis=1) if n else np.zeros(len(x), dtype=np.int64)
@@ -660,7 +691,7 @@ class LaneModelFilter:
             if i < 0:
                 continue
             own = float(self._far[i])
-            far = min(fp.model_range, max(own, min(shared, own + fp.tail_length)))
+            far = min(fp.model_range, max(own, min(shared, own + fp.extend_length)))
             if far - near < MIN_EXTENT:
                 continue
             xs = np.linspace(near, far, n_points)
@@ -702,5 +733,6 @@ __all__ = [
     "FilterParams",
     "LaneModelFilter",
     "ModelLaneDetection",
+    "split_aldm_params",
     "split_filter_params",
 ]

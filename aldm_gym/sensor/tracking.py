@@ -172,18 +172,14 @@ TRACKING_CHOICES: tuple[bool | str, ...] = (False, True, "model")
 def split_params(params: dict[str, Any]) -> tuple[bool, TrackerParams, ALDMParams]:
     """``detector_params`` of ``"aldm"`` -> ``(tracking, tracker params, ALDM params)``.
 
-    ``tracking="model"`` (the lane-model filter) is parsed by
-    :func:`~aldm_gym.sensor.lane_filter.split_filter_params`.
+    ``tracking="model"`` (the lane-model filter) and all three together are parsed by
+    :func:`~aldm_gym.sensor.lane_filter.split_aldm_params`.
 
     :raises ConfigError: an unknown key (naming the allowed ones), a bad value, a
-        ``tracking`` other than true or false, tracker settings without
-        ``tracking=True``, or the filter's settings without ``tracking="model"``.
+        ``tracking`` other than true or false, or tracker settings without
+        ``tracking=True``.
     """
-    from aldm_gym.sensor.lane_filter import FILTER_KEYS  # it imports this module
-
-    check_keys(
-        "aldm config", params, {*ALDMParams.__dataclass_fields__, *TRACKER_KEYS, *FILTER_KEYS}
-    )
+    check_keys("aldm config", params, {*ALDMParams.__dataclass_fields__, *TRACKER_KEYS})
     tracking = params.get("tracking", False)
     if not isinstance(tracking, (bool, np.bool_)):
         raise ConfigError(
@@ -193,11 +189,6 @@ def split_params(params: dict[str, Any]) -> tuple[bool, TrackerParams, ALDMParam
     track = {k: v for k, v in params.items() if k in TrackerParams.__dataclass_fields__}
     if track and not tracking:
         raise ConfigError(f"aldm settings {sorted(track)} need tracking=True")
-    filt = sorted(k for k in params if k in FILTER_KEYS)
-    if filt:
-        raise ConfigError(
-            f"aldm settings {filt} are the lane-model filter's: they need tracking='model'"
-        )
     aldm = {k: v for k, v in params.items() if k not in TRACKER_KEYS}
     return (
         bool(tracking),

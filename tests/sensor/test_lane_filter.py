@@ -15,15 +15,17 @@ import pytest
 import aldm_gym  # noqa: F401  (registers the env)
 from aldm_gym.errors import ConfigError, InputError
 from aldm_gym.sensor import detect_lanes
+from aldm_gym.sensor.aldm import ALDMParams
 from aldm_gym.sensor.detectors import ModelALDMDetector, TrackingALDMDetector, make_detector
 from aldm_gym.sensor.lane_detection import LINE_NAMES
 from aldm_gym.sensor.lane_filter import (
+    FILTER_KEYS,
     FilterParams,
     LaneModelFilter,
     ModelLaneDetection,
     split_filter_params,
 )
-from aldm_gym.sensor.tracking import EgoMotion
+from aldm_gym.sensor.tracking import TRACKER_KEYS, EgoMotion
 
 SPEED = 25.0
 DT = 0.1
@@ -242,7 +244,7 @@ def test_deterministic_reset_and_pickle() -> None:
         ({"tukey": 2.0}, r"need tracking='model'"),
         ({"tracking": "model", "bridge_gap": 9.0}, r"\['bridge_gap'\] .* need tracking=True"),
         ({"tracking": "model", "tukeyy": 2.0}, r"tukeyy.*did you mean 'tukey'"),
-        ({"tracking": "model", "gate_min": -1.0}, r"filter\.gate_min must be > 0"),
+        ({"tracking": "model", "association_min": -1.0}, r"filter\.association_min must be > 0"),
         ({"tracking": "model", "birth_range": 150.0}, r"birth_range .* model_range"),
     ],
 )
@@ -251,10 +253,15 @@ def test_config_errors(params: dict, match: str) -> None:
         make_detector("aldm", params)
 
 
+def test_filter_keys_are_their_own() -> None:
+    """detector_params is one flat mapping: no filter key is an ALDM or tracker key."""
+    assert not set(FILTER_KEYS) & {*ALDMParams.__dataclass_fields__, *TRACKER_KEYS}
+
+
 def test_registry_and_settings() -> None:
-    det = make_detector("aldm", {"tracking": "model", "model_range": 80.0, "gate_max": 1.0})
+    det = make_detector("aldm", {"tracking": "model", "model_range": 80.0, "association_max": 1.0})
     assert isinstance(det, ModelALDMDetector)
-    assert det.tracker.filter.model_range == 80.0 and det.tracker.filter.gate_max == 1.0
+    assert det.tracker.filter.model_range == 80.0 and det.tracker.filter.association_max == 1.0
     assert isinstance(make_detector("aldm", {"tracking": True}), TrackingALDMDetector)
     filt, aldm = split_filter_params({"tracking": "model", "z_band": 0.3})
     assert filt == FilterParams() and aldm.z_band == 0.3
