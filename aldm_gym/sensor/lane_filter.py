@@ -377,11 +377,14 @@ class LaneModelFilter:
         return self._detection(near)
 
     def _start(self, pts: FloatArray) -> None:
-        """A new model from the single-frame ALDM's lines: a prior without a shape,
-        updated with the lines' points (not robust: the ALDM has already traced)."""
+        """A new model from the single-frame ALDM's lines: a flat prior updated
+        (robustly) with the lines' points."""
         fp = self.filter
         _, _, lines, ls = detect_lanes_checked(pts, self.params, None)
-        offsets, xs, ys, which = [], [], [], []
+        offsets: list[float] = []
+        xs: list[FloatArray] = []
+        ys: list[FloatArray] = []
+        which: list[np.ndarray] = []
         for i in range(len(LINE_NAMES)):
             line = lines[ls[i] : ls[i + 1]]
             line = line[line[:, 0] <= fp.model_range]
