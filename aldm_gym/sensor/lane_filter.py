@@ -32,13 +32,14 @@ Each frame:
    it falls, ``p -= miss_loss p``. A line without a hit for ``drop_length`` metres of
    travel is dropped; of two lines closer than ``min_spacing`` the less confident
    one is dropped.
-5. **Birth.** Points no line took, up to ``birth_range``, are moved onto x = 0
-   along the shared shape; a cluster of at least ``birth_points`` of them within
-   ``birth_width`` laterally, spanning ``birth_span`` in x and at least
-   ``min_spacing`` from every line, is a new line (a lane opening, the lane a lane
-   change brings into view). A cluster closer to a line that has had no hit for
-   ``reseat_length`` of travel *re-seats* that line: its offset is set there (id
-   and role kept), its uncertainty reset (a line started on clutter, or lost).
+5. **Birth.** Points no line took (outside every gate, or given no weight), up to
+   ``birth_range``, are moved onto x = 0 along the shared shape; a cluster of at
+   least ``birth_points`` of them within ``birth_width`` laterally, spanning
+   ``birth_span`` in x and at least ``min_spacing`` from every line, is a new line
+   (a lane opening, the lane a lane change brings into view). A cluster closer to a
+   line that has had no hit for ``reseat_length`` of travel *re-seats* that line:
+   its offset is set there (id and role kept), its uncertainty reset (a line
+   started on clutter, or lost).
 6. **Roles.** Confirmed lines (whose confidence has reached ``min_confidence``
    once; a confirmed line stays until it is dropped, so a hidden ego line keeps its
    role and is drawn from the model) get the roles by the sign of their offset at
@@ -85,6 +86,10 @@ offsets follow them."""
 START_X_MAX = 20.0
 """Lines are drawn from the nearest point of the frame, but from no farther than this
 [m] (the score's start region is 25 m)."""
+
+EMPTY_START = 5.52
+"""Lines of a frame without points are drawn from here [m] (the line sensor's
+``fov_start``)."""
 
 START_INFLATION = 4.0
 """The covariance from the single-frame ALDM's lines is multiplied by this before the
@@ -148,13 +153,13 @@ class FilterParams:
     """
 
     model_range: float = setting(100.0, lo=20.0, hi=1000.0)
-    point_std: float = setting(0.05, lo=0.0, lo_open=True, hi=10.0)
-    point_std_slope: float = setting(0.0006, lo=0.0, hi=1.0)
+    point_std: float = setting(0.03, lo=0.0, lo_open=True, hi=10.0)
+    point_std_slope: float = setting(0.0005, lo=0.0, hi=1.0)
     association_sigmas: float = setting(4.0, lo=0.0, lo_open=True, hi=100.0)
     association_min: float = setting(0.4, lo=0.0, lo_open=True, hi=10.0)
     association_max: float = setting(1.2, lo="association_min", hi=10.0)
-    tukey: float = setting(3.5, lo=0.0, lo_open=True, hi=100.0)
-    q_offset: float = setting(0.03, lo=0.0, hi=10.0)
+    tukey: float = setting(2.5, lo=0.0, lo_open=True, hi=100.0)
+    q_offset: float = setting(0.01, lo=0.0, hi=10.0)
     q_width: float = setting(0.005, lo=0.0, hi=10.0)
     q_heading: float = setting(0.002, lo=0.0, hi=1.0)
     q_curvature: float = setting(2.0e-5, lo=0.0, hi=1.0)
@@ -296,7 +301,8 @@ class LaneModelFilter:
         self._next_id = 0
         self._last_ids: tuple[int, ...] = (-1,) * len(LINE_NAMES)
         self.n_used = 0
-        """Points associated with a line in the last frame."""
+        """Points associated with a line, and not rejected by the robust step, in the
+        last frame."""
         self.n_born = 0
         """Lines born from points since the reset."""
         self.n_reseated = 0
@@ -362,7 +368,7 @@ class LaneModelFilter:
         if pts.shape[1] == 3:
             ok &= np.abs(pts[:, 2]) <= self.params.z_band
         x, y = pts[ok, 0], pts[ok, 1]
-        near = float(min(np.min(x), START_X_MAX)) if len(x) else START_X_MAX
+        near = float(min(np.min(x), START_X_MAX)) if len(x) else EMPTY_START
         if motion is None or len(self._ids) == 0:
             self._start(pts)
             travel = 0.0
@@ -497,14 +503,18 @@ class LaneModelFilter:
 
     def _correct(self, x: FloatArray, y: FloatArray, line: np.ndarray) -> FloatArray:
         """The robust update with the associated points; the support of each line
-        (the sum of its points' robust weights)."""
+        (the sum of its points' robust weights). Associated points the robust step
+        gives no weight are set free again (``line`` -1, in place)."""
         take = line >= 0
-        self.n_used = int(np.count_nonzero(take))
         support = np.zeros(len(self._ids))
-        if self.n_used == 0:
+        if not take.any():
+            self.n_used = 0
             return support
         w = self._solve(x[take], y[take], line[take], None)
         support += np.bincount(line[take], weights=w, minlength=len(support))
+        rejected = np.flatnonzero(take)[w == 0.0]
+        line[rejected] = -1
+        self.n_used = int(np.count_nonzero(take)) - len(rejected)
         return support
 
     def _solve(
