@@ -106,7 +106,8 @@ class FilterParams:
     Measurement and association:
 
     :ivar model_range: points up to this x are measurements, and lines are drawn at
-        most this far (a cubic holds an R 500 m bend to a few cm over 100 m).
+        most this far (90 m: the cubic holds an R 500 m bend to a few cm there, and
+        beyond it the camera's noise and the cars ahead leave the shape a guess).
     :ivar point_std: standard deviation of a point's lateral position at x = 0 (the
         sensor's noise and what the cubic model misses) ...
     :ivar point_std_slope: ... plus this much per metre ahead [m/m].
@@ -152,7 +153,7 @@ class FilterParams:
         onto a cluster of free points within ``min_spacing`` of it (0: never).
     """
 
-    model_range: float = setting(100.0, lo=20.0, hi=1000.0)
+    model_range: float = setting(90.0, lo=20.0, hi=1000.0)
     point_std: float = setting(0.03, lo=0.0, lo_open=True, hi=10.0)
     point_std_slope: float = setting(0.0005, lo=0.0, hi=1.0)
     association_sigmas: float = setting(4.0, lo=0.0, lo_open=True, hi=100.0)

@@ -51,7 +51,7 @@ def _drive(radius: float, frames: int = 25, hide=None, noise: float = 0.02):
 
 @pytest.mark.parametrize("radius", [math.inf, 800.0, -500.0])
 def test_straight_and_curved_roads(radius: float) -> None:
-    """Every line within 5 cm to a preview past 90 m (the model's range is 100 m), the
+    """Every line within 5 cm to a preview past 80 m (the model's range is 90 m), the
     shape's curvature the road's, ids kept, full confidence."""
     for k, road, _pts, det, filt in _drive(radius):
         assert isinstance(det, ModelLaneDetection)
@@ -59,7 +59,7 @@ def test_straight_and_curved_roads(radius: float) -> None:
             j = getattr(road, name)
             assert _err(road, j, det.line(name)) < 0.05, (k, name)
             assert len(det.line(name)) == 13
-        assert det.preview("ego_left") > 90.0 and det.preview("ego_right") > 90.0
+        assert det.preview("ego_left") > 80.0 and det.preview("ego_right") > 80.0
         assert det.ids == filt.ids == (0, 1, 2, 3)
         assert len(det.trajectory) > 0
     assert filt.curvature == pytest.approx(0.0 if math.isinf(radius) else 1.0 / radius, abs=1e-4)
@@ -93,15 +93,15 @@ def test_occluded_line_is_carried_through() -> None:
             )
         assert det.ids == (0, 1, 2, 3), k
         assert _err(road, road.ego_left, det.ego_left) < 0.1, k
-        assert det.preview("ego_left") > 90.0, k
+        assert det.preview("ego_left") > 80.0, k
         assert _err(road, road.ego_right, det.ego_right) < 0.05, k
-    assert conf[17] < 0.5 * conf[9] and conf[-1] > 0.9
+    assert conf[17] < 0.5 * conf[9] and conf[-1] > 0.6
 
 
 def test_clutter_is_rejected() -> None:
     """A continuous tar seam 0.5 m outside the dashed ego-right line and one 1.1 m
     inside the ego-left line, from 120 m ahead of the first frame on (they come into
-    the model's 100 m range at frame 8 and reach the car), and 40 random specks per
+    the model's 90 m range at frame 12 and reach the car), and 40 random specks per
     frame. The single-frame ALDM that starts the model bends its right lines onto
     specks; the filter re-seats the ego-right line onto its marking within 10 m of
     travel. From frame 6 on the ego lines stay within 5 cm and keep their ids, and no
