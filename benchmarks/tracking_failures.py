@@ -20,8 +20,13 @@ failing line is put in one class, checked in this order:
 ``--tracking model`` runs the lane-model filter (``detector_params={"tracking":
 "model"}``) instead, ``--tracking none`` the single-frame ALDM.
 
+``--policy lca`` drives with the rule-based lane-change policy instead of IDLE. The
+lane departures (``info["departures"]``) and lane changes of all episodes are printed
+too.
+
 Run: ``.venv/bin/python -m benchmarks.tracking_failures [--seeds 20] [--tracking
-tracker|model|none] [--list]`` (about 1.5 s per episode once the kernels are compiled).
+tracker|model|none] [--policy idle|lca] [--list]`` (about 1.5 s per episode once
+the kernels are compiled).
 """
 
 from __future__ import annotations
@@ -92,6 +97,12 @@ def main(argv: list[str] | None = None) -> None:
         default="tracker",
         help="the point-level tracker, the lane-model filter, or single frame",
     )
+    parser.add_argument(
+        "--policy",
+        choices=("idle", "lca"),
+        default="idle",
+        help="IDLE (lane keeping only) or the rule-based lane-change policy",
+    )
     parser.add_argument("--list", action="store_true", help="print every failing line")
     args = parser.parse_args(argv)
     config = {
@@ -101,17 +112,24 @@ def main(argv: list[str] | None = None) -> None:
         "sensor": {} if args.preset == "none" else {"preset": args.preset},
         "traffic": {"truck_share": args.trucks},
     }
-    steps = both = lines = correct = 0
+    from aldm_gym.agents.policies import RuleBasedLCA
+
+    steps = both = lines = correct = departures = changes = 0
     classes: collections.Counter[str] = collections.Counter()
     failures = []
     for seed in tqdm(range(args.first, args.first + args.seeds), desc="episodes", unit="ep"):
         env = gym.make("ALDMHighway-v0", config=config)
-        env.reset(seed=seed)
+        obs, _ = env.reset(seed=seed)
+        policy = RuleBasedLCA() if args.policy == "lca" else None
         done = False
         k = 0
+        lane = None
         while not done:
-            _, _, term, trunc, info = env.step(1)  # IDLE
+            action = 1 if policy is None else int(policy.predict(obs, deterministic=True)[0])
+            obs, _, term, trunc, info = env.step(action)  # 1: IDLE
             done = term or trunc
+            changes += lane is not None and info["lane_index"] != lane
+            lane = info["lane_index"]
             k += 1
             steps += 1
             ok = [bool(info["detection"][n]["correct"]) for n in ("ego_left", "ego_right")]
@@ -123,9 +141,11 @@ def main(argv: list[str] | None = None) -> None:
                     kind, x_bad, worst = classify(env, name)
                     classes[kind] += 1
                     failures.append((seed, k, name, kind, x_bad, worst))
+        departures += int(info["departures"])
         env.close()
     print(f"steps with both ego lines correct: {both / steps:.3f} ({both} of {steps})")
     print(f"ego lines correct: {correct / lines:.3f} ({correct} of {lines})")
+    print(f"lane departures: {departures}; lane changes: {changes}")
     print("failing lines by class:")
     for kind, n in sorted(classes.items(), key=lambda kv: -kv[1]):
         print(f"  {n:4d}  {kind}")
