@@ -20,9 +20,10 @@ failing line is put in one class, checked in this order:
 ``--tracking model`` runs the lane-model filter (``detector_params={"tracking":
 "model"}``) instead, ``--tracking none`` the single-frame ALDM.
 
-``--policy lca`` drives with the rule-based lane-change policy instead of IDLE. The
-lane departures (``info["departures"]``) and lane changes of all episodes are printed
-too.
+``--sensor`` adds sensor settings (JSON), e.g. ``--preset none --trucks 0 --sensor
+'{"worn_dash_rate": 0.3}'`` for worn paint alone. ``--policy lca`` drives with the
+rule-based lane-change policy instead of IDLE. The lane departures
+(``info["departures"]``) and lane changes of all episodes are printed too.
 
 Run: ``.venv/bin/python -m benchmarks.tracking_failures [--seeds 20] [--tracking
 tracker|model|none] [--policy idle|lca] [--list]`` (about 1.5 s per episode once
@@ -33,6 +34,7 @@ from __future__ import annotations
 
 import argparse
 import collections
+import json
 from typing import Any
 
 import numpy as np
@@ -92,6 +94,11 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--trucks", type=float, default=0.15, help="traffic.truck_share")
     parser.add_argument("--preset", default="camera", help="sensor preset ('none': ideal)")
     parser.add_argument(
+        "--sensor",
+        default="{}",
+        help="more sensor settings as JSON, e.g. '{\"worn_dash_rate\": 0.3}'",
+    )
+    parser.add_argument(
         "--tracking",
         choices=tuple(TRACKING),
         default="tracker",
@@ -109,7 +116,10 @@ def main(argv: list[str] | None = None) -> None:
         "marking_model": "per_dash",
         "detector": "aldm",
         "detector_params": {"tracking": TRACKING[args.tracking]},
-        "sensor": {} if args.preset == "none" else {"preset": args.preset},
+        "sensor": {
+            **({} if args.preset == "none" else {"preset": args.preset}),
+            **json.loads(args.sensor),
+        },
         "traffic": {"truck_share": args.trucks},
     }
     from aldm_gym.agents.policies import RuleBasedLCA
