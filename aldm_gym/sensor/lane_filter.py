@@ -43,9 +43,11 @@ Each frame:
 6. **Roles.** Confirmed lines (whose confidence has reached ``min_confidence``
    once; a confirmed line stays until it is dropped, so a hidden ego line keeps its
    role and is drawn from the model) get the roles by the sign of their offset at
-   the sensor: the nearest on the left is the ego-left
-   line. A lane change moves the offsets through 0 and so re-labels the lines; the
-   ids stay.
+   the sensor: the nearest on the left is the ego-left line (unless it lies more
+   than ``max_lane_width`` of the ALDM from the nearest on the right and farther
+   from the sensor: then an ego line is missing and it is the left adjacent). A
+   lane change moves the offsets through 0 and so re-labels the lines; the ids
+   stay.
 
 Without a model (the first frame, ``motion=None``, or every line dropped) the
 model starts from the single-frame ALDM (:func:`~aldm_gym.sensor.aldm.detect_lanes`)
@@ -70,9 +72,10 @@ from aldm_gym.sensor.tracking import TRACKER_KEYS, EgoMotion, TrackerParams, spl
 from aldm_gym.sensor.trajectory import DEFAULT_LANE_WIDTH, PATH_STEP, driving_trajectory, fit_reach
 from aldm_gym.types import FloatArray
 
-MIN_SUPPORT = 3
-"""A line is hit in a frame when at least this many points are associated with it
-(one or two could be specks of clutter within the gate)."""
+MIN_SUPPORT = 2.5
+"""A line is hit in a frame when the robust weights of its points sum to at least
+this: one 6 m dash sampled every 2 m gives three points, whose weights sum to a little
+under 3 (one or two points could be specks of clutter within the gate)."""
 
 SCALE = 100.0
 """Length scale of the internal state [m]: the shape is kept as ``a1 = tan(psi) L``,
@@ -678,6 +681,15 @@ class LaneModelFilter:
         right = shown[offsets[shown] <= 0.0]
         left = left[np.argsort(offsets[left], kind="stable")]
         right = right[np.argsort(-offsets[right], kind="stable")]
+        if len(left) and len(right):
+            # the nearest lines on both sides wider apart than a lane: an ego line is
+            # missing (dropped, not yet born); the farther one is the adjacent line
+            # of its side, not an ego line of a lane twice as wide
+            if offsets[left[0]] - offsets[right[0]] > self.params.max_lane_width:
+                if offsets[left[0]] > -offsets[right[0]]:
+                    left = np.concatenate(([-1], left))
+                else:
+                    right = np.concatenate(([-1], right))
         pick = [-1, -1, -1, -1]
         if len(left):
             pick[1] = int(left[0])
