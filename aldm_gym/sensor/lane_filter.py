@@ -67,6 +67,7 @@ import numpy as np
 from aldm_gym.config import build_config, check_keys, setting, validate
 from aldm_gym.errors import ConfigError
 from aldm_gym.sensor.aldm import ALDMParams, as_points, detect_lanes_checked, make_params
+from aldm_gym.sensor.aldm_kernels.model import N_GEOMETRY, robust_update
 from aldm_gym.sensor.lane_detection import LINE_NAMES, LaneDetection
 from aldm_gym.sensor.tracking import TRACKER_KEYS, EgoMotion, TrackerParams, split_params
 from aldm_gym.sensor.trajectory import DEFAULT_LANE_WIDTH, PATH_STEP, driving_trajectory, fit_reach
@@ -81,10 +82,6 @@ SCALE = 100.0
 """Length scale of the internal state [m]: the shape is kept as ``a1 = tan(psi) L``,
 ``a2 = c0 L^2``, ``a3 = c1 L^3`` (all in metres, ``L`` = this), so that the
 covariance of a 100 m model is well conditioned."""
-
-N_GEOMETRY = 3
-"""State entries of the shared shape (heading, curvature, curvature rate); the line
-offsets follow them."""
 
 START_X_MAX = 20.0
 """Lines are drawn from the nearest point of the frame, but from no farther than this
@@ -526,8 +523,9 @@ class LaneModelFilter:
     ) -> FloatArray:
         """The Kalman update in information form with points ``(x, y)`` on lines
         ``line``: re-weighted three times by Tukey's biweight unless ``weight``
-        is given. Returns the final weights."""
-        n = len(self._x)
+        is given (:func:`~aldm_gym.sensor.aldm_kernels.model.robust_update`). Returns
+        the final weights."""
+        fp = self.filter
         g, _ = self._rows(x, line)
         sigma = self._sigma(x)
         prior_info = np.linalg.inv(self._p)
@@ -544,28 +542,19 @@ class LaneModelFilter:
             w = self._tukey(np.abs(r0) / np.sqrt(np.maximum(var, sigma * sigma)))
         else:
             w = weight
-        delta = np.zeros(n)
-        for _ in range(1 if weight is not None else 3):
-            ws = w / (sigma * sigma)
-            info = prior_info.copy()
-            gw = g * ws[:, None]
-            info[:N_GEOMETRY, :N_GEOMETRY] += g.T @ gw
-            cross = np.array(
-                [np.bincount(line, weights=gw[:, j], minlength=n - N_GEOMETRY) for j in range(3)]
-            )
-            info[:N_GEOMETRY, N_GEOMETRY:] += cross
-            info[N_GEOMETRY:, :N_GEOMETRY] += cross.T
-            diag = np.bincount(line, weights=ws, minlength=n - N_GEOMETRY)
-            info[N_GEOMETRY:, N_GEOMETRY:] += np.diag(diag)
-            grad = np.zeros(n)
-            grad[:N_GEOMETRY] = gw.T @ r0
-            grad[N_GEOMETRY:] = np.bincount(line, weights=ws * r0, minlength=n - N_GEOMETRY)
-            delta = np.linalg.solve(info, grad)
-            if weight is not None:
-                break
-            e = np.abs(r0 - (delta[N_GEOMETRY:][line] + g @ delta[:N_GEOMETRY])) / sigma
-            w = self._tukey(e)
-        cov = np.linalg.inv(info)
+        delta, cov, w, ok = robust_update(
+            np.ascontiguousarray(g),
+            line.astype(np.int64),
+            r0,
+            sigma,
+            np.asarray(w, dtype=np.float64),
+            prior_info,
+            fp.tukey,
+            1 if weight is not None else 3,
+            weight is None,
+        )
+        if not ok:  # not positive definite (rounding): keep the prediction this frame
+            return np.zeros(len(x))
         self._x = x0 + delta
         self._p = 0.5 * (cov + cov.T)
         return w

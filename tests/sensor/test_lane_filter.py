@@ -16,6 +16,7 @@ import aldm_gym  # noqa: F401  (registers the env)
 from aldm_gym.errors import ConfigError, InputError
 from aldm_gym.sensor import detect_lanes
 from aldm_gym.sensor.aldm import ALDMParams
+from aldm_gym.sensor.aldm_kernels import model as M
 from aldm_gym.sensor.detectors import ModelALDMDetector, TrackingALDMDetector, make_detector
 from aldm_gym.sensor.lane_detection import LINE_NAMES
 from aldm_gym.sensor.lane_filter import (
@@ -352,3 +353,32 @@ def test_env_runs_the_filter() -> None:
     clone = pickle.loads(pickle.dumps(base))
     np.testing.assert_array_equal(clone.step(1)[0]["lines"], base.step(1)[0]["lines"])
     env.close()
+
+
+def test_update_kernel_matches_plain_python() -> None:
+    """robust_update compiled and as plain Python on a frame's associated points."""
+    frames = list(_drive(-500.0, frames=8))
+    *_, filt = frames[-2]
+    _k, _road, pts, _det, _ = frames[-1]
+    filt._predict(*EgoMotion(SPEED, -SPEED / 500.0, DT).displacement(), SPEED * DT)
+    x, y = pts[:, 0], pts[:, 1]
+    keep = x <= filt.filter.model_range
+    x, y = x[keep], y[keep]
+    line, _ = filt._associate(x, y)
+    take = line >= 0
+    x, y, line = x[take], y[take], line[take]
+    g, _ = filt._rows(x, line)
+    r0 = y - (filt._x[M.N_GEOMETRY :][line] + g @ filt._x[: M.N_GEOMETRY])
+    r0[::10] += 1.0  # clutter: a point in ten 1 m off its line
+    sigma = filt._sigma(x)
+    args = (g, line, r0, sigma, np.ones(len(x)), np.linalg.inv(filt._p), 2.5, 3, True)
+    got, want = M.robust_update(*args), M.robust_update_py(*args)
+    assert got[3] and want[3]
+    assert np.all(want[2][::10] == 0.0) and np.all(want[2][1::10] > 0.0)
+    for a, b in zip(got[:3], want[:3], strict=True):
+        np.testing.assert_array_equal(a, b)
+    # the covariance is the inverse of the information matrix of the last solve: SPD
+    np.testing.assert_allclose(want[1], want[1].T, atol=1e-12)
+    assert np.all(np.linalg.eigvalsh(want[1]) > 0.0)
+    _low, ok = M._cholesky_py(-np.eye(3))
+    assert not ok and not M._cholesky(-np.eye(3))[1]
