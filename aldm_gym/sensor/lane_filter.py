@@ -27,11 +27,11 @@ Each frame:
    deviations: a redescending M-estimator, so points beyond it, a tar seam beside a
    dashed line, an old marking, get no weight at all) against clutter inside the
    gate.
-4. **Existence.** A line supported by at least :data:`MIN_SUPPORT` points in the
-   frame is *hit*: its confidence ``p`` rises, ``p += hit_gain (1 - p)``; otherwise
-   it falls, ``p -= miss_loss p``. A line without a hit for ``drop_length`` metres of
-   travel is dropped; of two lines closer than ``min_spacing`` the less confident
-   one is dropped.
+4. **Existence.** A line whose points' robust weights sum to at least
+   :data:`MIN_SUPPORT` in the frame is *hit*: its confidence ``p`` rises,
+   ``p += hit_gain (1 - p)``; otherwise it falls, ``p -= miss_loss p``. A line
+   without a hit for ``drop_length`` metres of travel is dropped; of two lines
+   closer than ``min_spacing`` the less confident one is dropped.
 5. **Birth.** Points no line took (outside every gate, or given no weight), up to
    ``birth_range``, are moved onto x = 0 along the shared shape; a cluster of at
    least ``birth_points`` of them within ``birth_width`` laterally, spanning
@@ -43,11 +43,11 @@ Each frame:
 6. **Roles.** Confirmed lines (whose confidence has reached ``min_confidence``
    once; a confirmed line stays until it is dropped, so a hidden ego line keeps its
    role and is drawn from the model) get the roles by the sign of their offset at
-   the sensor: the nearest on the left is the ego-left line (unless it lies more
-   than ``max_lane_width`` of the ALDM from the nearest on the right and farther
-   from the sensor: then an ego line is missing and it is the left adjacent). A
-   lane change moves the offsets through 0 and so re-labels the lines; the ids
-   stay.
+   the sensor: the nearest on the left is the ego-left line, the next the left
+   adjacent; the same on the right. When the nearest lines on the two sides are
+   more than the ALDM's ``max_lane_width`` apart, an ego line is missing: the one
+   farther from the sensor is the adjacent line of its side. A lane change moves
+   the offsets through 0 and so re-labels the lines; the ids stay.
 
 Without a model (the first frame, ``motion=None``, or every line dropped) the
 model starts from the single-frame ALDM (:func:`~aldm_gym.sensor.aldm.detect_lanes`)
