@@ -469,14 +469,6 @@ class LaneModelFilter:
         k = 1.0 / np.maximum(1.0 - y0 * (a2 / SCALE**2), 0.5)
         return y0[None, :] + (a1 * u)[:, None] + np.outer(a2 * u2 + a3 * u3, k)
 
-    def _line_y(self, i: int, x: FloatArray) -> FloatArray:
-        """Line ``i``'s y at ``x`` [m] (as :meth:`_predicted`, for one line)."""
-        u, u2, u3 = self._shape(x)
-        a1, a2, a3 = self._x[:N_GEOMETRY]
-        y0 = self._x[N_GEOMETRY + i]
-        k = 1.0 / max(1.0 - y0 * (a2 / SCALE**2), 0.5)
-        return y0 + a1 * u + k * (a2 * u2 + a3 * u3)
-
     def _sigma(self, x: FloatArray) -> FloatArray:
         """A point's lateral standard deviation at ``x`` [m]."""
         return self.filter.point_std + self.filter.point_std_slope * x
@@ -701,18 +693,29 @@ class LaneModelFilter:
         fields: dict[str, FloatArray] = {}
         conf = np.zeros(len(LINE_NAMES))
         ids = [-1] * len(LINE_NAMES)
-        for r, name in enumerate(LINE_NAMES):
+        drawn: list[tuple[int, int, float]] = []
+        for r in range(len(LINE_NAMES)):
             i = roles[r]
             if i < 0:
                 continue
             own = float(self._far[i])
             far = min(fp.model_range, max(own, min(shared, own + fp.extend_length)))
-            if far - near < MIN_EXTENT:
-                continue
-            xs = np.linspace(near, far, n_points)
-            fields[name] = np.column_stack((xs, self._line_y(i, xs)))
-            conf[r] = self._conf[i]
-            ids[r] = int(self._ids[i])
+            if far - near >= MIN_EXTENT:
+                drawn.append((r, i, far))
+        if drawn:
+            # every drawn line at once: (n_points, lines) x and y
+            idx = np.array([i for _, i, _ in drawn])
+            xs = np.linspace(near, np.array([far for *_, far in drawn]), n_points)
+            u, u2, u3 = self._shape(xs)
+            a1, a2, a3 = self._x[:N_GEOMETRY]
+            y0 = self._x[N_GEOMETRY + idx]
+            k = 1.0 / np.maximum(1.0 - y0 * (a2 / SCALE**2), 0.5)
+            ys = y0 + a1 * u + k * (a2 * u2 + a3 * u3)
+            pts = np.stack((xs.T, ys.T), axis=-1)
+            for c, (r, i, _) in enumerate(drawn):
+                fields[LINE_NAMES[r]] = pts[c]
+                conf[r] = self._conf[i]
+                ids[r] = int(self._ids[i])
         left, right = fields.get("ego_left"), fields.get("ego_right")
         width = DEFAULT_LANE_WIDTH
         if left is not None and right is not None:
