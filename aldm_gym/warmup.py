@@ -45,7 +45,8 @@ def _robust_aldm() -> None:
 
 def _tracking() -> None:
     """The tracking ALDM (``detector_params={"tracking": True}``) on the same synthetic
-    points, three frames, so its kernels compile beside the robust ALDM's."""
+    points, three frames, and the lane-model filter, two, so their kernels compile
+    beside the robust ALDM's."""
     import numpy as np
 
     from aldm_gym.sensor.tracking import EgoMotion, LaneTracker
@@ -57,6 +58,12 @@ def _tracking() -> None:
     for k in range(3):
         points = every[(every[:, 0] < 40.0 + 10.0 * k) | (every[:, 0] > 70.0 + 10.0 * k)]
         tracker.update(points, None if k == 0 else EgoMotion(25.0, 0.0, 0.1))
+    # the lane-model filter's update kernel (``{"tracking": "model"}``)
+    from aldm_gym.sensor.lane_filter import LaneModelFilter
+
+    model = LaneModelFilter()
+    for k in range(2):
+        model.update(every, None if k == 0 else EgoMotion(25.0, 0.0, 0.1))
 
 
 def _the_rest() -> None:

@@ -1,13 +1,14 @@
-"""Cost of the tracking ALDM (:class:`aldm_gym.sensor.tracking.LaneTracker`) over
-the stateless :func:`aldm_gym.sensor.detect_lanes` on the same frame.
+"""Cost of the tracking ALDM (:class:`aldm_gym.sensor.tracking.LaneTracker`) and of
+the lane-model filter (:class:`aldm_gym.sensor.lane_filter.LaneModelFilter`) over the
+stateless :func:`aldm_gym.sensor.detect_lanes` on the same frame.
 
 Frames: the typical frame of ``bench_aldm.py`` (4-lane per-dash highway, R = 800 m,
 2 cm noise), seen by a car driving at 25 m/s with 10 Hz frames; the tracker has
 followed the 10 frames before. Two cases: the plain frame, and the same frame with
 60 m of the ego-left line hidden (x = 25-85 m, a truck ahead), where the tracker
-bridges the gap. For each, the best of 15 rounds (``detect_lanes`` and ``update``
-interleaved) of 200 calls each; ``update`` runs on fresh copies of the tracker so that
-every call starts from the same tracks.
+bridges the gap. For each, the best of 15 rounds (``detect_lanes`` and the two
+``update`` interleaved) of 200 calls each; ``update`` runs on fresh copies of the
+tracker (the filter) so that every call starts from the same tracks (model).
 
 Run: ``.venv/bin/python benchmarks/bench_tracking.py``
 """
@@ -50,32 +51,36 @@ def frames(occluded: bool, n: int = 11) -> list[np.ndarray]:
     return out
 
 
-def measure(occluded: bool, calls: int = 200, rounds: int = 15) -> tuple[float, float, int]:
-    """Best time per call of ``detect_lanes`` and of ``LaneTracker.update`` [s], and
-    the number of points of the frame."""
+def measure(occluded: bool, calls: int = 200, rounds: int = 15) -> tuple[float, float, float, int]:
+    """Best time per call of ``detect_lanes``, ``LaneTracker.update`` and
+    ``LaneModelFilter.update`` [s], and the number of points of the frame."""
     from aldm_gym.sensor import detect_lanes
+    from aldm_gym.sensor.lane_filter import LaneModelFilter
     from aldm_gym.sensor.tracking import EgoMotion, LaneTracker
 
     seq = frames(occluded)
     motion = EgoMotion(SPEED, SPEED / RADIUS, DT)
-    tracker = LaneTracker()
-    for k, pts in enumerate(seq[:-1]):
-        tracker.update(pts, None if k == 0 else motion)
+    trackers = [LaneTracker(), LaneModelFilter()]
+    for tracker in trackers:
+        for k, pts in enumerate(seq[:-1]):
+            tracker.update(pts, None if k == 0 else motion)
     pts = seq[-1]
     detect_lanes(pts)
-    copy.deepcopy(tracker).update(pts, motion)  # warm
-    best_single = best_track = float("inf")
+    for tracker in trackers:
+        copy.deepcopy(tracker).update(pts, motion)  # warm
+    best = [float("inf")] * 3
     for _ in range(rounds):
         t0 = time.perf_counter()
         for _ in range(calls):
             detect_lanes(pts)
-        best_single = min(best_single, (time.perf_counter() - t0) / calls)
-        copies = [copy.deepcopy(tracker) for _ in range(calls)]
-        t0 = time.perf_counter()
-        for tr in copies:
-            tr.update(pts, motion)
-        best_track = min(best_track, (time.perf_counter() - t0) / calls)
-    return best_single, best_track, len(pts)
+        best[0] = min(best[0], (time.perf_counter() - t0) / calls)
+        for i, tracker in enumerate(trackers):
+            copies = [copy.deepcopy(tracker) for _ in range(calls)]
+            t0 = time.perf_counter()
+            for tr in copies:
+                tr.update(pts, motion)
+            best[i + 1] = min(best[i + 1], (time.perf_counter() - t0) / calls)
+    return best[0], best[1], best[2], len(pts)
 
 
 def main() -> None:
@@ -86,14 +91,18 @@ def main() -> None:
         f"machine: {platform.machine()}, Python {platform.python_version()}, numpy "
         f"{np.__version__}, numba {numba.__version__}"
     )
-    print("| frame | N | detect_lanes [µs] | tracker update [µs] | added |")
-    print("|---|---:|---:|---:|---:|")
+    print(
+        "| frame | N | detect_lanes [µs] | tracker update [µs] | added "
+        "| filter update [µs] | filter / detect_lanes |"
+    )
+    print("|---|---:|---:|---:|---:|---:|---:|")
     for occluded in (False, True):
-        single, track, n = measure(occluded)
+        single, track, model, n = measure(occluded)
         name = "typical, 60 m of ego left hidden" if occluded else "typical"
         print(
             f"| {name} | {n} | {single * 1e6:.0f} | {track * 1e6:.0f} | "
-            f"{100.0 * (track / single - 1.0):+.0f} % |"
+            f"{100.0 * (track / single - 1.0):+.0f} % | {model * 1e6:.0f} | "
+            f"{model / single:.2f}x |"
         )
 
 

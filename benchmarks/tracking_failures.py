@@ -17,14 +17,24 @@ failing line is put in one class, checked in this order:
   marking within 10 m of that x: the line left a measured marking, e.g. for clutter)
   and ``unseen`` (nothing measured there: the line there is carried or extrapolated).
 
-Run: ``.venv/bin/python -m benchmarks.tracking_failures [--seeds 20] [--list]``
-(about 1.5 s per episode once the kernels are compiled).
+``--tracking model`` runs the lane-model filter (``detector_params={"tracking":
+"model"}``) instead, ``--tracking none`` the single-frame ALDM.
+
+``--sensor`` adds sensor settings (JSON), e.g. ``--preset none --trucks 0 --sensor
+'{"worn_dash_rate": 0.3}'`` for worn paint alone. ``--policy lca`` drives with the
+rule-based lane-change policy instead of IDLE. The lane departures
+(``info["departures"]``) and lane changes of all episodes are printed too.
+
+Run: ``.venv/bin/python -m benchmarks.tracking_failures [--seeds 20] [--tracking
+tracker|model|none] [--policy idle|lca] [--list]`` (about 1.5 s per episode once
+the kernels are compiled).
 """
 
 from __future__ import annotations
 
 import argparse
 import collections
+import json
 from typing import Any
 
 import numpy as np
@@ -35,6 +45,8 @@ SEEN_DX = 10.0
 """A true marking point within this x distance [m] of the first bad point ..."""
 SEEN_DY = 0.15
 """... and within this lateral distance [m] of the marking counts as measured."""
+TRACKING: dict[str, bool | str] = {"tracker": True, "model": "model", "none": False}
+"""``--tracking`` choices and their ``detector_params["tracking"]``."""
 
 
 def classify(env: Any, name: str) -> tuple[str, float, float]:
@@ -81,26 +93,53 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--first", type=int, default=0, help="first seed")
     parser.add_argument("--trucks", type=float, default=0.15, help="traffic.truck_share")
     parser.add_argument("--preset", default="camera", help="sensor preset ('none': ideal)")
+    parser.add_argument(
+        "--sensor",
+        default="{}",
+        help="more sensor settings as JSON, e.g. '{\"worn_dash_rate\": 0.3}'",
+    )
+    parser.add_argument(
+        "--tracking",
+        choices=tuple(TRACKING),
+        default="tracker",
+        help="the point-level tracker, the lane-model filter, or single frame",
+    )
+    parser.add_argument(
+        "--policy",
+        choices=("idle", "lca"),
+        default="idle",
+        help="IDLE (lane keeping only) or the rule-based lane-change policy",
+    )
     parser.add_argument("--list", action="store_true", help="print every failing line")
     args = parser.parse_args(argv)
     config = {
         "marking_model": "per_dash",
         "detector": "aldm",
-        "detector_params": {"tracking": True},
-        "sensor": {} if args.preset == "none" else {"preset": args.preset},
+        "detector_params": {"tracking": TRACKING[args.tracking]},
+        "sensor": {
+            **({} if args.preset == "none" else {"preset": args.preset}),
+            **json.loads(args.sensor),
+        },
         "traffic": {"truck_share": args.trucks},
     }
-    steps = both = lines = correct = 0
+    from aldm_gym.agents.policies import RuleBasedLCA
+
+    steps = both = lines = correct = departures = changes = 0
     classes: collections.Counter[str] = collections.Counter()
     failures = []
     for seed in tqdm(range(args.first, args.first + args.seeds), desc="episodes", unit="ep"):
         env = gym.make("ALDMHighway-v0", config=config)
-        env.reset(seed=seed)
+        obs, _ = env.reset(seed=seed)
+        policy = RuleBasedLCA() if args.policy == "lca" else None
         done = False
         k = 0
+        lane = None
         while not done:
-            _, _, term, trunc, info = env.step(1)  # IDLE
+            action = 1 if policy is None else int(policy.predict(obs, deterministic=True)[0])
+            obs, _, term, trunc, info = env.step(action)  # 1: IDLE
             done = term or trunc
+            changes += lane is not None and info["lane_index"] != lane
+            lane = info["lane_index"]
             k += 1
             steps += 1
             ok = [bool(info["detection"][n]["correct"]) for n in ("ego_left", "ego_right")]
@@ -112,9 +151,11 @@ def main(argv: list[str] | None = None) -> None:
                     kind, x_bad, worst = classify(env, name)
                     classes[kind] += 1
                     failures.append((seed, k, name, kind, x_bad, worst))
+        departures += int(info["departures"])
         env.close()
     print(f"steps with both ego lines correct: {both / steps:.3f} ({both} of {steps})")
     print(f"ego lines correct: {correct / lines:.3f} ({correct} of {lines})")
+    print(f"lane departures: {departures}; lane changes: {changes}")
     print("failing lines by class:")
     for kind, n in sorted(classes.items(), key=lambda kv: -kv[1]):
         print(f"  {n:4d}  {kind}")

@@ -10,9 +10,10 @@ One signature for all: ``detector(frame, road, lane_id, motion=None) -> LaneDete
 Only ``ground_truth`` reads ``road`` and ``lane_id`` (the true lane); the others see the
 frame alone. ``motion`` (:class:`~aldm_gym.sensor.tracking.EgoMotion`, the sensor's
 motion since the previous frame) is read only by the tracking ALDM
-(``{"tracking": True}``), the one stateful detector: a fresh detector from
-:func:`make_detector` has no tracks. Detectors are small picklable objects (no
-closures), so an environment holding one can be copied and pickled.
+(``{"tracking": True}``) and the lane-model filter (``{"tracking": "model"}``), the
+stateful detectors: a fresh detector from :func:`make_detector` has no tracks.
+Detectors are small picklable objects (no closures), so an environment holding one
+can be copied and pickled.
 
 Every detector takes ``path_range``: its :attr:`LaneDetection.trajectory` fits each
 ego line on its points with x <= ``path_range`` (at least 4 points), through the one
@@ -31,8 +32,9 @@ from aldm_gym.sensor.aldm import detect_lanes
 from aldm_gym.sensor.frame import SensorFrame
 from aldm_gym.sensor.ground_truth import ground_truth_detect
 from aldm_gym.sensor.lane_detection import LaneDetection
+from aldm_gym.sensor.lane_filter import LaneModelFilter, split_aldm_params
 from aldm_gym.sensor.naive import naive_detect
-from aldm_gym.sensor.tracking import EgoMotion, LaneTracker, split_params
+from aldm_gym.sensor.tracking import EgoMotion, LaneTracker
 from aldm_gym.sensor.trajectory import fit_reach
 
 
@@ -102,6 +104,35 @@ class TrackingALDMDetector:
         return self.tracker.update(frame, motion)
 
 
+class ModelALDMDetector:
+    """The lane-model filter (:class:`~aldm_gym.sensor.lane_filter.LaneModelFilter`):
+    stateful. Its detections are
+    :class:`~aldm_gym.sensor.lane_filter.ModelLaneDetection` (with a confidence per line).
+
+    :param params: validated :class:`~aldm_gym.sensor.aldm.ALDMParams` (the frame that
+        starts the model).
+    :param filt: validated :class:`~aldm_gym.sensor.lane_filter.FilterParams`.
+    :param path_range: the trajectory's fit range [m] (``None``: whole lines).
+    """
+
+    uses_motion: ClassVar[bool] = True
+    """It reads ``motion``."""
+
+    def __init__(self, params: Any, filt: Any, path_range: float | None = None) -> None:
+        self.tracker = LaneModelFilter(params, filt, path_range=path_range)
+
+    def __call__(
+        self,
+        frame: SensorFrame,
+        road: Any = None,
+        lane_id: int = 0,
+        motion: EgoMotion | None = None,
+    ) -> LaneDetection:
+        """Detect the lanes of ``frame``: the model carried by ``motion`` and updated
+        with the frame (``None``: the model starts again from this frame)."""
+        return self.tracker.update(frame, motion)
+
+
 @dataclass(frozen=True)
 class NaiveDetector:
     """CarMaker's default (:func:`~aldm_gym.sensor.naive.naive_detect`).
@@ -150,8 +181,10 @@ class GroundTruthDetector:
 
 
 def _make_aldm(params: Mapping[str, Any], path_range: float | None) -> Detector:
-    tracking, tracker, aldm = split_params(dict(params))
-    if tracking:
+    _, tracker, filt, aldm = split_aldm_params(dict(params))
+    if filt is not None:
+        return ModelALDMDetector(aldm, filt, path_range)
+    if tracker is not None:
         return TrackingALDMDetector(aldm, tracker, path_range)
     return ALDMDetector(aldm, path_range)
 
@@ -202,9 +235,11 @@ def make_detector(
 ) -> Detector:
     """The detector ``name`` (:data:`DETECTORS`) with ``params``.
 
-    ``aldm`` takes :class:`~aldm_gym.sensor.aldm.ALDMParams` fields, and
+    ``aldm`` takes :class:`~aldm_gym.sensor.aldm.ALDMParams` fields,
     ``tracking=True`` with :class:`~aldm_gym.sensor.tracking.TrackerParams` fields for
-    the tracking ALDM; ``naive`` takes ``lane_width``; ``ground_truth`` takes none.
+    the tracking ALDM, and ``tracking="model"`` with
+    :class:`~aldm_gym.sensor.lane_filter.FilterParams` fields for the lane-model filter;
+    ``naive`` takes ``lane_width``; ``ground_truth`` takes none.
 
     :param path_range: every detector's trajectory fits each ego line on its points
         with x <= this (at least 4 points) [m]; ``None``: the whole line. With 80 it is

@@ -160,19 +160,32 @@ class TrackerParams:
 
 
 TRACKER_KEYS: tuple[str, ...] = ("tracking", *TrackerParams.__dataclass_fields__)
-"""The ``detector_params`` keys of the tracker (the others are :class:`ALDMParams`)."""
+"""The ``detector_params`` keys of the tracker (the others are :class:`ALDMParams` and
+the lane-model filter's)."""
+
+TRACKING_CHOICES: tuple[bool | str, ...] = (False, True, "model")
+"""Values of ``detector_params["tracking"]``: single frame, the point-level
+:class:`LaneTracker`, the lane-model filter
+(:class:`~aldm_gym.sensor.lane_filter.LaneModelFilter`)."""
 
 
 def split_params(params: dict[str, Any]) -> tuple[bool, TrackerParams, ALDMParams]:
     """``detector_params`` of ``"aldm"`` -> ``(tracking, tracker params, ALDM params)``.
 
+    ``tracking="model"`` (the lane-model filter) and all three together are parsed by
+    :func:`~aldm_gym.sensor.lane_filter.split_aldm_params`.
+
     :raises ConfigError: an unknown key (naming the allowed ones), a bad value, a
-        non-boolean ``tracking``, or tracker settings without ``tracking=True``.
+        ``tracking`` other than true or false, or tracker settings without
+        ``tracking=True``.
     """
     check_keys("aldm config", params, {*ALDMParams.__dataclass_fields__, *TRACKER_KEYS})
     tracking = params.get("tracking", False)
     if not isinstance(tracking, (bool, np.bool_)):
-        raise ConfigError(f"aldm.tracking must be true or false, got {tracking!r}")
+        raise ConfigError(
+            f"aldm.tracking must be one of {list(TRACKING_CHOICES)} (False: single frame, "
+            f"True: the point-level tracker, 'model': the lane-model filter), got {tracking!r}"
+        )
     track = {k: v for k, v in params.items() if k in TrackerParams.__dataclass_fields__}
     if track and not tracking:
         raise ConfigError(f"aldm settings {sorted(track)} need tracking=True")
@@ -318,6 +331,7 @@ class LaneTracker:
 __all__ = [
     "MIN_SUPPORT",
     "TRACKER_KEYS",
+    "TRACKING_CHOICES",
     "EgoMotion",
     "LaneTracker",
     "TrackerParams",

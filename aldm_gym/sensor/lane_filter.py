@@ -1,0 +1,756 @@
+"""The lane-model filter: one clothoid model of all lines, carried by a Kalman filter.
+
+:class:`LaneModelFilter` (``detector_params={"tracking": "model"}``) estimates one
+road shape shared by every line and a lateral offset per line, in the ISO 8855
+sensor frame (x forward, y left) [m]::
+
+    y_i(x) = y0_i + tan(psi) x + c0 x^2 / 2 + c1 x^3 / 6
+
+the clothoid road model of Dickmanns and Mysliwetz (1992) in its cubic
+approximation, with heading ``psi`` [rad], curvature ``c0`` [1/m] and curvature rate
+``c1`` [1/m^2] shared by all lines. A line at offset ``y0`` in a bend is a parallel
+curve: its curvature is ``c0 / (1 - y0 c0)``, applied with the factor of the
+predicted state (linearised about the prediction, as an extended Kalman filter).
+
+Each frame:
+
+1. **Predict** the state by the ego's odometry (:class:`~aldm_gym.sensor.tracking.
+   EgoMotion`): the model is shifted by the travel along its own Taylor series and
+   turned by the yaw change; the process noise grows with the travel (see
+   :class:`FilterParams`).
+2. **Associate** every raw sensor point up to ``model_range`` with the nearest
+   predicted line whose gate it falls in: ``association_sigmas`` times the predicted
+   standard deviation of the line at its x (the state's covariance and the point's
+   noise), clipped to ``[association_min, association_max]``.
+3. **Update** with all associated points at once (information form), robustly:
+   iteratively re-weighted least squares with Tukey's biweight (``tukey`` standard
+   deviations: a redescending M-estimator, so points beyond it, a tar seam beside a
+   dashed line, an old marking, get no weight at all) against clutter inside the
+   gate.
+4. **Existence.** A line whose points' robust weights sum to at least
+   :data:`MIN_SUPPORT` in the frame is *hit*: its confidence ``p`` rises,
+   ``p += hit_gain (1 - p)``; otherwise it falls, ``p -= miss_loss p``. A line
+   without a hit for ``drop_length`` metres of travel is dropped; of two lines
+   closer than ``min_spacing`` the less confident one is dropped.
+5. **Birth.** Points no line took (outside every gate, or given no weight), up to
+   ``birth_range``, are moved onto x = 0 along the shared shape; a cluster of at
+   least ``birth_points`` of them within ``birth_width`` laterally, spanning
+   ``birth_span`` in x and at least ``min_spacing`` from every line, is a new line
+   (a lane opening, the lane a lane change brings into view). A cluster closer to a
+   line that has had no hit for ``reseat_length`` of travel *re-seats* that line:
+   its offset is set there (id and role kept), its uncertainty reset (a line
+   started on clutter, or lost).
+6. **Roles.** Confirmed lines (whose confidence has reached ``min_confidence``
+   once; a confirmed line stays until it is dropped, so a hidden ego line keeps its
+   role and is drawn from the model) get the roles by the sign of their offset at
+   the sensor: the nearest on the left is the ego-left line, the next the left
+   adjacent; the same on the right. When the nearest lines on the two sides are
+   more than the ALDM's ``max_lane_width`` apart, an ego line is missing: the one
+   farther from the sensor is the adjacent line of its side. A lane change moves
+   the offsets through 0 and so re-labels the lines; the ids stay.
+
+Without a model (the first frame, ``motion=None``, or every line dropped) the
+model starts from the single-frame ALDM (:func:`~aldm_gym.sensor.aldm.detect_lanes`)
+on the frame: its lines are the first measurements. The decisions are listed in
+``docs/aldm.md``, section "Lane-model filter".
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from aldm_gym.config import build_config, check_keys, setting, validate
+from aldm_gym.errors import ConfigError
+from aldm_gym.sensor.aldm import ALDMParams, as_points, detect_lanes_checked, make_params
+from aldm_gym.sensor.aldm_kernels.model import N_GEOMETRY, robust_update
+from aldm_gym.sensor.lane_detection import LINE_NAMES, LaneDetection
+from aldm_gym.sensor.tracking import TRACKER_KEYS, EgoMotion, TrackerParams, split_params
+from aldm_gym.sensor.trajectory import DEFAULT_LANE_WIDTH, PATH_STEP, driving_trajectory, fit_reach
+from aldm_gym.types import FloatArray
+
+MIN_SUPPORT = 2.5
+"""A line is hit in a frame when the robust weights of its points sum to at least
+this: one 6 m dash sampled every 2 m gives three points, whose weights sum to a little
+under 3 (one or two points could be specks of clutter within the gate)."""
+
+SCALE = 100.0
+"""Length scale of the internal state [m]: the shape is kept as ``a1 = tan(psi) L``,
+``a2 = c0 L^2``, ``a3 = c1 L^3`` (all in metres, ``L`` = this), so that the
+covariance of a 100 m model is well conditioned."""
+
+START_X_MAX = 20.0
+"""Lines are drawn from the nearest point of the frame, but from no farther than this
+[m] (the score's start region is 25 m)."""
+
+EMPTY_START = 5.52
+"""Lines of a frame without points are drawn from here [m] (the line sensor's
+``fov_start``)."""
+
+START_INFLATION = 4.0
+"""The covariance from the single-frame ALDM's lines is multiplied by this before the
+frame's points update it (the lines' points are correlated)."""
+
+MIN_EXTENT = 10.0
+"""A line shorter than this in x [m] is not drawn."""
+
+
+@dataclass(frozen=True)
+class FilterParams:
+    """Parameters of :class:`LaneModelFilter` (lengths [m]).
+
+    Measurement and association:
+
+    :ivar model_range: points up to this x are measurements, and lines are drawn at
+        most this far (90 m: the cubic holds an R 500 m bend to a few cm there, and
+        beyond it the camera's noise and the cars ahead leave the shape a guess).
+    :ivar point_std: standard deviation of a point's lateral position at x = 0 (the
+        sensor's noise and what the cubic model misses) ...
+    :ivar point_std_slope: ... plus this much per metre ahead [m/m].
+    :ivar association_sigmas: a point is associated with a line within this many predicted
+        standard deviations ...
+    :ivar association_min: ... but at least this ...
+    :ivar association_max: ... and at most this (well below half a lane width).
+    :ivar tukey: the robust update's Tukey biweight threshold, in standard
+        deviations (a point farther from the updated line has no weight).
+
+    Process noise (standard deviations per square root of the travel [1/sqrt(m)]):
+
+    :ivar q_offset: of the lines' common offset [m] (the odometry's lateral error:
+        all lines move together) ...
+    :ivar q_width: ... and of each line's own offset [m] (lane widths change
+        slowly: a line seen for a while holds its distance to its neighbours).
+    :ivar q_heading: of ``tan(psi)`` [-] (the odometry's yaw error).
+    :ivar q_curvature: of ``c0`` [1/m].
+    :ivar q_curvature_rate: of ``c1`` [1/m^2] (the road's clothoids begin and end).
+
+    Existence:
+
+    :ivar hit_gain: confidence gained on a hit (a fraction of what is missing to 1).
+    :ivar miss_loss: confidence lost on a miss (a fraction of it).
+    :ivar min_confidence: a line is confirmed, and from then on reported until it
+        is dropped, once its confidence reaches this.
+    :ivar birth_confidence: confidence of a line born from points.
+    :ivar drop_length: a line without a hit for this much travel is dropped.
+    :ivar min_spacing: two lines are never closer than this at the sensor.
+    :ivar extend_length: a line is drawn beyond its own farthest point at most this far,
+        up to where the other lines are seen (the car ahead hides the ego lane's lines,
+        not the lane beside).
+
+    Birth:
+
+    :ivar birth_range: points up to this x can give birth to a line.
+    :ivar birth_points: a new line needs at least this many points ...
+    :ivar birth_width: ... within this lateral width (moved onto x = 0) ...
+    :ivar birth_span: ... spanning at least this much in x.
+    :ivar max_offset: lines farther than this laterally are dropped, and none is
+        born there.
+    :ivar reseat_length: a line without a hit for this much travel is re-seated
+        onto a cluster of free points within ``min_spacing`` of it (0: never).
+    """
+
+    model_range: float = setting(90.0, lo=20.0, hi=1000.0)
+    point_std: float = setting(0.03, lo=0.0, lo_open=True, hi=10.0)
+    point_std_slope: float = setting(0.0005, lo=0.0, hi=1.0)
+    association_sigmas: float = setting(4.0, lo=0.0, lo_open=True, hi=100.0)
+    association_min: float = setting(0.4, lo=0.0, lo_open=True, hi=10.0)
+    association_max: float = setting(1.2, lo="association_min", hi=10.0)
+    tukey: float = setting(2.5, lo=0.0, lo_open=True, hi=100.0)
+    q_offset: float = setting(0.01, lo=0.0, hi=10.0)
+    q_width: float = setting(0.005, lo=0.0, hi=10.0)
+    q_heading: float = setting(0.002, lo=0.0, hi=1.0)
+    q_curvature: float = setting(2.0e-5, lo=0.0, hi=1.0)
+    q_curvature_rate: float = setting(5.0e-7, lo=0.0, hi=1.0)
+    hit_gain: float = setting(0.3, lo=0.0, lo_open=True, hi=1.0)
+    miss_loss: float = setting(0.1, lo=0.0, hi=1.0)
+    min_confidence: float = setting(0.5, lo=0.0, hi=1.0)
+    birth_confidence: float = setting(0.4, lo=0.0, hi=1.0)
+    drop_length: float = setting(60.0, lo=0.0, hi=1.0e4)
+    min_spacing: float = setting(2.5, lo=0.0, lo_open=True, hi=10.0)
+    extend_length: float = setting(60.0, lo=0.0, hi=1000.0)
+    birth_range: float = setting(60.0, lo=10.0, hi=1000.0)
+    birth_points: int = setting(6, lo=3, hi=1000, integer=True)
+    birth_width: float = setting(0.4, lo=0.0, lo_open=True, hi=10.0)
+    birth_span: float = setting(12.0, lo=0.0, hi=1000.0)
+    max_offset: float = setting(12.0, lo=1.0, hi=100.0)
+    reseat_length: float = setting(10.0, lo=0.0, hi=1.0e4)
+
+    def __post_init__(self) -> None:
+        validate(self, "filter")
+        if self.birth_range > self.model_range:
+            raise ConfigError(
+                f"filter.birth_range ({self.birth_range}) must not exceed model_range "
+                f"({self.model_range}): births are measured in the model's range"
+            )
+
+
+FILTER_KEYS: tuple[str, ...] = tuple(FilterParams.__dataclass_fields__)
+"""The ``detector_params`` keys of the lane-model filter (besides ``tracking``); none
+is a key of :class:`ALDMParams` or of the tracker."""
+
+
+def split_aldm_params(
+    params: dict[str, Any],
+) -> tuple[bool | str, TrackerParams | None, FilterParams | None, ALDMParams]:
+    """``detector_params`` of ``"aldm"`` -> ``(tracking, tracker params, filter params,
+    ALDM params)``: ``tracking`` is one of :data:`~aldm_gym.sensor.tracking.
+    TRACKING_CHOICES`; the tracker's parameters are ``None`` unless it is ``True``, the
+    filter's unless it is ``"model"``.
+
+    :raises ConfigError: an unknown key (naming the allowed ones), a bad value, a
+        ``tracking`` not among the choices (naming them), or settings of the tracker
+        or the filter without the ``tracking`` that reads them.
+    """
+    check_keys(
+        "aldm config", params, {*ALDMParams.__dataclass_fields__, *TRACKER_KEYS, *FILTER_KEYS}
+    )
+    tracking = params.get("tracking", False)
+    if isinstance(tracking, str) and tracking == "model":
+        filt, aldm = split_filter_params(params)
+        return "model", None, filt, aldm
+    extra = sorted(k for k in params if k in FILTER_KEYS)
+    if extra and isinstance(tracking, (bool, np.bool_)):
+        raise ConfigError(
+            f"aldm settings {extra} are the lane-model filter's: they need tracking='model'"
+        )
+    on, tracker, aldm = split_params(params)
+    return on, tracker if on else None, None, aldm
+
+
+def split_filter_params(params: dict[str, Any]) -> tuple[FilterParams, ALDMParams]:
+    """``detector_params`` of ``"aldm"`` with ``tracking="model"`` -> ``(filter params,
+    ALDM params)`` (the ALDM starts the model).
+
+    :raises ConfigError: an unknown key (naming the allowed ones), a bad value, a
+        ``tracking`` other than ``"model"``, or settings of the point-level tracker
+        (they need ``tracking=True``).
+    """
+    check_keys(
+        "aldm config", params, {*ALDMParams.__dataclass_fields__, *TRACKER_KEYS, *FILTER_KEYS}
+    )
+    if params.get("tracking") != "model":
+        raise ConfigError(f"aldm.tracking must be 'model' here, got {params.get('tracking')!r}")
+    tracker = sorted(k for k in params if k in TRACKER_KEYS and k != "tracking")
+    if tracker:
+        raise ConfigError(
+            f"aldm settings {tracker} are the point-level tracker's: they need tracking=True, "
+            "not tracking='model'"
+        )
+    filt = {k: v for k, v in params.items() if k in FILTER_KEYS}
+    aldm = {k: v for k, v in params.items() if k in ALDMParams.__dataclass_fields__}
+    return build_config(FilterParams, filt, where="aldm"), make_params(None, **aldm)
+
+
+@dataclass(frozen=True)
+class ModelLaneDetection(LaneDetection):
+    """A :class:`~aldm_gym.sensor.lane_detection.LaneDetection` of the lane-model filter:
+    the lines drawn from the model, and per line its confidence and id.
+
+    :ivar confidence: ``(4,)`` existence confidence of each line in :data:`LINE_NAMES`
+        order, in [0, 1] (0: no line in that role).
+    :ivar ids: the filter's id of each line (-1: none); a marking keeps its id while
+        its role changes in a lane change.
+    """
+
+    confidence: FloatArray = field(default_factory=lambda: np.zeros(len(LINE_NAMES)))
+    ids: tuple[int, ...] = (-1,) * len(LINE_NAMES)
+
+
+class LaneModelFilter:
+    """One clothoid model of all lines, carried from frame to frame by a Kalman filter.
+
+    Call :meth:`update` once per frame with the points and the motion since the
+    previous frame; :meth:`reset` forgets the model (a new episode). Deterministic
+    (no randomness) and picklable. The state, in SI units, is :attr:`heading`
+    (``tan(psi)``), :attr:`curvature`, :attr:`curvature_rate` and :attr:`offsets`.
+
+    :param params: the ALDM's parameters, for the frame that starts the model and
+        its ``z_band`` (:class:`ALDMParams`; default robust).
+    :param filt: the filter's (:class:`FilterParams`).
+    :param path_range: the trajectory's fit range [m], as for
+        :func:`~aldm_gym.sensor.aldm.detect_lanes`.
+    """
+
+    def __init__(
+        self,
+        params: ALDMParams | None = None,
+        filt: FilterParams | None = None,
+        *,
+        path_range: float | None = None,
+    ) -> None:
+        self.params = make_params(params)
+        self.filter = filt if filt is not None else FilterParams()
+        if not isinstance(self.filter, FilterParams):
+            raise TypeError(f"filt must be FilterParams, got {type(self.filter).__name__}")
+        self.path_range = path_range
+        self._reach = fit_reach(path_range)
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the model and the lines' ids (the next frame starts a new model)."""
+        self._x = np.zeros(N_GEOMETRY)
+        self._p = np.zeros((N_GEOMETRY, N_GEOMETRY))
+        self._ids = np.zeros(0, dtype=np.int64)
+        self._conf = np.zeros(0)
+        self._miss = np.zeros(0)
+        self._far = np.zeros(0)
+        self._confirmed = np.zeros(0, dtype=bool)
+        self._next_id = 0
+        self._last_ids: tuple[int, ...] = (-1,) * len(LINE_NAMES)
+        self.n_used = 0
+        """Points associated with a line, and not rejected by the robust step, in the
+        last frame."""
+        self.n_born = 0
+        """Lines born from points since the reset."""
+        self.n_reseated = 0
+        """Lines re-seated onto a cluster of free points since the reset."""
+        self.n_starts = 0
+        """Times the model was started from the single-frame ALDM since the reset."""
+
+    # -- the state in SI units ---------------------------------------------------------
+
+    @property
+    def heading(self) -> float:
+        """``tan(psi)`` of the shared shape at the sensor [-]."""
+        return float(self._x[0] / SCALE)
+
+    @property
+    def curvature(self) -> float:
+        """``c0`` at the sensor [1/m], left positive."""
+        return float(self._x[1] / SCALE**2)
+
+    @property
+    def curvature_rate(self) -> float:
+        """``c1`` [1/m^2]."""
+        return float(self._x[2] / SCALE**3)
+
+    @property
+    def offsets(self) -> FloatArray:
+        """Each line's lateral offset at the sensor ``y0`` [m], left to right order of
+        :attr:`line_ids`."""
+        return self._x[N_GEOMETRY:].copy()
+
+    @property
+    def line_ids(self) -> tuple[int, ...]:
+        """The id of every line of the model (reported or not)."""
+        return tuple(int(i) for i in self._ids)
+
+    @property
+    def confidences(self) -> FloatArray:
+        """The confidence of every line of the model, in the order of :attr:`line_ids`."""
+        return self._conf.copy()
+
+    # -- one frame ---------------------------------------------------------------------
+
+    def update(self, points: Any, motion: EgoMotion | None) -> ModelLaneDetection:
+        """Carry the model to this frame and update it with the frame's points.
+
+        Rows with NaN or inf, behind the sensor (x < 0) or off the road plane
+        (``|z| > z_band``) are dropped, as :func:`~aldm_gym.sensor.aldm.detect_lanes`
+        drops them; an empty frame is a frame in which every line is missed.
+
+        :param points: ``(N, 2|3)`` points in the sensor frame [m], or a sensor frame.
+        :param motion: the sensor's motion since the previous frame; ``None`` starts
+            the model again from this frame (without odometry the old lines cannot be
+            placed).
+        :raises TypeError: ``points`` is not an array or frame, or ``motion`` is not
+            an :class:`EgoMotion`.
+        :raises ValueError: ``points`` of a bad shape.
+        """
+        pts = as_points(points)
+        if motion is not None and not isinstance(motion, EgoMotion):
+            raise TypeError(f"motion must be EgoMotion or None, got {type(motion).__name__}")
+        fp = self.filter
+        ok = np.isfinite(pts).all(axis=1) & (pts[:, 0] >= 0.0) & (pts[:, 0] <= fp.model_range)
+        if pts.shape[1] == 3:
+            ok &= np.abs(pts[:, 2]) <= self.params.z_band
+        x, y = pts[ok, 0], pts[ok, 1]
+        near = float(min(np.min(x), START_X_MAX)) if len(x) else EMPTY_START
+        if motion is None or len(self._ids) == 0:
+            self._start(pts)
+            travel = 0.0
+        else:
+            travel = motion.travel
+            self._predict(*motion.displacement(), travel)
+        if len(self._ids):
+            line, _ = self._associate(x, y)
+            support = self._correct(x, y, line)
+            self._existence(x, line, support, travel)
+            self._birth(x, y, line)
+        return self._detection(near)
+
+    def _start(self, pts: FloatArray) -> None:
+        """A new model from the single-frame ALDM's lines: a flat prior updated
+        (robustly) with the lines' points."""
+        fp = self.filter
+        _, _, lines, ls = detect_lanes_checked(pts, self.params, None)
+        offsets: list[float] = []
+        xs: list[FloatArray] = []
+        ys: list[FloatArray] = []
+        which: list[np.ndarray] = []
+        for i in range(len(LINE_NAMES)):
+            line = lines[ls[i] : ls[i + 1]]
+            line = line[line[:, 0] <= fp.model_range]
+            if len(line) < 2:
+                continue
+            which.append(np.full(len(line), len(offsets)))
+            offsets.append(float(line[0, 1]))
+            xs.append(line[:, 0])
+            ys.append(line[:, 1])
+        n = len(offsets)
+        self._x = np.concatenate((np.zeros(N_GEOMETRY), offsets))
+        # a flat prior: headings of +-0.3, radii down to ~100 m, offsets +-2 m
+        prior = np.array([0.3 * SCALE, 0.01 * SCALE**2, 2.0e-4 * SCALE**3, *([2.0] * n)])
+        self._p = np.diag(prior**2)
+        self._ids = np.arange(self._next_id, self._next_id + n, dtype=np.int64)
+        self._next_id += n
+        self._conf = np.full(n, 0.5 + 0.5 * fp.min_confidence)
+        self._miss = np.zeros(n)
+        self._far = np.array([float(v[-1]) for v in xs])
+        self._confirmed = np.ones(n, dtype=bool)
+        self.n_starts += 1
+        if n:
+            # robust too: a traced line bent onto clutter near the car keeps the
+            # offset of the most of its points
+            self._solve(np.concatenate(xs), np.concatenate(ys), np.concatenate(which), None)
+            # the 13 points per line are a fit, not independent measurements: the
+            # frame's own points follow in the same update
+            self._p = self._p * START_INFLATION
+
+    def _predict(self, dx: float, dy: float, dpsi: float, travel: float) -> None:
+        """Move the model into the new sensor frame: the origin advances ``dx`` along
+        the old x and ``dy`` along the old y [m], the axes turn by ``dpsi`` [rad]."""
+        fp = self.filter
+        n = len(self._x)
+        u = dx / SCALE
+        f = np.eye(n)
+        # Taylor shift of the cubic by u: y0 += a1 u + a2 u^2/2 + a3 u^3/6, a1 += a2 u +
+        # a3 u^2/2, a2 += a3 u
+        f[0, 1], f[0, 2], f[1, 2] = u, 0.5 * u * u, u
+        f[N_GEOMETRY:, 0] = u
+        f[N_GEOMETRY:, 1] = 0.5 * u * u
+        f[N_GEOMETRY:, 2] = u**3 / 6.0
+        x = f @ self._x
+        x[0] -= math.tan(dpsi) * SCALE  # the new x axis turned by dpsi (small angles)
+        x[N_GEOMETRY:] -= dy
+        q = np.zeros((n, n))
+        q[0, 0] = (fp.q_heading * SCALE) ** 2
+        q[1, 1] = (fp.q_curvature * SCALE**2) ** 2
+        q[2, 2] = (fp.q_curvature_rate * SCALE**3) ** 2
+        q[N_GEOMETRY:, N_GEOMETRY:] = fp.q_offset**2 + fp.q_width**2 * np.eye(n - N_GEOMETRY)
+        p = f @ self._p @ f.T + q * travel
+        self._x, self._p = x, 0.5 * (p + p.T)
+        self._far = self._far - dx
+
+    def _rows(self, x: FloatArray, line: np.ndarray) -> tuple[FloatArray, FloatArray]:
+        """Measurement rows of points at ``x`` on lines ``line``: the shape's part
+        ``(N, 3)`` (with each line's parallel-curve factor on the curvature terms) and
+        the factor itself ``(N,)``."""
+        u = x / SCALE
+        c0 = self._x[1] / SCALE**2
+        y0 = self._x[N_GEOMETRY:][line]
+        k = 1.0 / np.maximum(1.0 - y0 * c0, 0.5)
+        return np.column_stack((u, 0.5 * u * u * k, u**3 / 6.0 * k)), k
+
+    def _shape(self, x: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """The shape's basis at ``x``: ``u``, ``u^2/2``, ``u^3/6`` (``u = x / L``)."""
+        u = x / SCALE
+        return u, 0.5 * u * u, u**3 / 6.0
+
+    def _predicted(self, x: FloatArray) -> FloatArray:
+        """``(N, n_lines)``: every line's y at ``x`` [m]."""
+        u, u2, u3 = self._shape(x)
+        a1, a2, a3 = self._x[:N_GEOMETRY]
+        y0 = self._x[N_GEOMETRY:]
+        k = 1.0 / np.maximum(1.0 - y0 * (a2 / SCALE**2), 0.5)
+        return y0[None, :] + (a1 * u)[:, None] + np.outer(a2 * u2 + a3 * u3, k)
+
+    def _sigma(self, x: FloatArray) -> FloatArray:
+        """A point's lateral standard deviation at ``x`` [m]."""
+        return self.filter.point_std + self.filter.point_std_slope * x
+
+    def _associate(self, x: FloatArray, y: FloatArray) -> tuple[np.ndarray, FloatArray]:
+        """Each point's line (-1: none) within its gate, and its residual [m]."""
+        fp = self.filter
+        n = len(self._ids)
+        if len(x) == 0:
+            return np.zeros(0, dtype=np.int64), np.zeros(0)
+        res = y[:, None] - self._predicted(x)
+        g = np.column_stack(self._shape(x))
+        pg = self._p[:N_GEOMETRY, :N_GEOMETRY]
+        var = np.einsum("nj,jk,nk->n", g, pg, g)[:, None]
+        var = var + 2.0 * (g @ self._p[:N_GEOMETRY, N_GEOMETRY:])
+        var = var + np.diag(self._p)[N_GEOMETRY:][None, :] + (self._sigma(x) ** 2)[:, None]
+        spread = fp.association_sigmas * np.sqrt(np.maximum(var, 0.0))
+        gate = np.clip(spread, fp.association_min, fp.association_max)
+        dist = np.abs(res)
+        dist[dist > gate] = np.inf
+        line = np.argmin(dist, axis=1) if n else np.zeros(len(x), dtype=np.int64)
+        found = np.isfinite(dist[np.arange(len(x)), line])
+        line = np.where(found, line, -1)
+        return line, res[np.arange(len(x)), np.maximum(line, 0)]
+
+    def _correct(self, x: FloatArray, y: FloatArray, line: np.ndarray) -> FloatArray:
+        """The robust update with the associated points; the support of each line
+        (the sum of its points' robust weights). Associated points the robust step
+        gives no weight are set free again (``line`` -1, in place)."""
+        take = line >= 0
+        support = np.zeros(len(self._ids))
+        if not take.any():
+            self.n_used = 0
+            return support
+        w = self._solve(x[take], y[take], line[take], None)
+        support += np.bincount(line[take], weights=w, minlength=len(support))
+        rejected = np.flatnonzero(take)[w == 0.0]
+        line[rejected] = -1
+        self.n_used = int(np.count_nonzero(take)) - len(rejected)
+        return support
+
+    def _solve(
+        self, x: FloatArray, y: FloatArray, line: np.ndarray, weight: FloatArray | None
+    ) -> FloatArray:
+        """The Kalman update in information form with points ``(x, y)`` on lines
+        ``line``: re-weighted three times by Tukey's biweight unless ``weight``
+        is given (:func:`~aldm_gym.sensor.aldm_kernels.model.robust_update`). Returns
+        the final weights."""
+        fp = self.filter
+        g, _ = self._rows(x, line)
+        sigma = self._sigma(x)
+        prior_info = np.linalg.inv(self._p)
+        x0 = self._x.copy()
+        h_y0 = self._x[N_GEOMETRY:][line]
+        r0 = y - (h_y0 + g @ x0[:N_GEOMETRY])
+        if weight is None:
+            # the first weights from the innovation: the residual to the prediction
+            # over its standard deviation (the state's and the point's)
+            pg = self._p[:N_GEOMETRY, :N_GEOMETRY]
+            var = np.einsum("nj,jk,nk->n", g, pg, g) + sigma * sigma
+            var += 2.0 * np.einsum("nj,jn->n", g, self._p[:N_GEOMETRY, N_GEOMETRY + line])
+            var += self._p[N_GEOMETRY + line, N_GEOMETRY + line]
+            w = self._tukey(np.abs(r0) / np.sqrt(np.maximum(var, sigma * sigma)))
+        else:
+            w = weight
+        delta, cov, w, ok = robust_update(
+            np.ascontiguousarray(g),
+            line.astype(np.int64),
+            r0,
+            sigma,
+            np.asarray(w, dtype=np.float64),
+            prior_info,
+            fp.tukey,
+            1 if weight is not None else 3,
+            weight is None,
+        )
+        if not ok:  # not positive definite (rounding): keep the prediction this frame
+            return np.zeros(len(x))
+        self._x = x0 + delta
+        self._p = 0.5 * (cov + cov.T)
+        return w
+
+    def _tukey(self, e: FloatArray) -> FloatArray:
+        """Tukey's biweight of normalised residuals ``e``."""
+        return np.square(np.maximum(1.0 - np.square(e / self.filter.tukey), 0.0))
+
+    def _existence(
+        self, x: FloatArray, line: np.ndarray, support: FloatArray, travel: float
+    ) -> None:
+        """Hits and misses, the lines' far ends, and the lines dropped."""
+        fp = self.filter
+        hit = support >= MIN_SUPPORT
+        self._conf = np.where(
+            hit, self._conf + fp.hit_gain * (1.0 - self._conf), self._conf * (1.0 - fp.miss_loss)
+        )
+        self._miss = np.where(hit, 0.0, self._miss + travel)
+        self._confirmed |= self._conf >= fp.min_confidence
+        if len(x):
+            far = np.full(len(self._ids), -np.inf)
+            take = line >= 0
+            np.maximum.at(far, line[take], x[take])
+            self._far = np.where(hit, far, self._far)
+        offsets = self._x[N_GEOMETRY:]
+        keep = (self._miss <= fp.drop_length) & (np.abs(offsets) <= fp.max_offset)
+        # of two lines too close, the less confident goes (on a tie the younger)
+        order = np.argsort(offsets, kind="stable")
+        for a, b in itertools.pairwise(order):
+            if keep[a] and keep[b] and offsets[b] - offsets[a] < fp.min_spacing:
+                weaker = a if (self._conf[a], -self._ids[a]) < (self._conf[b], -self._ids[b]) else b
+                keep[weaker] = False
+        if not keep.all():
+            self._keep(keep)
+
+    def _keep(self, keep: np.ndarray) -> None:
+        """Drop the lines not in ``keep`` from the state and the bookkeeping."""
+        idx = np.concatenate((np.arange(N_GEOMETRY), N_GEOMETRY + np.flatnonzero(keep)))
+        self._x = self._x[idx]
+        self._p = self._p[np.ix_(idx, idx)]
+        self._ids, self._conf = self._ids[keep], self._conf[keep]
+        self._miss, self._far = self._miss[keep], self._far[keep]
+        self._confirmed = self._confirmed[keep]
+
+    def _birth(self, x: FloatArray, y: FloatArray, line: np.ndarray) -> None:
+        """New lines from clusters of the points no line took (moved onto x = 0 along
+        the shared shape): at most one per frame."""
+        fp = self.filter
+        free = (line < 0) & (x <= fp.birth_range)
+        if np.count_nonzero(free) < fp.birth_points:
+            return
+        fx = x[free]
+        u, u2, u3 = self._shape(fx)
+        a1, a2, a3 = self._x[:N_GEOMETRY]
+        off = y[free] - (a1 * u + a2 * u2 + a3 * u3)
+        order = np.argsort(off, kind="stable")
+        off, fx = off[order], fx[order]
+        # clusters: windows of birth_width starting at each point, largest first
+        end = np.searchsorted(off, off + fp.birth_width, side="right")
+        count = end - np.arange(len(off))
+        lines = self._x[N_GEOMETRY:]
+        for i in np.argsort(-count, kind="stable"):
+            if count[i] < fp.birth_points:
+                return
+            members = slice(i, end[i])
+            centre = float(np.median(off[members]))
+            span = float(np.ptp(fx[members]))
+            if span < fp.birth_span or abs(centre) > fp.max_offset:
+                continue
+            if len(lines):
+                j = int(np.argmin(np.abs(lines - centre)))
+                if abs(lines[j] - centre) < fp.min_spacing:
+                    if 0.0 < fp.reseat_length <= self._miss[j]:
+                        self._reseat(j, centre, float(np.max(fx[members])))
+                        return
+                    continue
+            self._add_line(centre, float(np.max(fx[members])))
+            return
+
+    def _reseat(self, j: int, offset: float, far: float) -> None:
+        """Line ``j`` set onto ``offset`` [m]: uncorrelated with the rest, 0.3 m
+        uncertain; id, role and confidence kept."""
+        k = N_GEOMETRY + j
+        self._x[k] = offset
+        self._p[k, :] = 0.0
+        self._p[:, k] = 0.0
+        self._p[k, k] = 0.3**2
+        self._far[j] = far
+        self.n_reseated += 1
+
+    def _add_line(self, offset: float, far: float) -> None:
+        """A new line at ``offset`` [m]: uncorrelated with the shape, 0.3 m uncertain."""
+        n = len(self._x)
+        p = np.zeros((n + 1, n + 1))
+        p[:n, :n] = self._p
+        p[n, n] = 0.3**2
+        self._x, self._p = np.append(self._x, offset), p
+        self._ids = np.append(self._ids, self._next_id)
+        self._next_id += 1
+        self._conf = np.append(self._conf, self.filter.birth_confidence)
+        self._miss = np.append(self._miss, 0.0)
+        self._far = np.append(self._far, far)
+        self._confirmed = np.append(self._confirmed, False)
+        self.n_born += 1
+
+    # -- output ------------------------------------------------------------------------
+
+    def _roles(self) -> list[int]:
+        """The model's line index of each role in :data:`LINE_NAMES` order (-1: none)."""
+        offsets = self._x[N_GEOMETRY:]
+        shown = np.flatnonzero(self._confirmed)
+        left = shown[offsets[shown] > 0.0]
+        right = shown[offsets[shown] <= 0.0]
+        left = left[np.argsort(offsets[left], kind="stable")]
+        right = right[np.argsort(-offsets[right], kind="stable")]
+        if len(left) and len(right):
+            # the nearest lines on both sides wider apart than a lane: an ego line is
+            # missing (dropped, not yet born); the farther one is the adjacent line
+            # of its side, not an ego line of a lane twice as wide
+            if offsets[left[0]] - offsets[right[0]] > self.params.max_lane_width:
+                if offsets[left[0]] > -offsets[right[0]]:
+                    left = np.concatenate(([-1], left))
+                else:
+                    right = np.concatenate(([-1], right))
+        pick = [-1, -1, -1, -1]
+        if len(left):
+            pick[1] = int(left[0])
+        if len(left) > 1:
+            pick[0] = int(left[1])
+        if len(right):
+            pick[2] = int(right[0])
+        if len(right) > 1:
+            pick[3] = int(right[1])
+        return pick
+
+    def _detection(self, near: float) -> ModelLaneDetection:
+        """The model drawn as a detection: 13 points per line (``n_points`` of the
+        ALDM's parameters) from ``near`` to the line's far end."""
+        fp = self.filter
+        n_points = self.params.n_points if self.params.n_points >= 2 else 13
+        roles = self._roles()
+        seen = self._far[self._confirmed & (self._miss == 0.0)]
+        shared = float(np.max(seen)) if len(seen) else -math.inf
+        fields: dict[str, FloatArray] = {}
+        conf = np.zeros(len(LINE_NAMES))
+        ids = [-1] * len(LINE_NAMES)
+        drawn: list[tuple[int, int, float]] = []
+        for r in range(len(LINE_NAMES)):
+            i = roles[r]
+            if i < 0:
+                continue
+            own = float(self._far[i])
+            far = min(fp.model_range, max(own, min(shared, own + fp.extend_length)))
+            if far - near >= MIN_EXTENT:
+                drawn.append((r, i, far))
+        if drawn:
+            # every drawn line at once: (n_points, lines) x and y
+            idx = np.array([i for _, i, _ in drawn])
+            xs = np.linspace(near, np.array([far for *_, far in drawn]), n_points)
+            u, u2, u3 = self._shape(xs)
+            a1, a2, a3 = self._x[:N_GEOMETRY]
+            y0 = self._x[N_GEOMETRY + idx]
+            k = 1.0 / np.maximum(1.0 - y0 * (a2 / SCALE**2), 0.5)
+            ys = y0 + a1 * u + k * (a2 * u2 + a3 * u3)
+            pts = np.stack((xs.T, ys.T), axis=-1)
+            for c, (r, i, _) in enumerate(drawn):
+                fields[LINE_NAMES[r]] = pts[c]
+                conf[r] = self._conf[i]
+                ids[r] = int(self._ids[i])
+        left, right = fields.get("ego_left"), fields.get("ego_right")
+        width = DEFAULT_LANE_WIDTH
+        if left is not None and right is not None:
+            width = float(left[0, 1] - right[0, 1])
+        empty = np.zeros((0, 2))
+        traj = driving_trajectory(
+            left if left is not None else empty,
+            right if right is not None else empty,
+            width,
+            PATH_STEP,
+            self.path_range,
+        )
+        base = LaneDetection.trusted(**fields, trajectory=traj, source="aldm")
+        det = object.__new__(ModelLaneDetection)
+        for name in (*LINE_NAMES, "trajectory", "source"):
+            object.__setattr__(det, name, getattr(base, name))
+        object.__setattr__(det, "confidence", conf)
+        object.__setattr__(det, "ids", tuple(ids))
+        self._last_ids = tuple(ids)
+        return det
+
+    @property
+    def ids(self) -> tuple[int, ...]:
+        """The id of each role's line in the last detection, in :data:`LINE_NAMES`
+        order (-1: none), as :attr:`LaneTracker.ids <aldm_gym.sensor.tracking.
+        LaneTracker.ids>`."""
+        return self._last_ids
+
+
+__all__ = [
+    "FILTER_KEYS",
+    "MIN_SUPPORT",
+    "FilterParams",
+    "LaneModelFilter",
+    "ModelLaneDetection",
+    "split_aldm_params",
+    "split_filter_params",
+]

@@ -1,0 +1,384 @@
+"""The lane-model filter (LaneModelFilter): roads, occlusion, clutter, lane change,
+bad input, determinism, settings, the env."""
+
+from __future__ import annotations
+
+import copy
+import math
+import pickle
+
+import _synthetic as S
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import aldm_gym  # noqa: F401  (registers the env)
+from aldm_gym.errors import ConfigError, InputError
+from aldm_gym.sensor import detect_lanes
+from aldm_gym.sensor.aldm import ALDMParams
+from aldm_gym.sensor.aldm_kernels import model as M
+from aldm_gym.sensor.detectors import ModelALDMDetector, TrackingALDMDetector, make_detector
+from aldm_gym.sensor.lane_detection import LINE_NAMES
+from aldm_gym.sensor.lane_filter import (
+    FILTER_KEYS,
+    FilterParams,
+    LaneModelFilter,
+    ModelLaneDetection,
+    split_filter_params,
+)
+from aldm_gym.sensor.tracking import TRACKER_KEYS, EgoMotion
+
+SPEED = 25.0
+DT = 0.1
+
+
+def _err(road: S.SynthRoad, j: int, line: np.ndarray) -> float:
+    """Largest |y - y_true| of ``line`` against marking ``j`` [m]; inf when missing."""
+    return float(road.lateral_error(j, line).max()) if len(line) >= 2 else math.inf
+
+
+def _drive(radius: float, frames: int = 25, hide=None, noise: float = 0.02, dropout: float = 0.0):
+    """A 4-lane road of ``radius`` at 25 m/s, the car in lane 1; ``hide(k, road, pts)``
+    may remove points of frame ``k``."""
+    filt = LaneModelFilter()
+    motion = EgoMotion(SPEED, 0.0 if math.isinf(radius) else SPEED / radius, DT)
+    for k in range(frames):
+        road = S.highway(lanes=4, ego_lane=1, radius=radius, phase=-SPEED * DT * k)
+        pts, _ = S.sample(road, noise=noise, dropout=dropout, seed=k)
+        if hide is not None:
+            pts = hide(k, road, pts)
+        yield k, road, pts, filt.update(pts, None if k == 0 else motion), filt
+
+
+@pytest.mark.parametrize("radius", [math.inf, 800.0, -500.0])
+def test_straight_and_curved_roads(radius: float) -> None:
+    """Every line within 5 cm to a preview past 80 m (the model's range is 90 m), the
+    shape's curvature the road's, ids kept, full confidence."""
+    for k, road, _pts, det, filt in _drive(radius):
+        assert isinstance(det, ModelLaneDetection)
+        for name in LINE_NAMES:
+            j = getattr(road, name)
+            assert _err(road, j, det.line(name)) < 0.05, (k, name)
+            assert len(det.line(name)) == 13
+        assert det.preview("ego_left") > 80.0 and det.preview("ego_right") > 80.0
+        assert det.ids == filt.ids == (0, 1, 2, 3)
+        assert len(det.trajectory) > 0
+    assert filt.curvature == pytest.approx(0.0 if math.isinf(radius) else 1.0 / radius, abs=1e-4)
+    assert np.all(det.confidence > 0.99)
+    assert filt.n_starts == 1
+
+
+def test_noise_and_dropout() -> None:
+    """10 cm lateral noise and 20 % dropout in an R 250 m bend: from frame 5 on the ego
+    lines stay within 0.2 m to a preview past 60 m in every frame; the single-frame
+    ALDM misses that in some frames."""
+    single_bad = 0
+    for k, road, pts, det, _filt in _drive(250.0, frames=40, noise=0.1, dropout=0.2):
+        single = detect_lanes(pts)
+        single_bad += not (
+            _err(road, road.ego_left, single.ego_left) < 0.3
+            and _err(road, road.ego_right, single.ego_right) < 0.3
+        )
+        if k < 5:
+            continue
+        for name in ("ego_left", "ego_right"):
+            assert _err(road, getattr(road, name), det.line(name)) < 0.2, (k, name)
+            assert det.preview(name) > 60.0, (k, name)
+    assert single_bad >= 3
+
+
+def test_occluded_line_is_carried_through() -> None:
+    """The ego-left line hidden entirely for 8 frames (20 m of travel, a truck beside
+    and ahead), then 25-85 m ahead for the rest: single-frame ALDM loses it, the
+    filter draws it from the model within 10 cm, its confidence falling while
+    hidden and rising again."""
+
+    def hide(k: int, road: S.SynthRoad, pts: np.ndarray) -> np.ndarray:
+        near = road.lateral_error(road.ego_left, pts[:, :2]) < 0.3
+        if 10 <= k < 18:
+            return pts[~near]
+        if k >= 18:
+            return pts[~(near & (pts[:, 0] >= 25.0) & (pts[:, 0] <= 85.0))]
+        return pts
+
+    conf = []
+    for k, road, pts, det, _filt in _drive(800.0, frames=30, hide=hide):
+        conf.append(det.confidence[1])
+        if k < 10:
+            continue
+        if k < 18:
+            assert (
+                not detect_lanes(pts).found("ego_left")
+                or _err(road, road.ego_left, detect_lanes(pts).ego_left) > 0.3
+            )
+        assert det.ids == (0, 1, 2, 3), k
+        assert _err(road, road.ego_left, det.ego_left) < 0.1, k
+        assert det.preview("ego_left") > 60.0, k  # the paper's preview
+        assert _err(road, road.ego_right, det.ego_right) < 0.05, k
+    assert conf[17] < 0.5 * conf[9] and conf[-1] > 0.6
+
+
+def test_worn_line_keeps_its_role() -> None:
+    """The dashed ego-left line worn, from frame 10 on, to one dash in three (6 m of
+    paint every 54 m: one or two dashes in the model's range) in an R 800 m bend:
+    each dash's three points
+    are a hit, the line keeps its id and role within 5 cm, and the left adjacent line
+    never takes the ego-left role."""
+
+    filt = LaneModelFilter()
+    motion = EgoMotion(SPEED, SPEED / 800.0, DT)
+    for k in range(60):
+        road = S.highway(lanes=4, ego_lane=1, radius=800.0, phase=-SPEED * DT * k)
+        if k >= 10:  # the first frames see it whole: the model starts on it
+            road.markings[1].gap = 48.0
+        pts, _ = S.sample(road, noise=0.02, seed=k)
+        det = filt.update(pts, None if k == 0 else motion)
+        assert det.ids == (0, 1, 2, 3), k
+        assert _err(road, road.ego_left, det.ego_left) < 0.05, k
+        assert _err(road, road.left_adjacent, det.left_adjacent) < 0.05, k
+    assert det.confidence[1] > 0.5
+
+
+def test_a_dropped_ego_line_does_not_hand_its_role_on() -> None:
+    """The ego-left line's paint ends at frame 10 (a straight road): the line is carried,
+    then dropped after ``drop_length``; the left adjacent line, 7.5 m from the ego-right
+    line, stays the left adjacent (not an ego line of a lane twice as wide), and the
+    trajectory stays in the lane's middle (one line and half a lane width)."""
+    filt = LaneModelFilter()
+    motion = EgoMotion(SPEED, 0.0, DT)
+    for k in range(60):
+        road = S.highway(lanes=4, ego_lane=1, phase=-SPEED * DT * k)
+        if k >= 10:
+            road.markings[1].end_s = -100.0
+        pts, _ = S.sample(road, noise=0.02, seed=k)
+        det = filt.update(pts, None if k == 0 else motion)
+        assert _err(road, road.left_adjacent, det.left_adjacent) < 0.05, k
+        assert _err(road, road.ego_right, det.ego_right) < 0.05, k
+        assert np.max(np.abs(det.trajectory[det.trajectory[:, 0] < 60.0, 1])) < 0.1, k
+    assert 1 not in filt.line_ids and not det.found("ego_left")
+    assert det.ids[0] == 0 and det.ids[2:] == (2, 3)
+
+
+def test_clutter_is_rejected() -> None:
+    """A continuous tar seam 0.5 m outside the dashed ego-right line and one 1.1 m
+    inside the ego-left line, from 120 m ahead of the first frame on (they come into
+    the model's 90 m range at frame 12 and reach the car), and 40 random specks per
+    frame. The single-frame ALDM that starts the model bends its right lines onto
+    specks; the filter re-seats the ego-right line onto its marking within 10 m of
+    travel. From frame 6 on the ego lines stay within 5 cm and keep their ids, and no
+    line is born or re-seated on the clutter; single-frame ALDM with its lane-width
+    check off takes the inner seam."""
+    rng = np.random.default_rng(0)
+    filt = LaneModelFilter()
+    motion = EgoMotion(SPEED, 0.0, DT)
+    wrong_unchecked = 0
+    ids: tuple[int, ...] = ()
+    for k in range(40):
+        s0 = SPEED * DT * k
+        road = S.highway(lanes=4, ego_lane=1, phase=-s0)
+        pts, _ = S.sample(road, noise=0.02, seed=k)
+        xs = np.arange(120.0, 320.0, 2.0) + 0.3 - s0
+        xs = xs[(xs >= 5.52) & (xs <= 200.0)]
+        inner = np.column_stack([xs, np.full(len(xs), road.markings[1].offset - 1.1), 0 * xs])
+        outer = np.column_stack([xs, np.full(len(xs), road.markings[2].offset - 0.5), 0 * xs])
+        specks = np.column_stack(
+            [rng.uniform(5.52, 120.0, 40), rng.uniform(-8.0, 8.0, 40), np.zeros(40)]
+        )
+        pts = np.concatenate([pts, inner, outer, specks])
+        det = filt.update(pts, None if k == 0 else motion)
+        if k < 6:  # the start: the single-frame ALDM's right lines bent on specks
+            continue
+        ids = ids or det.ids
+        assert det.ids == ids and -1 not in ids, k
+        assert _err(road, road.ego_left, det.ego_left) < 0.05, k
+        assert _err(road, road.ego_right, det.ego_right) < 0.05, k
+        offsets = filt.offsets
+        for off in (road.markings[1].offset - 1.1, road.markings[2].offset - 0.5):
+            assert np.min(np.abs(offsets - off)) > 0.3
+        wrong_unchecked += _err(road, 1, detect_lanes(pts, min_lane_width=1.0).ego_left) > 0.3
+    assert wrong_unchecked >= 10
+    # the ego-right line started on specks was re-seated once, the fifth marking and
+    # the right adjacent dropped at the start were born: nothing else
+    assert filt.n_reseated == 1 and filt.n_born == 2
+    assert len(filt.line_ids) == 5
+
+
+def _lane_change(frames: int = 70):
+    """Straight 4-lane road; from frame 10 the car changes one lane to the left in 4 s
+    (a sine yaw rate), with odometry from the same constant-turn model."""
+    filt = LaneModelFilter()
+    width, duration = 3.75, 4.0
+    amp = width * 2.0 * math.pi / (SPEED * duration**2)
+    s0 = lateral = yaw = 0.0
+    motion = None
+    for k in range(frames):
+        road = S.highway(lanes=4, ego_lane=2, lateral=lateral, yaw=yaw, phase=-s0)
+        pts, _ = S.sample(road, noise=0.02, seed=k)
+        det = filt.update(pts, motion)
+        yield k, lateral, road, det, filt
+        t = (k - 10) * DT
+        rate = amp * math.sin(2.0 * math.pi * t / duration) if 0.0 <= t < duration else 0.0
+        motion = EgoMotion(SPEED, rate, DT)
+        dx, dy, dpsi = motion.displacement()
+        s0 += dx * math.cos(yaw) - dy * math.sin(yaw)
+        lateral += dx * math.sin(yaw) + dy * math.cos(yaw)
+        yaw += dpsi
+
+
+def test_lane_change_relabels_lines_and_keeps_ids() -> None:
+    first = last = None
+    end = 0.0
+    filt = None
+    for _k, lateral, road, det, filt in _lane_change():  # noqa: B007  (the last one)
+        offsets = np.array([road.curve(j, np.zeros(1))[0, 1] for j in range(5)])
+        left = int(np.argmin(np.where(offsets > 0.0, offsets, np.inf)))
+        if np.min(np.abs(offsets)) > 0.3:  # not while the sensor is over a line
+            assert _err(road, left, det.ego_left) < 0.1
+            assert _err(road, left + 1, det.ego_right) < 0.1
+        first = first or det.ids
+        last = det.ids
+        end = lateral
+    assert end == pytest.approx(3.75, abs=0.05)
+    assert -1 not in first
+    la, el, er, _ra = first
+    # one lane to the left: the left adjacent becomes the ego left, the ego left the
+    # ego right, the ego right the right adjacent; the new left adjacent is new
+    assert last[1:] == (la, el, er)
+    assert last[0] not in first
+    assert filt.n_starts == 1  # re-labelled, not restarted
+
+
+def test_bad_input() -> None:
+    """NaN/inf rows are dropped as detect_lanes drops them (the same output as without
+    them); an empty frame misses every line and draws the carried model; a bad shape
+    or motion raises."""
+    frames = list(_drive(800.0, frames=6))
+    _k, _road, pts, _det, _ = frames[-1]
+    motion = EgoMotion(SPEED, SPEED / 800.0, DT)
+    a = LaneModelFilter()
+    b = LaneModelFilter()
+    for k, _road, p, _d, _f in frames[:-1]:
+        bad = p.copy()
+        bad[::7, 1] = np.nan
+        bad[::11, 0] = np.inf
+        finite = (np.arange(len(p)) % 7 != 0) & (np.arange(len(p)) % 11 != 0)
+        a.update(p[finite], motion if k else None)
+        b.update(bad, motion if k else None)
+    for name in LINE_NAMES:
+        np.testing.assert_array_equal(a._detection(6.0).line(name), b._detection(6.0).line(name))
+    before = copy.deepcopy(a)
+    det = a.update(np.zeros((0, 3)), motion)
+    assert det.found("ego_left") and det.found("ego_right")
+    assert np.all(det.confidence[1:3] < before._conf[1:3])
+    assert LaneModelFilter().update(np.zeros((0, 2)), None).found("ego_left") is False
+    with pytest.raises(InputError, match=r"\(N, 2\) or \(N, 3\)"):
+        a.update(np.zeros((5, 4)), motion)
+    with pytest.raises(TypeError, match="EgoMotion"):
+        a.update(pts, (25.0, 0.0, 0.1))  # type: ignore[arg-type]
+
+
+def test_deterministic_reset_and_pickle() -> None:
+    runs = [[det for *_, det, _f in _drive(-500.0, frames=12)] for _ in (0, 1)]
+    for a, b in zip(*runs, strict=True):
+        assert a.ids == b.ids
+        np.testing.assert_array_equal(a.confidence, b.confidence)
+        for name in (*LINE_NAMES, "trajectory"):
+            np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
+    *_, filt = list(_drive(-500.0, frames=8))[-1]
+    road = S.highway(lanes=4, ego_lane=1, radius=-500.0, phase=-SPEED * DT * 8)
+    pts, _ = S.sample(road, noise=0.02, seed=8)
+    motion = EgoMotion(SPEED, -SPEED / 500.0, DT)
+    clone = pickle.loads(pickle.dumps(filt))
+    want = copy.deepcopy(filt).update(pts, motion)
+    got = clone.update(pts, motion)
+    np.testing.assert_array_equal(want.ego_left, got.ego_left)
+    np.testing.assert_array_equal(want.confidence, got.confidence)
+    fresh = LaneModelFilter().update(pts, None)
+    filt.reset()
+    again = filt.update(pts, None)
+    assert again.ids == fresh.ids == (0, 1, 2, 3)
+    for name in (*LINE_NAMES, "trajectory"):
+        np.testing.assert_array_equal(getattr(again, name), getattr(fresh, name))
+
+
+@pytest.mark.parametrize(
+    ("params", "match"),
+    [
+        ({"tracking": "yes"}, r"aldm\.tracking must be one of \[False, True, 'model'\]"),
+        ({"tracking": 1.0}, r"aldm\.tracking must be one of"),
+        ({"tracking": True, "tukey": 2.0}, r"\['tukey'\] are the lane-model filter's"),
+        ({"tukey": 2.0}, r"need tracking='model'"),
+        ({"tracking": "model", "bridge_gap": 9.0}, r"\['bridge_gap'\] .* need tracking=True"),
+        ({"tracking": "model", "tukeyy": 2.0}, r"tukeyy.*did you mean 'tukey'"),
+        ({"tracking": "model", "association_min": -1.0}, r"filter\.association_min must be > 0"),
+        ({"tracking": "model", "birth_range": 150.0}, r"birth_range .* model_range"),
+    ],
+)
+def test_config_errors(params: dict, match: str) -> None:
+    with pytest.raises(ConfigError, match=match):
+        make_detector("aldm", params)
+
+
+def test_filter_keys_are_their_own() -> None:
+    """detector_params is one flat mapping: no filter key is an ALDM or tracker key."""
+    assert not set(FILTER_KEYS) & {*ALDMParams.__dataclass_fields__, *TRACKER_KEYS}
+
+
+def test_registry_and_settings() -> None:
+    det = make_detector("aldm", {"tracking": "model", "model_range": 80.0, "association_max": 1.0})
+    assert isinstance(det, ModelALDMDetector)
+    assert det.tracker.filter.model_range == 80.0 and det.tracker.filter.association_max == 1.0
+    assert isinstance(make_detector("aldm", {"tracking": True}), TrackingALDMDetector)
+    filt, aldm = split_filter_params({"tracking": "model", "z_band": 0.3})
+    assert filt == FilterParams() and aldm.z_band == 0.3
+    with pytest.raises(TypeError, match="FilterParams"):
+        LaneModelFilter(filt={"tukey": 2.0})  # type: ignore[arg-type]
+    with pytest.raises(ConfigError, match=r"detector_params|tukeyy"):
+        gym.make("ALDMHighway-v0", config={"detector_params": {"tracking": "model", "tukeyy": 1}})
+
+
+def test_env_runs_the_filter() -> None:
+    cfg = {"detector_params": {"tracking": "model"}, "vehicles_count": 5, "duration": 3}
+    env = gym.make("ALDMHighway-v0", config=cfg)
+    env.reset(seed=3)
+    for _ in range(4):
+        _, _, _, _, info = env.step(1)
+        assert info["detection"]["ego_left"]["correct"]
+        assert info["detection"]["ego_right"]["correct"]
+    base = env.unwrapped
+    assert isinstance(base._detector, ModelALDMDetector)
+    det = base.detection
+    assert isinstance(det, ModelLaneDetection)
+    assert det.confidence[1] > 0.5 and det.confidence[2] > 0.5
+    clone = pickle.loads(pickle.dumps(base))
+    np.testing.assert_array_equal(clone.step(1)[0]["lines"], base.step(1)[0]["lines"])
+    env.close()
+
+
+def test_update_kernel_matches_plain_python() -> None:
+    """robust_update compiled and as plain Python on a frame's associated points."""
+    frames = list(_drive(-500.0, frames=8))
+    *_, filt = frames[-2]
+    _k, _road, pts, _det, _ = frames[-1]
+    filt._predict(*EgoMotion(SPEED, -SPEED / 500.0, DT).displacement(), SPEED * DT)
+    x, y = pts[:, 0], pts[:, 1]
+    keep = x <= filt.filter.model_range
+    x, y = x[keep], y[keep]
+    line, _ = filt._associate(x, y)
+    take = line >= 0
+    x, y, line = x[take], y[take], line[take]
+    g, _ = filt._rows(x, line)
+    r0 = y - (filt._x[M.N_GEOMETRY :][line] + g @ filt._x[: M.N_GEOMETRY])
+    r0[::10] += 1.0  # clutter: a point in ten 1 m off its line
+    sigma = filt._sigma(x)
+    args = (g, line, r0, sigma, np.ones(len(x)), np.linalg.inv(filt._p), 2.5, 3, True)
+    got, want = M.robust_update(*args), M.robust_update_py(*args)
+    assert got[3] and want[3]
+    assert np.all(want[2][::10] == 0.0) and np.all(want[2][1::10] > 0.0)
+    for a, b in zip(got[:3], want[:3], strict=True):
+        np.testing.assert_array_equal(a, b)
+    # the covariance is the inverse of the information matrix of the last solve: SPD
+    np.testing.assert_allclose(want[1], want[1].T, atol=1e-12)
+    assert np.all(np.linalg.eigvalsh(want[1]) > 0.0)
+    _low, ok = M._cholesky_py(-np.eye(3))
+    assert not ok and not M._cholesky(-np.eye(3))[1]
