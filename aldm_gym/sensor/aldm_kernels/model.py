@@ -5,7 +5,10 @@ in information form, re-weighted by Tukey's biweight. The state is the shared sh
 (3 entries) followed by one offset per line; a point on line ``j`` has the
 measurement row ``(g0, g1, g2, e_j)``. The information matrix is small (3 + lines,
 at most a dozen) and symmetric positive definite: it is solved and inverted by its
-Cholesky factor. Decisions and their reasons: ``docs/aldm.md``, section "Lane-model
+Cholesky factor. The factor and its solves are written out here rather than taken
+from LAPACK (``np.linalg.cholesky`` in numba) so that the update is the same to the
+bit on every x86-64 CPU: numba's loops keep the order of every sum, while LAPACK's
+kernels pick their SIMD paths at run time. Decisions and their reasons: ``docs/aldm.md``, section "Lane-model
 filter". Plain-Python twins ``_name_py`` as in the other kernel modules.
 """
 
