@@ -28,11 +28,11 @@ from dataclasses import dataclass, field
 from typing import Any, ClassVar, Protocol
 
 from aldm_gym.errors import ConfigError
-from aldm_gym.sensor.aldm import detect_lanes
+from aldm_gym.sensor.aldm import ALDMParams, detect_lanes
 from aldm_gym.sensor.frame import SensorFrame
 from aldm_gym.sensor.ground_truth import ground_truth_detect
 from aldm_gym.sensor.lane_detection import LaneDetection
-from aldm_gym.sensor.lane_filter import LaneModelFilter, split_aldm_params
+from aldm_gym.sensor.lane_filter import FilterParams, LaneModelFilter, split_aldm_params
 from aldm_gym.sensor.naive import naive_detect
 from aldm_gym.sensor.tracking import EgoMotion, LaneTracker
 from aldm_gym.sensor.trajectory import fit_reach
@@ -118,7 +118,9 @@ class ModelALDMDetector:
     uses_motion: ClassVar[bool] = True
     """It reads ``motion``."""
 
-    def __init__(self, params: Any, filt: Any, path_range: float | None = None) -> None:
+    def __init__(
+        self, params: ALDMParams, filt: FilterParams, path_range: float | None = None
+    ) -> None:
         self.tracker = LaneModelFilter(params, filt, path_range=path_range)
 
     def __call__(

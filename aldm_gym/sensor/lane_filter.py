@@ -37,9 +37,10 @@ Each frame:
    least ``birth_points`` of them within ``birth_width`` laterally, spanning
    ``birth_span`` in x and at least ``min_spacing`` from every line, is a new line
    (a lane opening, the lane a lane change brings into view). A cluster closer to a
-   line that has had no hit for ``reseat_length`` of travel *re-seats* that line:
-   its offset is set there (id and role kept), its uncertainty reset (a line
-   started on clutter, or lost).
+   line that has had no hit for ``reseat_length`` of travel *re-seats* that line
+   when that makes the lane widths more regular: its offset is set there (id and
+   role kept), its uncertainty reset (a line started on clutter, or lost; not a
+   hidden line onto a seam inside its lane).
 6. **Roles.** Confirmed lines (whose confidence has reached ``min_confidence``
    once; a confirmed line stays until it is dropped, so a hidden ego line keeps its
    role and is drawn from the model) get the roles by the sign of their offset at
@@ -136,7 +137,8 @@ class FilterParams:
         is dropped, once its confidence reaches this.
     :ivar birth_confidence: confidence of a line born from points.
     :ivar drop_length: a line without a hit for this much travel is dropped.
-    :ivar min_spacing: two lines are never closer than this at the sensor.
+    :ivar min_spacing: after a frame's update no two lines are closer than this at
+        the sensor (of two, the less confident is dropped).
     :ivar extend_length: a line is drawn beyond its own farthest point at most this far,
         up to where the other lines are seen (the car ahead hides the ego lane's lines,
         not the lane beside).
@@ -185,6 +187,17 @@ class FilterParams:
             raise ConfigError(
                 f"filter.birth_range ({self.birth_range}) must not exceed model_range "
                 f"({self.model_range}): births are measured in the model's range"
+            )
+        if self.birth_span > self.birth_range:
+            raise ConfigError(
+                f"filter.birth_span ({self.birth_span}) must not exceed birth_range "
+                f"({self.birth_range}): no cluster could span it, no line would be born"
+            )
+        if self.reseat_length > self.drop_length:
+            raise ConfigError(
+                f"filter.reseat_length ({self.reseat_length}) must not exceed drop_length "
+                f"({self.drop_length}): a line is dropped before it could be re-seated "
+                "(0 turns re-seating off)"
             )
 
 
@@ -286,8 +299,8 @@ class LaneModelFilter:
         self.filter = filt if filt is not None else FilterParams()
         if not isinstance(self.filter, FilterParams):
             raise TypeError(f"filt must be FilterParams, got {type(self.filter).__name__}")
+        fit_reach(path_range)  # raises on a bad path_range now, not at the first frame
         self.path_range = path_range
-        self._reach = fit_reach(path_range)
         self.reset()
 
     def reset(self) -> None:
@@ -573,12 +586,21 @@ class LaneModelFilter:
             self._far = np.where(hit, far, self._far)
         offsets = self._x[N_GEOMETRY:]
         keep = (self._miss <= fp.drop_length) & (np.abs(offsets) <= fp.max_offset)
-        # of two lines too close, the less confident goes (on a tie the younger)
-        order = np.argsort(offsets, kind="stable")
-        for a, b in itertools.pairwise(order):
-            if keep[a] and keep[b] and offsets[b] - offsets[a] < fp.min_spacing:
+        # of two lines too close, the less confident goes (on a tie the younger); each
+        # line is compared with the nearest kept one to its right, so no two kept
+        # lines end closer than min_spacing
+        prev = -1
+        for b in np.argsort(offsets, kind="stable"):
+            if not keep[b]:
+                continue
+            if prev >= 0 and offsets[b] - offsets[prev] < fp.min_spacing:
+                a = prev
                 weaker = a if (self._conf[a], -self._ids[a]) < (self._conf[b], -self._ids[b]) else b
                 keep[weaker] = False
+                if weaker == a:
+                    prev = b
+            else:
+                prev = b
         if not keep.all():
             self._keep(keep)
 
@@ -619,12 +641,38 @@ class LaneModelFilter:
             if len(lines):
                 j = int(np.argmin(np.abs(lines - centre)))
                 if abs(lines[j] - centre) < fp.min_spacing:
-                    if 0.0 < fp.reseat_length <= self._miss[j]:
+                    if 0.0 < fp.reseat_length <= self._miss[j] and self._regular(j, centre):
                         self._reseat(j, centre, float(np.max(fx[members])))
                         return
                     continue
             self._add_line(centre, float(np.max(fx[members])))
             return
+
+    def _regular(self, j: int, offset: float) -> bool:
+        """Whether line ``j`` at ``offset`` [m] makes the lane widths more regular than
+        where it is: the squared differences of its spacings to its neighbours from
+        the median spacing of the other neighbouring lines (the default lane width
+        without such) fall. A hidden line carried at the right width is not moved
+        onto a seam or an old marking inside the lane; a line born on clutter is."""
+        lines = self._x[N_GEOMETRY:]
+        order = np.argsort(lines, kind="stable")
+        gaps = [
+            float(lines[b] - lines[a]) for a, b in itertools.pairwise(order) if a != j and b != j
+        ]
+        ref = float(np.median(gaps)) if gaps else DEFAULT_LANE_WIDTH
+        others = np.sort(np.delete(lines, j))
+
+        def cost(y0: float) -> float:
+            left = others[others > y0]
+            right = others[others < y0]
+            c = 0.0
+            if len(left):
+                c += (float(left[0]) - y0 - ref) ** 2
+            if len(right):
+                c += (y0 - float(right[-1]) - ref) ** 2
+            return c
+
+        return cost(offset) < cost(float(lines[j]))
 
     def _reseat(self, j: int, offset: float, far: float) -> None:
         """Line ``j`` set onto ``offset`` [m]: uncorrelated with the rest, 0.3 m

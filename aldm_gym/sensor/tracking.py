@@ -181,6 +181,11 @@ def split_params(params: dict[str, Any]) -> tuple[bool, TrackerParams, ALDMParam
     """
     check_keys("aldm config", params, {*ALDMParams.__dataclass_fields__, *TRACKER_KEYS})
     tracking = params.get("tracking", False)
+    if isinstance(tracking, str) and tracking == "model":
+        raise ConfigError(
+            "aldm.tracking='model' (the lane-model filter) is parsed by "
+            "aldm_gym.sensor.lane_filter.split_aldm_params; this parser takes true or false"
+        )
     if not isinstance(tracking, (bool, np.bool_)):
         raise ConfigError(
             f"aldm.tracking must be one of {list(TRACKING_CHOICES)} (False: single frame, "

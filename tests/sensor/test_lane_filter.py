@@ -164,10 +164,10 @@ def test_clutter_is_rejected() -> None:
     inside the ego-left line, from 120 m ahead of the first frame on (they come into
     the model's 90 m range at frame 12 and reach the car), and 40 random specks per
     frame. The single-frame ALDM that starts the model bends its right lines onto
-    specks; the filter re-seats the ego-right line onto its marking within 10 m of
-    travel. From frame 6 on the ego lines stay within 5 cm and keep their ids, and no
-    line is born or re-seated on the clutter; single-frame ALDM with its lane-width
-    check off takes the inner seam."""
+    specks; the filter re-seats the ego-right and right adjacent lines onto their
+    markings within 15 m of travel. From frame 6 on the ego lines stay within 5 cm
+    and keep their ids, and no line is born or re-seated on the clutter; single-frame
+    ALDM with its lane-width check off takes the inner seam."""
     rng = np.random.default_rng(0)
     filt = LaneModelFilter()
     motion = EgoMotion(SPEED, 0.0, DT)
@@ -197,10 +197,80 @@ def test_clutter_is_rejected() -> None:
             assert np.min(np.abs(offsets - off)) > 0.3
         wrong_unchecked += _err(road, 1, detect_lanes(pts, min_lane_width=1.0).ego_left) > 0.3
     assert wrong_unchecked >= 10
-    # the ego-right line started on specks was re-seated once, the fifth marking and
-    # the right adjacent dropped at the start were born: nothing else
-    assert filt.n_reseated == 1 and filt.n_born == 2
-    assert len(filt.line_ids) == 5
+    # the two right lines started on specks were re-seated (their ids kept), the fifth
+    # marking was born: nothing else
+    assert filt.n_reseated == 2 and filt.n_born == 1
+    assert filt.line_ids == (0, 1, 2, 3, 4)
+
+
+def test_a_hidden_line_is_not_reseated_onto_a_seam_inside_its_lane() -> None:
+    """A continuous seam 1.1 m inside the ego-left line; the ego-left paint ends at
+    frame 10 (a truck beside the car, worn paint). The filter carries the hidden line
+    at its width for the next 50 m of travel (before drop_length): the seam is never
+    taken for it, though it has had no hit for more than reseat_length."""
+    filt = LaneModelFilter()
+    motion = EgoMotion(SPEED, 0.0, DT)
+    left = None
+    for k in range(30):
+        s0 = SPEED * DT * k
+        road = S.highway(lanes=4, ego_lane=1, phase=-s0)
+        pts, _ = S.sample(road, noise=0.02, seed=k)
+        left = road.markings[road.ego_left].offset
+        if k >= 10:
+            pts = pts[road.lateral_error(road.ego_left, pts[:, :2]) > 0.3]
+        xs = np.arange(5.52, 200.0, 2.0)
+        seam = np.column_stack([xs, np.full(len(xs), left - 1.1), 0 * xs])
+        det = filt.update(np.concatenate([pts, seam]), None if k == 0 else motion)
+        assert _err(road, road.ego_left, det.ego_left) < 0.15, k
+        assert _err(road, road.ego_right, det.ego_right) < 0.05, k
+    assert filt.n_reseated == 0
+    # every line is on a marking (the fifth may be born late), none on the seam
+    marks = np.array([m.offset for m in road.markings])
+    assert np.all(np.min(np.abs(filt.offsets[:, None] - marks[None, :]), axis=1) < 0.1)
+
+
+def test_no_two_lines_stay_closer_than_min_spacing() -> None:
+    """Three lines 1.2 m apart, the middle one the least confident: dropping it leaves
+    the outer two 2.4 m apart, under min_spacing (2.5 m), so one of them goes too."""
+    filt = LaneModelFilter()
+    filt.update(S.sample(S.highway(lanes=1, ego_lane=0), noise=0.0, seed=0)[0], None)
+    filt._x = np.concatenate([filt._x[: M.N_GEOMETRY], [0.0, 1.2, 2.4]])
+    filt._p = np.eye(M.N_GEOMETRY + 3)
+    filt._ids = np.array([7, 8, 9])
+    filt._conf = np.array([0.9, 0.2, 0.8])
+    filt._miss = np.zeros(3)
+    filt._far = np.full(3, 50.0)
+    filt._confirmed = np.ones(3, dtype=bool)
+    filt._existence(np.empty(0), np.empty(0, dtype=np.int64), np.full(3, 5.0), 0.0)
+    assert list(filt._ids) == [7]
+    assert np.all(np.diff(np.sort(filt.offsets)) >= filt.filter.min_spacing)
+
+
+def test_the_update_returns_the_weights_it_used() -> None:
+    """A point the update returns with weight 0 did not pull the state: one solve
+    with it equals one solve without it."""
+    rng = np.random.default_rng(1)
+    n = 40
+    x = np.linspace(6.0, 80.0, n)
+    g = np.column_stack([x / 100.0, (x / 100.0) ** 2 / 2, (x / 100.0) ** 3 / 6])
+    line = (np.arange(n) % 2).astype(np.int64)
+    r0 = rng.normal(0.0, 0.03, n)
+    r0[5] = 0.9  # clutter
+    sigma = np.full(n, 0.03)
+    prior = np.eye(M.N_GEOMETRY + 2)
+    for it in (1, 2, 3):
+        args = (g, line, r0, sigma, np.ones(n), prior, 2.5, it, True)
+        delta, _cov, w, ok = M.robust_update_py(*args)
+        assert ok
+        if it == 1:
+            assert np.all(w == 1.0)  # the first weights, used in the one solve
+            continue
+        assert w[5] == 0.0
+        keep = np.arange(n) != 5
+        alone = M.robust_update_py(
+            g[keep], line[keep], r0[keep], sigma[keep], w[keep], prior, 2.5, 1, False
+        )
+        np.testing.assert_allclose(delta, alone[0], rtol=0, atol=1e-12)
 
 
 def _lane_change(frames: int = 70):
@@ -312,6 +382,8 @@ def test_deterministic_reset_and_pickle() -> None:
         ({"tracking": "model", "tukeyy": 2.0}, r"tukeyy.*did you mean 'tukey'"),
         ({"tracking": "model", "association_min": -1.0}, r"filter\.association_min must be > 0"),
         ({"tracking": "model", "birth_range": 150.0}, r"birth_range .* model_range"),
+        ({"tracking": "model", "birth_span": 50.0, "birth_range": 40.0}, r"no line would be born"),
+        ({"tracking": "model", "reseat_length": 80.0}, r"reseat_length .* drop_length"),
     ],
 )
 def test_config_errors(params: dict, match: str) -> None:

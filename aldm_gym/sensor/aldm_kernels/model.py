@@ -5,11 +5,12 @@ in information form, re-weighted by Tukey's biweight. The state is the shared sh
 (3 entries) followed by one offset per line; a point on line ``j`` has the
 measurement row ``(g0, g1, g2, e_j)``. The information matrix is small (3 + lines,
 at most a dozen) and symmetric positive definite: it is solved and inverted by its
-Cholesky factor. The factor and its solves are written out here rather than taken
-from LAPACK (``np.linalg.cholesky`` in numba) so that the update is the same to the
-bit on every x86-64 CPU: numba's loops keep the order of every sum, while LAPACK's
-kernels pick their SIMD paths at run time. Decisions and their reasons: ``docs/aldm.md``, section "Lane-model
-filter". Plain-Python twins ``_name_py`` as in the other kernel modules.
+Cholesky factor, written out rather than taken from LAPACK (``np.linalg.cholesky``
+in numba), whose kernels pick their SIMD paths at run time: the kernel's sums run in
+the order written. (The filter's predict and prior still use numpy's BLAS products:
+like the rest of the env, it is bit-reproducible on one machine.) Decisions and their
+reasons: ``docs/aldm.md``, section "Lane-model filter". Plain-Python twins
+``_name_py`` as in the other kernel modules.
 """
 
 from __future__ import annotations
@@ -76,18 +77,28 @@ def robust_update_py(g, line, r0, sigma, w, prior_info, tukey, iterations, rewei
     :param w: ``(N,)`` the first weights (copied).
     :param prior_info: ``(n, n)`` the inverse of the predicted covariance.
     :param tukey: Tukey's threshold in standard deviations.
-    :param iterations: solves; after each, with ``reweight``, the weights are the
-        biweight of the residuals to the updated model.
+    :param iterations: solves; before each but the first, with ``reweight``, the
+        weights become the biweight of the residuals to the model of the last solve.
     :return: ``(delta, cov, w, ok)``: the state's correction, the updated covariance,
-        the last weights, and False when the information matrix was not positive
-        definite (``delta``, ``cov`` then undefined).
+        the weights of the last solve (those ``delta`` and ``cov`` come from), and
+        False when the information matrix was not positive definite (``delta``,
+        ``cov`` then undefined).
     """
     n = prior_info.shape[0]
     w = w.copy()
     delta = np.zeros(n)
     cov = np.zeros((n, n))
     low = np.eye(n)
-    for _ in range(iterations):
+    for it in range(iterations):
+        if reweight and it > 0:
+            for k in range(len(r0)):
+                j = N_GEOMETRY + line[k]
+                fit = delta[j]
+                for a in range(N_GEOMETRY):
+                    fit += g[k, a] * delta[a]
+                e = abs(r0[k] - fit) / sigma[k] / tukey
+                t = 1.0 - e * e
+                w[k] = t * t if e < 1.0 else 0.0
         info = prior_info.copy()
         grad = np.zeros(n)
         for k in range(len(r0)):
@@ -108,15 +119,6 @@ def robust_update_py(g, line, r0, sigma, w, prior_info, tukey, iterations, rewei
         if not ok:
             return delta, cov, w, False
         delta = _cho_solve(low, grad)
-        if reweight:
-            for k in range(len(r0)):
-                j = N_GEOMETRY + line[k]
-                fit = delta[j]
-                for a in range(N_GEOMETRY):
-                    fit += g[k, a] * delta[a]
-                e = abs(r0[k] - fit) / sigma[k] / tukey
-                t = 1.0 - e * e
-                w[k] = t * t if e < 1.0 else 0.0
     eye = np.zeros(n)
     for i in range(n):
         eye[:] = 0.0
