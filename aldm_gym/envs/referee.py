@@ -25,7 +25,7 @@ from aldm_gym.roads.position import LanePosition
 from aldm_gym.roads.protocol import Road
 from aldm_gym.sensor.frame import SensorFrame
 from aldm_gym.sensor.ground_truth import score_detection
-from aldm_gym.sensor.lane_detection import LaneDetection
+from aldm_gym.sensor.lane_detection import LINE_NAMES, LaneDetection
 from aldm_gym.sensor.lane_metrics import NEAR, THRESHOLDS, frame_metrics
 
 __all__ = ["NO_TARGET_INFO", "Referee", "collision_kind"]
@@ -253,7 +253,9 @@ class Referee:
         """Per ego line: mean |error| vs truth up to 60 m [m], preview [m], correct (1/0).
 
         ``correct`` is :class:`~aldm_gym.sensor.ground_truth.LineScore`'s: every point
-        within 0.3 m of the true marking, starting <= 25 m, reaching >= 60 m.
+        within 0.3 m of the true marking, starting <= 25 m, reaching >= 60 m. A
+        detection with a per-line ``confidence`` (the lane-model filter's) adds it
+        (in [0, 1]; 0 when no line has the role).
         """
         nan = float("nan")
         if detection is None:
@@ -275,4 +277,8 @@ class Referee:
                 }
             else:
                 out[name] = {"mean_abs_error": nan, "preview": nan, "correct": 0.0}
+        confidence = getattr(detection, "confidence", None)
+        if confidence is not None:  # the lane-model filter's existence confidence
+            for name in ("ego_left", "ego_right"):
+                out[name]["confidence"] = float(confidence[LINE_NAMES.index(name)])
         return out

@@ -417,6 +417,10 @@ def test_env_runs_the_filter() -> None:
         _, _, _, _, info = env.step(1)
         assert info["detection"]["ego_left"]["correct"]
         assert info["detection"]["ego_right"]["correct"]
+        for name in ("ego_left", "ego_right"):  # the filter's confidence, in info
+            conf = env.unwrapped.detection.confidence[LINE_NAMES.index(name)]
+            assert info["detection"][name]["confidence"] == conf
+            assert conf > 0.5
     base = env.unwrapped
     assert isinstance(base._detector, ModelALDMDetector)
     det = base.detection
@@ -425,6 +429,11 @@ def test_env_runs_the_filter() -> None:
     clone = pickle.loads(pickle.dumps(base))
     np.testing.assert_array_equal(clone.step(1)[0]["lines"], base.step(1)[0]["lines"])
     env.close()
+    # a detector without a confidence adds no key
+    plain = gym.make("ALDMHighway-v0", config={"vehicles_count": 5, "duration": 3})
+    plain.reset(seed=3)
+    assert "confidence" not in plain.step(1)[4]["detection"]["ego_left"]
+    plain.close()
 
 
 def test_update_kernel_matches_plain_python() -> None:
