@@ -78,19 +78,14 @@ class ALDMDetector:
         return detect_lanes(frame, self.params, path_range=self.path_range)
 
 
-class TrackingALDMDetector:
-    """The tracking ALDM (:class:`~aldm_gym.sensor.tracking.LaneTracker`): stateful.
-
-    :param params: validated :class:`~aldm_gym.sensor.aldm.ALDMParams`.
-    :param tracker: validated :class:`~aldm_gym.sensor.tracking.TrackerParams`.
-    :param path_range: the trajectory's fit range [m] (``None``: whole lines).
-    """
+class _StatefulDetector:
+    """A detector that carries state from frame to frame in ``self.tracker`` (an
+    object with ``update(frame, motion) -> LaneDetection``)."""
 
     uses_motion: ClassVar[bool] = True
     """It reads ``motion``."""
 
-    def __init__(self, params: Any, tracker: Any, path_range: float | None = None) -> None:
-        self.tracker = LaneTracker(params, tracker, path_range=path_range)
+    tracker: Any
 
     def __call__(
         self,
@@ -99,15 +94,29 @@ class TrackingALDMDetector:
         lane_id: int = 0,
         motion: EgoMotion | None = None,
     ) -> LaneDetection:
-        """Detect the lanes of ``frame`` with the tracks moved by ``motion`` as prior
-        (``None``: the tracks restart from this frame)."""
+        """Detect the lanes of ``frame`` with the state carried by ``motion`` (``None``:
+        the state starts again from this frame)."""
         return self.tracker.update(frame, motion)
 
 
-class ModelALDMDetector:
+class TrackingALDMDetector(_StatefulDetector):
+    """The tracking ALDM (:class:`~aldm_gym.sensor.tracking.LaneTracker`): stateful;
+    the tracks, moved by ``motion``, are the prior of each frame's detection.
+
+    :param params: validated :class:`~aldm_gym.sensor.aldm.ALDMParams`.
+    :param tracker: validated :class:`~aldm_gym.sensor.tracking.TrackerParams`.
+    :param path_range: the trajectory's fit range [m] (``None``: whole lines).
+    """
+
+    def __init__(self, params: Any, tracker: Any, path_range: float | None = None) -> None:
+        self.tracker = LaneTracker(params, tracker, path_range=path_range)
+
+
+class ModelALDMDetector(_StatefulDetector):
     """The lane-model filter (:class:`~aldm_gym.sensor.lane_filter.LaneModelFilter`):
-    stateful. Its detections are
-    :class:`~aldm_gym.sensor.lane_filter.ModelLaneDetection` (with a confidence per line).
+    stateful; the model, carried by ``motion``, is updated with each frame. Its
+    detections are :class:`~aldm_gym.sensor.lane_filter.ModelLaneDetection` (with a
+    confidence per line).
 
     :param params: validated :class:`~aldm_gym.sensor.aldm.ALDMParams` (the frame that
         starts the model).
@@ -115,24 +124,10 @@ class ModelALDMDetector:
     :param path_range: the trajectory's fit range [m] (``None``: whole lines).
     """
 
-    uses_motion: ClassVar[bool] = True
-    """It reads ``motion``."""
-
     def __init__(
         self, params: ALDMParams, filt: FilterParams, path_range: float | None = None
     ) -> None:
         self.tracker = LaneModelFilter(params, filt, path_range=path_range)
-
-    def __call__(
-        self,
-        frame: SensorFrame,
-        road: Any = None,
-        lane_id: int = 0,
-        motion: EgoMotion | None = None,
-    ) -> LaneDetection:
-        """Detect the lanes of ``frame``: the model carried by ``motion`` and updated
-        with the frame (``None``: the model starts again from this frame)."""
-        return self.tracker.update(frame, motion)
 
 
 @dataclass(frozen=True)
