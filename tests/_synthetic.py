@@ -9,13 +9,19 @@ x in [5.52, 200] m, painted 6 m / gap 12 m when dashed, then lateral noise and
 dropout are applied. Object ids follow the two road models: ``"editor"`` (one object
 per marking) and ``"per_dash"`` (one per dash). :func:`grid_frame` is the other
 sampling, CarMaker's own: every line at the sensor's x grid, so x values tie exactly.
+:func:`lane_change_drive` drives a stateful detector through a lane change.
 """
 
 from __future__ import annotations
 
+import math
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
+
+from aldm_gym.sensor.tracking import EgoMotion
 
 FOV_START = 5.52
 RANGE = 200.0
@@ -219,3 +225,36 @@ def grid_frame(
     ]
     pts = np.concatenate(lines) if lines else np.zeros((0, 3))
     return pts[np.random.default_rng(seed).permutation(len(pts))]
+
+
+def line_error(road: SynthRoad, j: int, line: np.ndarray) -> float:
+    """Largest |y - y_true| of ``line`` against marking ``j`` [m]; inf when missing."""
+    return float(road.lateral_error(j, line).max()) if len(line) >= 2 else math.inf
+
+
+def lane_change_drive(
+    update: Callable[[np.ndarray, EgoMotion | None], Any],
+    *,
+    frames: int = 70,
+    speed: float = 25.0,
+    dt: float = 0.1,
+) -> Iterator[tuple[int, float, SynthRoad, np.ndarray, Any]]:
+    """Straight 4-lane road; from frame 10 the car changes one lane to the left in 4 s
+    (a sine yaw rate), with odometry from the same constant-turn model. ``update(points,
+    motion)`` is a stateful detector's step; yields ``(k, lateral [m], road, points,
+    detection)`` per frame."""
+    width, duration = 3.75, 4.0
+    amp = width * 2.0 * math.pi / (speed * duration**2)
+    s0 = lateral = yaw = 0.0
+    motion = None
+    for k in range(frames):
+        road = highway(lanes=4, ego_lane=2, lateral=lateral, yaw=yaw, phase=-s0)
+        pts, _ = sample(road, noise=0.02, seed=k)
+        yield k, lateral, road, pts, update(pts, motion)
+        t = (k - 10) * dt
+        rate = amp * math.sin(2.0 * math.pi * t / duration) if 0.0 <= t < duration else 0.0
+        motion = EgoMotion(speed, rate, dt)
+        dx, dy, dpsi = motion.displacement()
+        s0 += dx * math.cos(yaw) - dy * math.sin(yaw)
+        lateral += dx * math.sin(yaw) + dy * math.cos(yaw)
+        yaw += dpsi

@@ -32,9 +32,7 @@ SPEED = 25.0
 DT = 0.1
 
 
-def _err(road: S.SynthRoad, j: int, line: np.ndarray) -> float:
-    """Largest |y - y_true| of ``line`` against marking ``j`` [m]; inf when missing."""
-    return float(road.lateral_error(j, line).max()) if len(line) >= 2 else math.inf
+_err = S.line_error
 
 
 def _drive(radius: float, frames: int = 25, hide=None, noise: float = 0.02, dropout: float = 0.0):
@@ -274,25 +272,12 @@ def test_the_update_returns_the_weights_it_used() -> None:
 
 
 def _lane_change(frames: int = 70):
-    """Straight 4-lane road; from frame 10 the car changes one lane to the left in 4 s
-    (a sine yaw rate), with odometry from the same constant-turn model."""
+    """:func:`_synthetic.lane_change_drive` with a fresh LaneModelFilter."""
     filt = LaneModelFilter()
-    width, duration = 3.75, 4.0
-    amp = width * 2.0 * math.pi / (SPEED * duration**2)
-    s0 = lateral = yaw = 0.0
-    motion = None
-    for k in range(frames):
-        road = S.highway(lanes=4, ego_lane=2, lateral=lateral, yaw=yaw, phase=-s0)
-        pts, _ = S.sample(road, noise=0.02, seed=k)
-        det = filt.update(pts, motion)
+    for k, lateral, road, _pts, det in S.lane_change_drive(
+        filt.update, frames=frames, speed=SPEED, dt=DT
+    ):
         yield k, lateral, road, det, filt
-        t = (k - 10) * DT
-        rate = amp * math.sin(2.0 * math.pi * t / duration) if 0.0 <= t < duration else 0.0
-        motion = EgoMotion(SPEED, rate, DT)
-        dx, dy, dpsi = motion.displacement()
-        s0 += dx * math.cos(yaw) - dy * math.sin(yaw)
-        lateral += dx * math.sin(yaw) + dy * math.cos(yaw)
-        yaw += dpsi
 
 
 def test_lane_change_relabels_lines_and_keeps_ids() -> None:
