@@ -429,7 +429,7 @@ class LaneModelFilter:
         if n:
             # robust too: a traced line bent onto clutter near the car keeps the
             # offset of the most of its points
-            self._solve(np.concatenate(xs), np.concatenate(ys), np.concatenate(which), None)
+            self._solve(np.concatenate(xs), np.concatenate(ys), np.concatenate(which))
             # the 13 points per line are a fit, not independent measurements: the
             # frame's own points follow in the same update
             self._p = self._p * START_INFLATION
@@ -516,20 +516,18 @@ class LaneModelFilter:
         if not take.any():
             self.n_used = 0
             return support
-        w = self._solve(x[take], y[take], line[take], None)
+        w = self._solve(x[take], y[take], line[take])
         support += np.bincount(line[take], weights=w, minlength=len(support))
         rejected = np.flatnonzero(take)[w == 0.0]
         line[rejected] = -1
         self.n_used = int(np.count_nonzero(take)) - len(rejected)
         return support
 
-    def _solve(
-        self, x: FloatArray, y: FloatArray, line: np.ndarray, weight: FloatArray | None
-    ) -> FloatArray:
+    def _solve(self, x: FloatArray, y: FloatArray, line: np.ndarray) -> FloatArray:
         """The Kalman update in information form with points ``(x, y)`` on lines
-        ``line``: re-weighted three times by Tukey's biweight unless ``weight``
-        is given (:func:`~aldm_gym.sensor.aldm_kernels.model.robust_update`). Returns
-        the final weights."""
+        ``line``, solved three times, re-weighted by Tukey's biweight in between
+        (:func:`~aldm_gym.sensor.aldm_kernels.model.robust_update`). Returns the
+        weights of the last solve."""
         fp = self.filter
         g, _ = self._rows(x, line)
         sigma = self._sigma(x)
@@ -537,16 +535,13 @@ class LaneModelFilter:
         x0 = self._x.copy()
         h_y0 = self._x[N_GEOMETRY:][line]
         r0 = y - (h_y0 + g @ x0[:N_GEOMETRY])
-        if weight is None:
-            # the first weights from the innovation: the residual to the prediction
-            # over its standard deviation (the state's and the point's)
-            pg = self._p[:N_GEOMETRY, :N_GEOMETRY]
-            var = np.einsum("nj,jk,nk->n", g, pg, g) + sigma * sigma
-            var += 2.0 * np.einsum("nj,jn->n", g, self._p[:N_GEOMETRY, N_GEOMETRY + line])
-            var += self._p[N_GEOMETRY + line, N_GEOMETRY + line]
-            w = self._tukey(np.abs(r0) / np.sqrt(np.maximum(var, sigma * sigma)))
-        else:
-            w = weight
+        # the first weights from the innovation: the residual to the prediction over
+        # its standard deviation (the state's and the point's)
+        pg = self._p[:N_GEOMETRY, :N_GEOMETRY]
+        var = np.einsum("nj,jk,nk->n", g, pg, g) + sigma * sigma
+        var += 2.0 * np.einsum("nj,jn->n", g, self._p[:N_GEOMETRY, N_GEOMETRY + line])
+        var += self._p[N_GEOMETRY + line, N_GEOMETRY + line]
+        w = self._tukey(np.abs(r0) / np.sqrt(np.maximum(var, sigma * sigma)))
         delta, cov, w, ok = robust_update(
             np.ascontiguousarray(g),
             line.astype(np.int64),
@@ -555,8 +550,8 @@ class LaneModelFilter:
             np.asarray(w, dtype=np.float64),
             prior_info,
             fp.tukey,
-            1 if weight is not None else 3,
-            weight is None,
+            3,
+            True,
         )
         if not ok:  # not positive definite (rounding): keep the prediction this frame
             return np.zeros(len(x))
