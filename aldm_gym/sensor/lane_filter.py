@@ -68,7 +68,14 @@ import numpy as np
 from aldm_gym.config import build_config, check_keys, setting, validate
 from aldm_gym.errors import ConfigError
 from aldm_gym.sensor.aldm import ALDMParams, as_points, detect_lanes_checked, make_params
-from aldm_gym.sensor.aldm_kernels.model import N_GEOMETRY, robust_update
+from aldm_gym.sensor.aldm_kernels.model import (
+    N_GEOMETRY,
+    SCALE,
+    associate_update,
+    draw,
+    predict,
+    robust_update,
+)
 from aldm_gym.sensor.lane_detection import LINE_NAMES, LaneDetection
 from aldm_gym.sensor.tracking import TRACKER_KEYS, EgoMotion, TrackerParams, split_params
 from aldm_gym.sensor.trajectory import DEFAULT_LANE_WIDTH, PATH_STEP, driving_trajectory, fit_reach
@@ -78,11 +85,6 @@ MIN_SUPPORT = 2.5
 """A line is hit in a frame when the robust weights of its points sum to at least
 this: one 6 m dash sampled every 2 m gives three points, whose weights sum to a little
 under 3 (one or two points could be specks of clutter within the gate)."""
-
-SCALE = 100.0
-"""Length scale of the internal state [m]: the shape is kept as ``a1 = tan(psi) L``,
-``a2 = c0 L^2``, ``a3 = c1 L^3`` (all in metres, ``L`` = this), so that the
-covariance of a 100 m model is well conditioned."""
 
 START_X_MAX = 20.0
 """Lines are drawn from the nearest point of the frame, but from no farther than this
@@ -390,9 +392,8 @@ class LaneModelFilter:
             travel = motion.travel
             self._predict(*motion.displacement(), travel)
         if len(self._ids):
-            line, _ = self._associate(x, y)
-            support = self._correct(x, y, line)
-            self._existence(x, line, support, travel)
+            line, support, far = self._correct(x, y)
+            self._existence(support, far, travel)
             self._birth(x, y, line)
         return self._detection(near)
 
@@ -436,27 +437,15 @@ class LaneModelFilter:
 
     def _predict(self, dx: float, dy: float, dpsi: float, travel: float) -> None:
         """Move the model into the new sensor frame: the origin advances ``dx`` along
-        the old x and ``dy`` along the old y [m], the axes turn by ``dpsi`` [rad]."""
+        the old x and ``dy`` along the old y [m], the axes turn by ``dpsi`` [rad]
+        (:func:`~aldm_gym.sensor.aldm_kernels.model.predict`)."""
         fp = self.filter
-        n = len(self._x)
-        u = dx / SCALE
-        f = np.eye(n)
-        # Taylor shift of the cubic by u: y0 += a1 u + a2 u^2/2 + a3 u^3/6, a1 += a2 u +
-        # a3 u^2/2, a2 += a3 u
-        f[0, 1], f[0, 2], f[1, 2] = u, 0.5 * u * u, u
-        f[N_GEOMETRY:, 0] = u
-        f[N_GEOMETRY:, 1] = 0.5 * u * u
-        f[N_GEOMETRY:, 2] = u**3 / 6.0
-        x = f @ self._x
-        x[0] -= math.tan(dpsi) * SCALE  # the new x axis turned by dpsi (small angles)
-        x[N_GEOMETRY:] -= dy
-        q = np.zeros((n, n))
-        q[0, 0] = (fp.q_heading * SCALE) ** 2
-        q[1, 1] = (fp.q_curvature * SCALE**2) ** 2
-        q[2, 2] = (fp.q_curvature_rate * SCALE**3) ** 2
-        q[N_GEOMETRY:, N_GEOMETRY:] = fp.q_offset**2 + fp.q_width**2 * np.eye(n - N_GEOMETRY)
-        p = f @ self._p @ f.T + q * travel
-        self._x, self._p = x, 0.5 * (p + p.T)
+        q_shape = np.array(
+            [fp.q_heading * SCALE, fp.q_curvature * SCALE**2, fp.q_curvature_rate * SCALE**3]
+        )
+        self._x, self._p = predict(
+            self._x, self._p, dx, dy, dpsi, travel, q_shape, fp.q_offset, fp.q_width
+        )
         self._far = self._far - dx
 
     def _rows(self, x: FloatArray, line: np.ndarray) -> tuple[FloatArray, FloatArray]:
@@ -474,54 +463,33 @@ class LaneModelFilter:
         u = x / SCALE
         return u, 0.5 * u * u, u**3 / 6.0
 
-    def _predicted(self, x: FloatArray) -> FloatArray:
-        """``(N, n_lines)``: every line's y at ``x`` [m]."""
-        u, u2, u3 = self._shape(x)
-        a1, a2, a3 = self._x[:N_GEOMETRY]
-        y0 = self._x[N_GEOMETRY:]
-        k = 1.0 / np.maximum(1.0 - y0 * (a2 / SCALE**2), 0.5)
-        return y0[None, :] + (a1 * u)[:, None] + np.outer(a2 * u2 + a3 * u3, k)
-
     def _sigma(self, x: FloatArray) -> FloatArray:
         """A point's lateral standard deviation at ``x`` [m]."""
         return self.filter.point_std + self.filter.point_std_slope * x
 
-    def _associate(self, x: FloatArray, y: FloatArray) -> tuple[np.ndarray, FloatArray]:
-        """Each point's line (-1: none) within its gate, and its residual [m]."""
+    def _correct(self, x: FloatArray, y: FloatArray) -> tuple[np.ndarray, FloatArray, FloatArray]:
+        """Association and robust update with the frame's points
+        (:func:`~aldm_gym.sensor.aldm_kernels.model.associate_update`): each point's
+        line (-1: free, also for associated points given no weight), each line's
+        support (the sum of its points' robust weights) and farthest point's x
+        (-inf: none)."""
         fp = self.filter
-        n = len(self._ids)
-        if len(x) == 0:
-            return np.zeros(0, dtype=np.int64), np.zeros(0)
-        res = y[:, None] - self._predicted(x)
-        g = np.column_stack(self._shape(x))
-        pg = self._p[:N_GEOMETRY, :N_GEOMETRY]
-        var = np.einsum("nj,jk,nk->n", g, pg, g)[:, None]
-        var = var + 2.0 * (g @ self._p[:N_GEOMETRY, N_GEOMETRY:])
-        var = var + np.diag(self._p)[N_GEOMETRY:][None, :] + (self._sigma(x) ** 2)[:, None]
-        spread = fp.association_sigmas * np.sqrt(np.maximum(var, 0.0))
-        gate = np.clip(spread, fp.association_min, fp.association_max)
-        dist = np.abs(res)
-        dist[dist > gate] = np.inf
-        line = np.argmin(dist, axis=1) if n else np.zeros(len(x), dtype=np.int64)
-        found = np.isfinite(dist[np.arange(len(x)), line])
-        line = np.where(found, line, -1)
-        return line, res[np.arange(len(x)), np.maximum(line, 0)]
-
-    def _correct(self, x: FloatArray, y: FloatArray, line: np.ndarray) -> FloatArray:
-        """The robust update with the associated points; the support of each line
-        (the sum of its points' robust weights). Associated points the robust step
-        gives no weight are set free again (``line`` -1, in place)."""
-        take = line >= 0
-        support = np.zeros(len(self._ids))
-        if not take.any():
-            self.n_used = 0
-            return support
-        w = self._solve(x[take], y[take], line[take])
-        support += np.bincount(line[take], weights=w, minlength=len(support))
-        rejected = np.flatnonzero(take)[w == 0.0]
-        line[rejected] = -1
-        self.n_used = int(np.count_nonzero(take)) - len(rejected)
-        return support
+        state, cov, line, _w, support, far, _ok = associate_update(
+            x,
+            y,
+            self._x,
+            self._p,
+            fp.point_std,
+            fp.point_std_slope,
+            fp.association_sigmas,
+            fp.association_min,
+            fp.association_max,
+            fp.tukey,
+            3,
+        )
+        self._x, self._p = state, cov
+        self.n_used = int(np.count_nonzero(line >= 0))
+        return line, support, far
 
     def _solve(self, x: FloatArray, y: FloatArray, line: np.ndarray) -> FloatArray:
         """The Kalman update in information form with points ``(x, y)`` on lines
@@ -563,10 +531,9 @@ class LaneModelFilter:
         """Tukey's biweight of normalised residuals ``e``."""
         return np.square(np.maximum(1.0 - np.square(e / self.filter.tukey), 0.0))
 
-    def _existence(
-        self, x: FloatArray, line: np.ndarray, support: FloatArray, travel: float
-    ) -> None:
-        """Hits and misses, the lines' far ends, and the lines dropped."""
+    def _existence(self, support: FloatArray, far: FloatArray, travel: float) -> None:
+        """Hits and misses, the lines' far ends (``far``: the farthest point of each
+        line in the frame [m]), and the lines dropped."""
         fp = self.filter
         hit = support >= MIN_SUPPORT
         self._conf = np.where(
@@ -574,30 +541,29 @@ class LaneModelFilter:
         )
         self._miss = np.where(hit, 0.0, self._miss + travel)
         self._confirmed |= self._conf >= fp.min_confidence
-        if len(x):
-            far = np.full(len(self._ids), -np.inf)
-            take = line >= 0
-            np.maximum.at(far, line[take], x[take])
-            self._far = np.where(hit, far, self._far)
-        offsets = self._x[N_GEOMETRY:]
-        keep = (self._miss <= fp.drop_length) & (np.abs(offsets) <= fp.max_offset)
+        self._far = np.where(hit, far, self._far)
+        offsets = self._x[N_GEOMETRY:].tolist()
+        keep = (
+            (self._miss <= fp.drop_length) & (np.abs(self._x[N_GEOMETRY:]) <= fp.max_offset)
+        ).tolist()
+        conf, ids = self._conf.tolist(), self._ids.tolist()
         # of two lines too close, the less confident goes (on a tie the younger); each
         # line is compared with the nearest kept one to its right, so no two kept
         # lines end closer than min_spacing
         prev = -1
-        for b in np.argsort(offsets, kind="stable"):
+        for b in sorted(range(len(offsets)), key=offsets.__getitem__):
             if not keep[b]:
                 continue
             if prev >= 0 and offsets[b] - offsets[prev] < fp.min_spacing:
                 a = prev
-                weaker = a if (self._conf[a], -self._ids[a]) < (self._conf[b], -self._ids[b]) else b
+                weaker = a if (conf[a], -ids[a]) < (conf[b], -ids[b]) else b
                 keep[weaker] = False
                 if weaker == a:
                     prev = b
             else:
                 prev = b
-        if not keep.all():
-            self._keep(keep)
+        if not all(keep):
+            self._keep(np.array(keep, dtype=bool))
 
     def _keep(self, keep: np.ndarray) -> None:
         """Drop the lines not in ``keep`` from the state and the bookkeeping."""
@@ -699,30 +665,28 @@ class LaneModelFilter:
 
     def _roles(self) -> list[int]:
         """The model's line index of each role in :data:`LINE_NAMES` order (-1: none)."""
-        offsets = self._x[N_GEOMETRY:]
-        shown = np.flatnonzero(self._confirmed)
-        left = shown[offsets[shown] > 0.0]
-        right = shown[offsets[shown] <= 0.0]
-        left = left[np.argsort(offsets[left], kind="stable")]
-        right = right[np.argsort(-offsets[right], kind="stable")]
-        if len(left) and len(right):
+        offsets = self._x[N_GEOMETRY:].tolist()
+        shown = [i for i, c in enumerate(self._confirmed.tolist()) if c]
+        left = sorted((i for i in shown if offsets[i] > 0.0), key=offsets.__getitem__)
+        right = sorted((i for i in shown if offsets[i] <= 0.0), key=lambda i: -offsets[i])
+        if left and right:
             # the nearest lines on both sides wider apart than a lane: an ego line is
             # missing (dropped, not yet born); the farther one is the adjacent line
             # of its side, not an ego line of a lane twice as wide
             if offsets[left[0]] - offsets[right[0]] > self.params.max_lane_width:
                 if offsets[left[0]] > -offsets[right[0]]:
-                    left = np.concatenate(([-1], left))
+                    left.insert(0, -1)
                 else:
-                    right = np.concatenate(([-1], right))
+                    right.insert(0, -1)
         pick = [-1, -1, -1, -1]
-        if len(left):
-            pick[1] = int(left[0])
+        if left:
+            pick[1] = left[0]
         if len(left) > 1:
-            pick[0] = int(left[1])
-        if len(right):
-            pick[2] = int(right[0])
+            pick[0] = left[1]
+        if right:
+            pick[2] = right[0]
         if len(right) > 1:
-            pick[3] = int(right[1])
+            pick[3] = right[1]
         return pick
 
     def _detection(self, near: float) -> ModelLaneDetection:
@@ -747,14 +711,8 @@ class LaneModelFilter:
                 drawn.append((r, i, far))
         if drawn:
             # every drawn line at once: (n_points, lines) x and y
-            idx = np.array([i for _, i, _ in drawn])
-            xs = np.linspace(near, np.array([far for *_, far in drawn]), n_points)
-            u, u2, u3 = self._shape(xs)
-            a1, a2, a3 = self._x[:N_GEOMETRY]
-            y0 = self._x[N_GEOMETRY + idx]
-            k = 1.0 / np.maximum(1.0 - y0 * (a2 / SCALE**2), 0.5)
-            ys = y0 + a1 * u + k * (a2 * u2 + a3 * u3)
-            pts = np.stack((xs.T, ys.T), axis=-1)
+            idx = np.array([i for _, i, _ in drawn], dtype=np.int64)
+            pts = draw(self._x, idx, near, np.array([far for *_, far in drawn]), n_points)
             for c, (r, i, _) in enumerate(drawn):
                 fields[LINE_NAMES[r]] = pts[c]
                 conf[r] = self._conf[i]

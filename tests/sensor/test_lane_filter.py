@@ -239,7 +239,7 @@ def test_no_two_lines_stay_closer_than_min_spacing() -> None:
     filt._miss = np.zeros(3)
     filt._far = np.full(3, 50.0)
     filt._confirmed = np.ones(3, dtype=bool)
-    filt._existence(np.empty(0), np.empty(0, dtype=np.int64), np.full(3, 5.0), 0.0)
+    filt._existence(np.full(3, 5.0), np.full(3, 50.0), 0.0)
     assert list(filt._ids) == [7]
     assert np.all(np.diff(np.sort(filt.offsets)) >= filt.filter.min_spacing)
 
@@ -421,30 +421,49 @@ def test_env_runs_the_filter() -> None:
     plain.close()
 
 
-def test_update_kernel_matches_plain_python() -> None:
-    """robust_update compiled and as plain Python on a frame's associated points."""
+def test_kernels_match_plain_python() -> None:
+    """predict, associate_update (with robust_update) and draw compiled and as plain
+    Python, bit for bit, on a frame of a drive with clutter near the lines."""
     frames = list(_drive(-500.0, frames=8))
     *_, filt = frames[-2]
     _k, _road, pts, _det, _ = frames[-1]
-    filt._predict(*EgoMotion(SPEED, -SPEED / 500.0, DT).displacement(), SPEED * DT)
-    x, y = pts[:, 0], pts[:, 1]
-    keep = x <= filt.filter.model_range
-    x, y = x[keep], y[keep]
-    line, _ = filt._associate(x, y)
-    take = line >= 0
-    x, y, line = x[take], y[take], line[take]
-    g, _ = filt._rows(x, line)
-    r0 = y - (filt._x[M.N_GEOMETRY :][line] + g @ filt._x[: M.N_GEOMETRY])
-    r0[::10] += 1.0  # clutter: a point in ten 1 m off its line
-    sigma = filt._sigma(x)
-    args = (g, line, r0, sigma, np.ones(len(x)), np.linalg.inv(filt._p), 2.5, 3, True)
-    got, want = M.robust_update(*args), M.robust_update_py(*args)
-    assert got[3] and want[3]
-    assert np.all(want[2][::10] == 0.0) and np.all(want[2][1::10] > 0.0)
-    for a, b in zip(got[:3], want[:3], strict=True):
+    fp = filt.filter
+    dx, dy, dpsi = EgoMotion(SPEED, -SPEED / 500.0, DT).displacement()
+    q = np.array([fp.q_heading * 100.0, fp.q_curvature * 1e4, fp.q_curvature_rate * 1e6])
+    args = (filt._x, filt._p, dx, dy, dpsi, SPEED * DT, q, fp.q_offset, fp.q_width)
+    state, cov = M.predict(*args)
+    for a, b in zip((state, cov), M.predict_py(*args), strict=True):
         np.testing.assert_array_equal(a, b)
-    # the covariance is the inverse of the information matrix of the last solve: SPD
-    np.testing.assert_allclose(want[1], want[1].T, atol=1e-12)
-    assert np.all(np.linalg.eigvalsh(want[1]) > 0.0)
+    np.testing.assert_array_equal(cov, cov.T)
+    x, y = pts[:, 0].copy(), pts[:, 1].copy()
+    y[::10] += 0.8  # clutter: a point in ten 0.8 m off its line, inside the gate
+    gate = (fp.point_std, fp.point_std_slope, fp.association_sigmas)
+    args = (x, y, state, cov, *gate, fp.association_min, fp.association_max, fp.tukey, 3)
+    got, want = M.associate_update(*args), M.associate_update_py(*args)
+    assert got[6] and want[6]
+    for a, b in zip(got[:6], want[:6], strict=True):
+        np.testing.assert_array_equal(a, b)
+    new_state, new_cov, line, w, support, far = want[:6]
+    # the clutter is free (outside every gate, or given no weight); the rest is used
+    assert np.all(line[::10] == -1) and np.mean(line[1::10] >= 0) > 0.9
+    assert np.all((w > 0.0) == (line >= 0))
+    np.testing.assert_allclose(support, np.bincount(line[line >= 0], w[line >= 0]), rtol=1e-12)
+    for j in range(len(far)):
+        assert far[j] == x[line == j].max()
+    # the covariance is the inverse of an information matrix: symmetric, SPD, smaller
+    np.testing.assert_array_equal(new_cov, new_cov.T)
+    assert np.all(np.linalg.eigvalsh(new_cov) > 0.0)
+    assert np.all(np.diag(new_cov) <= np.diag(cov))
+    assert not np.array_equal(new_state, state)
+    lines, far = np.array([0, 2], dtype=np.int64), np.array([60.0, 80.0])
+    drawn = M.draw(new_state, lines, 5.5, far, 13)
+    np.testing.assert_array_equal(drawn, M.draw_py(new_state, lines, 5.5, far, 13))
+    assert drawn.shape == (2, 13, 2)
+    assert drawn[0, 0, 0] == 5.5 and drawn[0, -1, 0] == 60.0 and drawn[1, -1, 0] == 80.0
+    np.testing.assert_allclose(np.diff(drawn[1, :, 0]), 74.5 / 12, rtol=1e-12)
+    inv, ok = M._inverse_py(new_cov)
+    assert ok
+    np.testing.assert_allclose(inv @ new_cov, np.eye(len(new_cov)), atol=1e-9)
+    assert not M._inverse(-np.eye(3))[1]
     _low, ok = M._cholesky_py(-np.eye(3))
     assert not ok and not M._cholesky(-np.eye(3))[1]
