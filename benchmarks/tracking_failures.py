@@ -21,8 +21,9 @@ failing line is put in one class, checked in this order:
 "model"}``) instead, ``--tracking none`` the single-frame ALDM.
 
 ``--sensor`` adds sensor settings (JSON), e.g. ``--preset none --trucks 0 --sensor
-'{"worn_dash_rate": 0.3}'`` for worn paint alone. ``--policy lca`` drives with the
-rule-based lane-change policy instead of IDLE. The lane departures
+'{"worn_dash_rate": 0.3}'`` for worn paint alone; ``--road`` road settings, e.g.
+``--road '{"min_radius": 100}'`` for the generator's tightest curves. ``--policy
+lca`` drives with the rule-based lane-change policy instead of IDLE. The lane departures
 (``info["departures"]``) and lane changes of all episodes are printed too.
 
 Run: ``.venv/bin/python -m benchmarks.tracking_failures [--seeds 20] [--tracking
@@ -99,6 +100,11 @@ def main(argv: list[str] | None = None) -> None:
         help="more sensor settings as JSON, e.g. '{\"worn_dash_rate\": 0.3}'",
     )
     parser.add_argument(
+        "--road",
+        default="{}",
+        help="road settings as JSON, e.g. '{\"min_radius\": 100}' for tight curves",
+    )
+    parser.add_argument(
         "--tracking",
         choices=tuple(TRACKING),
         default="tracker",
@@ -122,6 +128,9 @@ def main(argv: list[str] | None = None) -> None:
         },
         "traffic": {"truck_share": args.trucks},
     }
+    road = json.loads(args.road)
+    if road:
+        config["road"] = road
     from aldm_gym.agents.policies import RuleBasedLCA
 
     steps = both = lines = correct = departures = changes = 0

@@ -39,6 +39,7 @@ NAMES = {
     "naive": "naive",
     "aldm": "ALDM",
     "aldm_tracking": "ALDM tracking",
+    "aldm_filter": "ALDM filter",
     "ground_truth": "ground truth",
 }
 """Detector names as the docs print them."""

@@ -56,6 +56,7 @@ DETECTOR_VARIANTS: dict[str, tuple[str, dict[str, Any]]] = {
     "naive": ("naive", {}),
     "aldm": ("aldm", {}),
     "aldm_tracking": ("aldm", {"tracking": True}),
+    "aldm_filter": ("aldm", {"tracking": "model"}),
     "ground_truth": ("ground_truth", {}),
 }
 """A closed-loop row's name -> the env's ``detector`` and ``detector_params``: the

@@ -16,6 +16,7 @@ _TRACES = {
     # (every detector on an editor road) show as black on blue with red dashes on top.
     "aldm": {"color": "tab:blue", "lw": 5.0, "alpha": 0.45, "label": "ALDM", "zorder": 2},
     "aldm_tracking": {"color": "tab:cyan", "lw": 2.4, "label": "ALDM tracking", "zorder": 2.5},
+    "aldm_filter": {"color": "tab:purple", "lw": 1.6, "label": "ALDM filter", "zorder": 2.7},
     "ground_truth": {"color": "black", "lw": 1.2, "label": "ground truth", "zorder": 3},
     "naive": {"color": "tab:red", "lw": 1.8, "ls": (0, (5, 3)), "label": "naive", "zorder": 4},
 }

@@ -15,9 +15,10 @@ driving lanes, episodes with ``road.xodr``).
 
 Sensor conditions (``--sensor-preset camera``, ``--sensor KEY=VALUE``) apply to both
 halves (the open loop has no traffic, so no occlusion there) and add the tracking
-ALDM to the closed loop (``aldm_tracking``; ``--tracking`` adds it without
-conditions) and the figure ``frame_conditions.png``: a closed-loop frame with the
-vehicles, their shadows and the clutter under every detector's lines. ``--trucks``
+ALDM and the lane-model filter to the closed loop (``aldm_tracking``,
+``aldm_filter``; ``--tracking`` adds them without conditions) and the figure
+``frame_conditions.png``: a closed-loop frame with the vehicles, their shadows and
+the clutter under every detector's lines. ``--trucks``
 sets the closed loop's share of trucks.
 """
 
@@ -105,7 +106,8 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     parser.add_argument(
         "--tracking",
         action="store_true",
-        help="add the tracking ALDM to the closed loop (on with sensor conditions)",
+        help="add the tracking ALDM and the lane-model filter to the closed loop (on with "
+        "sensor conditions)",
     )
     parser.add_argument(
         "--min-radius",
@@ -431,7 +433,8 @@ def _compare_closed_loop(args: argparse.Namespace, out: Path) -> list[Path]:
     settings = args.sensor_settings
     detectors = list(DETECTORS)
     if args.tracking or conditions_on(settings):
-        detectors.insert(detectors.index("aldm") + 1, "aldm_tracking")
+        at = detectors.index("aldm") + 1
+        detectors[at:at] = ["aldm_tracking", "aldm_filter"]
     traffic = {"truck_share": args.trucks} if args.trucks else None
     t0 = time.perf_counter()
     total = len(MARKING_MODELS) * len(detectors) * 2 * n_ep

@@ -197,6 +197,7 @@ DETECTOR_STYLE = {
     "naive": ("naive", "tab:red"),
     "aldm": ("ALDM", "tab:blue"),
     "aldm_tracking": ("ALDM tracking", "tab:cyan"),
+    "aldm_filter": ("ALDM filter", "tab:purple"),
     "ground_truth": ("ground truth", "0.45"),
 }
 """Legend name and colour of each detector in the comparison figures."""

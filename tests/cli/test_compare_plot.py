@@ -67,8 +67,10 @@ def test_compare_with_the_camera_preset_adds_tracking_and_the_conditions_frame(
     assert main([*argv, "--sensor", "visibility=120", "--out", str(tmp_path), "--no-progress"]) == 0
     with open(tmp_path / "compare.csv") as fh:
         loop = {(r["marking_model"], r["detector"]): r for r in csv.DictReader(fh)}
-    detectors = ("naive", "aldm", "aldm_tracking", "ground_truth")
+    detectors = ("naive", "aldm", "aldm_tracking", "aldm_filter", "ground_truth")
     assert set(loop) == {(m, d) for m in ("per_dash", "editor") for d in detectors}
+    assert [r[1] for r in loop][:5] == list(detectors)  # the stateful rows beside the ALDM
+    assert 0.0 <= float(loop[("per_dash", "aldm_filter")]["both_correct"]) <= 1.0
     # visibility 120 m (wins over the preset's 150 m): no detected line reaches further
     assert float(loop[("per_dash", "aldm")]["mean_preview_m"]) <= 120.0
     assert float(loop[("per_dash", "ground_truth")]["both_correct"]) == 1.0
