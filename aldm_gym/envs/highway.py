@@ -105,6 +105,8 @@ class ALDMHighwayEnv(AbstractEnv):
     |--------------------|----------|-----------------------------------------------------|
     | `lines`            | (4,13,2) | 4 lines (left_adj., ego_left, ego_right, right_adj.)|
     | `line_valid`       | (4,)     | 1 where the detector found the line                 |
+    | `line_confidence`  | (4,)     | opt-in (`observation.line_confidence`): the lane-   |
+    |                    |          | model filter's confidence per line, else line_valid |
     | `trajectory`       | (13,2)   | desired path (midway between the ego lines)         |
     | `trajectory_valid` | (1,)     | 1 if there is a trajectory                          |
     | `ego`              | (4,)     | speed, yaw rate, steering, lane change (+1/-1/0)    |

@@ -11,6 +11,9 @@ key                    shape        content
 ``lines``              (4, 13, 2)   x, y [m] of the 4 lines (left_adjacent, ego_left, ego_right,
                                     right_adjacent), 13 points equally spaced in x; 0 if missing
 ``line_valid``         (4,)         1.0 where the line was detected, else 0.0
+``line_confidence``    (4,)         only with ``line_confidence=True``: the detector's
+                                    confidence in each line, in [0, 1], 0 where the line
+                                    is missing (:func:`detected_confidence`)
 ``trajectory``         (13, 2)      desired path (midway between the ego lines) x, y [m]
 ``trajectory_valid``   (1,)         1.0 if a trajectory exists
 ``ego``                (4,)         speed [m/s], yaw rate [rad/s] (> 0 left), steering [rad]
@@ -33,6 +36,14 @@ both vehicles' lengths (``VEHICLE_LENGTH`` between two cars), clipped to
 ``perception_distance`` with relative speed 0. It is what an object-to-lane assignment
 of a highway chauffeur hands to its decision layer, and what a learning agent needs
 most: "is my lane blocked, is the next one free".
+
+``line_confidence`` is opt-in (``ObservationConfig.line_confidence``): without it the
+space is the one models were trained on before it existed. The lane-model filter
+(``detector_params={"tracking": "model"}``) gives each drawn line its existence
+confidence (:class:`~aldm_gym.sensor.lane_filter.ModelLaneDetection`); every other
+detector (single-frame ALDM, the point tracker, naive, ground truth) has none, and the
+key equals ``line_valid`` there: 1 where a line was detected, 0 otherwise. So the space
+depends on the setting alone, never on the detector.
 """
 
 from __future__ import annotations
@@ -95,18 +106,27 @@ class ObservationConfig:
     :ivar vehicles_count: rows N of the ``vehicles`` key (nearest vehicles first).
     :ivar perception_distance: vehicles farther than this along x or y are not
         observed; also the bound of gaps [m].
+    :ivar line_confidence: add the ``line_confidence`` key (see the module docstring);
+        off by default, which keeps the space of earlier versions and of the models
+        trained on it.
     """
 
     type: str = setting("ALDMObservation", choices=("ALDMObservation",))
     vehicles_count: int = setting(8, lo=1, hi=64, integer=True)
     perception_distance: float = setting(100.0, lo=1.0, hi=250.0)
+    line_confidence: bool = setting(False)
 
     def __post_init__(self) -> None:
         validate(self, "observation")
 
 
-def observation_space(vehicles_count: int, perception_distance: float) -> spaces.Dict:
-    """The observation space (a Dict of bounded float32 Boxes, see the module table)."""
+def observation_space(
+    vehicles_count: int, perception_distance: float, line_confidence: bool = False
+) -> spaces.Dict:
+    """The observation space (a Dict of bounded float32 Boxes, see the module table).
+
+    :param line_confidence: with the ``line_confidence`` key.
+    """
     f32 = np.float32
     veh_low = np.tile(
         np.array(
@@ -122,7 +142,7 @@ def observation_space(vehicles_count: int, perception_distance: float) -> spaces
         ),
         (vehicles_count, 1),
     )
-    return spaces.Dict(
+    space = spaces.Dict(
         {
             "lines": spaces.Box(-LINE_BOUND, LINE_BOUND, (4, N_POINTS, 2), f32),
             "line_valid": spaces.Box(0.0, 1.0, (4,), f32),
@@ -149,6 +169,9 @@ def observation_space(vehicles_count: int, perception_distance: float) -> spaces
             ),
         }
     )
+    if line_confidence:
+        space = spaces.Dict({**space.spaces, "line_confidence": spaces.Box(0.0, 1.0, (4,), f32)})
+    return space
 
 
 def eval_line(line: FloatArray, x: FloatArray) -> FloatArray:
@@ -261,6 +284,23 @@ def lane_gaps(
     return out
 
 
+def detected_confidence(detection: LaneDetection | None, valid: FloatArray) -> FloatArray:
+    """The ``line_confidence`` key: the detection's confidence in each line, in [0, 1].
+
+    A detection with a per-line ``confidence`` (the lane-model filter's
+    :class:`~aldm_gym.sensor.lane_filter.ModelLaneDetection`) gives it where the line
+    is valid and 0 elsewhere, so the key is never above ``line_valid``; a detection
+    without one (every other detector) gives ``valid`` itself.
+
+    :param valid: ``(4,)`` the ``line_valid`` key (1 where the line was detected).
+    :return: ``(4,)`` in :data:`~aldm_gym.sensor.lane_detection.LINE_NAMES` order.
+    """
+    confidence = getattr(detection, "confidence", None)
+    if confidence is None:
+        return np.array(valid, dtype=np.float64)
+    return np.where(np.asarray(valid) > 0.0, np.clip(confidence, 0.0, 1.0), 0.0)
+
+
 def build_observation(
     detection: LaneDetection | None,
     trajectory: FloatArray,
@@ -271,6 +311,7 @@ def build_observation(
     ego_x: float = 0.0,
     target: FloatArray | None = None,
     lengths: FloatArray | None = None,
+    line_confidence: bool = False,
 ) -> dict[str, np.ndarray]:
     """Assemble the observation dict.
 
@@ -284,6 +325,7 @@ def build_observation(
     :param target: ``(3,)`` the ACC's target: present (0/1), gap [m], relative speed
         [m/s]; ``None``: none, gap :data:`TARGET_GAP_BOUND`.
     :param lengths: ``(M,)`` lengths of the other vehicles [m] (``None``: all cars).
+    :param line_confidence: add the ``line_confidence`` key (:func:`detected_confidence`).
     """
     lines = np.zeros((4, N_POINTS, 2))
     valid = np.zeros(4)
@@ -344,6 +386,8 @@ def build_observation(
             [1.0, TARGET_GAP_BOUND, SPEED_BOUND],
         ).astype(np.float32),
     }
+    if line_confidence:
+        out["line_confidence"] = detected_confidence(detection, valid).astype(np.float32)
     return out
 
 
@@ -387,7 +431,10 @@ class ALDMObservation:
 
     def space(self) -> spaces.Space:
         """See :func:`observation_space`."""
-        return observation_space(self.config.vehicles_count, self.config.perception_distance)
+        config = self.config
+        return observation_space(
+            config.vehicles_count, config.perception_distance, config.line_confidence
+        )
 
     def observe(self) -> dict[str, np.ndarray]:
         """The observation of the env's current state."""
@@ -420,6 +467,7 @@ class ALDMObservation:
             ego_x,
             self._target(),
             np.array([v.LENGTH for v in others], dtype=np.float64) if others else None,
+            self.config.line_confidence,
         )
 
     def _target(self) -> FloatArray | None:
