@@ -22,7 +22,8 @@ failing line is put in one class, checked in this order:
 
 ``--sensor`` adds sensor settings (JSON), e.g. ``--preset none --trucks 0 --sensor
 '{"worn_dash_rate": 0.3}'`` for worn paint alone; ``--road`` road settings, e.g.
-``--road '{"min_radius": 100}'`` for the generator's tightest curves. ``--policy
+``--road '{"min_radius": 100}'`` for the generator's tightest curves; ``--params``
+more ``detector_params`` (e.g. the filter's settings). ``--policy
 lca`` drives with the rule-based lane-change policy instead of IDLE. The lane departures
 (``info["departures"]``) and lane changes of all episodes are printed too.
 
@@ -105,6 +106,11 @@ def main(argv: list[str] | None = None) -> None:
         help="road settings as JSON, e.g. '{\"min_radius\": 100}' for tight curves",
     )
     parser.add_argument(
+        "--params",
+        default="{}",
+        help="more detector_params as JSON, e.g. '{\"q_curvature_rate\": 5e-6}'",
+    )
+    parser.add_argument(
         "--tracking",
         choices=tuple(TRACKING),
         default="tracker",
@@ -121,7 +127,7 @@ def main(argv: list[str] | None = None) -> None:
     config = {
         "marking_model": "per_dash",
         "detector": "aldm",
-        "detector_params": {"tracking": TRACKING[args.tracking]},
+        "detector_params": {"tracking": TRACKING[args.tracking], **json.loads(args.params)},
         "sensor": {
             **({} if args.preset == "none" else {"preset": args.preset}),
             **json.loads(args.sensor),

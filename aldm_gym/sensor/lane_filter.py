@@ -1,27 +1,32 @@
-"""The lane-model filter: one clothoid model of all lines, carried by a Kalman filter.
+"""The lane-model filter: one clothoid-spline model of all lines, carried by a Kalman filter.
 
 :class:`LaneModelFilter` (``detector_params={"tracking": "model"}``) estimates one
-road shape shared by every line and a lateral offset per line, in the ISO 8855
-sensor frame (x forward, y left) [m]::
-
-    y_i(x) = y0_i + tan(psi) x + c0 x^2 / 2 + c1 x^3 / 6
-
-the clothoid road model of Dickmanns and Mysliwetz (1992) in its cubic
-approximation, with heading ``psi`` [rad], curvature ``c0`` [1/m] and curvature rate
-``c1`` [1/m^2] shared by all lines. A line at offset ``y0`` in a bend is a parallel
-curve: its curvature is ``c0 / (1 - y0 c0)``, applied with the factor of the
-predicted state (linearised about the prediction, as an extended Kalman filter).
+road shape shared by every line and an offset per line, in the ISO 8855 sensor frame
+(x forward, y left) [m]. The shape is a *reference curve* through the sensor: heading
+``psi`` [rad] at the sensor, and a curvature [1/m] linear in arc length between
+:data:`~aldm_gym.sensor.aldm_kernels.model.N_NODES` nodes
+:data:`~aldm_gym.sensor.aldm_kernels.model.NODE_STEP` (30 m) apart, constant beyond
+the last one: a clothoid spline, the road model of Dickmanns and Mysliwetz (1992) with
+its curvature rate free per node step, so that a transition into a bend that begins
+in view is followed. Every line is the parallel curve at its offset ``y0_i`` along
+the normal: a point belongs to line ``i`` when its signed distance ``l`` to the left
+of the reference curve is ``y0_i``. Measured in the curve's own frame (the foot point
+by Newton's method on a table of the curve), this holds in any bend the generator or
+a map makes (R 100 m turns 0.9 rad within the model's 90 m), where a cubic in x loses
+the lines below R 250 m. The measurement ``h = y0_i - l`` is linearised about the
+prediction (an extended Kalman filter).
 
 Each frame:
 
 1. **Predict** the state by the ego's odometry (:class:`~aldm_gym.sensor.tracking.
-   EgoMotion`): the model is shifted by the travel along its own Taylor series and
-   turned by the yaw change; the process noise grows with the travel (see
-   :class:`FilterParams`).
+   EgoMotion`): the new origin's foot point on the reference curve starts the new
+   curve (its heading less the yaw change, the curvature nodes moved along the curve,
+   the last node's curvature held beyond it), the offsets less the origin's distance
+   to the curve; the process noise grows with the travel (see :class:`FilterParams`).
 2. **Associate** every raw sensor point up to ``model_range`` with the nearest
-   predicted line whose gate it falls in: ``association_sigmas`` times the predicted
-   standard deviation of the line at its x (the state's covariance and the point's
-   noise), clipped to ``[association_min, association_max]``.
+   predicted line (by ``l``) whose gate it falls in: ``association_sigmas`` times the
+   predicted standard deviation of the line there (the state's covariance and the
+   point's noise), clipped to ``[association_min, association_max]``.
 3. **Update** with all associated points at once (information form), robustly:
    iteratively re-weighted least squares with Tukey's biweight (``tukey`` standard
    deviations: a redescending M-estimator, so points beyond it, a tar seam beside a
@@ -33,8 +38,8 @@ Each frame:
    without a hit for ``drop_length`` metres of travel is dropped; of two lines
    closer than ``min_spacing`` the less confident one is dropped.
 5. **Birth.** Points no line took (outside every gate, or given no weight), up to
-   ``birth_range``, are moved onto x = 0 along the shared shape; a cluster of at
-   least ``birth_points`` of them within ``birth_width`` laterally, spanning
+   ``birth_range``, are put in the reference curve's frame (their ``l``); a cluster
+   of at least ``birth_points`` of them within ``birth_width`` laterally, spanning
    ``birth_span`` in x and at least ``min_spacing`` from every line, is a new line
    (a lane opening, the lane a lane change brings into view). A cluster closer to a
    line that has had no hit for ``reseat_length`` of travel *re-seats* that line
@@ -52,7 +57,9 @@ Each frame:
 
 Without a model (the first frame, ``motion=None``, or every line dropped) the
 model starts from the single-frame ALDM (:func:`~aldm_gym.sensor.aldm.detect_lanes`)
-on the frame: its lines are the first measurements. The decisions are listed in
+on the frame: its lines fitted whole, or only up to :data:`START_RANGE`, or a straight
+road at their offsets, whichever the frame's raw points support most (a trace that
+wandered far out under noise does not bend the model). The decisions are listed in
 ``docs/aldm.md``, section "Lane-model filter".
 """
 
@@ -70,10 +77,17 @@ from aldm_gym.errors import ConfigError
 from aldm_gym.sensor.aldm import ALDMParams, as_points, detect_lanes_checked, make_params
 from aldm_gym.sensor.aldm_kernels.model import (
     N_GEOMETRY,
+    N_NODES,
+    NODE_STEP,
     SCALE,
     associate_update,
-    draw,
+    curve_table,
+    draw_on,
+    existence,
+    measurements,
     predict,
+    project,
+    project_on,
     robust_update,
 )
 from aldm_gym.sensor.lane_detection import LINE_NAMES, LaneDetection
@@ -98,8 +112,33 @@ START_INFLATION = 4.0
 """The covariance from the single-frame ALDM's lines is multiplied by this before the
 frame's points update it (the lines' points are correlated)."""
 
+START_RANGE = 50.0
+"""The start fits the single-frame ALDM's lines up to this x [m]: farther out a trace
+that wandered (noise, dropout) would bend the whole model; the frame's raw points
+then extend the model to ``model_range`` through the gates."""
+
+START_ITERATIONS = 4
+"""Gauss-Newton iterations of the start's update (from a straight prior to an R 100 m
+bend the foot points settle in three)."""
+
 MIN_EXTENT = 10.0
 """A line shorter than this in x [m] is not drawn."""
+
+
+def shape_covariance(heading: float, curvature: float, curvature_rate: float) -> FloatArray:
+    """``(N_GEOMETRY, N_GEOMETRY)`` covariance of the shape entries as the state holds
+    them, from standard deviations of the heading [rad], of the curvature common to
+    all nodes [1/m] and of its change per metre [1/m^2]: the node curvatures are a
+    random walk along the road (node ``k`` is node 0 plus ``k`` independent steps of
+    ``curvature_rate * NODE_STEP``), so a node without measurements follows its
+    neighbours rather than drifting on its own."""
+    cov = np.zeros((N_GEOMETRY, N_GEOMETRY))
+    cov[0, 0] = (heading * SCALE) ** 2
+    step = (curvature_rate * NODE_STEP) ** 2
+    for i in range(N_NODES):
+        for j in range(N_NODES):
+            cov[1 + i, 1 + j] = (curvature**2 + min(i, j) * step) * SCALE**4
+    return cov
 
 
 @dataclass(frozen=True)
@@ -109,10 +148,10 @@ class FilterParams:
     Measurement and association:
 
     :ivar model_range: points up to this x are measurements, and lines are drawn at
-        most this far (90 m: the cubic holds an R 500 m bend to a few cm there, and
-        beyond it the camera's noise and the cars ahead leave the shape a guess).
+        most this far (90 m: beyond it the camera's noise and the cars ahead leave
+        the shape a guess).
     :ivar point_std: standard deviation of a point's lateral position at x = 0 (the
-        sensor's noise and what the cubic model misses) ...
+        sensor's noise and what the spline misses) ...
     :ivar point_std_slope: ... plus this much per metre ahead [m/m].
     :ivar association_sigmas: a point is associated with a line within this many predicted
         standard deviations ...
@@ -127,9 +166,12 @@ class FilterParams:
         all lines move together) ...
     :ivar q_width: ... and of each line's own offset [m] (lane widths change
         slowly: a line seen for a while holds its distance to its neighbours).
-    :ivar q_heading: of ``tan(psi)`` [-] (the odometry's yaw error).
-    :ivar q_curvature: of ``c0`` [1/m].
-    :ivar q_curvature_rate: of ``c1`` [1/m^2] (the road's clothoids begin and end).
+    :ivar q_heading: of the heading [rad] (the odometry's yaw error).
+    :ivar q_curvature: of the curvature, common to all nodes [1/m].
+    :ivar q_curvature_rate: of the curvature's change per metre [1/m^2], per node step
+        (:func:`shape_covariance`: node ``k`` is node 0 plus ``k`` independent steps;
+        the road's clothoids begin and end, and the last node sees new road every
+        frame: 2e-6 lets the model follow an R 100 m transition, 5e-7 did not).
 
     Existence:
 
@@ -149,7 +191,8 @@ class FilterParams:
 
     :ivar birth_range: points up to this x can give birth to a line.
     :ivar birth_points: a new line needs at least this many points ...
-    :ivar birth_width: ... within this lateral width (moved onto x = 0) ...
+    :ivar birth_width: ... within this width of their distance to the reference
+        curve ...
     :ivar birth_span: ... spanning at least this much in x.
     :ivar max_offset: lines farther than this laterally are dropped, and none is
         born there.
@@ -163,12 +206,12 @@ class FilterParams:
     association_sigmas: float = setting(4.0, lo=0.0, lo_open=True, hi=100.0)
     association_min: float = setting(0.4, lo=0.0, lo_open=True, hi=10.0)
     association_max: float = setting(1.2, lo="association_min", hi=10.0)
-    tukey: float = setting(2.5, lo=0.0, lo_open=True, hi=100.0)
+    tukey: float = setting(3.0, lo=0.0, lo_open=True, hi=100.0)
     q_offset: float = setting(0.01, lo=0.0, hi=10.0)
     q_width: float = setting(0.005, lo=0.0, hi=10.0)
     q_heading: float = setting(0.002, lo=0.0, hi=1.0)
     q_curvature: float = setting(2.0e-5, lo=0.0, hi=1.0)
-    q_curvature_rate: float = setting(5.0e-7, lo=0.0, hi=1.0)
+    q_curvature_rate: float = setting(2.0e-6, lo=0.0, hi=1.0)
     hit_gain: float = setting(0.3, lo=0.0, lo_open=True, hi=1.0)
     miss_loss: float = setting(0.1, lo=0.0, hi=1.0)
     min_confidence: float = setting(0.5, lo=0.0, hi=1.0)
@@ -276,12 +319,14 @@ class ModelLaneDetection(LaneDetection):
 
 
 class LaneModelFilter:
-    """One clothoid model of all lines, carried from frame to frame by a Kalman filter.
+    """One clothoid-spline model of all lines, carried from frame to frame by a Kalman
+    filter.
 
     Call :meth:`update` once per frame with the points and the motion since the
     previous frame; :meth:`reset` forgets the model (a new episode). Deterministic
     (no randomness) and picklable. The state, in SI units, is :attr:`heading`
-    (``tan(psi)``), :attr:`curvature`, :attr:`curvature_rate` and :attr:`offsets`.
+    (``tan(psi)``), :attr:`node_curvatures` (:attr:`curvature`, :attr:`curvature_rate`
+    near the sensor) and :attr:`offsets`.
 
     :param params: the ALDM's parameters, for the frame that starts the model and
         its ``z_band`` (:class:`ALDMParams`; default robust).
@@ -303,6 +348,8 @@ class LaneModelFilter:
             raise TypeError(f"filt must be FilterParams, got {type(self.filter).__name__}")
         fit_reach(path_range)  # raises on a bad path_range now, not at the first frame
         self.path_range = path_range
+        fp = self.filter
+        self._q_shape = shape_covariance(fp.q_heading, fp.q_curvature, fp.q_curvature_rate)
         self.reset()
 
     def reset(self) -> None:
@@ -330,22 +377,28 @@ class LaneModelFilter:
 
     @property
     def heading(self) -> float:
-        """``tan(psi)`` of the shared shape at the sensor [-]."""
-        return float(self._x[0] / SCALE)
+        """``tan(psi)`` of the reference curve's heading at the sensor [-]."""
+        return math.tan(float(self._x[0] / SCALE))
 
     @property
     def curvature(self) -> float:
-        """``c0`` at the sensor [1/m], left positive."""
+        """The reference curve's curvature at the sensor [1/m], left positive."""
         return float(self._x[1] / SCALE**2)
 
     @property
     def curvature_rate(self) -> float:
-        """``c1`` [1/m^2]."""
-        return float(self._x[2] / SCALE**3)
+        """Its rate of change over the first node step [1/m^2]."""
+        return float((self._x[2] - self._x[1]) / SCALE**2 / NODE_STEP)
+
+    @property
+    def node_curvatures(self) -> FloatArray:
+        """The curvature at each node, ``NODE_STEP`` apart from the sensor [1/m]."""
+        return self._x[1:N_GEOMETRY] / SCALE**2
 
     @property
     def offsets(self) -> FloatArray:
-        """Each line's lateral offset at the sensor ``y0`` [m], left to right order of
+        """Each line's offset from the reference curve (the curve through the sensor)
+        along its normal at the sensor [m], left positive, in the order of
         :attr:`line_ids`."""
         return self._x[N_GEOMETRY:].copy()
 
@@ -380,88 +433,102 @@ class LaneModelFilter:
         if motion is not None and not isinstance(motion, EgoMotion):
             raise TypeError(f"motion must be EgoMotion or None, got {type(motion).__name__}")
         fp = self.filter
-        ok = np.isfinite(pts).all(axis=1) & (pts[:, 0] >= 0.0) & (pts[:, 0] <= fp.model_range)
-        if pts.shape[1] == 3:
-            ok &= np.abs(pts[:, 2]) <= self.params.z_band
-        x, y = pts[ok, 0], pts[ok, 1]
-        near = float(min(np.min(x), START_X_MAX)) if len(x) else EMPTY_START
+        x, y = measurements(pts, fp.model_range, self.params.z_band)
+        near = float(min(x.min(), START_X_MAX)) if len(x) else EMPTY_START
         if motion is None or len(self._ids) == 0:
-            self._start(pts)
+            self._start(pts, x, y)
             travel = 0.0
         else:
             travel = motion.travel
             self._predict(*motion.displacement(), travel)
+        line = None
         if len(self._ids):
             line, support, far = self._correct(x, y)
             self._existence(support, far, travel)
-            self._birth(x, y, line)
-        return self._detection(near)
+        # the reference curve after the update (births and drawing move no shape)
+        tab = curve_table(self._x, fp.model_range)
+        if line is not None and len(self._ids):
+            self._birth(x, y, line, tab)
+        return self._detection(near, tab)
 
-    def _start(self, pts: FloatArray) -> None:
-        """A new model from the single-frame ALDM's lines: a flat prior updated
-        (robustly) with the lines' points."""
+    def _start(self, pts: FloatArray, x: FloatArray, y: FloatArray) -> None:
+        """A new model from the single-frame ALDM's lines, checked against the frame's
+        points ``(x, y)`` [m]: a flat prior updated (robustly) with the lines' points up
+        to ``model_range``, or only up to :data:`START_RANGE`, or a straight road at the
+        lines' offsets, whichever the frame's points support most (the sum of their
+        robust weights in a trial update). A trace that wandered far out under noise
+        then does not bend the model, and the ALDM's lines still start it in a bend."""
         fp = self.filter
         _, _, lines, ls = detect_lanes_checked(pts, self.params, None)
-        offsets: list[float] = []
-        xs: list[FloatArray] = []
-        ys: list[FloatArray] = []
-        which: list[np.ndarray] = []
-        for i in range(len(LINE_NAMES)):
-            line = lines[ls[i] : ls[i + 1]]
-            line = line[line[:, 0] <= fp.model_range]
-            if len(line) < 2:
-                continue
-            which.append(np.full(len(line), len(offsets)))
-            offsets.append(float(line[0, 1]))
-            xs.append(line[:, 0])
-            ys.append(line[:, 1])
-        n = len(offsets)
-        self._x = np.concatenate((np.zeros(N_GEOMETRY), offsets))
-        # a flat prior: headings of +-0.3, radii down to ~100 m, offsets +-2 m
-        prior = np.array([0.3 * SCALE, 0.01 * SCALE**2, 2.0e-4 * SCALE**3, *([2.0] * n)])
-        self._p = np.diag(prior**2)
+        kept = [lines[ls[i] : ls[i + 1]] for i in range(len(LINE_NAMES))]
+        kept = [v[v[:, 0] <= fp.model_range] for v in kept]
+        kept = [v for v in kept if len(v) >= 2]
+        n = len(kept)
+        x0 = np.concatenate((np.zeros(N_GEOMETRY), [float(v[0, 1]) for v in kept]))
+        # a flat prior: headings of +-0.3, radii down to ~100 m, curvature changing by
+        # 0.005 1/m per node step (R 100 m reached over 60 m), offsets +-2 m
+        p0 = np.zeros((N_GEOMETRY + n, N_GEOMETRY + n))
+        p0[:N_GEOMETRY, :N_GEOMETRY] = shape_covariance(0.3, 0.01, 0.005 / NODE_STEP)
+        p0[N_GEOMETRY:, N_GEOMETRY:] = np.diag(np.full(n, 2.0**2))
+        self._x, self._p = x0, p0
         self._ids = np.arange(self._next_id, self._next_id + n, dtype=np.int64)
         self._next_id += n
         self._conf = np.full(n, 0.5 + 0.5 * fp.min_confidence)
         self._miss = np.zeros(n)
-        self._far = np.array([float(v[-1]) for v in xs])
+        self._far = np.array([float(v[-1, 0]) for v in kept])
         self._confirmed = np.ones(n, dtype=bool)
         self.n_starts += 1
-        if n:
+        if n == 0:
+            return
+        lx = np.concatenate([v[:, 0] for v in kept])
+        ly = np.concatenate([v[:, 1] for v in kept])
+        which = np.concatenate([np.full(len(v), i) for i, v in enumerate(kept)])
+        candidates = []
+        for top in (fp.model_range, START_RANGE):
+            sel = lx <= top
             # robust too: a traced line bent onto clutter near the car keeps the
-            # offset of the most of its points
-            self._solve(np.concatenate(xs), np.concatenate(ys), np.concatenate(which))
-            # the 13 points per line are a fit, not independent measurements: the
-            # frame's own points follow in the same update
-            self._p = self._p * START_INFLATION
+            # offset of the most of its points; the 13 points per line are a fit, not
+            # independent measurements: the covariance is inflated, and the frame's own
+            # points follow in the same update
+            state, cov = self._fit(lx[sel], ly[sel], which[sel], x0, p0)
+            candidates.append((state, cov * START_INFLATION))
+        state, cov = candidates[-1]
+        straight = state.copy()
+        straight[:N_GEOMETRY] = 0.0
+        candidates.append((straight, cov))
+        # each start's support: the sum of the lines' support in a trial update
+        scores = [float(np.sum(self._associate_update(x, y, st, cv)[3])) for st, cv in candidates]
+        self._x, self._p = candidates[int(np.argmax(scores))]
+
+    def _associate_update(
+        self, x: FloatArray, y: FloatArray, state: FloatArray, cov: FloatArray
+    ) -> tuple[FloatArray, FloatArray, np.ndarray, FloatArray, FloatArray, bool]:
+        """:func:`~aldm_gym.sensor.aldm_kernels.model.associate_update` of ``(state,
+        cov)`` with the points ``(x, y)`` and the filter's settings."""
+        fp = self.filter
+        return associate_update(
+            x,
+            y,
+            state,
+            cov,
+            fp.point_std,
+            fp.point_std_slope,
+            fp.association_sigmas,
+            fp.association_min,
+            fp.association_max,
+            fp.tukey,
+            3,
+        )
 
     def _predict(self, dx: float, dy: float, dpsi: float, travel: float) -> None:
         """Move the model into the new sensor frame: the origin advances ``dx`` along
         the old x and ``dy`` along the old y [m], the axes turn by ``dpsi`` [rad]
         (:func:`~aldm_gym.sensor.aldm_kernels.model.predict`)."""
         fp = self.filter
-        q_shape = np.array(
-            [fp.q_heading * SCALE, fp.q_curvature * SCALE**2, fp.q_curvature_rate * SCALE**3]
-        )
         self._x, self._p = predict(
-            self._x, self._p, dx, dy, dpsi, travel, q_shape, fp.q_offset, fp.q_width
+            self._x, self._p, dx, dy, dpsi, travel, self._q_shape, fp.q_offset, fp.q_width
         )
         self._far = self._far - dx
-
-    def _rows(self, x: FloatArray, line: np.ndarray) -> tuple[FloatArray, FloatArray]:
-        """Measurement rows of points at ``x`` on lines ``line``: the shape's part
-        ``(N, 3)`` (with each line's parallel-curve factor on the curvature terms) and
-        the factor itself ``(N,)``."""
-        u = x / SCALE
-        c0 = self._x[1] / SCALE**2
-        y0 = self._x[N_GEOMETRY:][line]
-        k = 1.0 / np.maximum(1.0 - y0 * c0, 0.5)
-        return np.column_stack((u, 0.5 * u * u * k, u**3 / 6.0 * k)), k
-
-    def _shape(self, x: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
-        """The shape's basis at ``x``: ``u``, ``u^2/2``, ``u^3/6`` (``u = x / L``)."""
-        u = x / SCALE
-        return u, 0.5 * u * u, u**3 / 6.0
 
     def _sigma(self, x: FloatArray) -> FloatArray:
         """A point's lateral standard deviation at ``x`` [m]."""
@@ -473,97 +540,64 @@ class LaneModelFilter:
         line (-1: free, also for associated points given no weight), each line's
         support (the sum of its points' robust weights) and farthest point's x
         (-inf: none)."""
-        fp = self.filter
-        state, cov, line, _w, support, far, _ok = associate_update(
-            x,
-            y,
-            self._x,
-            self._p,
-            fp.point_std,
-            fp.point_std_slope,
-            fp.association_sigmas,
-            fp.association_min,
-            fp.association_max,
-            fp.tukey,
-            3,
-        )
+        state, cov, line, support, far, _ok = self._associate_update(x, y, self._x, self._p)
         self._x, self._p = state, cov
         self.n_used = int(np.count_nonzero(line >= 0))
         return line, support, far
 
-    def _solve(self, x: FloatArray, y: FloatArray, line: np.ndarray) -> FloatArray:
-        """The Kalman update in information form with points ``(x, y)`` on lines
-        ``line``, solved three times, re-weighted by Tukey's biweight in between
-        (:func:`~aldm_gym.sensor.aldm_kernels.model.robust_update`). Returns the
-        weights of the last solve."""
+    def _fit(
+        self, x: FloatArray, y: FloatArray, line: np.ndarray, x0: FloatArray, p0: FloatArray
+    ) -> tuple[FloatArray, FloatArray]:
+        """The update of the prior ``(x0, p0)`` in information form with points ``(x,
+        y)`` on lines ``line``, Gauss-Newton: :data:`START_ITERATIONS` times the points
+        are put in the current estimate's reference frame (:func:`~aldm_gym.sensor.
+        aldm_kernels.model.project`) and the update about the prior solved, three times
+        re-weighted by Tukey's biweight (:func:`~aldm_gym.sensor.aldm_kernels.model.
+        robust_update`). The start's prior is flat, so the first linearisation (a
+        straight road) can be far off in a bend: the iterations bring the foot points
+        to the curve. Returns the estimate and its covariance."""
         fp = self.filter
-        g, _ = self._rows(x, line)
         sigma = self._sigma(x)
-        prior_info = np.linalg.inv(self._p)
-        x0 = self._x.copy()
-        h_y0 = self._x[N_GEOMETRY:][line]
-        r0 = y - (h_y0 + g @ x0[:N_GEOMETRY])
-        # the first weights from the innovation: the residual to the prediction over
-        # its standard deviation (the state's and the point's)
-        pg = self._p[:N_GEOMETRY, :N_GEOMETRY]
-        var = np.einsum("nj,jk,nk->n", g, pg, g) + sigma * sigma
-        var += 2.0 * np.einsum("nj,jn->n", g, self._p[:N_GEOMETRY, N_GEOMETRY + line])
-        var += self._p[N_GEOMETRY + line, N_GEOMETRY + line]
-        w = self._tukey(np.abs(r0) / np.sqrt(np.maximum(var, sigma * sigma)))
-        delta, cov, w, ok = robust_update(
-            np.ascontiguousarray(g),
-            line.astype(np.int64),
-            r0,
-            sigma,
-            np.asarray(w, dtype=np.float64),
-            prior_info,
-            fp.tukey,
-            3,
-            True,
-        )
-        if not ok:  # not positive definite (rounding): keep the prediction this frame
-            return np.zeros(len(x))
-        self._x = x0 + delta
-        self._p = 0.5 * (cov + cov.T)
-        return w
-
-    def _tukey(self, e: FloatArray) -> FloatArray:
-        """Tukey's biweight of normalised residuals ``e``."""
-        return np.square(np.maximum(1.0 - np.square(e / self.filter.tukey), 0.0))
+        prior_info = np.linalg.inv(p0)
+        state, cov = x0, p0
+        for _ in range(START_ITERATIONS):
+            _s, lat, g = project(state, x, y)
+            moved = state - x0
+            # the residual of the update about the prior, linearised at ``state``
+            r0 = lat - state[N_GEOMETRY + line] + g @ moved[:N_GEOMETRY] + moved[N_GEOMETRY + line]
+            delta, post, _w, ok = robust_update(
+                g, line.astype(np.int64), r0, sigma, np.ones(len(x)), prior_info, fp.tukey, 3, True
+            )
+            if not ok:  # not positive definite (rounding): keep the last estimate
+                break
+            state, cov = x0 + delta, 0.5 * (post + post.T)
+        return state, cov
 
     def _existence(self, support: FloatArray, far: FloatArray, travel: float) -> None:
         """Hits and misses, the lines' far ends (``far``: the farthest point of each
-        line in the frame [m]), and the lines dropped."""
+        line in the frame [m]), and the lines dropped
+        (:func:`~aldm_gym.sensor.aldm_kernels.model.existence`)."""
         fp = self.filter
-        hit = support >= MIN_SUPPORT
-        self._conf = np.where(
-            hit, self._conf + fp.hit_gain * (1.0 - self._conf), self._conf * (1.0 - fp.miss_loss)
+        keep = existence(
+            support,
+            far,
+            self._conf,
+            self._miss,
+            self._far,
+            self._confirmed,
+            self._ids,
+            self._x[N_GEOMETRY:],
+            travel,
+            fp.hit_gain,
+            fp.miss_loss,
+            fp.min_confidence,
+            fp.drop_length,
+            fp.max_offset,
+            fp.min_spacing,
+            MIN_SUPPORT,
         )
-        self._miss = np.where(hit, 0.0, self._miss + travel)
-        self._confirmed |= self._conf >= fp.min_confidence
-        self._far = np.where(hit, far, self._far)
-        offsets = self._x[N_GEOMETRY:].tolist()
-        keep = (
-            (self._miss <= fp.drop_length) & (np.abs(self._x[N_GEOMETRY:]) <= fp.max_offset)
-        ).tolist()
-        conf, ids = self._conf.tolist(), self._ids.tolist()
-        # of two lines too close, the less confident goes (on a tie the younger); each
-        # line is compared with the nearest kept one to its right, so no two kept
-        # lines end closer than min_spacing
-        prev = -1
-        for b in sorted(range(len(offsets)), key=offsets.__getitem__):
-            if not keep[b]:
-                continue
-            if prev >= 0 and offsets[b] - offsets[prev] < fp.min_spacing:
-                a = prev
-                weaker = a if (conf[a], -ids[a]) < (conf[b], -ids[b]) else b
-                keep[weaker] = False
-                if weaker == a:
-                    prev = b
-            else:
-                prev = b
-        if not all(keep):
-            self._keep(np.array(keep, dtype=bool))
+        if not keep.all():
+            self._keep(keep)
 
     def _keep(self, keep: np.ndarray) -> None:
         """Drop the lines not in ``keep`` from the state and the bookkeeping."""
@@ -574,17 +608,15 @@ class LaneModelFilter:
         self._miss, self._far = self._miss[keep], self._far[keep]
         self._confirmed = self._confirmed[keep]
 
-    def _birth(self, x: FloatArray, y: FloatArray, line: np.ndarray) -> None:
-        """New lines from clusters of the points no line took (moved onto x = 0 along
-        the shared shape): at most one per frame."""
+    def _birth(self, x: FloatArray, y: FloatArray, line: np.ndarray, tab: FloatArray) -> None:
+        """New lines from clusters of the points no line took, by their distance to
+        the reference curve tabulated in ``tab``: at most one per frame."""
         fp = self.filter
         free = (line < 0) & (x <= fp.birth_range)
         if np.count_nonzero(free) < fp.birth_points:
             return
         fx = x[free]
-        u, u2, u3 = self._shape(fx)
-        a1, a2, a3 = self._x[:N_GEOMETRY]
-        off = y[free] - (a1 * u + a2 * u2 + a3 * u3)
+        _s, off, _g = project_on(tab, fx, y[free])
         order = np.argsort(off, kind="stable")
         off, fx = off[order], fx[order]
         # clusters: windows of birth_width starting at each point, largest first
@@ -689,10 +721,13 @@ class LaneModelFilter:
             pick[3] = right[1]
         return pick
 
-    def _detection(self, near: float) -> ModelLaneDetection:
+    def _detection(self, near: float, tab: FloatArray | None = None) -> ModelLaneDetection:
         """The model drawn as a detection: 13 points per line (``n_points`` of the
-        ALDM's parameters) from ``near`` to the line's far end."""
+        ALDM's parameters) from ``near`` to the line's far end, on the reference curve
+        tabulated in ``tab`` (None: tabulated here)."""
         fp = self.filter
+        if tab is None:
+            tab = curve_table(self._x, fp.model_range)
         n_points = self.params.n_points if self.params.n_points >= 2 else 13
         roles = self._roles()
         seen = self._far[self._confirmed & (self._miss == 0.0)]
@@ -712,7 +747,8 @@ class LaneModelFilter:
         if drawn:
             # every drawn line at once: (n_points, lines) x and y
             idx = np.array([i for _, i, _ in drawn], dtype=np.int64)
-            pts = draw(self._x, idx, near, np.array([far for *_, far in drawn]), n_points)
+            fars = np.array([far for *_, far in drawn])
+            pts = draw_on(tab, self._x, idx, near, fars, n_points)
             for c, (r, i, _) in enumerate(drawn):
                 fields[LINE_NAMES[r]] = pts[c]
                 conf[r] = self._conf[i]
