@@ -316,8 +316,10 @@ def sensor_data(
     of the line objects it runs through, :func:`line_objects`; unset for a line on no
     object: a ghost, or a stretch the tracking ALDM carries over from earlier frames), one
     candidate of probability 1 whose type and colour are those objects', and
-    ``MEASUREMENT_STATE_MEASURED``. Existence probability and per-point confidence
-    are left unset: naive detection and the ALDM do not estimate them.
+    ``MEASUREMENT_STATE_MEASURED``. ``header.existence_probability`` is the line's
+    confidence when the detection has one (the lane-model filter's
+    :class:`~aldm_gym.sensor.lane_filter.ModelLaneDetection`), unset otherwise (naive
+    detection and the ALDM do not estimate it); per-point confidences are left unset.
 
     :param host: the host vehicle (``host_vehicle_location``): a highway-env vehicle,
         an ``osi3.BaseMoving`` to copy, or ``None``.
@@ -350,6 +352,7 @@ def sensor_data(
     header.data_qualifier = osi3.DetectedEntityHeader.DATA_QUALIFIER_AVAILABLE
     found = [(name, detection.line(name)) for name in LINE_NAMES]
     found = [(name, line) for name, line in found if len(line)]
+    confidence = getattr(detection, "confidence", None)
     objects = line_objects(frame, [line for _, line in found])
     for (name, line), (kind, colour, marking) in zip(found, objects, strict=True):
         db = sd.lane_boundary.add()
@@ -357,6 +360,8 @@ def sensor_data(
         if marking >= 0 and boundary_ids is not None:
             db.header.ground_truth_id.add().value = int(boundary_ids[marking])
         db.header.measurement_state = osi3.DetectedItemHeader.MEASUREMENT_STATE_MEASURED
+        if confidence is not None:
+            db.header.existence_probability = float(confidence[LINE_NAMES.index(name)])
         db.header.sensor_id.add().value = sensor
         cand = db.candidate.add()
         cand.probability = 1.0

@@ -11,6 +11,7 @@ import pytest
 from aldm_gym.osi import ViewReader, detect_trace, read_messages
 from aldm_gym.osi.messages import BOUNDARY_ID, TRACKING_ID, VEHICLE_ID, detection_from_data
 from aldm_gym.osi.trace import binary_path
+from aldm_gym.sensor.lane_detection import LINE_NAMES
 from tests.osi.conftest import ROADS, record
 
 
@@ -136,6 +137,23 @@ def test_sensor_data_holds_the_env_detection(env_trace) -> None:
     }
     assert by_id[TRACKING_ID["ego_left"]] == host_lane.left_lane_boundary_id[0].value
     assert by_id[TRACKING_ID["ego_right"]] == host_lane.right_lane_boundary_id[0].value
+
+
+def test_sensor_data_carries_the_filter_confidence(env_trace, tmp_path: Path) -> None:
+    """With the lane-model filter each written line's existence probability is its
+    confidence; the single-frame ALDM's lines have none."""
+    path = tmp_path / "filter.mcap"
+    env, _ = record(path, {"detector_params": {"tracking": "model"}}, steps=1)
+    data = [m for _, m in _all(path, "SensorData")]
+    names = {v: k for k, v in TRACKING_ID.items()}
+    conf = env.detection.confidence
+    assert len(data[-1].lane_boundary) >= 2
+    for db in data[-1].lane_boundary:
+        assert db.header.HasField("existence_probability")
+        name = names[db.header.tracking_id.value]
+        assert db.header.existence_probability == conf[LINE_NAMES.index(name)] > 0.0
+    plain = [m for _, m in _all(env_trace[0], "SensorData")]
+    assert not any(db.header.HasField("existence_probability") for db in plain[-1].lane_boundary)
 
 
 def _all(path: Path, topic: str):
