@@ -11,10 +11,10 @@ its curvature rate free per node step, so that a transition into a bend that beg
 in view is followed. Every line is the parallel curve at its offset ``y0_i`` along
 the normal: a point belongs to line ``i`` when its signed distance ``l`` to the left
 of the reference curve is ``y0_i``. Measured in the curve's own frame (the foot point
-by Newton's method on a table of the curve), this holds in any bend the generator or
-a map makes (R 100 m turns 0.9 rad within the model's 90 m), where a cubic in x loses
-the lines below R 250 m. The measurement ``h = y0_i - l`` is linearised about the
-prediction (an extended Kalman filter).
+on a table of the curve and the circle of its curvature there), this holds in any
+bend the generator or a map makes (R 100 m turns 0.9 rad within the model's 90 m),
+where a cubic in x loses the lines below R 250 m. The measurement ``h = y0_i - l`` is
+linearised about the prediction (an extended Kalman filter).
 
 Each frame:
 
@@ -65,6 +65,7 @@ wandered far out under noise does not bend the model). The decisions are listed 
 
 from __future__ import annotations
 
+import copy
 import itertools
 import math
 from dataclasses import dataclass, field
@@ -84,11 +85,10 @@ from aldm_gym.sensor.aldm_kernels.model import (
     curve_table,
     draw_on,
     existence,
+    fit,
     measurements,
     predict,
-    project,
     project_on,
-    robust_update,
 )
 from aldm_gym.sensor.lane_detection import LINE_NAMES, LaneDetection
 from aldm_gym.sensor.tracking import TRACKER_KEYS, EgoMotion, TrackerParams, split_params
@@ -324,9 +324,10 @@ class LaneModelFilter:
 
     Call :meth:`update` once per frame with the points and the motion since the
     previous frame; :meth:`reset` forgets the model (a new episode). Deterministic
-    (no randomness) and picklable. The state, in SI units, is :attr:`heading`
-    (``tan(psi)``), :attr:`node_curvatures` (:attr:`curvature`, :attr:`curvature_rate`
-    near the sensor) and :attr:`offsets`.
+    (no randomness) and picklable; :func:`copy.copy` copies it whole (its arrays are
+    updated in place). The state, in SI units, is :attr:`heading`,
+    :attr:`node_curvatures` (:attr:`curvature`, :attr:`curvature_rate` near the
+    sensor) and :attr:`offsets`.
 
     :param params: the ALDM's parameters, for the frame that starts the model and
         its ``z_band`` (:class:`ALDMParams`; default robust).
@@ -351,6 +352,11 @@ class LaneModelFilter:
         fp = self.filter
         self._q_shape = shape_covariance(fp.q_heading, fp.q_curvature, fp.q_curvature_rate)
         self.reset()
+
+    def __copy__(self) -> LaneModelFilter:
+        """A whole copy (the bookkeeping arrays are updated in place each frame, so a
+        shallow copy would share them)."""
+        return copy.deepcopy(self)
 
     def reset(self) -> None:
         """Forget the model and the lines' ids (the next frame starts a new model)."""
@@ -377,8 +383,8 @@ class LaneModelFilter:
 
     @property
     def heading(self) -> float:
-        """``tan(psi)`` of the reference curve's heading at the sensor [-]."""
-        return math.tan(float(self._x[0] / SCALE))
+        """The reference curve's heading at the sensor, ``psi`` [rad], left positive."""
+        return float(self._x[0] / SCALE)
 
     @property
     def curvature(self) -> float:
@@ -548,30 +554,10 @@ class LaneModelFilter:
     def _fit(
         self, x: FloatArray, y: FloatArray, line: np.ndarray, x0: FloatArray, p0: FloatArray
     ) -> tuple[FloatArray, FloatArray]:
-        """The update of the prior ``(x0, p0)`` in information form with points ``(x,
-        y)`` on lines ``line``, Gauss-Newton: :data:`START_ITERATIONS` times the points
-        are put in the current estimate's reference frame (:func:`~aldm_gym.sensor.
-        aldm_kernels.model.project`) and the update about the prior solved, three times
-        re-weighted by Tukey's biweight (:func:`~aldm_gym.sensor.aldm_kernels.model.
-        robust_update`). The start's prior is flat, so the first linearisation (a
-        straight road) can be far off in a bend: the iterations bring the foot points
-        to the curve. Returns the estimate and its covariance."""
-        fp = self.filter
-        sigma = self._sigma(x)
-        prior_info = np.linalg.inv(p0)
-        state, cov = x0, p0
-        for _ in range(START_ITERATIONS):
-            _s, lat, g = project(state, x, y)
-            moved = state - x0
-            # the residual of the update about the prior, linearised at ``state``
-            r0 = lat - state[N_GEOMETRY + line] + g @ moved[:N_GEOMETRY] + moved[N_GEOMETRY + line]
-            delta, post, _w, ok = robust_update(
-                g, line.astype(np.int64), r0, sigma, np.ones(len(x)), prior_info, fp.tukey, 3, True
-            )
-            if not ok:  # not positive definite (rounding): keep the last estimate
-                break
-            state, cov = x0 + delta, 0.5 * (post + post.T)
-        return state, cov
+        """The start's update of the prior ``(x0, p0)`` with points ``(x, y)`` on lines
+        ``line`` (:func:`~aldm_gym.sensor.aldm_kernels.model.fit`, Gauss-Newton,
+        :data:`START_ITERATIONS` times)."""
+        return fit(x, y, line, x0, p0, self._sigma(x), self.filter.tukey, START_ITERATIONS)
 
     def _existence(self, support: FloatArray, far: FloatArray, travel: float) -> None:
         """Hits and misses, the lines' far ends (``far``: the farthest point of each

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import _synthetic as S
 import numpy as np
 
@@ -43,3 +45,24 @@ def same(a: LaneDetection, b: LaneDetection) -> bool:
     return all(np.array_equal(a.line(n), b.line(n)) for n in LINE_NAMES) and np.array_equal(
         a.trajectory, b.trajectory
     )
+
+
+def run_without_jit(code: str) -> Any:
+    """Run ``code`` in a subprocess with ``NUMBA_DISABLE_JIT=1`` (every kernel as plain
+    Python), importing this checkout's ``aldm_gym``; the JSON its last output line
+    prints."""
+    import json
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    import aldm_gym
+
+    root = str(Path(aldm_gym.__file__).resolve().parents[1])
+    path = os.pathsep.join(filter(None, [root, os.environ.get("PYTHONPATH")]))
+    env = dict(os.environ, NUMBA_DISABLE_JIT="1", PYTHONPATH=path)
+    res = subprocess.run(
+        [sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True, cwd=root
+    )
+    return json.loads(res.stdout.strip().splitlines()[-1])

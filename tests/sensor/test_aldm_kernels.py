@@ -3,10 +3,6 @@ the fit window, a fully plain-Python run."""
 
 from __future__ import annotations
 
-import json
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import _synthetic as S
@@ -15,11 +11,10 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-import aldm_gym
 from aldm_gym.sensor.aldm import _packed, detect_lanes, make_params
 from aldm_gym.sensor.aldm_kernels import fit, grid, layout, output, robust, sort
 
-from ._aldm_cases import frame
+from ._aldm_cases import frame, run_without_jit
 
 
 # ----------------------------------------------------------------- kernels
@@ -253,16 +248,7 @@ def test_fully_plain_python_run_agrees_with_numba(tmp_path: Path) -> None:
         "('left_adjacent', 'ego_left', 'ego_right', 'right_adjacent', 'trajectory')}\n"
         "print(json.dumps(out))\n"
     )
-    env = dict(os.environ, NUMBA_DISABLE_JIT="1")
-    res = subprocess.run(
-        [sys.executable, "-c", code],
-        env=env,
-        capture_output=True,
-        text=True,
-        check=True,
-        cwd=Path(__file__).resolve().parents[1],
-    )
-    plain = json.loads(res.stdout.strip().splitlines()[-1])
+    plain = run_without_jit(code)
     for mode in ("robust", "paper"):
         det = detect_lanes(pts, mode=mode)
         for name, value in plain[mode].items():
@@ -297,18 +283,7 @@ def test_grid_frames_match_a_plain_python_run_with_np_lexsort(tmp_path: Path) ->
         "print(json.dumps(out))\n"
     )
     # The package this process imported, also where an installed copy is another one.
-    root = str(Path(aldm_gym.__file__).resolve().parents[1])
-    path = os.pathsep.join(filter(None, [root, os.environ.get("PYTHONPATH")]))
-    env = dict(os.environ, NUMBA_DISABLE_JIT="1", PYTHONPATH=path)
-    res = subprocess.run(
-        [sys.executable, "-c", code],
-        env=env,
-        capture_output=True,
-        text=True,
-        check=True,
-        cwd=Path(__file__).resolve().parents[1],
-    )
-    plain = json.loads(res.stdout.strip().splitlines()[-1])
+    plain = run_without_jit(code)
     for key, pts in frames.items():
         det = detect_lanes(pts)
         assert len(det.ego_left) == len(det.ego_right) == 13

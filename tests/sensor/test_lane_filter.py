@@ -389,10 +389,14 @@ def test_deterministic_reset_and_pickle() -> None:
     pts, _ = S.sample(road, noise=0.02, seed=8)
     motion = EgoMotion(SPEED, -SPEED / 500.0, DT)
     clone = pickle.loads(pickle.dumps(filt))
+    shallow = copy.copy(filt)  # a whole copy: the arrays are updated in place
     want = copy.deepcopy(filt).update(pts, motion)
     got = clone.update(pts, motion)
     np.testing.assert_array_equal(want.ego_left, got.ego_left)
     np.testing.assert_array_equal(want.confidence, got.confidence)
+    before = filt.confidences
+    np.testing.assert_array_equal(shallow.update(pts, motion).ego_left, want.ego_left)
+    np.testing.assert_array_equal(filt.confidences, before)
     fresh = LaneModelFilter().update(pts, None)
     filt.reset()
     again = filt.update(pts, None)
@@ -500,6 +504,68 @@ def test_reference_curve_geometry(radius: float) -> None:
     centre = np.array([0.0, radius])
     np.testing.assert_allclose(np.hypot(*(drawn - centre).T), abs(radius - 1.8), atol=1e-6)
     assert drawn[0, 0] == 5.0 and drawn[-1, 0] == 80.0
+
+
+def test_reference_curve_through_a_transition() -> None:
+    """Curvature ramping from 0 to 1/100 m over 60 m and held (nodes 0, 0.005, 0.01,
+    0.01 1/m): the table and the foot points agree with a fine integration of the
+    curve to a few millimetres (the table's circles miss the ramp's change over a
+    4 m step)."""
+    state = np.zeros(M.N_GEOMETRY)
+    state[1:] = np.array([0.0, 0.005, 0.01, 0.01]) * M.SCALE**2
+    ds = 0.005
+    s = np.arange(0.0, 200.0 + ds, ds)
+    phi = np.empty(M.N_GEOMETRY)
+    theta = np.array([M._theta(state, v, phi) for v in s])
+    mid = 0.5 * (theta[1:] + theta[:-1])
+    x = np.concatenate([[0.0], np.cumsum(ds * np.cos(mid))])
+    y = np.concatenate([[0.0], np.cumsum(ds * np.sin(mid))])
+    tab = M.curve_table(state, 100.0)
+    at = (np.arange(len(tab)) * M.TABLE_STEP / ds).round().astype(int)
+    np.testing.assert_allclose(tab[:, 0], x[at], atol=1e-4)
+    np.testing.assert_allclose(tab[:, 1], y[at], atol=1e-4)
+    arc = np.linspace(5.0, 110.0, 22)
+    d = np.resize([-5.6, -1.9, 1.9, 5.6], len(arc))
+    k = (arc / ds).round().astype(int)
+    px = x[k] - d * np.sin(theta[k])
+    py = y[k] + d * np.cos(theta[k])
+    got_s, got_l, _g = M.project(state, px, py)
+    np.testing.assert_allclose(got_s, s[k], atol=5e-3)
+    np.testing.assert_allclose(got_l, d, atol=3e-3)
+
+
+@pytest.mark.slow
+def test_fully_plain_python_filter_agrees_with_numba(tmp_path) -> None:
+    """NUMBA_DISABLE_JIT=1: every kernel of a few frames runs as plain Python in a
+    subprocess; the detections equal the compiled run's."""
+    from ._aldm_cases import run_without_jit
+
+    frames = []
+    for k in range(4):
+        road = S.highway(lanes=4, ego_lane=1, radius=-300.0, phase=-SPEED * DT * k)
+        frames.append(S.sample(road, noise=0.03, seed=k)[0])
+    np.save(tmp_path / "frames.npy", np.array(frames, dtype=object), allow_pickle=True)
+    code = (
+        "import json, numpy as np\n"
+        "from aldm_gym.sensor.lane_filter import LaneModelFilter\n"
+        "from aldm_gym.sensor.tracking import EgoMotion\n"
+        f"frames = np.load({str(tmp_path / 'frames.npy')!r}, allow_pickle=True)\n"
+        f"m = EgoMotion({SPEED}, {-SPEED / 300.0}, {DT})\n"
+        "f = LaneModelFilter()\n"
+        "out = []\n"
+        "for k, p in enumerate(frames):\n"
+        "    d = f.update(np.asarray(p, dtype=float), m if k else None)\n"
+        "    out.append({n: getattr(d, n).tolist() for n in "
+        "('left_adjacent', 'ego_left', 'ego_right', 'right_adjacent', 'trajectory')})\n"
+        "print(json.dumps(out))\n"
+    )
+    plain = run_without_jit(code)
+    filt = LaneModelFilter()
+    motion = EgoMotion(SPEED, -SPEED / 300.0, DT)
+    for k, pts in enumerate(frames):
+        det = filt.update(pts, motion if k else None)
+        for name, value in plain[k].items():
+            np.testing.assert_array_equal(np.array(value).reshape(-1, 2), getattr(det, name))
 
 
 def test_kernels_match_plain_python() -> None:

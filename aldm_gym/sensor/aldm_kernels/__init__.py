@@ -14,8 +14,10 @@ Data flow of one frame (:func:`output._detect`, the single entry point called fr
 * :mod:`.track` — the tracking ALDM's kernels (:class:`aldm_gym.sensor.tracking.LaneTracker`):
   the last lines moved by odometry, the prior points and clutter filter fed to the
   pipeline above, and the matching that keeps line identities.
-* :mod:`.model` — the lane-model filter's robust measurement update
-  (:class:`aldm_gym.sensor.lane_filter.LaneModelFilter`).
+* :mod:`.model` — the lane-model filter's kernels
+  (:class:`aldm_gym.sensor.lane_filter.LaneModelFilter`): the reference curve's table
+  and the points' foot points on it, the predict step, the association with the
+  robust measurement update, the lines' existence, drawing, and the start's fit.
 
 :mod:`.layout` names the parameter vectors' slots and the four line slots.
 
