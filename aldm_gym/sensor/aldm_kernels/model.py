@@ -171,19 +171,6 @@ _H = _M + 2 * N_GEOMETRY
 _COLS = _H + N_GEOMETRY
 
 
-def _scales_py():
-    """Each shape entry's scale: the heading is kept as ``psi L``, the curvatures as
-    ``kappa L^2`` (``L`` = :data:`SCALE`)."""
-    out = np.empty(N_GEOMETRY)
-    out[0] = SCALE
-    for k in range(1, N_GEOMETRY):
-        out[k] = SCALE * SCALE
-    return out
-
-
-_scales = numba.njit(cache=True)(_scales_py)
-
-
 def _theta_py(state, s, phi):
     """The reference curve's heading at arc length ``s`` [m] [rad]; ``phi`` (length
     :data:`N_GEOMETRY`) receives its derivative by each shape entry in SI units
