@@ -65,6 +65,11 @@ __all__ = ["MAP_MIN_AHEAD", "MAP_TRAFFIC_ROOM", "ROAD_END_MARGIN", "ALDMHighwayE
 SCENARIO_END_MARGIN = 5.0
 """A scenario run is truncated when the ego is this close to the end of its lanes [m]."""
 
+HINT_REACH = 20.0
+"""Lateral offset from the nearest lane's centre [m] up to which the sensor is handed the
+ego's arc length; farther off, the projection of the ego (exact only within 40 m of a
+generated road's reference line) may belong to another stretch of a winding road."""
+
 
 class ALDMHighwayEnv(AbstractEnv):
     """Highway driving on a curved multi-lane road, lanes perceived through a line sensor.
@@ -397,7 +402,10 @@ class ALDMHighwayEnv(AbstractEnv):
         assert road is not None and perception is not None and referee is not None
         pos = referee.locate(ego)
         t = self.steps / self.settings.simulation_frequency
-        perception.measure(road, ego, t, pos.s, self.np_random, self.road.vehicles)
+        # Far off the road (a departure the episode survives) the ego's projection may
+        # belong to another stretch of a winding road: the sensor then finds its own.
+        s_hint = pos.s if abs(pos.offset) <= HINT_REACH else None
+        perception.measure(road, ego, t, s_hint, self.np_random, self.road.vehicles)
         perception.detect(road, pos.lane, ego)
         if self.longitudinal is not None:
             self._longitudinal_step()

@@ -61,7 +61,7 @@ class Perception:
         road: Road,
         ego: Any,
         t: float,
-        s_hint: float,
+        s_hint: float | None,
         rng: np.random.Generator,
         vehicles: list[Any],
     ) -> SensorFrame:
@@ -69,7 +69,7 @@ class Perception:
 
         :param t: time stamp [s].
         :param s_hint: the ego's arc length along the road [m] (the sensor adds its
-            mount offset).
+            mount offset); ``None``: the sensor projects its own position.
         :param rng: draws the noise when the sensor is noisy (the env's generator).
         :param vehicles: every vehicle (occluders, when the sensor has occlusion on).
         """
@@ -79,7 +79,7 @@ class Perception:
             (ego.position[0], ego.position[1], ego.heading),
             t,
             rng=rng if config.noisy else None,
-            s_hint=s_hint + config.mount_x,
+            s_hint=None if s_hint is None else s_hint + config.mount_x,
             occluders=vehicles if config.occlusion else None,
         )
         return self.frame

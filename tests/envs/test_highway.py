@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 import aldm_gym  # noqa: F401  (registers the env)
+from aldm_gym.errors import InputError
 
 CURVED = {"road": {"seed": 0}, "marking_model": "per_dash", "initial_lane_id": 1}
 
@@ -415,3 +416,31 @@ def test_reset_frees_the_previous_episode_without_a_garbage_collection() -> None
         assert ego() is None
     finally:
         gc.enable()
+
+
+def test_ego_far_off_a_winding_road_is_sensed_not_refused() -> None:
+    """Farther than the projection's reach from a winding road, the ego's arc length may
+    belong to another stretch of it; the env then lets the sensor locate itself instead
+    of handing it a hint the sensor must refuse."""
+    env = make({"road": {"seed": 0, "min_radius": 100.0, "max_radius": 150.0}})
+    env.reset(seed=0)
+    base = env.unwrapped
+    road, ego = base.highway, base.vehicle
+    mount = float(base.sensor.config.mount_x)
+    rng = np.random.default_rng(0)
+    for _ in range(20000):  # a pose whose projected arc length is not the sensor's
+        xy = road.reference.position(rng.uniform(0.0, road.length), rng.uniform(60.0, 150.0))
+        yaw = rng.uniform(-np.pi, np.pi)
+        sensor = xy + mount * np.array([np.cos(yaw), np.sin(yaw)])
+        try:
+            road._check_hint(sensor, road.lane_position(xy).s + mount)
+        except InputError:
+            break
+    else:
+        pytest.fail("no pose with a wrong projection found on this road")
+    ego.position = xy
+    ego.heading = yaw
+    obs, *_ = env.step(1)  # IDLE
+    assert env.observation_space.contains(obs)
+    assert base.perception.frame is not None
+    env.close()
