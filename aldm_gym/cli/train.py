@@ -35,6 +35,7 @@ from aldm_gym.cli.argtypes import (
     config_setting,
     fraction,
     int_in,
+    key_value,
     make_output_dir,
     non_negative_float,
     non_negative_int,
@@ -45,7 +46,14 @@ from aldm_gym.cli.argtypes import (
     seed,
 )
 from aldm_gym.cli.console import console
-from aldm_gym.errors import ClusterError, MissingRLDependencies, OutputLocked, ResumeError
+from aldm_gym.envs.config import default_config, merge_config
+from aldm_gym.errors import (
+    ClusterError,
+    ConfigError,
+    MissingRLDependencies,
+    OutputLocked,
+    ResumeError,
+)
 from aldm_gym.roads.highway import MARKING_MODELS
 from aldm_gym.sensor.detectors import DETECTORS
 from aldm_gym.training.lock import check_unlocked
@@ -71,8 +79,11 @@ from aldm_gym.training.settings import (
     DEFAULT_VALIDATION_EPISODES,
     DEFAULT_VALIDATION_FREQ,
     LR_SCHEDULES,
+    NAMED_ENV_KEYS,
     VALIDATION_SEED,
     PPOParams,
+    dotted_settings,
+    env_config,
 )
 
 QUICK_TIMESTEPS = 1_024
@@ -101,6 +112,16 @@ _ONLY = {
     "rllib": ("num_env_runners", "address"),
 }
 """The flags (argparse dests) of one backend only."""
+
+_ENV_FLAGS = {
+    "detector": "detector",
+    "marking_model": "marking_model",
+    "duration": "duration",
+    "vehicles_count": "vehicles",
+    "collision_reward": "collision_reward",
+    "overtaking_reward": "overtaking_reward",
+}
+"""The flag (argparse dest) of each env setting that has its own (not ``--env``)."""
 
 _ENV_CONFIG = ("aldm_gym.envs.config", "EnvConfig")
 """Where the env's config rules live (``--duration``, ``--vehicles``, ``--collision-reward``
@@ -233,6 +254,16 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         default=None,
         help=f"entropy bonus weight ({PPOParams.ent_coef})",
     )
+    parser.add_argument(
+        "--env",
+        type=key_value,
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="any other ALDMHighway-v0 setting, repeatable; a section's as SECTION.KEY, e.g. "
+        "detector_params.tracking=model observation.line_confidence=true "
+        "sensor.preset=camera (docs/env.md; saved with the training)",
+    )
     parser.add_argument("--seed", type=seed, default=None, help="seed of envs and network (0)")
     parser.add_argument("--out", type=output_dir, default=Path("out/train"), help="output folder")
     parser.add_argument(
@@ -269,9 +300,43 @@ def _backend(args: argparse.Namespace, meta: dict[str, Any] | None) -> str:
     return backend
 
 
+def _env_overrides(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+    """``--env`` pairs as a nested config (``a.b=v`` -> ``{"a": {"b": v}}``), checked
+    against the env's rules (:class:`BadArgument` naming the key and the allowed ones)."""
+    overrides: dict[str, Any] = {}
+    for key, value in pairs:
+        *sections, name = key.split(".")
+        node = overrides
+        for part in sections:
+            child = node.setdefault(part, {})
+            if not isinstance(child, dict):
+                raise BadArgument("--env", f"{key}: {part} was given a value, not a section")
+            node = child
+        if isinstance(node.get(name), dict):
+            raise BadArgument("--env", f"{key}: {name} is a section; give SECTION.KEY=VALUE")
+        node[name] = value
+    for name in NAMED_ENV_KEYS:
+        if name in overrides:
+            raise BadArgument("--env", f"{name} has its own flag: {_flag(_ENV_FLAGS[name])}")
+    try:
+        env_config(env_overrides=overrides)
+    except ConfigError as exc:
+        raise BadArgument("--env", str(exc)) from None
+    return overrides
+
+
 def _check_resume(args: argparse.Namespace, meta: dict[str, Any]) -> None:
     """Refuse flags that contradict the training being resumed (:class:`BadArgument`)."""
     cfg = meta["env_config"]
+    if args.env:
+        saved_env = dict(dotted_settings(merge_config(default_config(), cfg)))
+        for key, value in dotted_settings(_env_overrides(args.env)):
+            if saved_env.get(key) != value:
+                raise BadArgument(
+                    "--env",
+                    f"{key}={json.dumps(value)} contradicts the training being resumed "
+                    f"({json.dumps(saved_env.get(key))}); omit it with --resume",
+                )
     algo = {name: key for key, name in ALGORITHMS.items()}.get(meta.get("algorithm", "PPO"))
     for name, value, saved in (
         ("--algo", args.algo, algo),
@@ -310,6 +375,7 @@ def _common_settings(args: argparse.Namespace, quick: bool) -> dict[str, Any]:
             DEFAULT_COLLISION_REWARD if args.collision_reward is None else args.collision_reward
         ),
         "overtaking_reward": args.overtaking_reward,
+        "env_overrides": _env_overrides(args.env),
         "params": PPOParams(
             n_steps=n_steps,
             learning_rate=(
@@ -381,6 +447,7 @@ def run(args: argparse.Namespace) -> int:
             f"{out} already holds a training; pass --resume to continue it or choose another --out",
         )
     backend = _backend(args, meta)
+    _env_overrides(args.env)  # a bad --env is refused before --out is made
     make_output_dir(out)
     if backend == "rllib":
         return _run_rllib(args, quick)

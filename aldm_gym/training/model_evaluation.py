@@ -21,6 +21,7 @@ line reads :data:`EVALUATION_SEED` to build its parser.
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 from typing import Any
@@ -28,7 +29,7 @@ from typing import Any
 from aldm_gym import ENV_ID
 from aldm_gym.errors import ConfigError, InputError
 from aldm_gym.training.models import load_policy
-from aldm_gym.training.settings import env_config
+from aldm_gym.training.settings import NAMED_ENV_KEYS, dotted_settings, env_config
 
 EVALUATION_SEED = 10_000
 """First seed of the evaluation episodes (training envs use ``0 ..``, validation 20000..)."""
@@ -68,7 +69,8 @@ def evaluate(
     :param model_path: what :func:`~aldm_gym.training.models.load_policy` takes: a
         model ``.zip``, an RLlib checkpoint folder or a training's output folder.
     :param episodes: episodes per policy (seeds ``seed .. seed + episodes - 1``).
-    :param detector, marking_model: override the training env's (None: as trained).
+    :param detector, marking_model: override the training env's (None: as trained);
+        another detector than trained drops the trained one's ``detector_params``.
     :return: rows (``idle``, ``rule_based``, ``model``) with the
         :func:`~aldm_gym.agents.episodes.summarize` metrics and ``policy``; and the
         evaluation's env config, model metadata (``algorithm``: ``"PPO"`` or
@@ -88,6 +90,8 @@ def evaluate(
     config = dict(meta["env_config"])
     if detector is not None:
         config["detector"] = env_config(detector=detector)["detector"]
+        if config["detector"] != meta["env_config"].get("detector"):
+            config.pop("detector_params", None)  # the trained detector's own parameters
     if marking_model is not None:
         config["marking_model"] = env_config(marking_model=marking_model)["marking_model"]
     env = gym.make(ENV_ID, config=config)
@@ -209,9 +213,15 @@ def summary_line(rows: list[dict[str, Any]], info: dict[str, Any]) -> str:
     m, idle, rule = by["model"], by["idle"], by["rule_based"]
     trained = info["trained_on"]
     cfg = info["env_config"]
+    extra = ", ".join(
+        f"{k}={json.dumps(v)}"
+        for k, v in dotted_settings(cfg)
+        if k.split(".", 1)[0] not in NAMED_ENV_KEYS
+    )
     return (
         f"model ({info['timesteps']} steps, trained on {trained['detector']}/"
-        f"{trained['marking_model']}, evaluated on {cfg['detector']}/{cfg['marking_model']}, "
+        f"{trained['marking_model']}, evaluated on {cfg['detector']}/{cfg['marking_model']}"
+        f"{f' with {extra}' if extra else ''}, "
         f"{m['episodes']} episodes) {verdict(info)}; it "
         f"{verdict(info, 'rule_based')}. Success {m['success_rate']:.0%} "
         f"(IDLE {idle['success_rate']:.0%}, rule-based {rule['success_rate']:.0%}), "

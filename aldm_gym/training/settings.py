@@ -11,10 +11,11 @@ here once.
 from __future__ import annotations
 
 import functools
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+from aldm_gym.envs.config import default_config, merge_config, merged_config
 from aldm_gym.errors import ConfigError
 from aldm_gym.roads.highway import MARKING_MODELS
 from aldm_gym.sensor.detectors import DETECTORS
@@ -138,6 +139,17 @@ def linear_schedule(start: float, progress_remaining: float) -> float:
     return start * progress_remaining
 
 
+NAMED_ENV_KEYS = (
+    "detector",
+    "marking_model",
+    "duration",
+    "vehicles_count",
+    "collision_reward",
+    "overtaking_reward",
+)
+"""Env settings :func:`env_config` takes as named arguments (not in ``env_overrides``)."""
+
+
 def env_config(
     detector: str = "aldm",
     marking_model: str = "per_dash",
@@ -145,13 +157,21 @@ def env_config(
     vehicles_count: int | None = None,
     collision_reward: float | None = None,
     overtaking_reward: float | None = None,
+    env_overrides: Mapping[str, Any] | None = None,
 ) -> dict[str, Any]:
     """The ``ALDMHighway-v0`` config of a training (only keys that differ from defaults).
 
     :param collision_reward: weight of the collision term of the reward (env: -1).
     :param overtaking_reward: weight of the overtaking term (vehicles passed minus
         passed by; env: 0).
-    :raises ConfigError: unknown detector or marking model.
+    :param env_overrides: any other env settings, merged over the rest as the env
+        merges a config (a section's keys one by one), e.g.
+        ``{"detector_params": {"tracking": "model"}, "observation":
+        {"line_confidence": True}}``; the keys of the named arguments above are
+        refused here (give them as those arguments).
+    :raises ConfigError: unknown detector or marking model; an unknown or bad setting
+        in ``env_overrides`` (naming the key and the allowed ones), or one of the named
+        arguments' keys there.
     """
     if detector not in DETECTORS:
         raise ConfigError(f"detector must be one of {DETECTORS}, got {detector!r}")
@@ -166,7 +186,30 @@ def env_config(
         config["collision_reward"] = float(collision_reward)
     if overtaking_reward is not None:
         config["overtaking_reward"] = float(overtaking_reward)
+    if env_overrides:
+        if not isinstance(env_overrides, Mapping):
+            raise ConfigError(
+                f"env_overrides must be a mapping, got {type(env_overrides).__name__}"
+            )
+        named = sorted(set(env_overrides) & set(NAMED_ENV_KEYS))
+        if named:
+            raise ConfigError(
+                f"env_overrides may not set {named}: give them as the training's own "
+                f"arguments ({', '.join(NAMED_ENV_KEYS)})"
+            )
+        config = merged_config(config, env_overrides)
+        merge_config(default_config(), config)  # validates every key and value
     return config
+
+
+def dotted_settings(config: Mapping[str, Any], prefix: str = "") -> Iterator[tuple[str, Any]]:
+    """``(key, value)`` of every setting of a nested env config, a section's key as
+    ``SECTION.KEY`` (the form ``aldm-gym train --env`` takes), in the config's order."""
+    for key, value in config.items():
+        if isinstance(value, Mapping):
+            yield from dotted_settings(value, f"{prefix}{key}.")
+        else:
+            yield f"{prefix}{key}", value
 
 
 def check_run_settings(given: Mapping[str, int | None]) -> None:

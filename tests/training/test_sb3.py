@@ -18,7 +18,7 @@ from stable_baselines3 import PPO
 
 from aldm_gym import ENV_ID
 from aldm_gym.cli import main
-from aldm_gym.training.model_evaluation import EVAL_COLUMNS
+from aldm_gym.training.model_evaluation import EVAL_COLUMNS, evaluate
 from aldm_gym.training.models import load_policy
 from aldm_gym.training.outputs import latest_checkpoint
 from aldm_gym.training.sb3.backend import train
@@ -221,3 +221,37 @@ def test_progress_postfix_and_validation_line() -> None:
         "(best so far) | rule-based: return 9.50, success 90%, 24.2 m/s, 2/20 collided "
         "| IDLE: return 9.50, success 90%, 22.0 m/s, 1/20 collided"
     )
+
+
+@pytest.mark.slow
+def test_env_settings_given_with_env_are_trained_saved_evaluated_and_kept(
+    tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    """``--env`` sets any env setting: the lane-model filter and its confidence in the
+    observation here. The model's observation space has the key, ``training.json``
+    keeps the settings, evaluation builds the same env, and a resume refuses another
+    value (but takes the same one)."""
+    out = tmp_path / "run"
+    given = ("--env", "detector_params.tracking=model", "--env", "observation.line_confidence=true")
+    assert tiny_train(out, 32, "--detector", "aldm", *given) == 0
+    meta = json.loads((out / "training.json").read_text())
+    assert meta["env_config"]["detector_params"] == {"tracking": "model"}
+    assert meta["env_config"]["observation"] == {"line_confidence": True}
+    model = PPO.load(out / "model.zip", device="cpu")
+    assert "line_confidence" in model.observation_space.spaces
+
+    rows, info = evaluate(out / "model.zip", episodes=1, progress=False)
+    assert info["env_config"]["detector_params"] == {"tracking": "model"}
+    assert [r["policy"] for r in rows] == ["idle", "rule_based", "model"]
+    # On another detector the trained one's parameters are dropped, the rest kept.
+    _, info = evaluate(out / "model.zip", episodes=1, detector="naive", progress=False)
+    assert "detector_params" not in info["env_config"]
+    assert info["env_config"]["observation"] == {"line_confidence": True}
+
+    argv = ["train", "--resume", "--out", str(out), "--env", "detector_params.tracking=true"]
+    line = usage_error(argv, capsys)
+    assert "argument --env: detector_params.tracking=true contradicts the training being " in line
+    assert '("model"); omit it with --resume' in line
+    again = ("--timesteps", "64", "--env", "observation.line_confidence=true", "--no-progress")
+    assert main(["train", "--resume", "--out", str(out), *again]) == 0
+    assert PPO.load(out / "model.zip", device="cpu").num_timesteps == 64

@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import gymnasium as gym
 import pytest
 
+from aldm_gym import ENV_ID
 from aldm_gym.errors import ConfigError
 from aldm_gym.training.settings import (
     RUN_DEFAULTS,
@@ -63,3 +65,36 @@ def test_run_settings_below_their_least_value_are_refused(
     with pytest.raises(ConfigError, match=f"{name} must be >= {least}, got {value}"):
         check_run_settings({name: value})
     check_run_settings({name: least, "seed": -1})
+
+
+def test_env_overrides_merge_over_the_named_settings() -> None:
+    config = env_config(
+        "aldm",
+        collision_reward=-2.0,
+        env_overrides={
+            "detector_params": {"tracking": "model"},
+            "observation": {"line_confidence": True},
+        },
+    )
+    assert config["collision_reward"] == -2.0
+    assert config["detector_params"] == {"tracking": "model"}
+    assert config["observation"] == {"line_confidence": True}
+    env = gym.make(ENV_ID, config=config)
+    try:
+        assert "line_confidence" in env.observation_space.spaces
+    finally:
+        env.close()
+
+
+@pytest.mark.parametrize(
+    ("overrides", "message"),
+    [
+        ({"detector_params": {"trackin": "model"}}, r"\['trackin'\] \(did you mean 'tracking'"),
+        ({"sensr": {"preset": "camera"}}, r"unknown config key\(s\) \['sensr'\]"),
+        ({"detector": "naive"}, r"may not set \['detector'\]: give them as the training's own"),
+        ({"observation": {"line_confidence": "yes"}}, "line_confidence"),
+    ],
+)
+def test_env_overrides_name_the_bad_setting(overrides: dict, message: str) -> None:
+    with pytest.raises(ConfigError, match=message):
+        env_config(env_overrides=overrides)

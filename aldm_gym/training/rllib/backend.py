@@ -279,6 +279,7 @@ def train_rllib(
     vehicles_count: int | None = None,
     collision_reward: float | None = DEFAULT_COLLISION_REWARD,
     overtaking_reward: float | None = None,
+    env_overrides: Mapping[str, Any] | None = None,
     params: PPOParams | None = None,
     resume: bool = False,
     progress: bool = True,
@@ -298,6 +299,8 @@ def train_rllib(
     :param checkpoint_freq: checkpoint every this many env steps (default
         :data:`~aldm_gym.training.settings.DEFAULT_CHECKPOINT_FREQ`), and at the end.
     :param duration, vehicles_count, collision_reward, overtaking_reward: env overrides, as for
+        :func:`~aldm_gym.training.sb3.backend.train`.
+    :param env_overrides: any other env settings, as for
         :func:`~aldm_gym.training.sb3.backend.train`.
     :param algo: ``"ppo"``, or ``"maskable-ppo"``: PPO through RLlib's action-masking
         module (:mod:`aldm_gym.training.rllib.masking`); a resume keeps the training's.
@@ -324,7 +327,13 @@ def train_rllib(
             "checkpoint_freq": checkpoint_freq,
         },
         config=env_config(
-            detector, marking_model, duration, vehicles_count, collision_reward, overtaking_reward
+            detector,
+            marking_model,
+            duration,
+            vehicles_count,
+            collision_reward,
+            overtaking_reward,
+            env_overrides,
         ),
         params=params,
         resume=resume,

@@ -283,6 +283,7 @@ def train(
     vehicles_count: int | None = None,
     collision_reward: float | None = DEFAULT_COLLISION_REWARD,
     overtaking_reward: float | None = None,
+    env_overrides: Mapping[str, Any] | None = None,
     params: PPOParams | None = None,
     validation_freq: int | None = None,
     validation_episodes: int | None = None,
@@ -307,6 +308,10 @@ def train(
         (default :data:`~aldm_gym.training.settings.DEFAULT_CHECKPOINT_FREQ`).
     :param duration, vehicles_count, collision_reward, overtaking_reward: env overrides
         (None: the env's defaults).
+    :param env_overrides: any other env settings (sections merged key by key), e.g.
+        ``{"detector_params": {"tracking": "model"}}``
+        (:func:`~aldm_gym.training.settings.env_config`); saved in ``training.json``,
+        so evaluation and resume build the same env.
 
     The defaults (one env, 49152 steps, collision weight -2, linearly decaying learning
     rate) are the recipe of ``docs/results.md`` (b). It is sensitive to the rollout size:
@@ -345,7 +350,13 @@ def train(
             "validation_episodes": validation_episodes,
         },
         config=env_config(
-            detector, marking_model, duration, vehicles_count, collision_reward, overtaking_reward
+            detector,
+            marking_model,
+            duration,
+            vehicles_count,
+            collision_reward,
+            overtaking_reward,
+            env_overrides,
         ),
         params=params,
         resume=resume,
