@@ -58,8 +58,9 @@ Each frame:
 Without a model (the first frame, ``motion=None``, or every line dropped) the
 model starts from the single-frame ALDM (:func:`~aldm_gym.sensor.aldm.detect_lanes`)
 on the frame: its lines fitted whole, or only up to :data:`START_RANGE`, or a straight
-road at their offsets, whichever the frame's raw points support most (a trace that
-wandered far out under noise does not bend the model). The decisions are listed in
+road at their offsets, whichever lays most of the frame's raw points on lines
+parallel to its shape (a trace that wandered far out under noise, or jumped onto the
+next line, does not bend the model). The decisions are listed in
 ``docs/aldm.md``, section "Lane-model filter".
 """
 
@@ -461,9 +462,10 @@ class LaneModelFilter:
         """A new model from the single-frame ALDM's lines, checked against the frame's
         points ``(x, y)`` [m]: a flat prior updated (robustly) with the lines' points up
         to ``model_range``, or only up to :data:`START_RANGE`, or a straight road at the
-        lines' offsets, whichever the frame's points support most (the sum of their
-        robust weights in a trial update). A trace that wandered far out under noise
-        then does not bend the model, and the ALDM's lines still start it in a bend."""
+        lines' offsets, whichever lays most of the frame's points on lines parallel to
+        its shape (:meth:`_parallel_support`). A trace that wandered far out under
+        noise, or jumped onto the next line, then does not bend the model, and the
+        ALDM's lines still start it in a bend."""
         fp = self.filter
         _, _, lines, ls = detect_lanes_checked(pts, self.params, None)
         kept = [lines[ls[i] : ls[i + 1]] for i in range(len(LINE_NAMES))]
@@ -502,9 +504,32 @@ class LaneModelFilter:
         straight = state.copy()
         straight[:N_GEOMETRY] = 0.0
         candidates.append((straight, cov))
-        # each start's support: the sum of the lines' support in a trial update
-        scores = [float(np.sum(self._associate_update(x, y, st, cv)[3])) for st, cv in candidates]
+        # each start's support: how many of the frame's points its shape lays on
+        # parallel lines (the lines the ALDM found and any other)
+        scores = [self._parallel_support(st, x, y) for st, _ in candidates]
         self._x, self._p = candidates[int(np.argmax(scores))]
+
+    def _parallel_support(self, state: FloatArray, x: FloatArray, y: FloatArray) -> int:
+        """How many of the points ``(x, y)`` [m] lie on lines parallel to the reference
+        curve of ``state``: in a cluster of at least ``birth_points`` whose distances to
+        the curve lie within ``birth_width`` (a line as a birth finds one).
+
+        Markings are parallel, so the right shape gathers every line's points, those of
+        lines the single-frame ALDM did not report (beyond its four, or dropped by a
+        camera's gaps) included, while a shape bent onto clutter or onto a trace that
+        jumped between lines spreads them."""
+        fp = self.filter
+        if len(x) == 0:
+            return 0
+        _s, off, _g = project_on(curve_table(state, fp.model_range), x, y)
+        off = np.sort(off)
+        end = np.searchsorted(off, off + fp.birth_width, side="right")
+        # mark every point inside a window of enough points (a difference array)
+        full = np.flatnonzero(end - np.arange(len(off)) >= fp.birth_points)
+        cover = np.zeros(len(off) + 1, dtype=np.int64)
+        np.add.at(cover, full, 1)
+        np.add.at(cover, end[full], -1)
+        return int(np.count_nonzero(np.cumsum(cover)[:-1]))
 
     def _associate_update(
         self, x: FloatArray, y: FloatArray, state: FloatArray, cov: FloatArray

@@ -14,6 +14,7 @@ import pytest
 
 import aldm_gym  # noqa: F401  (registers the env)
 from aldm_gym.errors import ConfigError, InputError
+from aldm_gym.roads import shipped_map
 from aldm_gym.sensor import detect_lanes
 from aldm_gym.sensor.aldm import ALDMParams
 from aldm_gym.sensor.aldm_kernels import model as M
@@ -346,6 +347,30 @@ def test_start_keeps_the_start_the_points_support(monkeypatch: pytest.MonkeyPatc
     assert np.mean(filt.node_curvatures) == pytest.approx(1.0 / 150.0, abs=5e-4)
     for name in LINE_NAMES:
         assert _err(bend, getattr(bend, name), det.line(name)) < 0.15, name
+
+
+def test_start_on_a_camera_frame_of_a_map_keeps_the_car_in_its_lane() -> None:
+    """The 2+1 map under the camera preset, seed 12: the start's frame sees the
+    ego-left line only near and the next line out (which the single-frame ALDM does
+    not report) far; its trace jumps from one to the other. A start fitted to that
+    trace is supported by more of the points its own lines take, and bent the model
+    until the car left its lane at the third step and drove on in the oncoming lanes
+    (36 departures). The start on which the frame's points lie on parallel lines is
+    straight, and the car keeps its lane."""
+    config = {
+        "marking_model": "per_dash",
+        "detector_params": {"tracking": "model"},
+        "sensor": {"preset": "camera"},
+        "road": {"xodr": str(shipped_map("two_plus_one"))},
+    }
+    env = gym.make("ALDMHighway-v0", config=config)
+    env.reset(seed=12)
+    done, info = False, {}
+    while not done:
+        _obs, _r, term, trunc, info = env.step(1)  # IDLE
+        done = term or trunc
+    env.close()
+    assert info["departures"] == 0
 
 
 def test_bad_input() -> None:
