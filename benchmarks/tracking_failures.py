@@ -139,7 +139,7 @@ def main(argv: list[str] | None = None) -> None:
         config["road"] = road
     from aldm_gym.agents.policies import RuleBasedLCA
 
-    steps = both = lines = correct = departures = changes = 0
+    steps = both = lines = correct = departures = changes = restarts = 0
     classes: collections.Counter[str] = collections.Counter()
     failures = []
     for seed in tqdm(range(args.first, args.first + args.seeds), desc="episodes", unit="ep"):
@@ -167,10 +167,14 @@ def main(argv: list[str] | None = None) -> None:
                     classes[kind] += 1
                     failures.append((seed, k, name, kind, x_bad, worst))
         departures += int(info["departures"])
+        model = getattr(env.unwrapped.perception.detector, "tracker", None)
+        restarts += int(getattr(model, "n_restarts", 0))
         env.close()
     print(f"steps with both ego lines correct: {both / steps:.3f} ({both} of {steps})")
     print(f"ego lines correct: {correct / lines:.3f} ({correct} of {lines})")
     print(f"lane departures: {departures}; lane changes: {changes}")
+    if args.tracking == "model":
+        print(f"filter restarts (a receded model replaced by a fresh start): {restarts}")
     print("failing lines by class:")
     for kind, n in sorted(classes.items(), key=lambda kv: -kv[1]):
         print(f"  {n:4d}  {kind}")

@@ -60,7 +60,10 @@ model starts from the single-frame ALDM (:func:`~aldm_gym.sensor.aldm.detect_lan
 on the frame: its lines fitted whole, or only up to :data:`START_RANGE`, or a straight
 road at their offsets, whichever lays most of the frame's raw points on lines
 parallel to its shape (a trace that wandered far out under noise, or jumped onto the
-next line, does not bend the model). The decisions are listed in
+next line, does not bend the model). When a confirmed line's far end recedes by
+``recede_length`` in one frame (a shape bent off the road far out, whose gates miss
+the points that would bend it back), the model competes with such a start on the
+frame and is replaced if the start scores higher. The decisions are listed in
 ``docs/aldm.md``, section "Lane-model filter".
 """
 
@@ -90,6 +93,7 @@ from aldm_gym.sensor.aldm_kernels.model import (
     measurements,
     predict,
     project_on,
+    receded,
 )
 from aldm_gym.sensor.lane_detection import LINE_NAMES, LaneDetection
 from aldm_gym.sensor.tracking import TRACKER_KEYS, EgoMotion, TrackerParams, split_params
@@ -199,6 +203,9 @@ class FilterParams:
         born there.
     :ivar reseat_length: a line without a hit for this much travel is re-seated
         onto a cluster of free points within ``min_spacing`` of it (0: never).
+    :ivar recede_length: when a confirmed line's farthest point in a frame falls this
+        much short of where its last one was carried, the model competes with a fresh
+        start on the frame (0: never).
     """
 
     model_range: float = setting(90.0, lo=20.0, hi=1000.0)
@@ -226,6 +233,7 @@ class FilterParams:
     birth_span: float = setting(12.0, lo=0.0, hi=1000.0)
     max_offset: float = setting(12.0, lo=1.0, hi=100.0)
     reseat_length: float = setting(10.0, lo=0.0, hi=1.0e4)
+    recede_length: float = setting(20.0, lo=0.0, hi=1000.0)
 
     def __post_init__(self) -> None:
         validate(self, "filter")
@@ -379,6 +387,9 @@ class LaneModelFilter:
         """Lines re-seated onto a cluster of free points since the reset."""
         self.n_starts = 0
         """Times the model was started from the single-frame ALDM since the reset."""
+        self.n_restarts = 0
+        """Of those, fresh starts that replaced a model whose lines receded (its shape
+        laid fewer of the frame's points on parallel lines)."""
 
     # -- the state in SI units ---------------------------------------------------------
 
@@ -451,6 +462,15 @@ class LaneModelFilter:
         line = None
         if len(self._ids):
             line, support, far = self._correct(x, y)
+            if (
+                fp.recede_length > 0.0
+                and self._receded(far, near)
+                and self._start(pts, x, y, incumbent=True)
+            ):
+                # the model had left the road: started anew from this frame
+                self.n_restarts += 1
+                travel = 0.0
+                line, support, far = self._correct(x, y)
             self._existence(support, far, travel)
         # the reference curve after the update (births and drawing move no shape)
         tab = curve_table(self._x, fp.model_range)
@@ -458,27 +478,61 @@ class LaneModelFilter:
             self._birth(x, y, line, tab)
         return self._detection(near, tab)
 
-    def _start(self, pts: FloatArray, x: FloatArray, y: FloatArray) -> None:
+    def _start(
+        self, pts: FloatArray, x: FloatArray, y: FloatArray, incumbent: bool = False
+    ) -> bool:
         """A new model from the single-frame ALDM's lines, checked against the frame's
         points ``(x, y)`` [m]: a flat prior updated (robustly) with the lines' points up
         to ``model_range``, or only up to :data:`START_RANGE`, or a straight road at the
         lines' offsets, whichever lays most of the frame's points on lines parallel to
         its shape (:meth:`_parallel_support`). A trace that wandered far out under
         noise, or jumped onto the next line, then does not bend the model, and the
-        ALDM's lines still start it in a bend."""
+        ALDM's lines still start it in a bend.
+
+        :param incumbent: the current model competes too (its shape scored on the same
+            points); it is kept, and nothing changes, unless a new start scores higher.
+        :return: whether the model was started anew.
+        """
         fp = self.filter
         _, _, lines, ls = detect_lanes_checked(pts, self.params, None)
         kept = [lines[ls[i] : ls[i + 1]] for i in range(len(LINE_NAMES))]
         kept = [v[v[:, 0] <= fp.model_range] for v in kept]
         kept = [v for v in kept if len(v) >= 2]
         n = len(kept)
+        if incumbent and n == 0:
+            return False
         x0 = np.concatenate((np.zeros(N_GEOMETRY), [float(v[0, 1]) for v in kept]))
         # a flat prior: headings of +-0.3, radii down to ~100 m, curvature changing by
         # 0.005 1/m per node step (R 100 m reached over 60 m), offsets +-2 m
         p0 = np.zeros((N_GEOMETRY + n, N_GEOMETRY + n))
         p0[:N_GEOMETRY, :N_GEOMETRY] = shape_covariance(0.3, 0.01, 0.005 / NODE_STEP)
         p0[N_GEOMETRY:, N_GEOMETRY:] = np.diag(np.full(n, 2.0**2))
-        self._x, self._p = x0, p0
+        best: tuple[FloatArray, FloatArray] = (x0, p0)
+        if n:
+            lx = np.concatenate([v[:, 0] for v in kept])
+            ly = np.concatenate([v[:, 1] for v in kept])
+            which = np.concatenate([np.full(len(v), i) for i, v in enumerate(kept)])
+            candidates = []
+            for top in (fp.model_range, START_RANGE):
+                sel = lx <= top
+                # robust too: a traced line bent onto clutter near the car keeps the
+                # offset of the most of its points; the 13 points per line are a fit,
+                # not independent measurements: the covariance is inflated, and the
+                # frame's own points follow in the same update
+                state, cov = self._fit(lx[sel], ly[sel], which[sel], x0, p0)
+                candidates.append((state, cov * START_INFLATION))
+            state, cov = candidates[-1]
+            straight = state.copy()
+            straight[:N_GEOMETRY] = 0.0
+            candidates.append((straight, cov))
+            # each start's support: how many of the frame's points its shape lays on
+            # parallel lines (the lines the ALDM found and any other)
+            scores = [self._parallel_support(st, x, y) for st, _ in candidates]
+            k = int(np.argmax(scores))
+            if incumbent and scores[k] <= self._parallel_support(self._x, x, y):
+                return False
+            best = candidates[k]
+        self._x, self._p = best
         self._ids = np.arange(self._next_id, self._next_id + n, dtype=np.int64)
         self._next_id += n
         self._conf = np.full(n, 0.5 + 0.5 * fp.min_confidence)
@@ -486,28 +540,15 @@ class LaneModelFilter:
         self._far = np.array([float(v[-1, 0]) for v in kept])
         self._confirmed = np.ones(n, dtype=bool)
         self.n_starts += 1
-        if n == 0:
-            return
-        lx = np.concatenate([v[:, 0] for v in kept])
-        ly = np.concatenate([v[:, 1] for v in kept])
-        which = np.concatenate([np.full(len(v), i) for i, v in enumerate(kept)])
-        candidates = []
-        for top in (fp.model_range, START_RANGE):
-            sel = lx <= top
-            # robust too: a traced line bent onto clutter near the car keeps the
-            # offset of the most of its points; the 13 points per line are a fit, not
-            # independent measurements: the covariance is inflated, and the frame's own
-            # points follow in the same update
-            state, cov = self._fit(lx[sel], ly[sel], which[sel], x0, p0)
-            candidates.append((state, cov * START_INFLATION))
-        state, cov = candidates[-1]
-        straight = state.copy()
-        straight[:N_GEOMETRY] = 0.0
-        candidates.append((straight, cov))
-        # each start's support: how many of the frame's points its shape lays on
-        # parallel lines (the lines the ALDM found and any other)
-        scores = [self._parallel_support(st, x, y) for st, _ in candidates]
-        self._x, self._p = candidates[int(np.argmax(scores))]
+        return True
+
+    def _receded(self, far: FloatArray, near: float) -> bool:
+        """Whether a confirmed line's farthest point in this frame (``far`` [m], -inf:
+        none, then the frame's nearest x ``near``) fell more than ``recede_length``
+        short of where its last one was carried: the sign of a shape that bent off the
+        road far out, whose gates then miss the points that would bend it back."""
+        length = self.filter.recede_length
+        return bool(receded(self._far, far, near, self._confirmed, length))
 
     def _parallel_support(self, state: FloatArray, x: FloatArray, y: FloatArray) -> int:
         """How many of the points ``(x, y)`` [m] lie on lines parallel to the reference

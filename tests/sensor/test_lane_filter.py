@@ -18,6 +18,7 @@ from aldm_gym.roads import shipped_map
 from aldm_gym.sensor import detect_lanes
 from aldm_gym.sensor.aldm import ALDMParams
 from aldm_gym.sensor.aldm_kernels import model as M
+from aldm_gym.sensor.aldm_kernels.model import N_GEOMETRY, SCALE
 from aldm_gym.sensor.detectors import ModelALDMDetector, TrackingALDMDetector, make_detector
 from aldm_gym.sensor.lane_detection import LINE_NAMES
 from aldm_gym.sensor.lane_filter import (
@@ -167,17 +168,20 @@ def test_a_dropped_ego_line_does_not_hand_its_role_on() -> None:
     assert det.ids[0] == 0 and det.ids[2:] == (2, 3)
 
 
-def test_clutter_is_rejected() -> None:
+@pytest.mark.parametrize("recede_length", [20.0, 0.0])
+def test_clutter_is_rejected(recede_length: float) -> None:
     """A continuous tar seam 0.5 m outside the dashed ego-right line and one 1.1 m
     inside the ego-left line, from 120 m ahead of the first frame on (they come into
     the model's 90 m range at frame 12 and reach the car), and 40 random specks per
     frame. The single-frame ALDM that starts the model bends its right lines onto
-    specks; the filter re-seats the ego-right and right adjacent lines onto their
-    markings within 15 m of travel. From frame 6 on the ego lines stay within 5 cm
-    and keep their ids, and no line is born or re-seated on the clutter; single-frame
-    ALDM with its lane-width check off takes the inner seam."""
+    specks; their far points then miss the gates, the lines recede, and a fresh start
+    replaces the model; without that check (``recede_length`` 0) the filter re-seats
+    the ego-right and right adjacent lines onto their markings within 15 m of travel.
+    From frame 6 on the ego lines stay within 5 cm and keep their ids, and no line is
+    born, re-seated or started on the clutter; single-frame ALDM with its lane-width
+    check off takes the inner seam."""
     rng = np.random.default_rng(0)
-    filt = LaneModelFilter()
+    filt = LaneModelFilter(filt=FilterParams(recede_length=recede_length))
     motion = EgoMotion(SPEED, 0.0, DT)
     wrong_unchecked = 0
     ids: tuple[int, ...] = ()
@@ -196,6 +200,8 @@ def test_clutter_is_rejected() -> None:
         det = filt.update(pts, None if k == 0 else motion)
         if k < 6:  # the start: the single-frame ALDM's right lines bent on specks
             continue
+        if not ids:
+            early = (filt.n_reseated, filt.n_born, filt.n_starts)
         ids = ids or det.ids
         assert det.ids == ids and -1 not in ids, k
         assert _err(road, road.ego_left, det.ego_left) < 0.05, k
@@ -205,10 +211,15 @@ def test_clutter_is_rejected() -> None:
             assert np.min(np.abs(offsets - off)) > 0.3
         wrong_unchecked += _err(road, 1, detect_lanes(pts, min_lane_width=1.0).ego_left) > 0.3
     assert wrong_unchecked >= 10
-    # the two right lines started on specks were re-seated (their ids kept), the fifth
-    # marking was born: nothing else
-    assert filt.n_reseated == 2 and filt.n_born == 1
-    assert filt.line_ids == (0, 1, 2, 3, 4)
+    # the start's right lines bent on specks were put right in the first frames;
+    # nothing was born, re-seated or started after that
+    assert (filt.n_reseated, filt.n_born, filt.n_starts) == early
+    if recede_length:
+        assert filt.n_restarts >= 1
+    else:  # the two right lines re-seated (ids kept), the fifth marking born
+        assert (filt.n_restarts, filt.n_reseated, filt.n_born) == (0, 2, 1)
+        assert filt.line_ids == (0, 1, 2, 3, 4)
+    assert len(filt.line_ids) == 5
 
 
 def test_a_hidden_line_is_not_reseated_onto_a_seam_inside_its_lane() -> None:
@@ -371,6 +382,27 @@ def test_start_on_a_camera_frame_of_a_map_keeps_the_car_in_its_lane() -> None:
         done = term or trunc
     env.close()
     assert info["departures"] == 0
+
+
+def test_a_model_bent_off_the_road_far_out_is_started_anew() -> None:
+    """A model whose far curvature left the road (set here to R 100 m from 30 m on, as
+    far clutter bent it when the camera saw the lines only near): its gates miss the
+    lines' far points, the lines recede, and a fresh start, which lays more of the
+    frame's points on parallel lines, replaces it in the same frame. On the roads of
+    :func:`test_straight_and_curved_roads` no line recedes, so the model is never
+    restarted there (its ids stay)."""
+    for k, road, _pts, det, filt in _drive(math.inf, frames=12):
+        if k == 6:
+            filt._x[2:N_GEOMETRY] = SCALE**2 / 100.0
+            before = set(filt.line_ids)
+        if k == 7:
+            assert (filt.n_starts, filt.n_restarts) == (2, 1)
+            assert np.all(np.abs(filt.node_curvatures) < 1e-3)
+            assert -1 not in det.ids and before.isdisjoint(det.ids)  # new lines
+        if k >= 7:
+            for name in LINE_NAMES:
+                assert _err(road, getattr(road, name), det.line(name)) < 0.15, (k, name)
+    assert filt.n_restarts == 1
 
 
 def test_bad_input() -> None:

@@ -749,6 +749,19 @@ def existence_py(
 existence = numba.njit(cache=True)(existence_py)
 
 
+def receded_py(far_old, far, near, confirmed, length):
+    """Whether a confirmed line's farthest point of this frame (``far`` [m], -inf:
+    none, then the frame's nearest x ``near`` [m]) fell more than ``length`` [m] short
+    of its carried far end ``far_old`` [m]."""
+    for i in range(far_old.shape[0]):
+        if confirmed[i] and far_old[i] - max(far[i], near) > length:
+            return True
+    return False
+
+
+receded = numba.njit(cache=True)(receded_py)
+
+
 def measurements_py(pts, x_max, z_band):
     """The frame's measurements: ``(x, y)`` [m] of the rows of ``pts`` (``(N, 2|3)``)
     that are finite, at ``0 <= x <= x_max`` and (with a z column) ``|z| <= z_band``,
