@@ -117,6 +117,11 @@ START_INFLATION = 4.0
 """The covariance from the single-frame ALDM's lines is multiplied by this before the
 frame's points update it (the lines' points are correlated)."""
 
+SCORE_REACH = 7.5
+"""A start's score (:meth:`LaneModelFilter._parallel_support`) counts the points up to
+this far from its reference curve [m]: two lane widths, the ego's lines and the
+adjacent ones."""
+
 START_RANGE = 50.0
 """The start fits the single-frame ALDM's lines up to this x [m]: farther out a trace
 that wandered (noise, dropout) would bend the whole model; the frame's raw points
@@ -558,12 +563,15 @@ class LaneModelFilter:
         Markings are parallel, so the right shape gathers every line's points, those of
         lines the single-frame ALDM did not report (beyond its four, or dropped by a
         camera's gaps) included, while a shape bent onto clutter or onto a trace that
-        jumped between lines spreads them."""
+        jumped between lines spreads them. Only points within :data:`SCORE_REACH` of
+        the curve count: the lines of the ego's lane and its neighbours, not those of
+        an exit lane or another carriageway, which a shape bent onto them would
+        gather."""
         fp = self.filter
         if len(x) == 0:
             return 0
         _s, off, _g = project_on(curve_table(state, fp.model_range), x, y)
-        off = np.sort(off)
+        off = np.sort(off[np.abs(off) <= SCORE_REACH])
         end = np.searchsorted(off, off + fp.birth_width, side="right")
         # mark every point inside a window of enough points (a difference array)
         full = np.flatnonzero(end - np.arange(len(off)) >= fp.birth_points)
