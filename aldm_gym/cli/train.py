@@ -254,16 +254,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         default=None,
         help=f"entropy bonus weight ({PPOParams.ent_coef})",
     )
-    parser.add_argument(
-        "--env",
-        type=key_value,
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help="any other ALDMHighway-v0 setting, repeatable; a section's as SECTION.KEY, e.g. "
-        "detector_params.tracking=model observation.line_confidence=true "
-        "sensor.preset=camera (docs/env.md; saved with the training)",
-    )
+    add_env_argument(parser, "saved with the training")
     parser.add_argument("--seed", type=seed, default=None, help="seed of envs and network (0)")
     parser.add_argument("--out", type=output_dir, default=Path("out/train"), help="output folder")
     parser.add_argument(
@@ -323,6 +314,27 @@ def _env_overrides(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
     except ConfigError as exc:
         raise BadArgument("--env", str(exc)) from None
     return overrides
+
+
+def add_env_argument(parser: argparse.ArgumentParser, note: str) -> None:
+    """Declare ``--env KEY=VALUE`` (repeatable): any ``ALDMHighway-v0`` setting."""
+    parser.add_argument(
+        "--env",
+        type=key_value,
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="any other ALDMHighway-v0 setting, repeatable; a section's as SECTION.KEY, e.g. "
+        "detector_params.tracking=model observation.line_confidence=true "
+        f"sensor.preset=camera (docs/env.md; {note})",
+    )
+
+
+def env_settings(pairs: list[tuple[str, Any]]) -> list[str]:
+    """``--env`` pairs, checked as :func:`_env_overrides` checks them, as the
+    ``KEY=VALUE`` arguments that give them again (values as JSON)."""
+    _env_overrides(pairs)
+    return [f"{key}={json.dumps(value)}" for key, value in pairs]
 
 
 def _check_resume(args: argparse.Namespace, meta: dict[str, Any]) -> None:

@@ -18,6 +18,7 @@ from typing import Any
 from tqdm import tqdm
 
 from aldm_gym.cli.argtypes import int_in, make_output_dir, output_dir, positive_int, seed
+from aldm_gym.cli.train import add_env_argument, env_settings
 from aldm_gym.errors import MissingRLDependencies
 from aldm_gym.roads.highway import MARKING_MODELS
 from aldm_gym.sensor.detectors import DETECTORS
@@ -52,6 +53,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     parser.add_argument("--algo", choices=tuple(ALGORITHMS), default="maskable-ppo")
     parser.add_argument("--detector", choices=DETECTORS, default="aldm")
     parser.add_argument("--marking-model", choices=MARKING_MODELS, default="per_dash")
+    add_env_argument(parser, "every trial gets them")
     parser.add_argument("--seed", type=seed, default=0, help="training seed of every trial")
     parser.add_argument("--sampler-seed", type=seed, default=0, help="seed of optuna's sampler")
     parser.add_argument(
@@ -76,6 +78,7 @@ def run(args: argparse.Namespace) -> int:
     """``aldm-gym tune``."""
     from aldm_gym.training.tune import BEST_FILE, TRIALS_TABLE, tune
 
+    env = env_settings(args.env)  # a bad --env is refused before --out is made
     out = make_output_dir(args.out)
     fixed = {
         "algo": args.algo,
@@ -85,6 +88,7 @@ def run(args: argparse.Namespace) -> int:
         "seed": args.seed,
         "validation_freq": args.validation_freq,
         "validation_episodes": args.validation_episodes,
+        "env": env,
     }
     t0 = time.perf_counter()
     with tqdm(total=args.trials, desc="trials", unit="trial", disable=args.no_progress) as bar:

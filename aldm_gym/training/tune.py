@@ -122,13 +122,17 @@ def train_command(
     :param params: the sampled hyperparameters (names of :data:`SEARCH_SPACE`); floats
         are passed with 4 significant digits (what the trial trains with).
     :param fixed: the other flags (``algo``, ``detector``, ``timesteps``, ...; None
-        values are left out).
+        values are left out); a list gives its flag once per item (``env``: the
+        ``KEY=VALUE`` settings of ``train --env``).
     """
     cmd = [python, "-m", "aldm_gym", "train", "--out", str(out)]
     if not progress:
         cmd.append("--no-progress")
     for name, value in {**fixed, **params}.items():
-        if value is not None:
+        if isinstance(value, list | tuple):
+            for item in value:
+                cmd += ["--" + name.replace("_", "-"), str(item)]
+        elif value is not None:
             text = f"{value:.4g}" if isinstance(value, float) else str(value)
             cmd += ["--" + name.replace("_", "-"), text]
     return cmd

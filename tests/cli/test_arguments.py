@@ -130,6 +130,7 @@ CASES = [
     (["train", "--n-steps", "1"], "--n-steps", "must be in [2, "),
     (["train", "--resume", "--out", "DIR/nothing"], "--resume", "nothing to resume"),
     (["train", "--env", "sensor.preset"], "--env", "must be KEY=VALUE"),
+    (["tune", "--env", "sensor.prest=camera", "--out", "DIR/t"], "--env", "'preset'"),
     (["train", "--env", "detector_params.trackin=model"], "--env", "did you mean 'tracking'"),
     (["train", "--env", "detector=naive"], "--env", "detector has its own flag: --detector"),
     (["train", "--env", "vehicles_count=3"], "--env", "has its own flag: --vehicles"),

@@ -74,6 +74,12 @@ def test_train_command_passes_every_flag() -> None:
         *("py", "-m", "aldm_gym", "train", "--out", "o", "--no-progress"),
         *("--algo", "maskable-ppo", "--learning-rate", "0.0001235", "--n-steps", "256"),
     ]
+    env = ['detector_params.tracking="model"', "observation.line_confidence=true"]
+    cmd = train_command({}, {"env": env, "detector": "aldm"}, Path("o"), python="py")
+    assert cmd[7:] == [
+        *("--env", 'detector_params.tracking="model"'),
+        *("--env", "observation.line_confidence=true", "--detector", "aldm"),
+    ]
 
 
 def test_search_writes_table_and_best_and_continues(tmp_path: Path, fake_training: None) -> None:
