@@ -330,24 +330,55 @@ def add_env_argument(parser: argparse.ArgumentParser, note: str) -> None:
     )
 
 
-def env_settings(pairs: list[tuple[str, Any]]) -> list[str]:
-    """``--env`` pairs, checked as :func:`_env_overrides` checks them, as the
-    ``KEY=VALUE`` arguments that give them again (values as JSON)."""
-    _env_overrides(pairs)
-    return [f"{key}={json.dumps(value)}" for key, value in pairs]
+def env_settings(
+    pairs: list[tuple[str, Any]], own_flags: tuple[str, ...] = ()
+) -> tuple[list[str], dict[str, Any]]:
+    """``--env`` pairs of a command that passes them on to ``aldm-gym train``.
+
+    :param own_flags: the env settings the command has flags of its own for (refused
+        here, naming the flag); the other settings ``train`` has a flag for come back
+        as those flags' values.
+    :return: the ``KEY=VALUE`` arguments of ``train --env`` (values as JSON), checked
+        as :func:`_env_overrides` checks them, and ``{train flag dest: value}``.
+    """
+    flags: dict[str, Any] = {}
+    rest = []
+    for key, value in pairs:
+        if key in own_flags:
+            raise BadArgument("--env", f"{key} has its own flag: {_flag(key)}")
+        if key in _ENV_FLAGS:
+            try:
+                merge_config(default_config(), {key: value})
+            except ConfigError as exc:
+                raise BadArgument("--env", str(exc)) from None
+            flags[_ENV_FLAGS[key]] = value
+        else:
+            rest.append((key, value))
+    _env_overrides(rest)
+    return [f"{key}={json.dumps(value)}" for key, value in rest], flags
 
 
 def _check_resume(args: argparse.Namespace, meta: dict[str, Any]) -> None:
     """Refuse flags that contradict the training being resumed (:class:`BadArgument`)."""
     cfg = meta["env_config"]
     if args.env:
-        saved_env = dict(dotted_settings(merge_config(default_config(), cfg)))
+        # compared as JSON values (the config view holds tuples where --env gives lists)
+        saved_env = {
+            k: json.loads(json.dumps(v))
+            for k, v in dotted_settings(merge_config(default_config(), cfg))
+        }
         for key, value in dotted_settings(_env_overrides(args.env)):
-            if saved_env.get(key) != value:
+            if key not in saved_env:
+                raise BadArgument(
+                    "--env",
+                    f"{key} was not set in the training being resumed (its default "
+                    "applies); omit it with --resume",
+                )
+            if saved_env[key] != json.loads(json.dumps(value)):
                 raise BadArgument(
                     "--env",
                     f"{key}={json.dumps(value)} contradicts the training being resumed "
-                    f"({json.dumps(saved_env.get(key))}); omit it with --resume",
+                    f"({json.dumps(saved_env[key])}); omit it with --resume",
                 )
     algo = {name: key for key, name in ALGORITHMS.items()}.get(meta.get("algorithm", "PPO"))
     for name, value, saved in (

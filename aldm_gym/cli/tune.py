@@ -17,7 +17,14 @@ from typing import Any
 
 from tqdm import tqdm
 
-from aldm_gym.cli.argtypes import int_in, make_output_dir, output_dir, positive_int, seed
+from aldm_gym.cli.argtypes import (
+    BadArgument,
+    int_in,
+    make_output_dir,
+    output_dir,
+    positive_int,
+    seed,
+)
 from aldm_gym.cli.train import add_env_argument, env_settings
 from aldm_gym.errors import MissingRLDependencies
 from aldm_gym.roads.highway import MARKING_MODELS
@@ -76,9 +83,16 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
 
 def run(args: argparse.Namespace) -> int:
     """``aldm-gym tune``."""
-    from aldm_gym.training.tune import BEST_FILE, TRIALS_TABLE, tune
+    from aldm_gym.training.tune import BEST_FILE, SEARCH_SPACE, TRIALS_TABLE, tune
 
-    env = env_settings(args.env)  # a bad --env is refused before --out is made
+    # a bad --env is refused before --out is made; duration and traffic go to each
+    # trial as train's own flags; the searched reward weights cannot be fixed
+    for key, _value in args.env:
+        if key in SEARCH_SPACE:
+            raise BadArgument(
+                "--env", f"{key} is searched (the search varies {', '.join(SEARCH_SPACE)})"
+            )
+    env, env_flags = env_settings(args.env, own_flags=("detector", "marking_model"))
     out = make_output_dir(args.out)
     fixed = {
         "algo": args.algo,
@@ -88,6 +102,7 @@ def run(args: argparse.Namespace) -> int:
         "seed": args.seed,
         "validation_freq": args.validation_freq,
         "validation_episodes": args.validation_episodes,
+        **env_flags,
         "env": env,
     }
     t0 = time.perf_counter()

@@ -60,10 +60,11 @@ model starts from the single-frame ALDM (:func:`~aldm_gym.sensor.aldm.detect_lan
 on the frame: its lines fitted whole, or only up to :data:`START_RANGE`, or a straight
 road at their offsets, whichever lays most of the frame's raw points on lines
 parallel to its shape (a trace that wandered far out under noise, or jumped onto the
-next line, does not bend the model). When a confirmed line's far end recedes by
-``recede_length`` in one frame (a shape bent off the road far out, whose gates miss
-the points that would bend it back), the model competes with such a start on the
-frame and is replaced if the start scores higher. The decisions are listed in
+next line, does not bend the model). When a confirmed line hit in a frame has its
+farthest point ``recede_length`` short of that of its last hit (a shape bent off the
+road far out, whose gates miss the points that would bend it back), the model
+competes with such a start on the frame and is replaced if the start scores higher.
+The decisions are listed in
 ``docs/aldm.md``, section "Lane-model filter".
 """
 
@@ -208,9 +209,9 @@ class FilterParams:
         born there.
     :ivar reseat_length: a line without a hit for this much travel is re-seated
         onto a cluster of free points within ``min_spacing`` of it (0: never).
-    :ivar recede_length: when a confirmed line's farthest point in a frame falls this
-        much short of where its last one was carried, the model competes with a fresh
-        start on the frame (0: never).
+    :ivar recede_length: when a confirmed line hit in a frame has its farthest point
+        this much short of that of its last hit (carried by the odometry), the model
+        competes with a fresh start on the frame (0: never).
     """
 
     model_range: float = setting(90.0, lo=20.0, hi=1000.0)
@@ -458,7 +459,8 @@ class LaneModelFilter:
         fp = self.filter
         x, y = measurements(pts, fp.model_range, self.params.z_band)
         near = float(min(x.min(), START_X_MAX)) if len(x) else EMPTY_START
-        if motion is None or len(self._ids) == 0:
+        started = motion is None or len(self._ids) == 0
+        if started:
             self._start(pts, x, y)
             travel = 0.0
         else:
@@ -468,8 +470,9 @@ class LaneModelFilter:
         if len(self._ids):
             line, support, far = self._correct(x, y)
             if (
-                fp.recede_length > 0.0
-                and self._receded(far, near)
+                not started
+                and fp.recede_length > 0.0
+                and self._receded(far)
                 and self._start(pts, x, y, incumbent=True)
             ):
                 # the model had left the road: started anew from this frame
@@ -494,8 +497,9 @@ class LaneModelFilter:
         noise, or jumped onto the next line, then does not bend the model, and the
         ALDM's lines still start it in a bend.
 
-        :param incumbent: the current model competes too (its shape scored on the same
-            points); it is kept, and nothing changes, unless a new start scores higher.
+        :param incumbent: the current model competes too (its shape, as updated with
+            this frame, scored on the same points); it is kept, and nothing changes,
+            unless a new start scores higher.
         :return: whether the model was started anew.
         """
         fp = self.filter
@@ -547,13 +551,14 @@ class LaneModelFilter:
         self.n_starts += 1
         return True
 
-    def _receded(self, far: FloatArray, near: float) -> bool:
-        """Whether a confirmed line's farthest point in this frame (``far`` [m], -inf:
-        none, then the frame's nearest x ``near``) fell more than ``recede_length``
-        short of where its last one was carried: the sign of a shape that bent off the
-        road far out, whose gates then miss the points that would bend it back."""
+    def _receded(self, far: FloatArray) -> bool:
+        """Whether a confirmed line hit in this frame has its farthest point (``far``
+        [m], -inf: no hit) more than ``recede_length`` short of where its farthest
+        point of its last hit was carried: the sign of a shape that bent off the road
+        far out, whose gates then miss the points that would bend it back. A line
+        without a hit (hidden, or worn) is not evidence of that."""
         length = self.filter.recede_length
-        return bool(receded(self._far, far, near, self._confirmed, length))
+        return bool(receded(self._far, far, self._confirmed, length))
 
     def _parallel_support(self, state: FloatArray, x: FloatArray, y: FloatArray) -> int:
         """How many of the points ``(x, y)`` [m] lie on lines parallel to the reference

@@ -252,6 +252,10 @@ def test_env_settings_given_with_env_are_trained_saved_evaluated_and_kept(
     line = usage_error(argv, capsys)
     assert "argument --env: detector_params.tracking=true contradicts the training being " in line
     assert '("model"); omit it with --resume' in line
+    argv = ["train", "--resume", "--out", str(out), "--env", "sensor.preset=camera"]
+    assert "sensor.preset was not set in the training being resumed" in usage_error(argv, capsys)
+    # the same values (a list as the config's tuple, a default as such) are taken
     again = ("--timesteps", "64", "--env", "observation.line_confidence=true", "--no-progress")
-    assert main(["train", "--resume", "--out", str(out), *again]) == 0
+    same = ("--env", "reward_speed_range=[20, 30]")
+    assert main(["train", "--resume", "--out", str(out), *again, *same]) == 0
     assert PPO.load(out / "model.zip", device="cpu").num_timesteps == 64

@@ -124,3 +124,20 @@ def test_failed_trials_are_recorded_not_fatal(tmp_path: Path, fake_training: Non
     assert [r for r in rows if r["gamma"] == "0.95"] == failed
     assert all(r["score"] == "" for r in failed)
     assert best["trials"] == 6 - len(failed) and best["params"]["gamma"] != 0.95
+
+
+def test_env_settings_with_a_train_flag_go_to_that_flag() -> None:
+    """``tune --env``: settings ``train`` has a flag for reach the trials as that flag,
+    the rest as ``--env``; the search's own flags are refused."""
+    from aldm_gym.cli.argtypes import BadArgument
+    from aldm_gym.cli.train import env_settings
+
+    own = ("detector", "marking_model")
+    pairs = [("vehicles_count", 8), ("sensor.preset", "camera"), ("duration", 20.0)]
+    env, flags = env_settings(pairs, own_flags=own)
+    assert env == ['sensor.preset="camera"']
+    assert flags == {"vehicles": 8, "duration": 20.0}
+    cmd = train_command({}, {**flags, "env": env}, Path("o"), python="py")
+    assert cmd[7:] == [*("--vehicles", "8", "--duration", "20", "--env", 'sensor.preset="camera"')]
+    with pytest.raises(BadArgument, match="marking_model has its own flag: --marking-model"):
+        env_settings([("marking_model", "editor")], own_flags=own)

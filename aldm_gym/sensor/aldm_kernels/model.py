@@ -749,12 +749,12 @@ def existence_py(
 existence = numba.njit(cache=True)(existence_py)
 
 
-def receded_py(far_old, far, near, confirmed, length):
-    """Whether a confirmed line's farthest point of this frame (``far`` [m], -inf:
-    none, then the frame's nearest x ``near`` [m]) fell more than ``length`` [m] short
-    of its carried far end ``far_old`` [m]."""
+def receded_py(far_old, far, confirmed, length):
+    """Whether a confirmed line hit in this frame (``far`` [m]: its farthest point,
+    -inf: no hit) has that point more than ``length`` [m] short of its carried far end
+    ``far_old`` [m]."""
     for i in range(far_old.shape[0]):
-        if confirmed[i] and far_old[i] - max(far[i], near) > length:
+        if confirmed[i] and far[i] > -math.inf and far_old[i] - far[i] > length:
             return True
     return False
 
