@@ -728,3 +728,30 @@ def test_kernels_match_plain_python() -> None:
     assert not M._inverse(-np.eye(3))[1]
     _low, ok = M._cholesky_py(-np.eye(3))
     assert not ok and not M._cholesky(-np.eye(3))[1]
+
+
+def test_parallel_support_counts_the_points_a_shape_lays_on_parallel_lines() -> None:
+    """The start's score: on a straight road every line's points lie on lines parallel
+    to a straight shape, and a bent shape (R 200 m) spreads them; in an R 200 m bend
+    the other way round. Only lines within two lane widths of the curve count."""
+    filt = LaneModelFilter()
+    straight = np.zeros(N_GEOMETRY + 1)
+    bent = straight.copy()
+    bent[1:N_GEOMETRY] = SCALE**2 / 200.0  # every node at R 200 m to the left
+    scores = {}
+    for name, radius in (("straight", math.inf), ("bend", 200.0)):
+        road = S.highway(lanes=4, ego_lane=1, radius=radius)
+        pts, _ = S.sample(road, noise=0.02, seed=1)
+        x, y = pts[:, 0].copy(), pts[:, 1].copy()
+        keep = x <= filt.filter.model_range
+        x, y = x[keep], y[keep]
+        if name == "straight":
+            y_straight = y
+        scores[name] = [filt._parallel_support(s, x, y) for s in (straight, bent)]
+    # straight: the four lines within two lane widths (|y| <= 7 m), not the fifth
+    near = np.count_nonzero(np.abs(y_straight) <= 7.0)
+    assert scores["straight"][0] == pytest.approx(near, abs=3)
+    assert near < len(y_straight) - 10
+    assert scores["straight"][0] > 2 * scores["straight"][1]
+    assert scores["bend"][1] > 2 * scores["bend"][0]
+    assert filt._parallel_support(straight, np.zeros(0), np.zeros(0)) == 0
