@@ -71,10 +71,12 @@ from aldm_gym.training.outputs import (
 )
 from aldm_gym.training.rllib.backend import TB_RUN, train_rllib
 from aldm_gym.training.sb3.backend import train
+from aldm_gym.training.sb3.pretrain import MAX_PRETRAIN_EPISODES
 from aldm_gym.training.settings import (
     ALGORITHMS,
     DEFAULT_CHECKPOINT_FREQ,
     DEFAULT_COLLISION_REWARD,
+    DEFAULT_PRETRAIN_EPOCHS,
     DEFAULT_TIMESTEPS,
     DEFAULT_VALIDATION_EPISODES,
     DEFAULT_VALIDATION_FREQ,
@@ -108,7 +110,13 @@ MAX_ENV_RUNNERS = 1024
 """Most ``--num-env-runners`` accepted."""
 
 _ONLY = {
-    "sb3": ("n_envs", "validation_freq", "validation_episodes"),
+    "sb3": (
+        "n_envs",
+        "validation_freq",
+        "validation_episodes",
+        "pretrain_episodes",
+        "pretrain_epochs",
+    ),
     "rllib": ("num_env_runners", "address"),
 }
 """The flags (argparse dests) of one backend only."""
@@ -254,6 +262,19 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         default=None,
         help=f"entropy bonus weight ({PPOParams.ent_coef})",
     )
+    parser.add_argument(
+        "--pretrain-episodes",
+        type=int_in(1, MAX_PRETRAIN_EPISODES),
+        default=None,
+        help="before PPO, clone the rule-based LCA played on this many episodes into the "
+        "new policy (behaviour cloning; off by default)",
+    )
+    parser.add_argument(
+        "--pretrain-epochs",
+        type=positive_int,
+        default=None,
+        help=f"passes over the demonstrations of --pretrain-episodes ({DEFAULT_PRETRAIN_EPOCHS})",
+    )
     add_env_argument(parser, "saved with the training")
     parser.add_argument("--seed", type=seed, default=None, help="seed of envs and network (0)")
     parser.add_argument("--out", type=output_dir, default=Path("out/train"), help="output folder")
@@ -380,6 +401,14 @@ def _check_resume(args: argparse.Namespace, meta: dict[str, Any]) -> None:
                     f"{key}={json.dumps(value)} contradicts the training being resumed "
                     f"({json.dumps(saved_env[key])}); omit it with --resume",
                 )
+    for name, value in (
+        ("--pretrain-episodes", args.pretrain_episodes),
+        ("--pretrain-epochs", args.pretrain_epochs),
+    ):
+        if value is not None:
+            raise BadArgument(
+                name, "clones before a new training only; a resume keeps the training's own"
+            )
     algo = {name: key for key, name in ALGORITHMS.items()}.get(meta.get("algorithm", "PPO"))
     for name, value, saved in (
         ("--algo", args.algo, algo),
@@ -499,6 +528,8 @@ def run(args: argparse.Namespace) -> int:
     if quick:
         validation_freq = QUICK_VALIDATION_FREQ if validation_freq is None else validation_freq
         validation_episodes = validation_episodes or QUICK_VALIDATION_EPISODES
+    if args.pretrain_epochs is not None and args.pretrain_episodes is None and not args.resume:
+        raise BadArgument("--pretrain-epochs", "needs --pretrain-episodes")
     t0 = time.perf_counter()
     model = _call_training(
         train,
@@ -506,6 +537,8 @@ def run(args: argparse.Namespace) -> int:
         n_envs=args.n_envs,
         validation_freq=validation_freq,
         validation_episodes=validation_episodes,
+        pretrain_episodes=args.pretrain_episodes or 0,
+        pretrain_epochs=args.pretrain_epochs or DEFAULT_PRETRAIN_EPOCHS,
         **_common_settings(args, quick),
     )
     if model is None:

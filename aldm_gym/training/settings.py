@@ -35,6 +35,10 @@ DEFAULT_VALIDATION_FREQ = 4_096
 DEFAULT_VALIDATION_EPISODES = 20
 """Default episodes per validation (SB3 backend)."""
 
+DEFAULT_PRETRAIN_EPOCHS = 30
+"""Default passes over the demonstrations when cloning the rule-based LCA (SB3 backend,
+:mod:`aldm_gym.training.sb3.pretrain`)."""
+
 DEFAULT_ENV_RUNNERS = 1
 """Default ``--num-env-runners`` (RLlib backend)."""
 

@@ -49,6 +49,7 @@ from aldm_gym.training.outputs import (
     VECNORM_FILE,
     write_bytes_atomic,
 )
+from aldm_gym.training.progress import report
 from aldm_gym.training.sb3 import import_sb3, model_class
 from aldm_gym.training.sb3.checkpoints import (
     Checkpoint,
@@ -59,8 +60,15 @@ from aldm_gym.training.sb3.checkpoints import (
     take_snapshot,
 )
 from aldm_gym.training.sb3.envs import close_envs, make_vec_env
+from aldm_gym.training.sb3.pretrain import (
+    check_pretrain,
+    clone,
+    collect_demonstrations,
+    demonstration_seeds,
+)
 from aldm_gym.training.settings import (
     DEFAULT_COLLISION_REWARD,
+    DEFAULT_PRETRAIN_EPOCHS,
     RUN_DEFAULTS,
     PPOParams,
     algorithm_name,
@@ -96,10 +104,17 @@ class SB3Backend(Backend[Checkpoint]):
         progress: bool,
         verbose: int = 0,
         callback: Any = None,
+        pretrain_episodes: int = 0,
+        pretrain_epochs: int = DEFAULT_PRETRAIN_EPOCHS,
     ) -> None:
         super().__init__(out, meta, saved, progress)
         self.verbose = verbose
         self.callback = callback
+        self.pretrain_episodes = pretrain_episodes
+        self.pretrain_epochs = pretrain_epochs
+        if saved is not None and saved.get("pretrain"):  # a resume keeps its own
+            self.pretrain_episodes = int(saved["pretrain"]["episodes"])
+            self.pretrain_epochs = int(saved["pretrain"]["epochs"])
         self.model: Any = None
         self.venv: Any = None
         self.done = 0
@@ -155,6 +170,8 @@ class SB3Backend(Backend[Checkpoint]):
         )
         self.model.tensorboard_log = str(self.out / TENSORBOARD_DIR)
         self.done, self.resumed = done, True
+        if saved.get("pretrain"):
+            self.meta["pretrain"] = saved["pretrain"]
         if exact:
             assert checkpoint.resume_state is not None
             restore_resume_state(self.model, checkpoint.resume_state)
@@ -192,6 +209,28 @@ class SB3Backend(Backend[Checkpoint]):
             device="cpu",
             verbose=self.verbose,
         )
+        if self.pretrain_episodes > 0:
+            self._pretrain()
+
+    def _pretrain(self) -> None:
+        """Clone the rule-based LCA into the new model
+        (:mod:`aldm_gym.training.sb3.pretrain`); the report goes to ``training.json``."""
+        run = self.meta
+        seeds = demonstration_seeds(run["seed"], self.pretrain_episodes)
+        report(f"playing the rule-based LCA on {len(seeds)} demonstration episodes…")
+        demos = collect_demonstrations(
+            run["env_config"], seeds, self.params.gamma, progress=self.progress
+        )
+        result = clone(
+            self.model,
+            demos,
+            self.pretrain_epochs,
+            seed=run["seed"],
+            seeds=seeds,
+            masked=run["algorithm"] == "MaskablePPO",
+        )
+        self.meta["pretrain"] = result.record()
+        report(result.text())
 
     def _callbacks(self) -> list[Any]:
         """The training's callbacks, in this order: on a rollout boundary the
@@ -213,6 +252,7 @@ class SB3Backend(Backend[Checkpoint]):
                     run["validation_freq"],
                     run["validation_episodes"],
                     progress=self.progress,
+                    validate_first="pretrain" in run and self.done == 0,
                 )
             )
         if self.progress:
@@ -287,6 +327,8 @@ def train(
     params: PPOParams | None = None,
     validation_freq: int | None = None,
     validation_episodes: int | None = None,
+    pretrain_episodes: int = 0,
+    pretrain_epochs: int = DEFAULT_PRETRAIN_EPOCHS,
     resume: bool = False,
     progress: bool = True,
     verbose: int = 0,
@@ -320,6 +362,12 @@ def train(
         (default :data:`~aldm_gym.training.settings.DEFAULT_VALIDATION_FREQ`).
     :param validation_episodes: episodes per validation (seeds ``VALIDATION_SEED ..``;
         default :data:`~aldm_gym.training.settings.DEFAULT_VALIDATION_EPISODES`).
+    :param pretrain_episodes: before PPO, clone the rule-based LCA played on this many
+        episodes into the new model (0: no cloning;
+        :mod:`~aldm_gym.training.sb3.pretrain`); the model is then also validated at
+        step 0. A resume keeps the training's own (and clones again only if it restarts
+        from step 0).
+    :param pretrain_epochs: passes over the demonstrations.
     :param progress: a tqdm bar over the steps, showing the recent training episodes'
         mean return and length, and one over each validation's episodes (the progress
         lines announcing and reporting each validation are logged either way).
@@ -334,10 +382,13 @@ def train(
         without an intact checkpoint starts again from step 0 with its settings).
     :raises ResumeError: ``resume`` of an RLlib training.
     :raises OutputLocked: another training is writing ``out``.
+    :raises ConfigError: ``pretrain_episodes`` outside ``0..MAX_PRETRAIN_EPISODES`` or
+        ``pretrain_epochs`` < 1.
     :raises MissingRLDependencies: stable-baselines3 / torch missing.
     :raises KeyboardInterrupt: interrupted by Ctrl-C or SIGTERM (after saving the
         last consistent state as a checkpoint).
     """
+    check_pretrain(pretrain_episodes, pretrain_epochs)
     backend = train_with(
         SB3Backend,
         out,
@@ -364,5 +415,7 @@ def train(
         algorithm=algorithm_name(algo),
         verbose=verbose,
         callback=callback,
+        pretrain_episodes=pretrain_episodes,
+        pretrain_epochs=pretrain_epochs,
     )
     return backend.model

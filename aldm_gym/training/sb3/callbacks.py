@@ -192,6 +192,8 @@ class ValidationCallback(BaseCallback):
     :param progress: show a bar over each validation's episodes (the training's bar
         stands still meanwhile). The progress lines before and after each validation
         are reported either way.
+    :param validate_first: also validate the model as training starts (a model
+        pretrained by cloning: it may stay the best).
     """
 
     def __init__(
@@ -201,9 +203,11 @@ class ValidationCallback(BaseCallback):
         validation_freq: int,
         n_episodes: int,
         progress: bool = False,
+        validate_first: bool = False,
     ) -> None:
         super().__init__()
         self.progress = progress
+        self.validate_first = validate_first
         self.out = Path(out)
         self.env_config = env_config
         self.validation_freq = validation_freq
@@ -238,6 +242,8 @@ class ValidationCallback(BaseCallback):
             with _rng_preserved():
                 for name, policy in (("idle", IdlePolicy()), ("rule_based", RuleBasedLCA())):
                     self.baselines[name] = validation_row(self._play(policy, name))
+        if self.validate_first and not self.history:
+            self.validate()
 
     @property
     def _seed_text(self) -> str:
