@@ -84,6 +84,8 @@ def test_demonstrations_are_the_teachers_steps(demos: Demonstrations) -> None:
     assert all(v.shape[0] == n and v.dtype == np.float32 for v in demos.observations.values())
     assert demos.masks[np.arange(n), demos.actions].all()  # the teacher obeys the masks
     assert (demos.actions == MetaAction.FASTER).any()
+    with pytest.raises(ConfigError, match="no demonstration episodes"):
+        collect_demonstrations(CONFIG, range(0), gamma=0.9)
     again = collect_demonstrations(CONFIG, demonstration_seeds(0, 6), gamma=0.9)
     np.testing.assert_array_equal(again.actions, demos.actions)
     np.testing.assert_array_equal(again.returns, demos.returns)

@@ -164,7 +164,10 @@ def collect_demonstrations(
 
     :param gamma: the discount of the returns (the training's).
     :param progress: a tqdm bar over the episodes.
+    :raises ConfigError: no seeds.
     """
+    if len(seeds) == 0:
+        raise ConfigError("no demonstration episodes to play (empty seeds)")
     env = gym.make(ENV_ID, config=env_config)
     teacher = RuleBasedLCA()
     obs_rows: list[dict[str, np.ndarray]] = []
