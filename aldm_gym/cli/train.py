@@ -520,6 +520,8 @@ def run(args: argparse.Namespace) -> int:
         )
     backend = _backend(args, meta)
     _env_overrides(args.env)  # a bad --env is refused before --out is made
+    if args.pretrain_epochs is not None and args.pretrain_episodes is None:
+        raise BadArgument("--pretrain-epochs", "needs --pretrain-episodes")
     make_output_dir(out)
     if backend == "rllib":
         return _run_rllib(args, quick)
@@ -528,8 +530,6 @@ def run(args: argparse.Namespace) -> int:
     if quick:
         validation_freq = QUICK_VALIDATION_FREQ if validation_freq is None else validation_freq
         validation_episodes = validation_episodes or QUICK_VALIDATION_EPISODES
-    if args.pretrain_epochs is not None and args.pretrain_episodes is None and not args.resume:
-        raise BadArgument("--pretrain-epochs", "needs --pretrain-episodes")
     t0 = time.perf_counter()
     model = _call_training(
         train,

@@ -3,6 +3,7 @@
 Output folder of a training (``aldm-gym train --out <out>``), both backends::
 
     <out>/training.json        backend, env config, hyperparameters, run settings
+                               (SB3: "pretrain", the cloning's settings and report)
     <out>/train.lock           held (``flock``) by the training writing the folder
     <out>/tb/                  tensorboard events (SB3: PPO_1/ or MaskablePPO_1/, RLlib: RLlib_PPO/)
 

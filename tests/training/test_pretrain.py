@@ -34,15 +34,15 @@ from aldm_gym.training.sb3.pretrain import (
 )
 from aldm_gym.training.settings import VALIDATION_SEED, env_config
 
-from ._helpers import tiny_train
+from ._helpers import corrupt, tiny_train
 
 CONFIG = env_config("aldm", "per_dash", duration=8.0, vehicles_count=8)
 """A short, light env for the demonstrations."""
 
 
-def _model(seed: int = 0) -> Any:
+def _model(seed: int = 0, algorithm: Any = MaskablePPO) -> Any:
     venv = VecNormalize(make_vec_env(CONFIG, 1, seed), norm_reward=False, clip_obs=10.0)
-    return MaskablePPO("MultiInputPolicy", venv, n_steps=32, batch_size=32, seed=seed, device="cpu")
+    return algorithm("MultiInputPolicy", venv, n_steps=32, batch_size=32, seed=seed, device="cpu")
 
 
 @pytest.fixture(scope="module")
@@ -118,9 +118,16 @@ def test_clone_fits_the_teacher_and_is_deterministic(demos: Demonstrations) -> N
         assert torch.equal(a, b)
 
 
+def test_clone_of_a_plain_ppo_policy(demos: Demonstrations) -> None:
+    from stable_baselines3 import PPO
+
+    report = clone(_model(algorithm=PPO), demos, 40, 0, demonstration_seeds(0, 6), masked=False)
+    assert report.steps == len(demos) and report.accuracy >= 0.9, report
+
+
 def test_clone_leaves_out_steps_the_mask_rules_out(demos: Demonstrations) -> None:
     masks = demos.masks.copy()
-    masks[:3, demos.actions[:3]] = False
+    masks[np.arange(3), demos.actions[:3]] = False
     ruled_out = Demonstrations(
         demos.observations, demos.actions, masks, demos.returns, demos.episodes
     )
@@ -151,9 +158,31 @@ def test_training_starts_from_the_clone_and_validates_it(tmp_path: Path) -> None
     assert meta["pretrain"]["seeds"] == [PRETRAIN_SEED, PRETRAIN_SEED + 1]
     history = json.loads((out / "validation.json").read_text())["history"]
     assert [h["steps"] for h in history] == [0, 32, 64]
-    # a resume keeps the record
-    assert tiny_train(out, 96, "--resume") == 0
+    # a resume keeps the record and does not clone again
+    assert tiny_train(out, 96, "--resume", *validation) == 0
     assert json.loads((out / "training.json").read_text())["pretrain"] == meta["pretrain"]
+    history = json.loads((out / "validation.json").read_text())["history"]
+    assert [h["steps"] for h in history] == [0, 32, 64, 96]
+
+
+@pytest.mark.slow
+def test_a_resume_without_a_checkpoint_clones_again(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    flags = ("--algo", "maskable-ppo", "--pretrain-episodes", "2", "--pretrain-epochs", "3")
+    assert tiny_train(out, 32, *flags) == 0
+    meta = json.loads((out / "training.json").read_text())
+    for path in (out / "checkpoints").iterdir():
+        corrupt(path, "truncate")
+    assert tiny_train(out, 32, "--resume") == 0
+    assert json.loads((out / "training.json").read_text())["pretrain"] == meta["pretrain"]
+    assert meta["pretrain"]["steps"] > 0  # the report, not only the settings
+
+
+def test_api_resume_refuses_pretrain_settings(tmp_path: Path) -> None:
+    from aldm_gym.training.sb3.backend import train
+
+    with pytest.raises(ConfigError, match="clones before a new training only"):
+        train(tmp_path, resume=True, pretrain_episodes=3)
 
 
 def test_pretrain_flags_are_refused_where_they_cannot_apply(
@@ -167,7 +196,8 @@ def test_pretrain_flags_are_refused_where_they_cannot_apply(
     line = usage_error(["train", "--pretrain-epochs", "3", "--out", out], capsys)
     assert "--pretrain-epochs: needs --pretrain-episodes" in line
     line = usage_error(["train", "--pretrain-episodes", "0", "--out", out], capsys)
-    assert "--pretrain-episodes" in line and "0" in line
+    assert "--pretrain-episodes" in line and "got 0" in line
+    assert not (tmp_path / "run").exists()  # refused before --out is made
 
 
 @pytest.mark.slow

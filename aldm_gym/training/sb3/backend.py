@@ -15,10 +15,11 @@ training does (lock, signals, fallback to an intact checkpoint, ``training.json`
 :func:`~aldm_gym.training.backend.train_with`'s; the callbacks that checkpoint,
 validate and show progress are in :mod:`aldm_gym.training.sb3.callbacks`.
 
-Validation: every ``validation_freq`` steps (after the PPO update that ends a rollout)
-and at the end, the current policy drives ``validation_episodes`` episodes with the
-fixed seeds ``VALIDATION_SEED ..`` (deterministic actions), disjoint from the training
-envs' seeds (``seed ..``) and from
+Validation: every ``validation_freq`` steps (after the PPO update that ends a rollout),
+at the end, and at step 0 for a model cloned from the rule-based LCA
+(``pretrain_episodes``, :mod:`aldm_gym.training.sb3.pretrain`), the current policy
+drives ``validation_episodes`` episodes with the fixed seeds ``VALIDATION_SEED ..``
+(deterministic actions), disjoint from the training envs' seeds (``seed ..``) and from
 :func:`~aldm_gym.training.model_evaluation.evaluate`'s (``10000 ..``). The policy with
 the highest mean episode return (the env's reward, i.e. the objective the training
 optimises) is kept as ``best_model.zip``. PPO on this task is not monotone: collisions
@@ -42,12 +43,15 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, ClassVar
 
+from aldm_gym.errors import ConfigError
 from aldm_gym.training.backend import Backend, CheckpointRef, train_with
 from aldm_gym.training.outputs import (
     MODEL_FILE,
     TENSORBOARD_DIR,
+    TRAINING_FILE,
     VECNORM_FILE,
     write_bytes_atomic,
+    write_json,
 )
 from aldm_gym.training.progress import report
 from aldm_gym.training.sb3 import import_sb3, model_class
@@ -89,6 +93,10 @@ class SB3Backend(Backend[Checkpoint]):
 
     :param verbose: SB3's verbosity.
     :param callback: extra SB3 callback(s) (a list or one).
+    :param pretrain_episodes: a new model is first cloned from the rule-based LCA
+        played on this many episodes (0: not; :mod:`aldm_gym.training.sb3.pretrain`).
+        A resume takes both cloning settings from ``training.json``'s ``"pretrain"``.
+    :param pretrain_epochs: passes of the cloning over the demonstrations.
     :ivar model: the SB3 PPO model (None before :meth:`build` or :meth:`restore`).
     """
 
@@ -112,9 +120,11 @@ class SB3Backend(Backend[Checkpoint]):
         self.callback = callback
         self.pretrain_episodes = pretrain_episodes
         self.pretrain_epochs = pretrain_epochs
-        if saved is not None and saved.get("pretrain"):  # a resume keeps its own
-            self.pretrain_episodes = int(saved["pretrain"]["episodes"])
-            self.pretrain_epochs = int(saved["pretrain"]["epochs"])
+        if saved is not None:  # a resume keeps the training's own (none: no cloning)
+            record = saved.get("pretrain") or {"episodes": 0, "epochs": pretrain_epochs}
+            self.pretrain_episodes = int(record["episodes"])
+            self.pretrain_epochs = int(record["epochs"])
+        self.clone_pending = False
         self.model: Any = None
         self.venv: Any = None
         self.done = 0
@@ -210,11 +220,18 @@ class SB3Backend(Backend[Checkpoint]):
             verbose=self.verbose,
         )
         if self.pretrain_episodes > 0:
-            self._pretrain()
+            # The cloning itself runs in learn (a signal stops it there); the settings
+            # go to training.json first, so a resume of a stopped cloning clones again.
+            self.meta["pretrain"] = {
+                "episodes": self.pretrain_episodes,
+                "epochs": self.pretrain_epochs,
+            }
+            self.clone_pending = True
 
     def _pretrain(self) -> None:
         """Clone the rule-based LCA into the new model
-        (:mod:`aldm_gym.training.sb3.pretrain`); the report goes to ``training.json``."""
+        (:mod:`aldm_gym.training.sb3.pretrain`); the report replaces the settings in
+        ``training.json``'s ``"pretrain"``."""
         run = self.meta
         seeds = demonstration_seeds(run["seed"], self.pretrain_episodes)
         report(f"playing the rule-based LCA on {len(seeds)} demonstration episodes…")
@@ -230,6 +247,8 @@ class SB3Backend(Backend[Checkpoint]):
             masked=run["algorithm"] == "MaskablePPO",
         )
         self.meta["pretrain"] = result.record()
+        write_json(self.out / TRAINING_FILE, self.meta)
+        self.clone_pending = False
         report(result.text())
 
     def _callbacks(self) -> list[Any]:
@@ -264,7 +283,9 @@ class SB3Backend(Backend[Checkpoint]):
     def learn(self, stop: StopRequest) -> None:
         """One ``model.learn`` to the budget (SB3's rollouts are the chunks; the first
         signal interrupts it at once, see :attr:`stops_at_once`), then the snapshot of
-        the state after the last update."""
+        the state after the last update. A new model to be cloned is cloned first."""
+        if self.clone_pending:
+            self._pretrain()
         callbacks = self._callbacks()
         if self.meta["timesteps"] > self.done:
             self.model.learn(
@@ -364,9 +385,9 @@ def train(
         default :data:`~aldm_gym.training.settings.DEFAULT_VALIDATION_EPISODES`).
     :param pretrain_episodes: before PPO, clone the rule-based LCA played on this many
         episodes into the new model (0: no cloning;
-        :mod:`~aldm_gym.training.sb3.pretrain`); the model is then also validated at
-        step 0. A resume keeps the training's own (and clones again only if it restarts
-        from step 0).
+        :mod:`~aldm_gym.training.sb3.pretrain`); with validation on, the clone is also
+        validated at step 0. Not with ``resume``: a resume keeps the training's own
+        (and clones again only if it restarts from step 0).
     :param pretrain_epochs: passes over the demonstrations.
     :param progress: a tqdm bar over the steps, showing the recent training episodes'
         mean return and length, and one over each validation's episodes (the progress
@@ -382,13 +403,17 @@ def train(
         without an intact checkpoint starts again from step 0 with its settings).
     :raises ResumeError: ``resume`` of an RLlib training.
     :raises OutputLocked: another training is writing ``out``.
-    :raises ConfigError: ``pretrain_episodes`` outside ``0..MAX_PRETRAIN_EPISODES`` or
-        ``pretrain_epochs`` < 1.
+    :raises ConfigError: ``pretrain_episodes`` outside ``0..MAX_PRETRAIN_EPISODES``,
+        ``pretrain_epochs`` < 1, or ``pretrain_episodes`` with ``resume``.
     :raises MissingRLDependencies: stable-baselines3 / torch missing.
     :raises KeyboardInterrupt: interrupted by Ctrl-C or SIGTERM (after saving the
         last consistent state as a checkpoint).
     """
     check_pretrain(pretrain_episodes, pretrain_epochs)
+    if resume and pretrain_episodes:
+        raise ConfigError(
+            "pretrain_episodes clones before a new training only; a resume keeps the training's own"
+        )
     backend = train_with(
         SB3Backend,
         out,

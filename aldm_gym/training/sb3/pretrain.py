@@ -31,8 +31,9 @@ from aldm_gym.errors import ConfigError
 
 PRETRAIN_SEED = 30_000
 """First seed of the demonstration episodes: those of training seed ``s`` are
-``PRETRAIN_SEED + MAX_PRETRAIN_EPISODES * s + i`` (apart from the evaluation seeds
-10000.., the validation seeds 20000.. and the training envs' own)."""
+``PRETRAIN_SEED + MAX_PRETRAIN_EPISODES * s + i``, apart from the evaluation seeds
+(10000.., up to 20000 episodes), the validation seeds (20000.., up to 10000) and the
+training envs' first seeds (``s + i``, ``s`` below 30000)."""
 
 MAX_PRETRAIN_EPISODES = 10_000
 """Most demonstration episodes per training."""
@@ -73,8 +74,9 @@ class CloneReport:
     """What a cloning did (saved as ``training.json``'s ``"pretrain"``).
 
     :ivar teacher: the cloned policy.
-    :ivar episodes: demonstration episodes; :ivar steps: their steps cloned (a
-        MaskablePPO clone leaves out steps whose action the mask rules out).
+    :ivar episodes: demonstration episodes.
+    :ivar steps: their steps cloned (a MaskablePPO clone leaves out steps whose action
+        the mask rules out).
     :ivar epochs: passes over the demonstrations.
     :ivar seeds: first and last demonstration episode seed.
     :ivar accuracy: share of the demonstration steps where the clone's most likely
