@@ -179,15 +179,15 @@ def collect_demonstrations(
     ends: list[bool] = []
     try:
         for seed in tqdm(seeds, desc="demonstrations", unit="ep", disable=not progress):
-            obs, _ = env.reset(seed=int(seed))
+            obs, info = env.reset(seed=int(seed))
             teacher.reset()
             done = False
             while not done:
                 action = int(teacher.act(obs))
                 obs_rows.append(obs)
                 actions.append(action)
-                masks.append(np.asarray(env.unwrapped.action_masks(), dtype=bool).copy())
-                obs, reward, terminated, truncated, _ = env.step(action)
+                masks.append(np.array(info["action_mask"], dtype=bool))
+                obs, reward, terminated, truncated, info = env.step(action)
                 done = bool(terminated or truncated)
                 rewards.append(float(reward))
                 ends.append(done)
@@ -228,8 +228,11 @@ def clone(
         raise ConfigError(f"pretrain_epochs must be >= 1, got {epochs}")
     if len(demos) == 0:
         raise ConfigError("no demonstration steps to clone")
-    if masked and not demos.masks[np.arange(len(demos)), demos.actions].any():
-        raise ConfigError("every demonstration step's action is ruled out by its mask")
+    keep = np.ones(len(demos), dtype=bool)
+    if masked:
+        keep = demos.masks[np.arange(len(demos)), demos.actions]
+        if not keep.any():
+            raise ConfigError("every demonstration step's action is ruled out by its mask")
     venv = model.get_vec_normalize_env()
     observations = demos.observations
     if venv is not None:
@@ -237,9 +240,6 @@ def clone(
             for key, rms in venv.obs_rms.items():
                 rms.update(observations[key])
         observations = venv.normalize_obs(observations)
-    keep = np.ones(len(demos), dtype=bool)
-    if masked:
-        keep = demos.masks[np.arange(len(demos)), demos.actions]
     obs = {
         k: torch.as_tensor(np.asarray(v, dtype=np.float32)[keep]) for k, v in observations.items()
     }
@@ -247,17 +247,12 @@ def clone(
     masks = torch.as_tensor(demos.masks[keep])
     returns = torch.as_tensor(demos.returns[keep], dtype=torch.float32)
 
-    def evaluate(idx: Any) -> tuple[Any, Any]:
-        batch = {k: v[idx] for k, v in obs.items()}
-        if masked:
-            values, log_prob, _ = model.policy.evaluate_actions(
-                batch, actions[idx], action_masks=masks[idx]
-            )
-        else:
-            values, log_prob, _ = model.policy.evaluate_actions(batch, actions[idx])
-        return values.flatten(), log_prob
-
     policy = model.policy
+
+    def mask_of(idx: Any) -> dict[str, Any]:
+        """MaskablePPO's keyword for the masks of the rows ``idx`` (PPO: none)."""
+        return {"action_masks": masks[idx]} if masked else {}
+
     policy.set_training_mode(True)
     optimiser = torch.optim.Adam(policy.parameters(), lr=LEARNING_RATE)
     rng = np.random.default_rng(seed)
@@ -266,17 +261,15 @@ def clone(
         order = rng.permutation(n)
         for start in range(0, n, BATCH_SIZE):
             idx = torch.as_tensor(order[start : start + BATCH_SIZE])
-            values, log_prob = evaluate(idx)
-            loss = -log_prob.mean() + VALUE_WEIGHT * ((values - returns[idx]) ** 2).mean()
+            batch = {k: v[idx] for k, v in obs.items()}
+            values, log_prob, _ = policy.evaluate_actions(batch, actions[idx], **mask_of(idx))
+            loss = -log_prob.mean() + VALUE_WEIGHT * ((values.flatten() - returns[idx]) ** 2).mean()
             optimiser.zero_grad()
             loss.backward()
             optimiser.step()
     policy.set_training_mode(False)
     with torch.no_grad():
-        if masked:
-            dist = policy.get_distribution(obs, action_masks=masks)
-        else:
-            dist = policy.get_distribution(obs)
+        dist = policy.get_distribution(obs, **mask_of(slice(None)))
         chosen = dist.distribution.probs.argmax(dim=1)
         values = policy.predict_values(obs).flatten()
     hit = (chosen == actions).numpy()
