@@ -2,7 +2,9 @@
 
 Runs :func:`~aldm_gym.training.tune.tune`: ``--trials`` ``aldm-gym train`` runs of
 ``--timesteps`` steps each, ``--jobs`` at once, with hyperparameters from
-:data:`~aldm_gym.training.tune.SEARCH_SPACE`, each scored on its validation seeds. It
+:data:`~aldm_gym.training.tune.SEARCH_SPACE` (or, with ``--pretrain-episodes``, every
+trial fine-tuning a clone of the rule-based LCA, from
+:data:`~aldm_gym.training.tune.FINETUNE_SPACE`), each scored on its validation seeds. It
 writes ``<out>/trials.csv`` and ``<out>/best.json`` (with the command that trains the
 best trial's hyperparameters with the full budget); a folder with a study continues it.
 optuna is imported only when the command runs (the ``[tune]`` extra).
@@ -29,8 +31,10 @@ from aldm_gym.cli.train import add_env_argument, env_settings
 from aldm_gym.errors import MissingRLDependencies
 from aldm_gym.roads.highway import MARKING_MODELS
 from aldm_gym.sensor.detectors import DETECTORS
+from aldm_gym.training.sb3.pretrain import MAX_PRETRAIN_EPISODES
 from aldm_gym.training.settings import (
     ALGORITHMS,
+    DEFAULT_PRETRAIN_EPOCHS,
     DEFAULT_VALIDATION_EPISODES,
     DEFAULT_VALIDATION_FREQ,
 )
@@ -75,6 +79,19 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         default=DEFAULT_VALIDATION_EPISODES,
         help="episodes per validation (the score's)",
     )
+    parser.add_argument(
+        "--pretrain-episodes",
+        type=int_in(1, MAX_PRETRAIN_EPISODES),
+        default=None,
+        help="every trial first clones the rule-based LCA played on this many episodes, "
+        "and the search varies the fine-tuning's hyperparameters (off by default)",
+    )
+    parser.add_argument(
+        "--pretrain-epochs",
+        type=positive_int,
+        default=None,
+        help=f"passes over the demonstrations of --pretrain-episodes ({DEFAULT_PRETRAIN_EPOCHS})",
+    )
     parser.add_argument("--out", type=output_dir, default=Path("out/tune"), help="output folder")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.set_defaults(func=run)
@@ -83,15 +100,20 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
 
 def run(args: argparse.Namespace) -> int:
     """``aldm-gym tune``."""
-    from aldm_gym.training.tune import BEST_FILE, SEARCH_SPACE, TRIALS_TABLE, tune
+    from aldm_gym.training.tune import BEST_FILE, SPACES, TRIALS_TABLE, space_name, tune
 
-    # a bad --env is refused before --out is made; duration and traffic go to each
+    # bad flags are refused before --out is made; duration and traffic go to each
     # trial as train's own flags; the searched reward weights cannot be fixed
+    if args.pretrain_epochs is not None and args.pretrain_episodes is None:
+        raise BadArgument("--pretrain-epochs", "needs --pretrain-episodes")
+    pretrain = {
+        "pretrain_episodes": args.pretrain_episodes,
+        "pretrain_epochs": args.pretrain_epochs,
+    }
+    space = SPACES[space_name(pretrain)]
     for key, _value in args.env:
-        if key in SEARCH_SPACE:
-            raise BadArgument(
-                "--env", f"{key} is searched (the search varies {', '.join(SEARCH_SPACE)})"
-            )
+        if key in space:
+            raise BadArgument("--env", f"{key} is searched (the search varies {', '.join(space)})")
     env, env_flags = env_settings(args.env, own_flags=("detector", "marking_model"))
     out = make_output_dir(args.out)
     fixed = {
@@ -102,6 +124,7 @@ def run(args: argparse.Namespace) -> int:
         "seed": args.seed,
         "validation_freq": args.validation_freq,
         "validation_episodes": args.validation_episodes,
+        **pretrain,
         **env_flags,
         "env": env,
     }
@@ -122,7 +145,7 @@ def run(args: argparse.Namespace) -> int:
                 fixed=fixed,
                 on_trial=on_trial,
             )
-        except MissingRLDependencies as exc:
+        except (MissingRLDependencies, ValueError) as exc:
             raise SystemExit(f"aldm-gym tune: {exc}") from None
     print(
         f"{best['trials']} trials in {time.perf_counter() - t0:.0f} s; best trial "

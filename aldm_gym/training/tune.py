@@ -1,10 +1,12 @@
 """A hyperparameter search over short trainings: :func:`tune` (``aldm-gym tune``).
 
 Each trial is one ``aldm-gym train`` run (a subprocess, in ``<out>/trials/<n>/``) with
-hyperparameters an optuna TPE sampler proposes from :data:`SEARCH_SPACE`; ``jobs``
-trials run at once. A trial is scored on its validation episodes (seeds
-``VALIDATION_SEED ..``, never the evaluation seeds) by the model the training kept
-(``best_model.zip``, the best mean return):
+hyperparameters an optuna TPE sampler proposes from :data:`SEARCH_SPACE` (training from
+scratch) or, when the trials start from a clone of the rule-based LCA
+(``pretrain_episodes``), from :data:`FINETUNE_SPACE`; ``jobs`` trials run at once. A
+trial is scored on its validation episodes (seeds ``VALIDATION_SEED ..``, never the
+evaluation seeds) by the model the training kept (``best_model.zip``, the best mean
+return; with a clone, possibly the clone itself, validated at step 0):
 
     score = mean speed [m/s] - FAILURE_PENALTY * (1 - success rate)
 
@@ -82,7 +84,33 @@ SEARCH_SPACE: dict[str, Choice | LogRange] = {
     "collision_reward": Choice((-1.0, -2.0, -3.0)),
     "overtaking_reward": Choice((0.0, 0.1, 0.3)),
 }
-"""What the search varies: each name is an ``aldm-gym train`` flag (``_`` for ``-``)."""
+"""What the search varies for a training from scratch: each name is an ``aldm-gym
+train`` flag (``_`` for ``-``)."""
+
+FINETUNE_SPACE: dict[str, Choice | LogRange] = {
+    "gamma": Choice((0.9, 0.95, 0.99)),
+    "learning_rate": LogRange(1e-5, 3e-4),
+    "n_steps": Choice((256, 512, 1024)),
+    "ent_coef": Choice((0.0, 1e-4, 1e-3)),
+    "collision_reward": Choice((-1.0, -2.0, -3.0)),
+    "overtaking_reward": Choice((0.1, 0.3, 0.5)),
+}
+"""What the search varies when every trial fine-tunes a clone of the rule-based LCA
+(``pretrain_episodes`` fixed): smaller learning rates and entropy weights than
+:data:`SEARCH_SPACE` (a rate of 2.5e-4 with an entropy weight of 1.6e-3 undid the
+clone's skill within 16k steps, docs/results.md), and an overtaking weight that pays."""
+
+SPACES: dict[str, dict[str, Choice | LogRange]] = {
+    "scratch": SEARCH_SPACE,
+    "finetune": FINETUNE_SPACE,
+}
+"""The search spaces by name (a study records the one it was started with)."""
+
+
+def space_name(fixed: Mapping[str, Any]) -> str:
+    """``"finetune"`` when the trials clone the rule-based LCA first
+    (``fixed["pretrain_episodes"]``), else ``"scratch"``."""
+    return "finetune" if fixed.get("pretrain_episodes") else "scratch"
 
 
 class TrialFailed(RuntimeError):
@@ -144,9 +172,9 @@ def launch(cmd: Sequence[str], log: Path) -> int:
         return subprocess.run(cmd, stdout=fh, stderr=subprocess.STDOUT, check=False).returncode
 
 
-def _suggest(trial: Any) -> dict[str, Any]:
+def _suggest(trial: Any, space_of: Mapping[str, Choice | LogRange]) -> dict[str, Any]:
     params: dict[str, Any] = {}
-    for name, space in SEARCH_SPACE.items():
+    for name, space in space_of.items():
         if isinstance(space, Choice):
             params[name] = trial.suggest_categorical(name, list(space.values))
         else:
@@ -156,7 +184,7 @@ def _suggest(trial: Any) -> dict[str, Any]:
 
 def _run_trial(trial: Any, out: Path, fixed: Mapping[str, Any]) -> float:
     """Train one trial in a subprocess and score it."""
-    params = _suggest(trial)
+    params = _suggest(trial, SPACES[space_name(fixed)])
     folder = out / TRIALS_DIR / f"{trial.number:03d}"
     cmd = train_command(params, fixed, folder)
     folder.mkdir(parents=True, exist_ok=True)
@@ -192,11 +220,13 @@ def tune(
     :param seed: seed of the sampler (the trainings use ``fixed["seed"]``).
     :param fixed: the flags every trial's ``aldm-gym train`` gets (``algo``,
         ``detector``, ``marking_model``, ``timesteps``, ``seed``,
-        ``validation_freq``, ``validation_episodes``, ...).
+        ``validation_freq``, ``validation_episodes``, ``pretrain_episodes``, ...);
+        ``pretrain_episodes`` selects :data:`FINETUNE_SPACE`.
     :param on_trial: called with each finished trial.
     :return: ``best.json``'s content.
     :raises MissingRLDependencies: optuna missing.
     :raises TrialFailed: no trial finished.
+    :raises ValueError: ``out`` holds a study over the other search space.
     """
     optuna = import_optuna()
     optuna.logging.set_verbosity(optuna.logging.WARNING)
@@ -210,6 +240,15 @@ def tune(
         direction="maximize",
         sampler=optuna.samplers.TPESampler(seed=seed, n_startup_trials=min(6, trials)),
     )
+    space = space_name(fixed)
+    started = study.user_attrs.get("space", "scratch" if study.trials else space)
+    if started != space:
+        raise ValueError(
+            f"{out} holds a search over the {started!r} space; this one would search the "
+            f"{space!r} space (pretrain_episodes {'not ' if space == 'scratch' else ''}given): "
+            "use another folder"
+        )
+    study.set_user_attr("space", space)
     done = sum(t.state.name == "COMPLETE" for t in study.trials)
     callbacks = [] if on_trial is None else [lambda _study, trial: on_trial(trial)]
     if trials > done:
@@ -220,7 +259,7 @@ def tune(
             catch=(TrialFailed,),
             callbacks=callbacks,
         )
-    write_table(study.trials, out / TRIALS_TABLE)
+    write_table(study.trials, out / TRIALS_TABLE, SPACES[space])
     complete = [t for t in study.trials if t.state.name == "COMPLETE"]
     if not complete:
         raise TrialFailed(f"no trial finished; see the train.log files in {out / TRIALS_DIR}")
@@ -230,6 +269,7 @@ def tune(
         "score": best.value,
         "params": best.params,
         "kept": best.user_attrs,
+        "space": space,
         "fixed": fixed,
         "command": shlex.join(
             [
@@ -248,19 +288,20 @@ def _full_budget(fixed: Mapping[str, Any]) -> dict[str, Any]:
     return {k: v for k, v in fixed.items() if k != "timesteps"}
 
 
-def write_table(trials: Sequence[Any], path: Path) -> None:
-    """One row per trial: number, state, score, hyperparameters and what it kept."""
+def write_table(trials: Sequence[Any], path: Path, space: Mapping[str, Any] = SEARCH_SPACE) -> None:
+    """One row per trial: number, state, score, the hyperparameters of ``space`` and
+    what it kept."""
     extra = ("steps", "mean_speed", "success_rate", "collisions", "rule_based_speed", "wall_s")
     with open(path, "w", newline="") as fh:
         writer = csv.writer(fh)
-        writer.writerow(["trial", "state", "score", *SEARCH_SPACE, *extra])
+        writer.writerow(["trial", "state", "score", *space, *extra])
         for t in trials:
             writer.writerow(
                 [
                     t.number,
                     t.state.name,
                     "" if t.value is None else f"{t.value:.4f}",
-                    *(t.params.get(name, "") for name in SEARCH_SPACE),
+                    *(t.params.get(name, "") for name in space),
                     *(t.user_attrs.get(name, "") for name in extra),
                 ]
             )

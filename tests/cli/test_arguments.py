@@ -134,6 +134,13 @@ CASES = [
     (["tune", "--env", "detector=naive"], "--env", "detector has its own flag: --detector"),
     (["tune", "--env", "duration=-1"], "--env", "duration must be > 0"),
     (["tune", "--env", "collision_reward=-5"], "--env", "collision_reward is searched"),
+    (["tune", "--pretrain-epochs", "3", "--out", "DIR/t"], "--pretrain-epochs", "needs --pretrain"),
+    (["tune", "--pretrain-episodes", "0"], "--pretrain-episodes", "must be in [1, 10000]"),
+    (
+        ["tune", "--pretrain-episodes", "5", "--env", "overtaking_reward=0.2"],
+        "--env",
+        "overtaking_reward is searched",
+    ),
     (["train", "--env", "detector_params.trackin=model"], "--env", "did you mean 'tracking'"),
     (["train", "--env", "detector=naive"], "--env", "detector has its own flag: --detector"),
     (["train", "--env", "vehicles_count=3"], "--env", "has its own flag: --vehicles"),

@@ -17,7 +17,10 @@ pytest.importorskip("optuna")
 from aldm_gym.training import tune as tune_module
 from aldm_gym.training.tune import (
     FAILURE_PENALTY,
+    FINETUNE_SPACE,
     SEARCH_SPACE,
+    Choice,
+    LogRange,
     TrialFailed,
     score,
     train_command,
@@ -112,6 +115,30 @@ def test_search_writes_table_and_best_and_continues(tmp_path: Path, fake_trainin
     again = tune(tmp_path, trials=6, jobs=1, fixed={"timesteps": 64})
     assert again["trials"] == 6
     assert sorted(p.name for p in (tmp_path / "trials").iterdir()) == [f"{i:03d}" for i in range(6)]
+
+
+def test_a_search_from_a_clone_varies_the_fine_tuning_space(
+    tmp_path: Path, fake_training: None
+) -> None:
+    """``pretrain_episodes`` among the fixed flags: every trial clones first, the
+    sampler draws from :data:`FINETUNE_SPACE`, and the folder keeps that space."""
+    fixed = {"timesteps": 64, "pretrain_episodes": 5}
+    best = tune(tmp_path / "ft", trials=3, jobs=1, fixed=fixed)
+    assert best["space"] == "finetune"
+    assert "--pretrain-episodes 5" in best["command"]
+    with open(tmp_path / "ft" / "trials.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    assert list(rows[0])[3 : 3 + len(FINETUNE_SPACE)] == list(FINETUNE_SPACE)
+    ent, lr = FINETUNE_SPACE["ent_coef"], FINETUNE_SPACE["learning_rate"]
+    assert isinstance(ent, Choice) and isinstance(lr, LogRange)
+    assert {float(r["ent_coef"]) for r in rows} <= set(ent.values)
+    assert all(lr.low <= float(r["learning_rate"]) <= lr.high for r in rows)
+    # A folder holds one space: the search from scratch is refused there, and back.
+    with pytest.raises(ValueError, match="'finetune' space; this one would search the 'scratch'"):
+        tune(tmp_path / "ft", trials=4, jobs=1, fixed={"timesteps": 64})
+    tune(tmp_path / "sc", trials=1, jobs=1, fixed={"timesteps": 64})
+    with pytest.raises(ValueError, match="'scratch' space; this one would search the 'finetune'"):
+        tune(tmp_path / "sc", trials=2, jobs=1, fixed=fixed)
 
 
 def test_failed_trials_are_recorded_not_fatal(tmp_path: Path, fake_training: None) -> None:
