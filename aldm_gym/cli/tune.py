@@ -100,7 +100,14 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
 
 def run(args: argparse.Namespace) -> int:
     """``aldm-gym tune``."""
-    from aldm_gym.training.tune import BEST_FILE, SPACES, TRIALS_TABLE, space_name, tune
+    from aldm_gym.training.tune import (
+        BEST_FILE,
+        SPACES,
+        TRIALS_TABLE,
+        StudyMismatch,
+        space_name,
+        tune,
+    )
 
     # bad flags are refused before --out is made; duration and traffic go to each
     # trial as train's own flags; the searched reward weights cannot be fixed
@@ -145,12 +152,19 @@ def run(args: argparse.Namespace) -> int:
                 fixed=fixed,
                 on_trial=on_trial,
             )
-        except (MissingRLDependencies, ValueError) as exc:
+        except MissingRLDependencies as exc:
             raise SystemExit(f"aldm-gym tune: {exc}") from None
+        except StudyMismatch as exc:
+            raise BadArgument("--out", str(exc)) from None
     print(
         f"{best['trials']} trials in {time.perf_counter() - t0:.0f} s; best trial "
         f"{best['trial']} (score {best['score']:.2f}: {best['kept'].get('mean_speed', 0):.2f} "
         f"m/s, success {best['kept'].get('success_rate', 0):.2f} on the validation seeds); "
         f"wrote {out / TRIALS_TABLE} and {out / BEST_FILE}\ntrain it with: {best['command']}"
     )
+    if args.pretrain_episodes and best["kept"].get("steps") == 0:
+        print(
+            "the best trial kept its clone (validated at step 0): no fine-tuning beat the "
+            "clone, so its hyperparameters are not a finding"
+        )
     return 0

@@ -96,9 +96,10 @@ FINETUNE_SPACE: dict[str, Choice | LogRange] = {
     "overtaking_reward": Choice((0.1, 0.3, 0.5)),
 }
 """What the search varies when every trial fine-tunes a clone of the rule-based LCA
-(``pretrain_episodes`` fixed): smaller learning rates and entropy weights than
-:data:`SEARCH_SPACE` (a rate of 2.5e-4 with an entropy weight of 1.6e-3 undid the
-clone's skill within 16k steps, docs/results.md), and an overtaking weight that pays."""
+(``pretrain_episodes`` fixed): lower learning rates and entropy weights than
+:data:`SEARCH_SPACE` (2.5e-4 with an entropy weight of 1.6e-3 undid the clone's skill
+within 16k steps, on a reward whose lane-keeping term charged every lane change;
+docs/results.md), and an overtaking weight that pays."""
 
 SPACES: dict[str, dict[str, Choice | LogRange]] = {
     "scratch": SEARCH_SPACE,
@@ -115,6 +116,10 @@ def space_name(fixed: Mapping[str, Any]) -> str:
 
 class TrialFailed(RuntimeError):
     """A trial's training exited with an error (its ``train.log`` says why)."""
+
+
+class StudyMismatch(ValueError):
+    """The search folder holds a study started with other fixed flags or space."""
 
 
 def import_optuna() -> Any:
@@ -226,13 +231,19 @@ def tune(
     :return: ``best.json``'s content.
     :raises MissingRLDependencies: optuna missing.
     :raises TrialFailed: no trial finished.
-    :raises ValueError: ``out`` holds a study over the other search space.
+    :raises StudyMismatch: ``out`` holds a study started with other ``fixed`` flags
+        or the other search space.
     """
     optuna = import_optuna()
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    fixed = dict(fixed or {})
+    # pretrain_episodes 0 or None: no cloning (train refuses --pretrain-episodes 0)
+    fixed = {
+        k: v
+        for k, v in (fixed or {}).items()
+        if not (k in ("pretrain_episodes", "pretrain_epochs") and not v)
+    }
     study = optuna.create_study(
         study_name="aldm-gym",
         storage=f"sqlite:///{out / STUDY_FILE}",
@@ -241,14 +252,9 @@ def tune(
         sampler=optuna.samplers.TPESampler(seed=seed, n_startup_trials=min(6, trials)),
     )
     space = space_name(fixed)
-    started = study.user_attrs.get("space", "scratch" if study.trials else space)
-    if started != space:
-        raise ValueError(
-            f"{out} holds a search over the {started!r} space; this one would search the "
-            f"{space!r} space (pretrain_episodes {'not ' if space == 'scratch' else ''}given): "
-            "use another folder"
-        )
+    _check_continuation(study, out, space, fixed)
     study.set_user_attr("space", space)
+    study.set_user_attr("fixed", _as_json(fixed))
     done = sum(t.state.name == "COMPLETE" for t in study.trials)
     callbacks = [] if on_trial is None else [lambda _study, trial: on_trial(trial)]
     if trials > done:
@@ -281,6 +287,42 @@ def tune(
     }
     write_json(out / BEST_FILE, record)
     return record
+
+
+def _as_json(value: Any) -> Any:
+    """``value`` as JSON gives it back (tuples as lists), to compare with a stored one."""
+    return json.loads(json.dumps(value))
+
+
+def _flag(name: str) -> str:
+    return "--" + name.replace("_", "-")
+
+
+def _check_continuation(study: Any, out: Path, space: str, fixed: Mapping[str, Any]) -> None:
+    """Refuse to continue ``study`` with other fixed flags or another search space
+    (:class:`StudyMismatch`): its trials would not compare, and ``best.json``'s command
+    would not train the best of them. A study of an older version, without the record,
+    is taken as a search from scratch with any fixed flags."""
+    if not study.trials and "space" not in study.user_attrs:
+        return
+    started = study.user_attrs.get("space", "scratch")
+    if started != space:
+        given = "with" if started == "finetune" else "without"
+        raise StudyMismatch(
+            f"{out} holds a search {given} --pretrain-episodes (the {started!r} space); "
+            f"continue it {given} --pretrain-episodes, or choose another --out"
+        )
+    saved = study.user_attrs.get("fixed")
+    if saved is None:
+        return
+    now = _as_json(fixed)
+    changed = sorted(k for k in {*saved, *now} if saved.get(k) != now.get(k))
+    if changed:
+        was = ", ".join(f"{_flag(k)} {saved.get(k, '(not given)')}" for k in changed)
+        raise StudyMismatch(
+            f"{out} holds a search with {was}; continue it with the same flags, or "
+            "choose another --out"
+        )
 
 
 def _full_budget(fixed: Mapping[str, Any]) -> dict[str, Any]:

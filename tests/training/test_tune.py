@@ -21,6 +21,7 @@ from aldm_gym.training.tune import (
     SEARCH_SPACE,
     Choice,
     LogRange,
+    StudyMismatch,
     TrialFailed,
     score,
     train_command,
@@ -134,11 +135,64 @@ def test_a_search_from_a_clone_varies_the_fine_tuning_space(
     assert {float(r["ent_coef"]) for r in rows} <= set(ent.values)
     assert all(lr.low <= float(r["learning_rate"]) <= lr.high for r in rows)
     # A folder holds one space: the search from scratch is refused there, and back.
-    with pytest.raises(ValueError, match="'finetune' space; this one would search the 'scratch'"):
+    with pytest.raises(StudyMismatch, match=r"with --pretrain-episodes \(the 'finetune' space"):
         tune(tmp_path / "ft", trials=4, jobs=1, fixed={"timesteps": 64})
-    tune(tmp_path / "sc", trials=1, jobs=1, fixed={"timesteps": 64})
-    with pytest.raises(ValueError, match="'scratch' space; this one would search the 'finetune'"):
+    tune(tmp_path / "sc", trials=1, jobs=1, fixed={"timesteps": 64, "pretrain_episodes": 0})
+    with pytest.raises(StudyMismatch, match="search without --pretrain-episodes"):
         tune(tmp_path / "sc", trials=2, jobs=1, fixed=fixed)
+
+
+def test_a_study_continues_only_with_its_fixed_flags(
+    tmp_path: Path, fake_training: None, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Other fixed flags would make trials incomparable and best.json's command wrong."""
+    fixed = {"timesteps": 64, "seed": 0, "env": ["lane_keeping_reward=0"]}
+    tune(tmp_path, trials=1, jobs=1, fixed=fixed)
+    with pytest.raises(StudyMismatch, match=r"with --seed 0; continue it with the same flags"):
+        tune(tmp_path, trials=2, jobs=1, fixed={**fixed, "seed": 1})
+    with pytest.raises(StudyMismatch, match=r"with --env \['lane_keeping_reward=0'\], --x \(not"):
+        tune(tmp_path, trials=2, jobs=1, fixed={**fixed, "env": [], "x": 1})
+    assert tune(tmp_path, trials=2, jobs=1, fixed=dict(fixed))["trials"] == 2
+    # The command line says which folder and how to go on (usage error, exit code 2).
+    from aldm_gym.cli import main
+
+    with pytest.raises(SystemExit) as exc:
+        main(["tune", "--trials", "3", "--seed", "5", "--out", str(tmp_path), "--no-progress"])
+    assert exc.value.code == 2
+    assert "argument --out: " in capsys.readouterr().err
+
+
+def test_an_older_study_is_a_search_from_scratch(tmp_path: Path, fake_training: None) -> None:
+    """A study without the record (an older version's) continues from scratch only."""
+    optuna = pytest.importorskip("optuna")
+    study = optuna.create_study(
+        study_name="aldm-gym", storage=f"sqlite:///{tmp_path / 'study.db'}", direction="maximize"
+    )
+    gamma = optuna.distributions.CategoricalDistribution([0.8, 0.9, 0.95])
+    study.add_trial(
+        optuna.trial.create_trial(params={"gamma": 0.9}, distributions={"gamma": gamma}, value=1.0)
+    )
+    with pytest.raises(StudyMismatch, match="without --pretrain-episodes"):
+        tune(tmp_path, trials=2, jobs=1, fixed={"pretrain_episodes": 3})
+    assert tune(tmp_path, trials=3, jobs=1, fixed={"timesteps": 64})["trials"] == 3
+
+
+def test_trial_commands_parse_as_train_arguments() -> None:
+    """Every value the searches draw reaches ``aldm-gym train`` as drawn."""
+    from aldm_gym.cli import build_parser
+
+    parser = build_parser()
+    for space in (SEARCH_SPACE, FINETUNE_SPACE):
+        for i in range(3):
+            params = {
+                name: dim.values[i] if isinstance(dim, Choice) else (dim.low, dim.high, dim.low)[i]
+                for name, dim in space.items()
+            }
+            fixed = {"algo": "maskable-ppo", "pretrain_episodes": 7, "pretrain_epochs": 2}
+            args = parser.parse_args(train_command(params, fixed, Path("o"))[3:])
+            assert args.pretrain_episodes == 7 and args.pretrain_epochs == 2
+            for name, value in params.items():
+                assert getattr(args, name) == pytest.approx(value, rel=1e-3), name
 
 
 def test_failed_trials_are_recorded_not_fatal(tmp_path: Path, fake_training: None) -> None:
