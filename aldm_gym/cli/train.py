@@ -80,6 +80,7 @@ from aldm_gym.training.settings import (
     DEFAULT_TIMESTEPS,
     DEFAULT_VALIDATION_EPISODES,
     DEFAULT_VALIDATION_FREQ,
+    KEEP_BY,
     LR_SCHEDULES,
     NAMED_ENV_KEYS,
     VALIDATION_SEED,
@@ -116,6 +117,7 @@ _ONLY = {
         "validation_episodes",
         "pretrain_episodes",
         "pretrain_epochs",
+        "keep_by",
     ),
     "rllib": ("num_env_runners", "address"),
 }
@@ -275,6 +277,13 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         default=None,
         help=f"passes over the demonstrations of --pretrain-episodes ({DEFAULT_PRETRAIN_EPOCHS})",
     )
+    parser.add_argument(
+        "--keep-by",
+        choices=KEEP_BY,
+        default=None,
+        help="keep as best_model.zip the validation with the highest mean return, or "
+        "score (mean speed less 10 m/s per failed-episode share) (return)",
+    )
     add_env_argument(parser, "saved with the training")
     parser.add_argument("--seed", type=seed, default=None, help="seed of envs and network (0)")
     parser.add_argument("--out", type=output_dir, default=Path("out/train"), help="output folder")
@@ -423,6 +432,7 @@ def _check_resume(args: argparse.Namespace, meta: dict[str, Any]) -> None:
         ("--n-steps", args.n_steps, meta["ppo"]["n_steps"]),
         ("--lr-schedule", args.lr_schedule, meta["ppo"].get("lr_schedule", "constant")),
         ("--gamma", args.gamma, meta["ppo"]["gamma"]),
+        ("--keep-by", args.keep_by, meta.get("keep_by", "return")),
     ):
         if value is not None and value != saved:
             raise BadArgument(
@@ -539,6 +549,7 @@ def run(args: argparse.Namespace) -> int:
         validation_episodes=validation_episodes,
         pretrain_episodes=args.pretrain_episodes or 0,
         pretrain_epochs=args.pretrain_epochs or DEFAULT_PRETRAIN_EPOCHS,
+        keep_by=args.keep_by,
         **_common_settings(args, quick),
     )
     if model is None:
@@ -554,7 +565,8 @@ def run(args: argparse.Namespace) -> int:
         record = json.loads(validation.read_text())
         best = next(h for h in record["history"] if h["steps"] == record["best_steps"])
         print(
-            f"best validation at {best['steps']} steps (mean return {best['mean_return']:.2f}, "
+            f"best validation by {record.get('keep_by', 'return')} at {best['steps']} steps "
+            f"(mean return {best['mean_return']:.2f}, "
             f"success {best['success_rate']:.2f}, {best['mean_speed']:.2f} m/s): "
             f"{out / BEST_MODEL_FILE}; evaluate it with aldm-gym evaluate --model {out}"
         )

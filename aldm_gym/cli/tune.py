@@ -37,6 +37,7 @@ from aldm_gym.training.settings import (
     DEFAULT_PRETRAIN_EPOCHS,
     DEFAULT_VALIDATION_EPISODES,
     DEFAULT_VALIDATION_FREQ,
+    KEEP_BY,
 )
 
 DEFAULT_TRIALS = 12
@@ -92,6 +93,13 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         default=None,
         help=f"passes over the demonstrations of --pretrain-episodes ({DEFAULT_PRETRAIN_EPOCHS})",
     )
+    parser.add_argument(
+        "--keep-by",
+        choices=KEEP_BY,
+        default="score",
+        help="what each trial keeps its best model by, the model the trial is scored on: "
+        "its validation score (as the trials are compared) or mean return",
+    )
     parser.add_argument("--out", type=output_dir, default=Path("out/tune"), help="output folder")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.set_defaults(func=run)
@@ -131,6 +139,7 @@ def run(args: argparse.Namespace) -> int:
         "seed": args.seed,
         "validation_freq": args.validation_freq,
         "validation_episodes": args.validation_episodes,
+        "keep_by": args.keep_by,
         **pretrain,
         **env_flags,
         "env": env,

@@ -3,7 +3,8 @@
 Output folder of a training (``aldm-gym train --out <out>``), both backends::
 
     <out>/training.json        backend, env config, hyperparameters, run settings
-                               (SB3: "pretrain", the cloning's settings and report)
+                               (SB3: "pretrain", the cloning's settings and report;
+                               "keep_by", what the best model is kept by)
     <out>/train.lock           held (``flock``) by the training writing the folder
     <out>/tb/                  tensorboard events (SB3: PPO_1/ or MaskablePPO_1/, RLlib: RLlib_PPO/)
 
@@ -16,7 +17,8 @@ Output folder of a training (``aldm-gym train --out <out>``), both backends::
                                                  checkpoint is complete and intact)
     <out>/best_model.zip       the model of the best validation so far, with
     <out>/best_vecnormalize.pkl  its normalisation and
-    <out>/validation.json      every validation's metrics, the best one's steps, and
+    <out>/validation.json      every validation's metrics, the best one's steps (by
+                               "keep_by"), and
                                IDLE's and the rule-based LCA's on the same seeds
     <out>/validation.png       the same as a figure
 

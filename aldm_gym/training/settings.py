@@ -39,6 +39,14 @@ DEFAULT_PRETRAIN_EPOCHS = 30
 """Default passes over the demonstrations when cloning the rule-based LCA (SB3 backend,
 :mod:`aldm_gym.training.sb3.pretrain`)."""
 
+FAILURE_PENALTY = 10.0
+"""Score lost per unit of failed-episode share [m/s] (one failure in 20 costs 0.5):
+see :func:`validation_score`."""
+
+KEEP_BY = ("return", "score")
+"""What a training keeps as its best model (SB3 backend): the validation with the
+highest mean return, or with the highest :func:`validation_score`."""
+
 DEFAULT_ENV_RUNNERS = 1
 """Default ``--num-env-runners`` (RLlib backend)."""
 
@@ -53,6 +61,22 @@ ALGORITHMS: dict[str, str] = {"ppo": "PPO", "maskable-ppo": "MaskablePPO"}
 ``algorithm``): stable-baselines3's PPO, and sb3-contrib's MaskablePPO, which samples
 only the actions the env's ``action_masks()`` allows (lane changes only towards a
 detected adjacent lane)."""
+
+
+def validation_score(row: Mapping[str, Any]) -> float:
+    """A validation's score [m/s]: ``mean_speed - FAILURE_PENALTY * (1 - success_rate)``.
+
+    What the lane-change results ask for (speed, without collisions or departures), on
+    a scale that does not depend on the reward's weights (``aldm-gym tune`` compares
+    trials by it; ``keep_by="score"`` keeps the model by it).
+    """
+    return float(row["mean_speed"]) - FAILURE_PENALTY * (1.0 - float(row["success_rate"]))
+
+
+def check_keep_by(keep_by: str) -> None:
+    """Refuse a ``keep_by`` not in :data:`KEEP_BY` (:class:`ConfigError` naming them)."""
+    if keep_by not in KEEP_BY:
+        raise ConfigError(f"keep_by must be one of {KEEP_BY}, got {keep_by!r}")
 
 
 def algorithm_name(algo: str) -> str:

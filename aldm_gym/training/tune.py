@@ -5,8 +5,9 @@ hyperparameters an optuna TPE sampler proposes from :data:`SEARCH_SPACE` (traini
 scratch) or, when the trials start from a clone of the rule-based LCA
 (``pretrain_episodes``), from :data:`FINETUNE_SPACE`; ``jobs`` trials run at once. A
 trial is scored on its validation episodes (seeds ``VALIDATION_SEED ..``, never the
-evaluation seeds) by the model the training kept (``best_model.zip``, the best mean
-return; with a clone, possibly the clone itself, validated at step 0):
+evaluation seeds) by the model the training kept (``best_model.zip``: by the score
+itself with ``keep_by="score"``, which ``aldm-gym tune`` passes by default, else by
+mean return; with a clone, possibly the clone itself, validated at step 0):
 
     score = mean speed [m/s] - FAILURE_PENALTY * (1 - success rate)
 
@@ -42,11 +43,9 @@ from typing import Any
 from aldm_gym.errors import MissingRLDependencies
 from aldm_gym.training.backend import import_extra
 from aldm_gym.training.outputs import VALIDATION_FILE, write_json
+from aldm_gym.training.settings import validation_score
 
 logger = logging.getLogger(__name__)
-
-FAILURE_PENALTY = 10.0
-"""Score lost per unit of failed-episode share [m/s] (one failure in 20 costs 0.5)."""
 
 STUDY_FILE = "study.db"
 """The optuna study (SQLite) in the search's folder."""
@@ -140,7 +139,7 @@ def score(validation: Mapping[str, Any]) -> tuple[float, dict[str, Any]]:
     if not rows:
         raise TrialFailed("the training recorded no validation")
     row = rows[0]
-    return float(row["mean_speed"]) - FAILURE_PENALTY * (1.0 - float(row["success_rate"])), row
+    return validation_score(row), row
 
 
 def train_command(

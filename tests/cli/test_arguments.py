@@ -148,6 +148,12 @@ CASES = [
     (["train", "--env", "sensor=1", "--env", "sensor.preset=camera"], "--env", "not a section"),
     (["train", "--env", "sensor.preset=camera", "--env", "sensor=1"], "--env", "is a section"),
     (["train", "--backend", "ray"], "--backend", "invalid choice: 'ray'"),
+    (["train", "--keep-by", "speed"], "--keep-by", "invalid choice: 'speed'"),
+    (
+        ["train", "--backend", "rllib", "--keep-by", "score", "--out", "DIR/t"],
+        "--keep-by",
+        "applies to --backend sb3 only",
+    ),
     (["train", "--num-env-runners", "-1"], "--num-env-runners", "must be in [0, 1024]"),
     (["train", "--address", "nohost"], "--address", "must be 'auto' or host:port"),
     (["train", "--address", "h:99999"], "--address", "must be 'auto' or host:port"),

@@ -118,6 +118,48 @@ def test_validation_keeps_the_model_it_scored_best(tmp_path: Path) -> None:
     )
 
 
+def test_keep_by_score_prefers_the_validation_without_failures(tmp_path: Path) -> None:
+    """The return can rank a faster validation with a collision first; the score
+    (speed less 10 m/s per failed-episode share) does not."""
+    from aldm_gym.errors import ConfigError
+    from aldm_gym.training.sb3.callbacks import ValidationCallback
+
+    clean = {"steps": 1, "mean_return": 30.0, "mean_speed": 25.2, "success_rate": 1.0}
+    risky = {"steps": 2, "mean_return": 30.4, "mean_speed": 25.6, "success_rate": 0.95}
+    ranks = {}
+    for keep_by in ("return", "score"):
+        cb = ValidationCallback(tmp_path, {}, 1, 1, keep_by=keep_by)
+        ranks[keep_by] = max((clean, risky), key=cb._merit)["steps"]
+    assert ranks == {"return": 2, "score": 1}
+    with pytest.raises(ConfigError, match=r"keep_by must be one of \('return', 'score'\)"):
+        ValidationCallback(tmp_path, {}, 1, 1, keep_by="speed")
+    with pytest.raises(ConfigError, match="keep_by must be one of"):
+        train(tmp_path / "t", keep_by="speed", **TINY_KWARGS)
+    assert not (tmp_path / "t").exists()
+
+
+@pytest.mark.slow
+def test_keep_by_is_recorded_and_kept_on_resume(
+    tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    from aldm_gym.training.settings import validation_score
+
+    out = tmp_path / "score"
+    extra = ("--validation-freq", "32", "--validation-episodes", "2", "--keep-by", "score")
+    assert tiny_train(out, 64, *extra) == 0
+    record = json.loads((out / "validation.json").read_text())
+    assert record["keep_by"] == "score"
+    assert json.loads((out / "training.json").read_text())["keep_by"] == "score"
+    scores = [validation_score(h) for h in record["history"]]
+    assert record["best_steps"] == record["history"][scores.index(max(scores))]["steps"]
+    argv = ["train", "--out", str(out), "--resume", "--timesteps", "96", "--keep-by", "return"]
+    assert "--keep-by: return contradicts the training being resumed (score)" in usage_error(
+        argv, capsys
+    )
+    assert main(["train", "--out", str(out), "--resume", "--timesteps", "96", "--no-progress"]) == 0
+    assert json.loads((out / "validation.json").read_text())["keep_by"] == "score"
+
+
 @pytest.mark.slow
 def test_resume_after_interruption_continues_step_count(
     tmp_path: Path, capsys: pytest.CaptureFixture

@@ -15,8 +15,8 @@ import pytest
 pytest.importorskip("optuna")
 
 from aldm_gym.training import tune as tune_module
+from aldm_gym.training.settings import FAILURE_PENALTY
 from aldm_gym.training.tune import (
-    FAILURE_PENALTY,
     FINETUNE_SPACE,
     SEARCH_SPACE,
     Choice,

@@ -76,6 +76,7 @@ from aldm_gym.training.settings import (
     RUN_DEFAULTS,
     PPOParams,
     algorithm_name,
+    check_keep_by,
     env_config,
 )
 from aldm_gym.training.signals import StopRequest
@@ -97,6 +98,8 @@ class SB3Backend(Backend[Checkpoint]):
         played on this many episodes (0: not; :mod:`aldm_gym.training.sb3.pretrain`).
         A resume takes both cloning settings from ``training.json``'s ``"pretrain"``.
     :param pretrain_epochs: passes of the cloning over the demonstrations.
+    :param keep_by: what the validation keeps the best model by (``"return"`` or
+        ``"score"``; None: the saved one on a resume, else ``"return"``).
     :ivar model: the SB3 PPO model (None before :meth:`build` or :meth:`restore`).
     """
 
@@ -114,8 +117,19 @@ class SB3Backend(Backend[Checkpoint]):
         callback: Any = None,
         pretrain_episodes: int = 0,
         pretrain_epochs: int = DEFAULT_PRETRAIN_EPOCHS,
+        keep_by: str | None = None,
     ) -> None:
         super().__init__(out, meta, saved, progress)
+        # a resume keeps the training's own (before keep_by existed: the return)
+        was = None if saved is None else str(saved.get("keep_by", "return"))
+        if keep_by is not None:
+            check_keep_by(keep_by)
+            if was is not None and keep_by != was:
+                raise ConfigError(
+                    f"keep_by={keep_by!r}, but the training being resumed keeps its best "
+                    f"model by {was!r} (its best_model.zip was chosen so)"
+                )
+        self.meta["keep_by"] = keep_by or was or "return"
         self.verbose = verbose
         self.callback = callback
         self.pretrain_episodes = pretrain_episodes
@@ -272,6 +286,7 @@ class SB3Backend(Backend[Checkpoint]):
                     run["validation_episodes"],
                     progress=self.progress,
                     validate_first="pretrain" in run and self.done == 0,
+                    keep_by=run["keep_by"],
                 )
             )
         if self.progress:
@@ -350,6 +365,7 @@ def train(
     validation_episodes: int | None = None,
     pretrain_episodes: int = 0,
     pretrain_epochs: int = DEFAULT_PRETRAIN_EPOCHS,
+    keep_by: str | None = None,
     resume: bool = False,
     progress: bool = True,
     verbose: int = 0,
@@ -389,6 +405,12 @@ def train(
         validated at step 0. Not with ``resume``: a resume keeps the training's own
         (and clones again only if it restarts from step 0).
     :param pretrain_epochs: passes over the demonstrations.
+    :param keep_by: the validation keeps as ``best_model.zip`` the model of the highest
+        mean return (``"return"``, the default) or the highest score, mean speed less
+        10 m/s per unit of failed-episode share
+        (``"score"``, :func:`~aldm_gym.training.settings.validation_score`: the return
+        mixes speed with the reward's other terms, and a validation with a collision
+        can outscore one without). A resume keeps the training's own.
     :param progress: a tqdm bar over the steps, showing the recent training episodes'
         mean return and length, and one over each validation's episodes (the progress
         lines announcing and reporting each validation are logged either way).
@@ -404,12 +426,16 @@ def train(
     :raises ResumeError: ``resume`` of an RLlib training.
     :raises OutputLocked: another training is writing ``out``.
     :raises ConfigError: ``pretrain_episodes`` outside ``0..MAX_PRETRAIN_EPISODES``,
-        ``pretrain_epochs`` < 1, or ``pretrain_episodes`` with ``resume``.
+        ``pretrain_epochs`` < 1, ``pretrain_episodes`` with ``resume``, a ``keep_by``
+        not in :data:`~aldm_gym.training.settings.KEEP_BY` or, on a resume, other than
+        the training's.
     :raises MissingRLDependencies: stable-baselines3 / torch missing.
     :raises KeyboardInterrupt: interrupted by Ctrl-C or SIGTERM (after saving the
         last consistent state as a checkpoint).
     """
     check_pretrain(pretrain_episodes, pretrain_epochs)
+    if keep_by is not None:
+        check_keep_by(keep_by)
     if resume and pretrain_episodes:
         raise ConfigError(
             "pretrain_episodes clones before a new training only; a resume keeps the training's own"
@@ -442,5 +468,6 @@ def train(
         callback=callback,
         pretrain_episodes=pretrain_episodes,
         pretrain_epochs=pretrain_epochs,
+        keep_by=keep_by,
     )
     return backend.model

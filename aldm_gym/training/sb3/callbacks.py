@@ -51,7 +51,7 @@ from aldm_gym.training.sb3.checkpoints import (
 )
 from aldm_gym.training.sb3.envs import global_rng_state, set_global_rng_state
 from aldm_gym.training.sb3.policy import NormalizedModel
-from aldm_gym.training.settings import VALIDATION_SEED
+from aldm_gym.training.settings import VALIDATION_SEED, check_keep_by, validation_score
 
 
 class RolloutCheckpointCallback(CheckpointCallback):
@@ -174,7 +174,9 @@ class ValidationCallback(BaseCallback):
 
     The current policy (deterministic, with the training's normalisation) drives
     ``n_episodes`` episodes with seeds ``VALIDATION_SEED ..``; the one with the highest
-    mean return is saved as ``best_model.zip``. Every validation goes to
+    mean return (``keep_by="return"``) or
+    :func:`~aldm_gym.training.settings.validation_score` (``keep_by="score"``) is
+    saved as ``best_model.zip`` (the earliest of equals). Every validation goes to
     ``validation.json`` (with IDLE's and the rule-based LCA's metrics on the same
     seeds), ``validation.png`` and tensorboard (``validation/*``). A resume continues
     the saved record when its seeds match.
@@ -194,6 +196,7 @@ class ValidationCallback(BaseCallback):
         are reported either way.
     :param validate_first: also validate the model as training starts (a model
         pretrained by cloning: it may stay the best).
+    :param keep_by: ``"return"`` or ``"score"`` (:data:`~aldm_gym.training.settings.KEEP_BY`).
     """
 
     def __init__(
@@ -204,8 +207,11 @@ class ValidationCallback(BaseCallback):
         n_episodes: int,
         progress: bool = False,
         validate_first: bool = False,
+        keep_by: str = "return",
     ) -> None:
         super().__init__()
+        check_keep_by(keep_by)
+        self.keep_by = keep_by
         self.progress = progress
         self.validate_first = validate_first
         self.out = Path(out)
@@ -272,6 +278,10 @@ class ValidationCallback(BaseCallback):
             self.validate()
         self.env.close()
 
+    def _merit(self, row: dict[str, Any]) -> float:
+        """What :attr:`keep_by` ranks validations by."""
+        return validation_score(row) if self.keep_by == "score" else float(row["mean_return"])
+
     def validate(self) -> None:
         """Play the validation seeds now; record, log, and keep the model if best."""
         from aldm_gym.agents.figures import plot_validation
@@ -286,11 +296,12 @@ class ValidationCallback(BaseCallback):
         for key in ("mean_return", "success_rate", "mean_speed", "collisions"):
             self.logger.record(f"validation/{key}", row[key])
         self.history.append(row)
-        if self.best is None or row["mean_return"] > self.best["mean_return"]:
+        if self.best is None or self._merit(row) > self._merit(self.best):
             self.best = row
             save_model(self.model, self.out / BEST_MODEL_FILE, self.out / BEST_VECNORM_FILE)
         record = {
             "seeds": [VALIDATION_SEED, VALIDATION_SEED + self.n_episodes - 1],
+            "keep_by": self.keep_by,
             "best_steps": self.best["steps"],
             "baselines": self.baselines,
             "history": self.history,
