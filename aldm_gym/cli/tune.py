@@ -28,7 +28,7 @@ from aldm_gym.cli.argtypes import (
     seed,
 )
 from aldm_gym.cli.train import add_env_argument, env_settings
-from aldm_gym.errors import MissingRLDependencies
+from aldm_gym.errors import MissingRLDependencies, OutputLocked
 from aldm_gym.roads.highway import MARKING_MODELS
 from aldm_gym.sensor.detectors import DETECTORS
 from aldm_gym.training.sb3.pretrain import MAX_PRETRAIN_EPISODES
@@ -163,7 +163,7 @@ def run(args: argparse.Namespace) -> int:
             )
         except MissingRLDependencies as exc:
             raise SystemExit(f"aldm-gym tune: {exc}") from None
-        except StudyMismatch as exc:
+        except (StudyMismatch, OutputLocked) as exc:
             raise BadArgument("--out", str(exc)) from None
     print(
         f"{best['trials']} trials in {time.perf_counter() - t0:.0f} s; best trial "

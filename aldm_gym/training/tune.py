@@ -23,7 +23,8 @@ quote. It is the ``[tune]`` extra.
 Files: ``<out>/study.db`` (the optuna study), ``<out>/trials/<n>/`` (each training and
 its ``train.log``), ``<out>/trials.csv`` (one row per trial: number, state, score,
 hyperparameters, kept steps, wall time) and ``<out>/best.json`` (the best trial and the
-``aldm-gym train`` command that trains it with the full budget).
+``aldm-gym train`` command that trains it with the full budget); ``<out>/train.lock``
+is held while the search runs (one search per folder).
 """
 
 from __future__ import annotations
@@ -42,6 +43,7 @@ from typing import Any
 
 from aldm_gym.errors import MissingRLDependencies
 from aldm_gym.training.backend import import_extra
+from aldm_gym.training.lock import output_lock
 from aldm_gym.training.outputs import VALIDATION_FILE, write_json
 from aldm_gym.training.settings import validation_score
 
@@ -232,60 +234,58 @@ def tune(
     :raises TrialFailed: no trial finished.
     :raises StudyMismatch: ``out`` holds a study started with other ``fixed`` flags
         or the other search space.
+    :raises OutputLocked: another search is running in ``out``.
     """
     optuna = import_optuna()
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    # pretrain_episodes 0 or None: no cloning (train refuses --pretrain-episodes 0)
-    fixed = {
-        k: v
-        for k, v in (fixed or {}).items()
-        if not (k in ("pretrain_episodes", "pretrain_epochs") and not v)
-    }
-    study = optuna.create_study(
-        study_name="aldm-gym",
-        storage=f"sqlite:///{out / STUDY_FILE}",
-        load_if_exists=True,
-        direction="maximize",
-        sampler=optuna.samplers.TPESampler(seed=seed, n_startup_trials=min(6, trials)),
-    )
-    space = space_name(fixed)
-    _check_continuation(study, out, space, fixed)
-    study.set_user_attr("space", space)
-    study.set_user_attr("fixed", _as_json(fixed))
-    done = sum(t.state.name == "COMPLETE" for t in study.trials)
-    callbacks = [] if on_trial is None else [lambda _study, trial: on_trial(trial)]
-    if trials > done:
-        study.optimize(
-            lambda trial: _run_trial(trial, out, fixed),
-            n_trials=trials - done,
-            n_jobs=jobs,
-            catch=(TrialFailed,),
-            callbacks=callbacks,
+    with output_lock(out):  # one search per folder
+        # pretrain_episodes 0 or None: no cloning (train refuses --pretrain-episodes 0)
+        fixed = {
+            k: v
+            for k, v in (fixed or {}).items()
+            if not (k in ("pretrain_episodes", "pretrain_epochs") and not v)
+        }
+        study = optuna.create_study(
+            study_name="aldm-gym",
+            storage=f"sqlite:///{out / STUDY_FILE}",
+            load_if_exists=True,
+            direction="maximize",
+            sampler=optuna.samplers.TPESampler(seed=seed, n_startup_trials=min(6, trials)),
         )
-    write_table(study.trials, out / TRIALS_TABLE, SPACES[space])
-    complete = [t for t in study.trials if t.state.name == "COMPLETE"]
-    if not complete:
-        raise TrialFailed(f"no trial finished; see the train.log files in {out / TRIALS_DIR}")
-    best = max(complete, key=lambda t: t.value)
-    record = {
-        "trial": best.number,
-        "score": best.value,
-        "params": best.params,
-        "kept": best.user_attrs,
-        "space": space,
-        "fixed": fixed,
-        "command": shlex.join(
-            [
-                "aldm-gym",
-                *train_command(best.params, _full_budget(fixed), Path("OUT"), progress=True)[3:],
-            ]
-        ),
-        "trials": len(complete),
-    }
-    write_json(out / BEST_FILE, record)
-    return record
+        space = space_name(fixed)
+        _check_continuation(study, out, space, fixed)
+        study.set_user_attr("space", space)
+        study.set_user_attr("fixed", _as_json(fixed))
+        done = sum(t.state.name == "COMPLETE" for t in study.trials)
+        callbacks = [] if on_trial is None else [lambda _study, trial: on_trial(trial)]
+        if trials > done:
+            study.optimize(
+                lambda trial: _run_trial(trial, out, fixed),
+                n_trials=trials - done,
+                n_jobs=jobs,
+                catch=(TrialFailed,),
+                callbacks=callbacks,
+            )
+        write_table(study.trials, out / TRIALS_TABLE, SPACES[space])
+        complete = [t for t in study.trials if t.state.name == "COMPLETE"]
+        if not complete:
+            raise TrialFailed(f"no trial finished; see the train.log files in {out / TRIALS_DIR}")
+        best = max(complete, key=lambda t: t.value)
+        command = train_command(best.params, _full_budget(fixed), Path("OUT"), progress=True)
+        record = {
+            "trial": best.number,
+            "score": best.value,
+            "params": best.params,
+            "kept": best.user_attrs,
+            "space": space,
+            "fixed": fixed,
+            "command": shlex.join(["aldm-gym", *command[3:]]),
+            "trials": len(complete),
+        }
+        write_json(out / BEST_FILE, record)
+        return record
 
 
 def _as_json(value: Any) -> Any:

@@ -162,6 +162,18 @@ def test_a_study_continues_only_with_its_fixed_flags(
     assert "argument --out: " in capsys.readouterr().err
 
 
+def test_one_search_per_folder(tmp_path: Path, fake_training: None) -> None:
+    """A second search on a folder whose search runs is refused, naming the holder."""
+    from aldm_gym.errors import OutputLocked
+    from aldm_gym.training.lock import output_lock
+
+    with output_lock(tmp_path):  # as the running search holds it
+        with pytest.raises(OutputLocked, match="another training"):
+            tune(tmp_path, trials=1, jobs=1, fixed={"timesteps": 64})
+    assert not (tmp_path / "study.db").exists()
+    assert tune(tmp_path, trials=1, jobs=1, fixed={"timesteps": 64})["trials"] == 1
+
+
 def test_an_older_study_is_a_search_from_scratch(tmp_path: Path, fake_training: None) -> None:
     """A study without the record (an older version's) continues from scratch only."""
     optuna = pytest.importorskip("optuna")
