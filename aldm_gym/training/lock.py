@@ -20,7 +20,7 @@ from aldm_gym.training.outputs import LOCK_FILE
 
 
 @contextmanager
-def output_lock(out: Path, quiet: bool = False) -> Iterator[None]:
+def output_lock(out: Path, quiet: bool = False, writer: str = "training") -> Iterator[None]:
     """Hold ``<out>/train.lock`` (``flock``, exclusive) while the block runs.
 
     The file holds the holder's pid. The kernel releases an ``flock`` when its process
@@ -28,6 +28,7 @@ def output_lock(out: Path, quiet: bool = False) -> Iterator[None]:
     names its pid); a clean exit empties the file.
 
     :param quiet: do not warn about, nor clear, a stale lock (a check only).
+    :param writer: what holds such a lock, for the message (``"training"``, ``"search"``).
     :raises OutputLocked: another live process holds the lock (the message names its pid).
     """
     out = Path(out)
@@ -40,7 +41,7 @@ def output_lock(out: Path, quiet: bool = False) -> Iterator[None]:
         except BlockingIOError:
             holder = _read_pid(fd)
             raise OutputLocked(
-                f"{out} is being written by another training (pid {holder or 'unknown'}, "
+                f"{out} is being written by another {writer} (pid {holder or 'unknown'}, "
                 f"lock {path}); wait for it to end or choose another --out"
             ) from None
         if quiet:

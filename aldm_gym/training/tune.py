@@ -240,7 +240,7 @@ def tune(
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    with output_lock(out):  # one search per folder
+    with output_lock(out, writer="search"):  # one search per folder
         # pretrain_episodes 0 or None: no cloning (train refuses --pretrain-episodes 0)
         fixed = {
             k: v

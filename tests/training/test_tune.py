@@ -168,7 +168,7 @@ def test_one_search_per_folder(tmp_path: Path, fake_training: None) -> None:
     from aldm_gym.training.lock import output_lock
 
     with output_lock(tmp_path):  # as the running search holds it
-        with pytest.raises(OutputLocked, match="another training"):
+        with pytest.raises(OutputLocked, match=r"being written by another search \(pid"):
             tune(tmp_path, trials=1, jobs=1, fixed={"timesteps": 64})
     assert not (tmp_path / "study.db").exists()
     assert tune(tmp_path, trials=1, jobs=1, fixed={"timesteps": 64})["trials"] == 1
