@@ -264,18 +264,10 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         default=None,
         help=f"entropy bonus weight ({PPOParams.ent_coef})",
     )
-    parser.add_argument(
-        "--pretrain-episodes",
-        type=int_in(1, MAX_PRETRAIN_EPISODES),
-        default=None,
-        help="before PPO, clone the rule-based LCA played on this many episodes into the "
-        "new policy (behaviour cloning; off by default)",
-    )
-    parser.add_argument(
-        "--pretrain-epochs",
-        type=positive_int,
-        default=None,
-        help=f"passes over the demonstrations of --pretrain-episodes ({DEFAULT_PRETRAIN_EPOCHS})",
+    add_pretrain_arguments(
+        parser,
+        "before PPO, clone the rule-based LCA played on this many episodes into the new "
+        "policy (behaviour cloning; off by default)",
     )
     parser.add_argument(
         "--keep-by",
@@ -344,6 +336,29 @@ def _env_overrides(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
     except ConfigError as exc:
         raise BadArgument("--env", str(exc)) from None
     return overrides
+
+
+def add_pretrain_arguments(parser: argparse.ArgumentParser, episodes_help: str) -> None:
+    """Declare ``--pretrain-episodes N`` (help ``episodes_help``) and ``--pretrain-epochs
+    E``; :func:`check_pretrain_arguments` refuses the second without the first."""
+    parser.add_argument(
+        "--pretrain-episodes",
+        type=int_in(1, MAX_PRETRAIN_EPISODES),
+        default=None,
+        help=episodes_help,
+    )
+    parser.add_argument(
+        "--pretrain-epochs",
+        type=positive_int,
+        default=None,
+        help=f"passes over the demonstrations of --pretrain-episodes ({DEFAULT_PRETRAIN_EPOCHS})",
+    )
+
+
+def check_pretrain_arguments(args: argparse.Namespace) -> None:
+    """Refuse ``--pretrain-epochs`` without ``--pretrain-episodes`` (:class:`BadArgument`)."""
+    if args.pretrain_epochs is not None and args.pretrain_episodes is None:
+        raise BadArgument("--pretrain-epochs", "needs --pretrain-episodes")
 
 
 def add_env_argument(parser: argparse.ArgumentParser, note: str) -> None:
@@ -530,8 +545,7 @@ def run(args: argparse.Namespace) -> int:
         )
     backend = _backend(args, meta)
     _env_overrides(args.env)  # a bad --env is refused before --out is made
-    if args.pretrain_epochs is not None and args.pretrain_episodes is None:
-        raise BadArgument("--pretrain-epochs", "needs --pretrain-episodes")
+    check_pretrain_arguments(args)
     make_output_dir(out)
     if backend == "rllib":
         return _run_rllib(args, quick)

@@ -27,14 +27,17 @@ from aldm_gym.cli.argtypes import (
     positive_int,
     seed,
 )
-from aldm_gym.cli.train import add_env_argument, env_settings
+from aldm_gym.cli.train import (
+    add_env_argument,
+    add_pretrain_arguments,
+    check_pretrain_arguments,
+    env_settings,
+)
 from aldm_gym.errors import MissingRLDependencies, OutputLocked
 from aldm_gym.roads.highway import MARKING_MODELS
 from aldm_gym.sensor.detectors import DETECTORS
-from aldm_gym.training.sb3.pretrain import MAX_PRETRAIN_EPISODES
 from aldm_gym.training.settings import (
     ALGORITHMS,
-    DEFAULT_PRETRAIN_EPOCHS,
     DEFAULT_VALIDATION_EPISODES,
     DEFAULT_VALIDATION_FREQ,
     KEEP_BY,
@@ -80,18 +83,10 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         default=DEFAULT_VALIDATION_EPISODES,
         help="episodes per validation (the score's)",
     )
-    parser.add_argument(
-        "--pretrain-episodes",
-        type=int_in(1, MAX_PRETRAIN_EPISODES),
-        default=None,
-        help="every trial first clones the rule-based LCA played on this many episodes, "
-        "and the search varies the fine-tuning's hyperparameters (off by default)",
-    )
-    parser.add_argument(
-        "--pretrain-epochs",
-        type=positive_int,
-        default=None,
-        help=f"passes over the demonstrations of --pretrain-episodes ({DEFAULT_PRETRAIN_EPOCHS})",
+    add_pretrain_arguments(
+        parser,
+        "every trial first clones the rule-based LCA played on this many episodes, and the "
+        "search varies the fine-tuning's hyperparameters (off by default)",
     )
     parser.add_argument(
         "--keep-by",
@@ -119,8 +114,7 @@ def run(args: argparse.Namespace) -> int:
 
     # bad flags are refused before --out is made; duration and traffic go to each
     # trial as train's own flags; the searched reward weights cannot be fixed
-    if args.pretrain_epochs is not None and args.pretrain_episodes is None:
-        raise BadArgument("--pretrain-epochs", "needs --pretrain-episodes")
+    check_pretrain_arguments(args)
     pretrain = {
         "pretrain_episodes": args.pretrain_episodes,
         "pretrain_epochs": args.pretrain_epochs,

@@ -165,10 +165,10 @@ def train_command(
     for name, value in {**fixed, **params}.items():
         if isinstance(value, list | tuple):
             for item in value:
-                cmd += ["--" + name.replace("_", "-"), str(item)]
+                cmd += [_flag(name), str(item)]
         elif value is not None:
             text = f"{value:.4g}" if isinstance(value, float) else str(value)
-            cmd += ["--" + name.replace("_", "-"), text]
+            cmd += [_flag(name), text]
     return cmd
 
 
@@ -294,6 +294,7 @@ def _as_json(value: Any) -> Any:
 
 
 def _flag(name: str) -> str:
+    """The command-line flag of a train argument (``n_steps`` -> ``--n-steps``)."""
     return "--" + name.replace("_", "-")
 
 
