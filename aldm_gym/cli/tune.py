@@ -89,6 +89,14 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         "search varies the fine-tuning's hyperparameters (off by default)",
     )
     parser.add_argument(
+        "--enqueue",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE,...",
+        help="a trial to run before the sampler's own, e.g. a known recipe: searched "
+        "hyperparameters (names as in trials.csv; those not given are sampled); repeatable",
+    )
+    parser.add_argument(
         "--keep-by",
         choices=KEEP_BY,
         default="score",
@@ -108,6 +116,7 @@ def run(args: argparse.Namespace) -> int:
         SPACES,
         TRIALS_TABLE,
         StudyMismatch,
+        parse_params,
         space_name,
         tune,
     )
@@ -124,6 +133,12 @@ def run(args: argparse.Namespace) -> int:
         if key in space:
             raise BadArgument("--env", f"{key} is searched (the search varies {', '.join(space)})")
     env, env_flags = env_settings(args.env, own_flags=("detector", "marking_model"))
+    enqueue = []
+    for text in args.enqueue:
+        try:
+            enqueue.append(parse_params(text, space))
+        except ValueError as exc:
+            raise BadArgument("--enqueue", str(exc)) from None
     out = make_output_dir(args.out)
     fixed = {
         "algo": args.algo,
@@ -154,6 +169,7 @@ def run(args: argparse.Namespace) -> int:
                 seed=args.sampler_seed,
                 fixed=fixed,
                 on_trial=on_trial,
+                enqueue=enqueue,
             )
         except MissingRLDependencies as exc:
             raise SystemExit(f"aldm-gym tune: {exc}") from None

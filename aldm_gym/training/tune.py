@@ -32,6 +32,7 @@ from __future__ import annotations
 import csv
 import json
 import logging
+import math
 import shlex
 import subprocess
 import sys
@@ -132,6 +133,47 @@ def import_optuna() -> Any:
     return optuna
 
 
+def parse_params(text: str, space: Mapping[str, Choice | LogRange]) -> dict[str, Any]:
+    """Hyperparameters written ``NAME=VALUE,NAME=VALUE`` (names of ``space``), checked
+    against ``space``: the trial :func:`tune` runs first (``enqueue``).
+
+    A name not given is drawn by the sampler. A value of a :class:`Choice` must equal
+    one of its values (``512`` or ``512.0`` for ``n_steps``); one of a
+    :class:`LogRange` must lie within its bounds.
+
+    :raises ValueError: an unknown or repeated name, a value that is not a finite
+        number or lies outside ``space``; the message names the allowed names or values.
+    """
+    params: dict[str, Any] = {}
+    for item in text.split(","):
+        name, sep, raw = (part.strip() for part in item.partition("="))
+        if not sep or not name:
+            raise ValueError(f"{item.strip()!r} is not NAME=VALUE")
+        if name not in space:
+            raise ValueError(f"unknown name {name!r}; the search varies {', '.join(space)}")
+        if name in params:
+            raise ValueError(f"{name} is given twice")
+        try:
+            value = float(raw)
+        except ValueError:
+            raise ValueError(f"{name}={raw!r} is not a number") from None
+        if not math.isfinite(value):
+            raise ValueError(f"{name}={raw!r} is not a finite number")
+        dim = space[name]
+        if isinstance(dim, Choice):
+            matches = [v for v in dim.values if v == value]
+            if not matches:
+                allowed = ", ".join(str(v) for v in dim.values)
+                raise ValueError(f"{name}={raw} is not one of the searched values {allowed}")
+            params[name] = matches[0]
+        else:
+            if not dim.low <= value <= dim.high:
+                bounds = f"[{dim.low:g}, {dim.high:g}]"
+                raise ValueError(f"{name}={raw} is outside the searched {bounds}")
+            params[name] = value
+    return params
+
+
 def score(validation: Mapping[str, Any]) -> tuple[float, dict[str, Any]]:
     """A trial's score from its ``validation.json`` (the kept model's row), and that row.
 
@@ -216,6 +258,7 @@ def tune(
     seed: int = 0,
     fixed: Mapping[str, Any] | None = None,
     on_trial: Callable[[Any], None] | None = None,
+    enqueue: Sequence[Mapping[str, Any]] = (),
 ) -> dict[str, Any]:
     """Run (or continue) the search until ``trials`` trials have finished; the best.
 
@@ -229,6 +272,10 @@ def tune(
         ``validation_freq``, ``validation_episodes``, ``pretrain_episodes``, ...);
         ``pretrain_episodes`` selects :data:`FINETUNE_SPACE`.
     :param on_trial: called with each finished trial.
+    :param enqueue: hyperparameters to try before the sampler's own (e.g. a known
+        recipe, from :func:`parse_params`; names not given are sampled), in order; one
+        already in the study (run or waiting) is not queued again, so a continued search
+        does not repeat it.
     :return: ``best.json``'s content.
     :raises MissingRLDependencies: optuna missing.
     :raises TrialFailed: no trial finished.
@@ -258,6 +305,8 @@ def tune(
         _check_continuation(study, out, space, fixed)
         study.set_user_attr("space", space)
         study.set_user_attr("fixed", _as_json(fixed))
+        for params in enqueue:
+            study.enqueue_trial(dict(params), skip_if_exists=True)
         done = sum(t.state.name == "COMPLETE" for t in study.trials)
         callbacks = [] if on_trial is None else [lambda _study, trial: on_trial(trial)]
         if trials > done:

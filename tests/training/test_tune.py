@@ -23,6 +23,7 @@ from aldm_gym.training.tune import (
     LogRange,
     StudyMismatch,
     TrialFailed,
+    parse_params,
     score,
     train_command,
     tune,
@@ -234,3 +235,61 @@ def test_env_settings_with_a_train_flag_go_to_that_flag() -> None:
     assert cmd[7:] == [*("--vehicles", "8", "--duration", "20", "--env", 'sensor.preset="camera"')]
     with pytest.raises(BadArgument, match="marking_model has its own flag: --marking-model"):
         env_settings([("marking_model", "editor")], own_flags=own)
+
+
+RECIPE = "gamma=0.95, learning_rate=1e-4,n_steps=512,ent_coef=0,collision_reward=-2"
+
+
+def test_parse_params_checks_names_and_values_against_the_space() -> None:
+    params = parse_params(RECIPE, FINETUNE_SPACE)
+    assert params == {
+        "gamma": 0.95,
+        "learning_rate": 1e-4,
+        "n_steps": 512,
+        "ent_coef": 0.0,
+        "collision_reward": -2.0,
+    }
+    assert isinstance(params["n_steps"], int)  # the choice's own value, as train parses it
+    bad = {
+        "gamma=0.95,momentum=1": r"unknown name 'momentum'; the search varies gamma, learning",
+        "gamma=0.97": r"gamma=0.97 is not one of the searched values 0.9, 0.95, 0.99",
+        "learning_rate=1e-3": r"outside the searched \[1e-05, 0.0003\]",
+        "gamma=0.95,gamma=0.9": "gamma is given twice",
+        "n_steps=many": "n_steps='many' is not a number",
+        "learning_rate=nan": "not a finite number",
+        "gamma": "'gamma' is not NAME=VALUE",
+    }
+    for text, message in bad.items():
+        with pytest.raises(ValueError, match=message):
+            parse_params(text, FINETUNE_SPACE)
+
+
+def test_an_enqueued_recipe_runs_first_and_once(tmp_path: Path, fake_training: None) -> None:
+    """``enqueue``: the given trial runs before the sampler's (names not given are
+    drawn), and a continued search does not queue it again."""
+    fixed = {"timesteps": 64, "pretrain_episodes": 5}
+    recipe = parse_params(RECIPE, FINETUNE_SPACE)
+    tune(tmp_path, trials=2, jobs=1, fixed=fixed, enqueue=[recipe])
+    tune(tmp_path, trials=3, jobs=1, fixed=fixed, enqueue=[recipe])
+    with open(tmp_path / "trials.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    assert len(rows) == 3
+    first = {k: float(rows[0][k]) for k in recipe}
+    assert first == recipe
+    assert float(rows[0]["overtaking_reward"]) in FINETUNE_SPACE["overtaking_reward"].values
+    assert all({k: float(r[k]) for k in recipe} != recipe for r in rows[1:])
+
+
+def test_the_cli_refuses_a_bad_enqueue_before_making_the_folder(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from aldm_gym.cli import main
+
+    out = tmp_path / "search"
+    with pytest.raises(SystemExit) as exc:
+        main(["tune", "--pretrain-episodes", "5", "--enqueue", "gamma=0.8", "--out", str(out)])
+    assert exc.value.code == 2
+    assert "argument --enqueue: gamma=0.8 is not one of the searched values" in (
+        capsys.readouterr().err
+    )
+    assert not out.exists()
