@@ -36,8 +36,10 @@ import math
 import shlex
 import subprocess
 import sys
+import threading
 import time
 from collections.abc import Callable, Mapping, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -308,14 +310,9 @@ def tune(
         for params in enqueue:
             study.enqueue_trial(dict(params), skip_if_exists=True)
         done = sum(t.state.name == "COMPLETE" for t in study.trials)
-        callbacks = [] if on_trial is None else [lambda _study, trial: on_trial(trial)]
         if trials > done:
-            study.optimize(
-                lambda trial: _run_trial(trial, out, fixed),
-                n_trials=trials - done,
-                n_jobs=jobs,
-                catch=(TrialFailed,),
-                callbacks=callbacks,
+            _optimize(
+                study, lambda trial: _run_trial(trial, out, fixed), trials - done, jobs, on_trial
             )
         write_table(study.trials, out / TRIALS_TABLE, SPACES[space])
         complete = [t for t in study.trials if t.state.name == "COMPLETE"]
@@ -335,6 +332,60 @@ def tune(
         }
         write_json(out / BEST_FILE, record)
         return record
+
+
+def _optimize(
+    study: Any,
+    objective: Callable[[Any], float],
+    n_trials: int,
+    jobs: int,
+    on_trial: Callable[[Any], None] | None,
+) -> None:
+    """Run ``n_trials`` trials of ``objective``, ``jobs`` at once (threads; each trial
+    is a training subprocess), by optuna's ask-and-tell interface.
+
+    ``study.optimize(n_jobs=...)`` is not used: with SQLite storage, two of its threads
+    can take the same enqueued trial (optuna issues #4002 and #4621), and the second
+    then fails on the first one's locked folder. Here a lock makes each ``ask`` alone.
+    A trial that raises :class:`TrialFailed` is told as failed and the search goes on;
+    any other error, or Ctrl-C, stops the search once the running trials have ended.
+    """
+    from optuna.trial import TrialState
+
+    lock = threading.Lock()
+    stop = threading.Event()
+    left = [n_trials]
+
+    def worker() -> None:
+        while not stop.is_set():
+            with lock:
+                if left[0] <= 0:
+                    return
+                left[0] -= 1
+                trial = study.ask()
+            try:
+                value = objective(trial)
+            except TrialFailed as exc:
+                logger.warning("%s", exc)
+                frozen = study.tell(trial, state=TrialState.FAIL)
+            except BaseException:
+                stop.set()
+                study.tell(trial, state=TrialState.FAIL)
+                raise
+            else:
+                frozen = study.tell(trial, value)
+            if on_trial is not None:
+                with lock:
+                    on_trial(frozen)
+
+    with ThreadPoolExecutor(max_workers=jobs) as pool:
+        futures = [pool.submit(worker) for _ in range(min(jobs, n_trials))]
+        try:
+            for future in futures:
+                future.result()
+        except BaseException:
+            stop.set()
+            raise
 
 
 def _as_json(value: Any) -> Any:

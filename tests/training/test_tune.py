@@ -280,6 +280,23 @@ def test_an_enqueued_recipe_runs_first_and_once(tmp_path: Path, fake_training: N
     assert all({k: float(r[k]) for k in recipe} != recipe for r in rows[1:])
 
 
+def test_enqueued_trials_run_once_each_with_parallel_jobs(
+    tmp_path: Path, fake_training: None
+) -> None:
+    """Two trials at once take two different enqueued trials (with optuna's own
+    parallel loop both could take the same one and the second fail on its folder)."""
+    recipes = [
+        parse_params(f"gamma={g},learning_rate={lr},n_steps=256", FINETUNE_SPACE)
+        for g, lr in ((0.9, 1e-5), (0.95, 2e-5), (0.99, 3e-5), (0.9, 4e-5))
+    ]
+    tune(tmp_path, trials=4, jobs=2, fixed={"pretrain_episodes": 5}, enqueue=recipes)
+    with open(tmp_path / "trials.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    assert [r["state"] for r in rows] == ["COMPLETE"] * 4
+    ran = sorted((float(r["gamma"]), float(r["learning_rate"])) for r in rows)
+    assert ran == sorted((r["gamma"], r["learning_rate"]) for r in recipes)
+
+
 def test_the_cli_refuses_a_bad_enqueue_before_making_the_folder(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
