@@ -115,6 +115,7 @@ def run(args: argparse.Namespace) -> int:
         BEST_FILE,
         SPACES,
         TRIALS_TABLE,
+        EnqueueError,
         StudyMismatch,
         parse_params,
         space_name,
@@ -175,6 +176,8 @@ def run(args: argparse.Namespace) -> int:
             raise SystemExit(f"aldm-gym tune: {exc}") from None
         except (StudyMismatch, OutputLocked) as exc:
             raise BadArgument("--out", str(exc)) from None
+        except EnqueueError as exc:
+            raise BadArgument("--enqueue", str(exc)) from None
     print(
         f"{best['trials']} trials in {time.perf_counter() - t0:.0f} s; best trial "
         f"{best['trial']} (score {best['score']:.2f}: {best['kept'].get('mean_speed', 0):.2f} "

@@ -118,6 +118,10 @@ def space_name(fixed: Mapping[str, Any]) -> str:
     return "finetune" if fixed.get("pretrain_episodes") else "scratch"
 
 
+class EnqueueError(ValueError):
+    """More enqueued trials would wait than the search has trials left."""
+
+
 class TrialFailed(RuntimeError):
     """A trial's training exited with an error (its ``train.log`` says why)."""
 
@@ -137,43 +141,89 @@ def import_optuna() -> Any:
 
 def parse_params(text: str, space: Mapping[str, Choice | LogRange]) -> dict[str, Any]:
     """Hyperparameters written ``NAME=VALUE,NAME=VALUE`` (names of ``space``), checked
-    against ``space``: the trial :func:`tune` runs first (``enqueue``).
+    against ``space``: a trial for :func:`tune` to run first (``enqueue``).
 
     A name not given is drawn by the sampler. A value of a :class:`Choice` must equal
     one of its values (``512`` or ``512.0`` for ``n_steps``); one of a
     :class:`LogRange` must lie within its bounds.
 
-    :raises ValueError: an unknown or repeated name, a value that is not a finite
-        number or lies outside ``space``; the message names the allowed names or values.
+    :raises ValueError: an empty item, an unknown or repeated name, a value that is not
+        a finite number or lies outside ``space``; the message names the allowed names,
+        or the name's allowed values.
     """
+    names = ", ".join(space)
     params: dict[str, Any] = {}
     for item in text.split(","):
         name, sep, raw = (part.strip() for part in item.partition("="))
+        if not item.strip():
+            raise ValueError(f"{text!r} has an empty item; write NAME=VALUE,... of {names}")
         if not sep or not name:
-            raise ValueError(f"{item.strip()!r} is not NAME=VALUE")
+            raise ValueError(f"{item.strip()!r} is not NAME=VALUE (names: {names})")
         if name not in space:
-            raise ValueError(f"unknown name {name!r}; the search varies {', '.join(space)}")
+            raise ValueError(f"unknown name {name!r}; the search varies {names}")
         if name in params:
             raise ValueError(f"{name} is given twice")
-        try:
-            value = float(raw)
-        except ValueError:
-            raise ValueError(f"{name}={raw!r} is not a number") from None
-        if not math.isfinite(value):
-            raise ValueError(f"{name}={raw!r} is not a finite number")
         dim = space[name]
+        if isinstance(dim, Choice):
+            allowed = "one of " + ", ".join(f"{v:g}" for v in dim.values)
+        else:
+            allowed = f"a number in [{dim.low:g}, {dim.high:g}]"
+        try:
+            value = float(raw) if "_" not in raw else math.nan  # float() takes 1_024
+        except ValueError:
+            value = math.nan
+        if not math.isfinite(value):
+            raise ValueError(f"{name}={raw!r}: {name} must be {allowed}")
         if isinstance(dim, Choice):
             matches = [v for v in dim.values if v == value]
             if not matches:
-                allowed = ", ".join(str(v) for v in dim.values)
-                raise ValueError(f"{name}={raw} is not one of the searched values {allowed}")
+                raise ValueError(f"{name}={raw} is not searched: {name} must be {allowed}")
             params[name] = matches[0]
         else:
             if not dim.low <= value <= dim.high:
-                bounds = f"[{dim.low:g}, {dim.high:g}]"
-                raise ValueError(f"{name}={raw} is outside the searched {bounds}")
+                raise ValueError(f"{name}={raw} is not searched: {name} must be {allowed}")
             params[name] = value
     return params
+
+
+def _enqueue(study: Any, enqueue: Sequence[Mapping[str, Any]], left: int) -> None:
+    """Queue each of ``enqueue`` that no finished or waiting trial of ``study`` already
+    has (a failed one is tried again); at most ``left`` trials may wait.
+
+    :raises EnqueueError: more trials would wait than ``left``.
+    """
+    from optuna.trial import TrialState
+
+    def taken(params: Mapping[str, Any]) -> bool:
+        for t in study.get_trials(deepcopy=False, states=(TrialState.COMPLETE, TrialState.WAITING)):
+            given = (
+                t.system_attrs.get("fixed_params", t.params)
+                if t.state == TrialState.WAITING
+                else t.params
+            )
+            if all(k in given and given[k] == v for k, v in params.items()):
+                return True
+        return False
+
+    new = [dict(p) for p in enqueue if not taken(p)]
+    waiting = len(study.get_trials(deepcopy=False, states=(TrialState.WAITING,)))
+    if waiting + len(new) > left:
+        raise EnqueueError(
+            f"{waiting + len(new)} enqueued trials to run but only {left} left of the "
+            "search's trials (enqueued trials count among them): raise --trials"
+        )
+    for params in new:
+        study.enqueue_trial(params)
+
+
+def _fail_stale(study: Any) -> None:
+    """Mark failed the trials an earlier search left running (it was killed): one
+    search runs per folder, so none of them is still running."""
+    from optuna.trial import TrialState
+
+    for t in study.get_trials(deepcopy=False, states=(TrialState.RUNNING,)):
+        logger.warning("trial %d was left running by an earlier search: marked failed", t.number)
+        study.tell(t.number, state=TrialState.FAIL)
 
 
 def score(validation: Mapping[str, Any]) -> tuple[float, dict[str, Any]]:
@@ -275,15 +325,17 @@ def tune(
         ``pretrain_episodes`` selects :data:`FINETUNE_SPACE`.
     :param on_trial: called with each finished trial.
     :param enqueue: hyperparameters to try before the sampler's own (e.g. a known
-        recipe, from :func:`parse_params`; names not given are sampled), in order; one
-        already in the study (run or waiting) is not queued again, so a continued search
-        does not repeat it.
+        recipe, from :func:`parse_params`; names not given are sampled), in order. They
+        count among ``trials``; one a finished or waiting trial of the study already
+        has is not queued again (a continued search does not repeat it; a failed one
+        is tried again).
     :return: ``best.json``'s content.
     :raises MissingRLDependencies: optuna missing.
     :raises TrialFailed: no trial finished.
     :raises StudyMismatch: ``out`` holds a study started with other ``fixed`` flags
         or the other search space.
     :raises OutputLocked: another search is running in ``out``.
+    :raises EnqueueError: more enqueued trials than trials left to run.
     """
     optuna = import_optuna()
     optuna.logging.set_verbosity(optuna.logging.WARNING)
@@ -307,9 +359,9 @@ def tune(
         _check_continuation(study, out, space, fixed)
         study.set_user_attr("space", space)
         study.set_user_attr("fixed", _as_json(fixed))
-        for params in enqueue:
-            study.enqueue_trial(dict(params), skip_if_exists=True)
+        _fail_stale(study)
         done = sum(t.state.name == "COMPLETE" for t in study.trials)
+        _enqueue(study, enqueue, max(trials - done, 0))
         if trials > done:
             _optimize(
                 study, lambda trial: _run_trial(trial, out, fixed), trials - done, jobs, on_trial
@@ -348,43 +400,55 @@ def _optimize(
     can take the same enqueued trial (optuna issues #4002 and #4621), and the second
     then fails on the first one's locked folder. Here a lock makes each ``ask`` alone.
     A trial that raises :class:`TrialFailed` is told as failed and the search goes on;
-    any other error, or Ctrl-C, stops the search once the running trials have ended.
+    any other error, or Ctrl-C, starts no new trial and is raised once the running
+    trials have ended (Ctrl-C at a terminal stops their trainings too, each at a safe
+    point).
     """
     from optuna.trial import TrialState
 
     lock = threading.Lock()
     stop = threading.Event()
     left = [n_trials]
+    running = [0]
 
     def worker() -> None:
-        while not stop.is_set():
-            with lock:
-                if left[0] <= 0:
-                    return
-                left[0] -= 1
-                trial = study.ask()
-            try:
-                value = objective(trial)
-            except TrialFailed as exc:
-                logger.warning("%s", exc)
-                frozen = study.tell(trial, state=TrialState.FAIL)
-            except BaseException:
-                stop.set()
-                study.tell(trial, state=TrialState.FAIL)
-                raise
-            else:
-                frozen = study.tell(trial, value)
-            if on_trial is not None:
+        try:
+            while True:
                 with lock:
-                    on_trial(frozen)
+                    if stop.is_set() or left[0] <= 0:
+                        return
+                    left[0] -= 1
+                    trial = study.ask()
+                    running[0] += 1
+                try:
+                    value = objective(trial)
+                except TrialFailed as exc:
+                    logger.warning("%s", exc)
+                    frozen = study.tell(trial, state=TrialState.FAIL)
+                except BaseException:
+                    study.tell(trial, state=TrialState.FAIL)
+                    raise
+                else:
+                    frozen = study.tell(trial, value)
+                finally:
+                    with lock:
+                        running[0] -= 1
+                if on_trial is not None:
+                    with lock:
+                        on_trial(frozen)
+        except BaseException:
+            stop.set()
+            raise
 
     with ThreadPoolExecutor(max_workers=jobs) as pool:
-        futures = [pool.submit(worker) for _ in range(min(jobs, n_trials))]
         try:
+            futures = [pool.submit(worker) for _ in range(min(jobs, n_trials))]
             for future in futures:
                 future.result()
         except BaseException:
             stop.set()
+            if running[0]:
+                logger.warning("stopping: waiting for the %d running trials to end", running[0])
             raise
 
 
@@ -438,6 +502,8 @@ def write_table(trials: Sequence[Any], path: Path, space: Mapping[str, Any] = SE
         writer = csv.writer(fh)
         writer.writerow(["trial", "state", "score", *space, *extra])
         for t in trials:
+            if t.state.name == "WAITING":  # queued by --enqueue, not run (yet)
+                continue
             writer.writerow(
                 [
                     t.number,

@@ -9,6 +9,7 @@ import subprocess
 import sys
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -252,12 +253,16 @@ def test_parse_params_checks_names_and_values_against_the_space() -> None:
     assert isinstance(params["n_steps"], int)  # the choice's own value, as train parses it
     bad = {
         "gamma=0.95,momentum=1": r"unknown name 'momentum'; the search varies gamma, learning",
-        "gamma=0.97": r"gamma=0.97 is not one of the searched values 0.9, 0.95, 0.99",
-        "learning_rate=1e-3": r"outside the searched \[1e-05, 0.0003\]",
+        "gamma=0.97": r"gamma=0.97 is not searched: gamma must be one of 0.9, 0.95, 0.99",
+        "learning_rate=1e-3": r"learning_rate must be a number in \[1e-05, 0.0003\]",
         "gamma=0.95,gamma=0.9": "gamma is given twice",
-        "n_steps=many": "n_steps='many' is not a number",
-        "learning_rate=nan": "not a finite number",
-        "gamma": "'gamma' is not NAME=VALUE",
+        "n_steps=many": "n_steps='many': n_steps must be one of 256, 512, 1024",
+        "n_steps=1_024": "n_steps must be one of 256, 512, 1024",
+        "learning_rate=nan": r"learning_rate must be a number in \[",
+        "gamma": "'gamma' is not NAME=VALUE \\(names: gamma, learning_rate",
+        "=0.9": "'=0.9' is not NAME=VALUE",
+        "gamma=0.9,": "has an empty item; write NAME=VALUE,... of gamma, learning_rate",
+        "": "has an empty item",
     }
     for text, message in bad.items():
         with pytest.raises(ValueError, match=message):
@@ -306,7 +311,97 @@ def test_the_cli_refuses_a_bad_enqueue_before_making_the_folder(
     with pytest.raises(SystemExit) as exc:
         main(["tune", "--pretrain-episodes", "5", "--enqueue", "gamma=0.8", "--out", str(out)])
     assert exc.value.code == 2
-    assert "argument --enqueue: gamma=0.8 is not one of the searched values" in (
+    assert "argument --enqueue: gamma=0.8 is not searched: gamma must be one of 0.9, 0.95" in (
         capsys.readouterr().err
     )
     assert not out.exists()
+
+
+def test_enqueued_trials_count_among_the_trials(
+    tmp_path: Path, fake_training: None, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """More enqueued trials than trials left are refused; a failed enqueued trial runs
+    again when the search continues; a trial left running by a killed search is marked
+    failed when the next one starts."""
+    from aldm_gym.training.tune import EnqueueError
+
+    fixed = {"pretrain_episodes": 5, "fail": 1}  # the stand-in fails gamma 0.95
+    recipes = [parse_params(f"gamma={g}", FINETUNE_SPACE) for g in (0.9, 0.95, 0.99)]
+    with pytest.raises(EnqueueError, match="3 enqueued trials to run but only 2 left"):
+        tune(tmp_path, trials=2, jobs=1, fixed=fixed, enqueue=recipes)
+    tune(tmp_path, trials=3, jobs=1, fixed=fixed, enqueue=recipes)
+    with open(tmp_path / "trials.csv") as fh:
+        states = [(r["gamma"], r["state"]) for r in csv.DictReader(fh)]
+    assert states == [("0.9", "COMPLETE"), ("0.95", "FAIL"), ("0.99", "COMPLETE")]
+    # Continued: the failed recipe is queued again, the finished ones are not.
+    optuna = pytest.importorskip("optuna")
+    study = optuna.load_study(study_name="aldm-gym", storage=f"sqlite:///{tmp_path / 'study.db'}")
+    stale = study.ask()  # as a search killed while this trial trained
+    failing = tune_module.launch
+
+    def launch(cmd: Sequence[str], log: Path) -> int:  # the stand-in fails no more
+        cmd = list(cmd)
+        del cmd[cmd.index("--fail") : cmd.index("--fail") + 2]
+        return failing(cmd, log)
+
+    monkeypatch.setattr(tune_module, "launch", launch)
+    tune(tmp_path, trials=3, jobs=1, fixed=fixed, enqueue=recipes)
+    with open(tmp_path / "trials.csv") as fh:
+        rows = [(r["trial"], r["state"], r["gamma"]) for r in csv.DictReader(fh)]
+    assert rows[3:] == [(str(stale.number), "FAIL", ""), ("4", "COMPLETE", "0.95")]
+
+
+class _FakeStudy:
+    """A study whose ``ask`` records whether the caller holds ``tune``'s lock."""
+
+    def __init__(self) -> None:
+        self.asked: list[int] = []
+        self.told: list[tuple[int, Any]] = []
+        self.lock: Any = None
+
+    def ask(self) -> Any:
+        assert self.lock is not None and self.lock.locked(), "ask outside the lock"
+        self.asked.append(len(self.asked))
+        return self.asked[-1]
+
+    def tell(self, trial: int, value: Any = None, state: Any = None) -> tuple[int, Any]:
+        self.told.append((trial, state.name if state is not None else value))
+        return self.told[-1]
+
+
+def test_optimize_asks_under_its_lock_and_stops_on_an_error(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    import threading
+
+    study = _FakeStudy()
+    real_lock = threading.Lock
+
+    def lock() -> Any:  # the first lock _optimize makes is its own (then its Event's)
+        made = real_lock()
+        if study.lock is None:
+            study.lock = made
+        return made
+
+    monkeypatch.setattr(tune_module.threading, "Lock", lock)
+    seen: list[Any] = []
+    tune_module._optimize(study, lambda t: float(t), 5, 2, seen.append)
+    assert sorted(study.asked) == [0, 1, 2, 3, 4] and len(seen) == 5
+    assert sorted(v for _, v in study.told) == [0.0, 1.0, 2.0, 3.0, 4.0]
+
+    def objective(trial: int) -> float:
+        if trial == 1:
+            raise TrialFailed("trial 1 exited with 3")
+        if trial == 2:
+            raise RuntimeError("broken")
+        return 0.0
+
+    study = _FakeStudy()
+    monkeypatch.setattr(tune_module.threading, "Lock", real_lock)
+    study.lock = real_lock()
+    study.lock.acquire()  # this part checks stopping, not the lock
+    with pytest.raises(RuntimeError, match="broken"):
+        tune_module._optimize(study, objective, 10, 1, None)
+    # A failed training is a failed trial and the search goes on; any other error
+    # fails its trial and starts no new one.
+    assert study.told == [(0, 0.0), (1, "FAIL"), (2, "FAIL")]
