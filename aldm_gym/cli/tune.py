@@ -43,6 +43,9 @@ from aldm_gym.training.settings import (
     KEEP_BY,
 )
 
+DETECTOR_TITLES = {"aldm": "ALDM", "naive": "naive", "ground_truth": "ground truth"}
+"""The detectors' names in the trials figure's title."""
+
 DEFAULT_TRIALS = 12
 """Default ``--trials``."""
 
@@ -118,6 +121,7 @@ def run(args: argparse.Namespace) -> int:
         EnqueueError,
         StudyMismatch,
         parse_params,
+        plot_trials,
         space_name,
         tune,
     )
@@ -178,11 +182,14 @@ def run(args: argparse.Namespace) -> int:
             raise BadArgument("--out", str(exc)) from None
         except EnqueueError as exc:
             raise BadArgument("--enqueue", str(exc)) from None
+    figure = plot_trials(out, DETECTOR_TITLES.get(args.detector, args.detector))
+    drawn = "" if figure is None else f", {figure}"
     print(
         f"{best['trials']} trials in {time.perf_counter() - t0:.0f} s; best trial "
         f"{best['trial']} (score {best['score']:.2f}: {best['kept'].get('mean_speed', 0):.2f} "
         f"m/s, success {best['kept'].get('success_rate', 0):.2f} on the validation seeds); "
-        f"wrote {out / TRIALS_TABLE} and {out / BEST_FILE}\ntrain it with: {best['command']}"
+        f"wrote {out / TRIALS_TABLE}{drawn} and {out / BEST_FILE}\n"
+        f"train it with: {best['command']}"
     )
     if args.pretrain_episodes and best["kept"].get("steps") == 0:
         print(

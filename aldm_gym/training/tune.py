@@ -23,8 +23,9 @@ quote. It is the ``[tune]`` extra.
 Files: ``<out>/study.db`` (the optuna study), ``<out>/trials/<n>/`` (each training and
 its ``train.log``), ``<out>/trials.csv`` (one row per trial: number, state, score,
 hyperparameters, kept steps, wall time) and ``<out>/best.json`` (the best trial and the
-``aldm-gym train`` command that trains it with the full budget); ``<out>/train.lock``
-is held while the search runs (one search per folder).
+``aldm-gym train`` command that trains it with the full budget); ``aldm-gym tune``
+also draws ``<out>/trials.png`` (:func:`plot_trials`); ``<out>/train.lock`` is held
+while the search runs (one search per folder).
 """
 
 from __future__ import annotations
@@ -63,6 +64,9 @@ TRIALS_TABLE = "trials.csv"
 
 BEST_FILE = "best.json"
 """The best trial and the command that trains it."""
+
+TRIALS_FIGURE = "trials.png"
+"""The finished trials' validation curves (:func:`plot_trials`)."""
 
 
 @dataclass(frozen=True)
@@ -492,6 +496,33 @@ def _check_continuation(study: Any, out: Path, space: str, fixed: Mapping[str, A
 def _full_budget(fixed: Mapping[str, Any]) -> dict[str, Any]:
     """The best trial's flags without the search's budget (the full training's own)."""
     return {k: v for k, v in fixed.items() if k != "timesteps"}
+
+
+def plot_trials(out: Path, title: str) -> Path | None:
+    """Draw the validation curves of the search's finished trials (mean speed and
+    collisions over training steps, a ring at each kept model, the rule-based LCA and
+    IDLE dashed) to ``<out>/trials.png``, from ``trials.csv`` and each trial's
+    ``validation.json``.
+
+    :param title: what the trials observe (the figure's title, e.g. ``"ALDM"``).
+    :return: the figure's path, or None when no finished trial has a validation.
+    """
+    from aldm_gym.agents.figures import plot_learning_curves
+
+    out = Path(out)
+    with open(out / TRIALS_TABLE, newline="") as fh:
+        rows = [r for r in csv.DictReader(fh) if r["state"] == "COMPLETE"]
+    runs = []
+    for row in rows:
+        path = out / TRIALS_DIR / f"{int(row['trial']):03d}" / VALIDATION_FILE
+        if path.exists():
+            record = json.loads(path.read_text())
+            runs.append((f"trial {row['trial']} ({float(row['score']):.2f})", record))
+    if not runs:
+        return None
+    figure = out / TRIALS_FIGURE
+    plot_learning_curves({title: runs}, figure, label="search trials")
+    return figure
 
 
 def write_table(trials: Sequence[Any], path: Path, space: Mapping[str, Any] = SEARCH_SPACE) -> None:

@@ -38,8 +38,8 @@ if gamma == 0.95 and args.get("--fail") == "1":
     sys.exit(3)
 row = {"steps": 64, "mean_return": 1.0, "mean_speed": 20 + 10 * gamma,
        "success_rate": 0.9 if float(args["--collision-reward"]) == -1 else 1.0, "collisions": 0}
-json.dump({"best_steps": 64, "history": [row],
-           "baselines": {"rule_based": {"mean_speed": 25.0}}},
+json.dump({"best_steps": 64, "history": [row], "seeds": [20000, 20009],
+           "baselines": {"rule_based": {"mean_speed": 25.0, "collisions": 0}}},
           open(args["--out"] + "/validation.json", "w"))
 """
 
@@ -405,3 +405,21 @@ def test_optimize_asks_under_its_lock_and_stops_on_an_error(
     # A failed training is a failed trial and the search goes on; any other error
     # fails its trial and starts no new one.
     assert study.told == [(0, 0.0), (1, "FAIL"), (2, "FAIL")]
+
+
+def test_the_cli_draws_the_trials(
+    tmp_path: Path, fake_training: None, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``aldm-gym tune`` writes trials.png beside the table and names it."""
+    from aldm_gym.cli import main
+    from aldm_gym.training.tune import plot_trials
+
+    out = tmp_path / "search"
+    args = ["tune", "--trials", "2", "--jobs", "1", "--timesteps", "64", "--no-progress"]
+    assert main([*args, "--out", str(out)]) == 0
+    assert (out / "trials.png").stat().st_size > 0
+    assert f"wrote {out / 'trials.csv'}, {out / 'trials.png'} and" in capsys.readouterr().out
+    # No finished trial with a validation: nothing to draw.
+    for folder in (out / "trials").iterdir():
+        (folder / "validation.json").unlink()
+    assert plot_trials(out, "ALDM") is None
