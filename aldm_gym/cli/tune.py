@@ -6,7 +6,8 @@ Runs :func:`~aldm_gym.training.tune.tune`: ``--trials`` ``aldm-gym train`` runs 
 trial fine-tuning a clone of the rule-based LCA, from
 :data:`~aldm_gym.training.tune.FINETUNE_SPACE`), each scored on its validation seeds. It
 writes ``<out>/trials.csv`` and ``<out>/best.json`` (with the command that trains the
-best trial's hyperparameters with the full budget); a folder with a study continues it.
+best trial's hyperparameters with the full budget: the trials' own ``--timesteps`` or
+train's default, whichever is more); a folder with a study continues it.
 optuna is imported only when the command runs (the ``[tune]`` extra).
 """
 

@@ -49,7 +49,7 @@ from aldm_gym.errors import MissingRLDependencies
 from aldm_gym.training.backend import import_extra
 from aldm_gym.training.lock import output_lock
 from aldm_gym.training.outputs import VALIDATION_FILE, write_json
-from aldm_gym.training.settings import validation_score
+from aldm_gym.training.settings import DEFAULT_TIMESTEPS, validation_score
 
 logger = logging.getLogger(__name__)
 
@@ -494,8 +494,11 @@ def _check_continuation(study: Any, out: Path, space: str, fixed: Mapping[str, A
 
 
 def _full_budget(fixed: Mapping[str, Any]) -> dict[str, Any]:
-    """The best trial's flags without the search's budget (the full training's own)."""
-    return {k: v for k, v in fixed.items() if k != "timesteps"}
+    """The best trial's flags with the full training's budget: the trials' own when
+    they had at least ``train``'s default (a search at the full budget, as fine-tuning
+    a clone needs), else that default [policy steps]."""
+    trial_steps = fixed.get("timesteps") or 0
+    return {**fixed, "timesteps": max(int(trial_steps), DEFAULT_TIMESTEPS)}
 
 
 def plot_trials(out: Path, title: str) -> Path | None:

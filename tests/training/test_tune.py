@@ -16,7 +16,7 @@ import pytest
 pytest.importorskip("optuna")
 
 from aldm_gym.training import tune as tune_module
-from aldm_gym.training.settings import FAILURE_PENALTY
+from aldm_gym.training.settings import DEFAULT_TIMESTEPS, FAILURE_PENALTY
 from aldm_gym.training.tune import (
     FINETUNE_SPACE,
     SEARCH_SPACE,
@@ -109,9 +109,13 @@ def test_search_writes_table_and_best_and_continues(tmp_path: Path, fake_trainin
         expected -= FAILURE_PENALTY * 0.1
     assert best["score"] == pytest.approx(expected)
     assert best["kept"]["rule_based_speed"] == 25.0
-    # The command trains the best trial with the full budget (no --timesteps).
+    # The command trains the best trial with the full budget: train's default here,
+    # the trials' own when that is more (a search at the full budget).
     assert best["command"].startswith("aldm-gym train --out OUT")
-    assert "--timesteps" not in best["command"] and "--no-progress" not in best["command"]
+    assert f"--timesteps {DEFAULT_TIMESTEPS}" in best["command"]
+    assert "--no-progress" not in best["command"]
+    full = tune(tmp_path / "full", trials=1, jobs=1, fixed={"timesteps": 2 * DEFAULT_TIMESTEPS})
+    assert f"--timesteps {2 * DEFAULT_TIMESTEPS}" in full["command"]
     assert json.loads((tmp_path / "best.json").read_text())["trial"] == best["trial"]
 
     # The same folder continues the study: two more trials, four kept.
