@@ -78,8 +78,14 @@ def plot_learning_curves(
     import matplotlib.pyplot as plt
 
     titles = list(groups)
+    # Many runs in a column (a search's trials): their legend goes beside the panels.
+    crowded = max((len(runs) for runs in groups.values()), default=0) > 6
     fig, axes = plt.subplots(
-        2, len(titles), figsize=(4.6 * len(titles), 6.0), sharex=True, squeeze=False
+        2,
+        len(titles),
+        figsize=(4.6 * len(titles) + (2.0 if crowded else 0.0), 6.0),
+        sharex=True,
+        squeeze=False,
     )
     colours = {"idle": "C7", "rule_based": "C2"}
     names = {"idle": "IDLE", "rule_based": "rule-based LCA"}
@@ -92,7 +98,9 @@ def plot_learning_curves(
                 ax.plot(steps, values, "o-", ms=3, lw=1.2, color=f"C{i % 10}", label=run)
                 kept = [h[key] for h in record["history"] if h["steps"] == record["best_steps"]]
                 if kept:
-                    ax.plot(record["best_steps"], kept[0], "o", ms=9, mfc="none", color=f"C{i}")
+                    ax.plot(
+                        record["best_steps"], kept[0], "o", ms=9, mfc="none", color=f"C{i % 10}"
+                    )
             if runs:
                 for name, base in runs[0][1].get("baselines", {}).items():
                     ax.axhline(
@@ -109,7 +117,10 @@ def plot_learning_curves(
         axes[0, col].set_ylabel("mean speed [m/s]")
         axes[1, col].set_ylabel(f"collisions [of {n} episodes]")
         axes[1, col].set_xlabel("training steps")
-        axes[0, col].legend(fontsize=7, loc="lower right")
+        if crowded:
+            axes[0, col].legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1.0))
+        else:
+            axes[0, col].legend(fontsize=7, loc="lower right")
     fig.suptitle("validation during training (ring: the kept model)", fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
