@@ -44,9 +44,6 @@ from aldm_gym.training.settings import (
     KEEP_BY,
 )
 
-DETECTOR_TITLES = {"aldm": "ALDM", "naive": "naive", "ground_truth": "ground truth"}
-"""The detectors' names in the trials figure's title."""
-
 DEFAULT_TRIALS = 12
 """Default ``--trials``."""
 
@@ -115,6 +112,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
 
 def run(args: argparse.Namespace) -> int:
     """``aldm-gym tune``."""
+    from aldm_gym.envs.rendering import DETECTOR_NAMES
     from aldm_gym.training.tune import (
         BEST_FILE,
         SPACES,
@@ -183,7 +181,7 @@ def run(args: argparse.Namespace) -> int:
             raise BadArgument("--out", str(exc)) from None
         except EnqueueError as exc:
             raise BadArgument("--enqueue", str(exc)) from None
-    figure = plot_trials(out, DETECTOR_TITLES.get(args.detector, args.detector))
+    figure = plot_trials(out, DETECTOR_NAMES.get(args.detector, args.detector))
     drawn = "" if figure is None else f", {figure}"
     print(
         f"{best['trials']} trials in {time.perf_counter() - t0:.0f} s; best trial "
