@@ -5,7 +5,8 @@ Runs :func:`~aldm_gym.training.tune.tune`: ``--trials`` ``aldm-gym train`` runs 
 :data:`~aldm_gym.training.tune.SEARCH_SPACE` (or, with ``--pretrain-episodes``, every
 trial fine-tuning a clone of the rule-based LCA, from
 :data:`~aldm_gym.training.tune.FINETUNE_SPACE`), each scored on its validation seeds. It
-writes ``<out>/trials.csv`` and ``<out>/best.json`` (with the command that trains the
+writes ``<out>/trials.csv``, ``<out>/trials.png`` (the finished trials' validation
+curves) and ``<out>/best.json`` (with the command that trains the
 best trial's hyperparameters with the full budget: the trials' own ``--timesteps`` or
 train's default, whichever is more); a folder with a study continues it.
 optuna is imported only when the command runs (the ``[tune]`` extra).
@@ -143,6 +144,12 @@ def run(args: argparse.Namespace) -> int:
             enqueue.append(parse_params(text, space))
         except ValueError as exc:
             raise BadArgument("--enqueue", str(exc)) from None
+    if len(enqueue) > args.trials:
+        raise BadArgument(
+            "--enqueue",
+            f"{len(enqueue)} trials enqueued but --trials is {args.trials} "
+            "(enqueued trials count among them): raise --trials",
+        )
     out = make_output_dir(args.out)
     fixed = {
         "algo": args.algo,
@@ -179,8 +186,8 @@ def run(args: argparse.Namespace) -> int:
             raise SystemExit(f"aldm-gym tune: {exc}") from None
         except (StudyMismatch, OutputLocked) as exc:
             raise BadArgument("--out", str(exc)) from None
-        except EnqueueError as exc:
-            raise BadArgument("--enqueue", str(exc)) from None
+        except EnqueueError as exc:  # with the trials an earlier run left waiting
+            raise BadArgument("--trials", str(exc)) from None
     figure = plot_trials(out, DETECTOR_NAMES.get(args.detector, args.detector))
     drawn = "" if figure is None else f", {figure}"
     print(

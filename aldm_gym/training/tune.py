@@ -35,6 +35,7 @@ import json
 import logging
 import math
 import shlex
+import signal
 import subprocess
 import sys
 import threading
@@ -67,6 +68,10 @@ BEST_FILE = "best.json"
 
 TRIALS_FIGURE = "trials.png"
 """The finished trials' validation curves (:func:`plot_trials`)."""
+
+INTERRUPTED = 130
+"""Exit code of an ``aldm-gym`` command stopped by Ctrl-C: a trial's training that
+exits with it stops the search (its trial is marked failed)."""
 
 
 @dataclass(frozen=True)
@@ -295,6 +300,10 @@ def _run_trial(trial: Any, out: Path, fixed: Mapping[str, Any]) -> float:
     t0 = time.perf_counter()
     code = launch(cmd, folder / "train.log")
     trial.set_user_attr("wall_s", round(time.perf_counter() - t0, 1))
+    if code in (INTERRUPTED, -signal.SIGINT):
+        # the training was interrupted (Ctrl-C at a terminal reaches it too): the
+        # search stops, as on the main thread's own KeyboardInterrupt
+        raise KeyboardInterrupt(f"trial {trial.number} was interrupted")
     if code != 0:
         raise TrialFailed(f"trial {trial.number} exited with {code}; see {folder / 'train.log'}")
     value, row = score(json.loads((folder / VALIDATION_FILE).read_text()))

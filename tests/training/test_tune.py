@@ -321,6 +321,40 @@ def test_the_cli_refuses_a_bad_enqueue_before_making_the_folder(
     assert not out.exists()
 
 
+def test_the_cli_refuses_more_enqueued_trials_than_trials(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from aldm_gym.cli import main
+
+    out = tmp_path / "search"
+    argv = ["tune", "--pretrain-episodes", "5", "--trials", "1", "--out", str(out)]
+    with pytest.raises(SystemExit) as exc:
+        main([*argv, "--enqueue", "gamma=0.9", "--enqueue", "gamma=0.95"])
+    assert exc.value.code == 2
+    assert "argument --enqueue: 2 trials enqueued but --trials is 1" in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_an_interrupted_trial_stops_the_search(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A training that exits 130 (Ctrl-C reached it) fails its trial and starts no new
+    one, as the main thread's own KeyboardInterrupt does."""
+    optuna = pytest.importorskip("optuna")
+    launched: list[Path] = []
+
+    def launch(cmd: Sequence[str], log: Path) -> int:
+        launched.append(log)
+        return tune_module.INTERRUPTED
+
+    monkeypatch.setattr(tune_module, "launch", launch)
+    with pytest.raises(KeyboardInterrupt, match="trial 0 was interrupted"):
+        tune(tmp_path, trials=4, jobs=1, fixed={"pretrain_episodes": 5})
+    assert len(launched) == 1
+    study = optuna.load_study(study_name="aldm-gym", storage=f"sqlite:///{tmp_path / 'study.db'}")
+    assert [t.state.name for t in study.trials] == ["FAIL"]
+
+
 def test_enqueued_trials_count_among_the_trials(
     tmp_path: Path, fake_training: None, monkeypatch: pytest.MonkeyPatch
 ) -> None:
