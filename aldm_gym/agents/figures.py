@@ -61,6 +61,11 @@ def plot_validation(record: dict[str, Any], path: Path, label: str = "PPO") -> N
     plt.close(fig)
 
 
+RUN_MARKERS = "os^D"
+"""Markers of the runs of :func:`plot_learning_curves`: runs 0-9 ``o``, 10-19 ``s``
+... (matplotlib's ten default colours repeat in each ten)."""
+
+
 def plot_learning_curves(
     groups: Mapping[str, list[tuple[str, dict[str, Any]]]], path: Path, label: str = "PPO"
 ) -> None:
@@ -78,12 +83,13 @@ def plot_learning_curves(
     import matplotlib.pyplot as plt
 
     titles = list(groups)
-    # Many runs in a column (a search's trials): their legend goes beside the panels.
+    # Many runs in a column (a search's trials): their legend goes beside each column's
+    # panels, with room for it in every column
     crowded = max((len(runs) for runs in groups.values()), default=0) > 6
     fig, axes = plt.subplots(
         2,
         len(titles),
-        figsize=(4.6 * len(titles) + (2.0 if crowded else 0.0), 6.0),
+        figsize=((4.6 + (2.0 if crowded else 0.0)) * len(titles), 6.0),
         sharex=True,
         squeeze=False,
     )
@@ -95,11 +101,13 @@ def plot_learning_curves(
             for i, (run, record) in enumerate(runs):
                 steps = [h["steps"] for h in record["history"]]
                 values = [h[key] for h in record["history"]]
-                ax.plot(steps, values, "o-", ms=3, lw=1.2, color=f"C{i % 10}", label=run)
+                # ten colours, then the next ten runs with another marker
+                style = dict(color=f"C{i % 10}", marker=RUN_MARKERS[i // 10 % len(RUN_MARKERS)])
+                ax.plot(steps, values, "-", ms=3, lw=1.2, label=run, **style)
                 kept = [h[key] for h in record["history"] if h["steps"] == record["best_steps"]]
                 if kept:
                     ax.plot(
-                        record["best_steps"], kept[0], "o", ms=9, mfc="none", color=f"C{i % 10}"
+                        record["best_steps"], kept[0], "o", ms=9, mfc="none", color=style["color"]
                     )
             if runs:
                 for name, base in runs[0][1].get("baselines", {}).items():
