@@ -48,6 +48,18 @@ def test_leaf_kernels_python_and_numba_agree_exactly() -> None:
     g_py, g_nb = grid.build_grid_py(xs, ys, 1.2), grid.build_grid(xs, ys, 1.2)
     for a, b in zip(g_py, g_nb, strict=True):
         np.testing.assert_array_equal(a, b)
+    # the neighbouring-marking check of the trace's second look, on a guide table
+    guide = np.column_stack([xs[:40], np.full(40, 0.1), np.full(40, 0.001), ys[:40]])
+    guide = guide[np.argsort(guide[:, 0], kind="stable")]
+    guide[:, 0] = guide[0, 0] + grid.GUIDE_STEP * np.arange(40)
+    for x, y in zip(xs[::7], ys[::7], strict=True):
+        d_py = grid._guide_normal_py(guide, x, y, 18.0)
+        d_nb = grid._guide_normal(guide, x, y, 18.0)
+        assert d_py == d_nb or (np.isnan(d_py) and np.isnan(d_nb))
+        off = d_nb if d_nb == d_nb else 0.0
+        assert grid._beside_py(xs, ys, guide, x, off, 18.0) == grid._beside(
+            xs, ys, guide, x, off, 18.0
+        )
     us, vs = xs[:20] - xs[19], ys[:20]
     w1, w2 = np.empty((2, 3, 3)), np.empty((2, 3, 3))
     r_py = fit._ridge_quadratic_py(us, vs, 20, 0.001, 0.0, 2.0, 1.0, 0.005, w1)
@@ -253,6 +265,34 @@ def test_fully_plain_python_run_agrees_with_numba(tmp_path: Path) -> None:
         det = detect_lanes(pts, mode=mode)
         for name, value in plain[mode].items():
             np.testing.assert_array_equal(np.array(value).reshape(-1, 2), getattr(det, name))
+
+
+@pytest.mark.slow
+def test_the_neighbouring_marking_check_agrees_with_a_plain_python_run(tmp_path: Path) -> None:
+    """A broken right edge line whose paint ends at 60 m beside a solid shoulder line
+    0.75 m outside, in an R 400 m bend: the trace's neighbouring-marking check ends
+    the right line at the paint, as plain Python (NUMBA_DISABLE_JIT=1) and compiled."""
+    marks = [
+        S.SynthMarking(5.25),
+        S.SynthMarking(1.75),
+        S.SynthMarking(-1.75, dashed=True, end_s=60.0),
+        S.SynthMarking(-2.5),
+    ]
+    road = S.SynthRoad(marks, 1.0 / 400.0)
+    pts, _ = S.sample(road, seed=1, x_range=100.0)
+    np.save(tmp_path / "pts.npy", pts)
+    code = (
+        "import json, numpy as np\n"
+        "from aldm_gym.sensor.aldm import detect_lanes\n"
+        f"d = detect_lanes(np.load({str(tmp_path / 'pts.npy')!r}))\n"
+        "print(json.dumps({n: getattr(d, n).tolist() for n in "
+        "('left_adjacent', 'ego_left', 'ego_right', 'right_adjacent', 'trajectory')}))\n"
+    )
+    plain = run_without_jit(code)
+    det = detect_lanes(pts)
+    assert det.ego_right[-1, 0] < 60.0 and road.lateral_error(2, det.ego_right).max() < 0.3
+    for name, value in plain.items():
+        np.testing.assert_array_equal(np.array(value).reshape(-1, 2), getattr(det, name))
 
 
 @pytest.mark.slow

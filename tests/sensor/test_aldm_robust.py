@@ -137,6 +137,32 @@ def test_line_that_ends_stops_instead_of_jumping() -> None:
         assert road.lateral_error(2, line).max() < 0.3
 
 
+@pytest.mark.parametrize("radius", [np.inf, 400.0, 150.0, -150.0])
+def test_a_solid_line_beside_a_broken_edge_line_is_not_taken(radius: float) -> None:
+    """A broken right edge line whose paint ends (at s = 80 or 120 m) with a solid
+    shoulder line 0.75 m outside it, as on a rural road: the right line ends with the
+    paint instead of stepping over to the shoulder line, in a straight road and in
+    bends of R 400 m and R 150 m either way. With the guide checks off
+    (``parallel_gate`` 10 m) it steps over at least once."""
+    stepped_over = 0
+    for end in (80.0, 120.0):
+        for phase in (0.0, 5.0, 11.0):
+            marks = [
+                S.SynthMarking(5.25),
+                S.SynthMarking(1.75),
+                S.SynthMarking(-1.75, dashed=True, end_s=end, phase=phase),
+                S.SynthMarking(-2.5),
+            ]
+            road = S.SynthRoad(marks, 0.0 if np.isinf(radius) else 1.0 / radius)
+            pts, _ = S.sample(road, seed=1)
+            line = detect_lanes(pts).ego_right
+            assert len(line) and road.lateral_error(2, line).max() < 0.3, (end, phase)
+            assert line[-1, 0] <= road.curve(2, np.array([end]))[0, 0], (end, phase)
+            off = detect_lanes(pts, parallel_gate=10.0).ego_right
+            stepped_over += bool(road.lateral_error(2, off).max() > 0.3)
+    assert stepped_over >= 1
+
+
 def test_lane_opening_taper_is_followed_or_cut() -> None:
     road = S.highway(lanes=2, ego_lane=0)
     right = road.markings[2]  # right edge moves out by a lane width over 120 m

@@ -166,6 +166,87 @@ def guide_dev_py(guide, x, y):
 guide_dev = numba.njit(cache=True)(guide_dev_py)
 
 
+NEIGHBOUR_GATES = 1.5
+"""A trace's poor winner farther than this many ``parallel_gate`` from the traced line
+(along the guide's normal) may be a neighbouring marking (:func:`_neighbour`): 0.45 m
+by default: inside the 0.75 m between a broken edge line and a solid shoulder line,
+and well outside the scatter of a line's own points about its fit under 10 cm of
+sensor noise."""
+
+BESIDE_LENGTH = 20.0
+"""A trace's poor winner is a neighbouring marking (:func:`_beside`) when points at
+its offset from the guide line lie up to this far behind the trace's last point [m] ..."""
+
+BESIDE_DY = 0.15
+"""... within this of that offset [m] ..."""
+
+BESIDE_MIN = 3
+"""... at least this many of them."""
+
+
+def _guide_normal_py(guide, x, y, reach):
+    """The distance of ``(x, y)`` [m] from the guide line along the guide's normal
+    (:func:`guide_dev`, the y difference, times the cosine of the guide's heading; a
+    line parallel to the guide keeps it in a bend, where its y difference grows),
+    with the guide's end rows extended up to ``reach`` [m] beyond its x range (a
+    guide ends where its line turned steeper than ``max_slope``, a few metres before a
+    line beside it may); NaN farther out."""
+    ng = guide.shape[0]
+    if ng == 0 or x < guide[0, 0] - reach or x > guide[ng - 1, 0] + reach:
+        return np.nan
+    g = min(max(int((x - guide[0, 0]) / GUIDE_STEP + 0.5), 0), ng - 1)
+    u = x - guide[g, 0]
+    slope = guide[g, 1] + 2.0 * guide[g, 2] * u
+    dy = y - (guide[g, 3] + (guide[g, 1] + guide[g, 2] * u) * u)
+    return dy / math.sqrt(1.0 + slope * slope)
+
+
+_guide_normal = numba.njit(cache=True)(_guide_normal_py)
+
+
+def _beside_py(xs, ys, guide, x_last, off, reach):
+    """Whether at least :data:`BESIDE_MIN` points with ``x_last - BESIDE_LENGTH <= x <=
+    x_last`` lie within :data:`BESIDE_DY` of distance ``off`` [m] from the guide line
+    (along its normal, :func:`_guide_normal`): a marking that has run beside the
+    traced line, parallel to it. ``xs`` is sorted."""
+    lo = np.searchsorted(xs, x_last - BESIDE_LENGTH)
+    count = 0
+    for k in range(lo, xs.shape[0]):
+        if xs[k] > x_last:
+            break
+        if abs(_guide_normal(guide, xs[k], ys[k], reach) - off) <= BESIDE_DY:
+            count += 1
+            if count >= BESIDE_MIN:
+                return True
+    return False
+
+
+_beside = numba.njit(cache=True)(_beside_py)
+
+
+def _neighbour_py(ctx, best):
+    """Whether a trace's winner ``best`` — after a poor fit to its prediction — lies
+    on a neighbouring marking: more than :data:`NEIGHBOUR_GATES` times
+    ``parallel_gate`` from the traced line, both measured along the guide line's
+    normal (the line at the trace's last x, where its fit passes; the guide extended
+    by ``search_length`` beyond its ends), on a marking that has run beside the
+    traced line (:func:`_beside`), e.g. a solid shoulder line beside a broken edge line
+    whose next dash is not in view. The line then ends rather than stepping over to
+    it. A line's own next dash after a gap in a tight bend can be as far off its
+    prediction and the guide's y, but not off its distance along the normal, and no
+    marking runs beside it there."""
+    xs, ys, _mask, _geo, _start, _pts, x_last, _a, _b, c_last, _inv, fp, _sig2, guide, _ = ctx
+    reach = fp[P.search_length]
+    off = _guide_normal(guide, xs[best], ys[best], reach)
+    own = _guide_normal(guide, x_last, c_last, reach)
+    if not abs(off - own) > NEIGHBOUR_GATES * fp[P.parallel_gate]:
+        return False
+    return _beside(xs, ys, guide, x_last, off, reach)
+
+
+_neighbour = numba.njit(cache=True)(_neighbour_py)
+
+
 def _scan_py(ctx, x_lo, x_hi, r_max, nearest, par_max):
     """The best unclaimed point with ``x_lo < x <= x_hi`` that passes the gate
     (:func:`_gated`) with |residual| <= ``r_max`` (and, for a finite ``par_max``, lies
@@ -238,7 +319,9 @@ def grid_search_py(
     the traced line's mean offset from it (``g_off``; NaN: not known), a winner more
     than ``parallel_gate`` off the guide shifted by that offset yields to the nearest
     gated point in the window at most half as far off (an old marking diverging from
-    the paint at a small angle, while the paint goes on).
+    the paint at a small angle, while the paint goes on). After a poor fit, a point on
+    a neighbouring marking that has run beside the line ends the line
+    (:func:`_neighbour`: a solid shoulder line beside a broken edge line).
 
     :return: index of the chosen point, or -1.
     """
@@ -310,7 +393,9 @@ def _second_look_py(ctx, x_hi, x_tie, best, best_r):
     yields to the nearest gated point farther in the window that fits at least twice
     as well; a point off the guide shifted by ``g_off`` by more than ``parallel_gate``
     (an old marking diverging from the paint) to the nearest gated point at most half
-    as far off. Kept out of the search's common path, which stays as small as it was.
+    as far off. After a poor fit, a point on a neighbouring marking that has run beside
+    the line (:func:`_neighbour`) ends the line instead (-1). Kept out of the search's
+    common path, which stays as small as it was.
     ``ctx`` is the search's context (:func:`_scan`).
     """
     xs = ctx[0]
@@ -319,7 +404,8 @@ def _second_look_py(ctx, x_hi, x_tie, best, best_r):
     fp = ctx[11]
     guide = ctx[13]
     g_off = ctx[14]
-    if best_r > fp[P.skip_residual]:
+    poor = best_r > fp[P.skip_residual]
+    if poor:
         skip, _ = _scan(ctx, x_tie, x_hi, 0.5 * best_r, True, np.inf)
         if skip >= 0:
             best = skip
@@ -329,6 +415,8 @@ def _second_look_py(ctx, x_hi, x_tie, best, best_r):
             alt, _ = _scan(ctx, x_last, x_hi, np.inf, True, 0.5 * dev)
             if alt >= 0:
                 best = alt
+        if poor and _neighbour(ctx, best):
+            return -1
     return best
 
 
