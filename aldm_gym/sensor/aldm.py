@@ -132,7 +132,10 @@ class ALDMParams:
         (the first traced line with at least 6 points over 30 m) shifted by the traced
         line's mean offset from it
         yields to the nearest gated point at most half as far off (an old marking
-        diverging from the paint).
+        diverging from the paint); after a winner above ``skip_residual``, a point
+        more than 1.5 times this from the line on a marking that has run beside it
+        ends the line (a solid shoulder line beside a broken edge line; ``docs/
+        aldm.md``, robust step 3). 10 m turns both checks off.
     """
 
     mode: str = setting("robust", choices=MODES)

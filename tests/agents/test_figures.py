@@ -25,8 +25,9 @@ def _record(speed: float) -> dict[str, Any]:
 def test_crowded_learning_curves_keep_legends_beside_their_column(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    """Twelve runs in each of two columns: every legend lies between its column's panel
-    and the next column, and runs 10 and 11 differ from runs 0 and 1 by marker."""
+    """Twelve runs in each of three columns: every legend lies between its column's
+    panel and the next column, the panels keep most of the width of a figure with one
+    run per column, and runs 10 and 11 differ from runs 0 and 1 by marker."""
     import matplotlib.pyplot as plt
 
     figures: list[Any] = []
@@ -37,10 +38,13 @@ def test_crowded_learning_curves_keep_legends_beside_their_column(
         for i in range(12)
     ]
     path = tmp_path / "curves.png"
-    plot_learning_curves({"ALDM": runs, "naive": runs}, path)
+    plot_learning_curves({"ALDM": runs[:1], "naive": runs[:1], "other": runs[:1]}, path)
+    plot_learning_curves({"ALDM": runs, "naive": runs, "other": runs}, path)
     assert path.stat().st_size > 0
-    (fig,) = figures
+    sparse, fig = figures
     renderer = fig.canvas.get_renderer()
+    width = fig.axes[0].get_window_extent(renderer).width
+    assert width >= 0.75 * sparse.axes[0].get_window_extent(sparse.canvas.get_renderer()).width
     left, right = fig.axes[0], fig.axes[1]  # top row: column 0, column 1
     legend = left.get_legend().get_window_extent(renderer)
     assert legend.x0 >= left.get_window_extent(renderer).x1
@@ -56,3 +60,4 @@ def test_crowded_learning_curves_keep_legends_beside_their_column(
     assert by_label[name(0)].get_marker() == RUN_MARKERS[0]
     assert by_label[name(10)].get_marker() == RUN_MARKERS[1]
     real_close(fig)
+    real_close(sparse)

@@ -48,18 +48,24 @@ def test_leaf_kernels_python_and_numba_agree_exactly() -> None:
     g_py, g_nb = grid.build_grid_py(xs, ys, 1.2), grid.build_grid(xs, ys, 1.2)
     for a, b in zip(g_py, g_nb, strict=True):
         np.testing.assert_array_equal(a, b)
-    # the neighbouring-marking check of the trace's second look, on a guide table
-    guide = np.column_stack([xs[:40], np.full(40, 0.1), np.full(40, 0.001), ys[:40]])
-    guide = guide[np.argsort(guide[:, 0], kind="stable")]
-    guide[:, 0] = guide[0, 0] + grid.GUIDE_STEP * np.arange(40)
-    for x, y in zip(xs[::7], ys[::7], strict=True):
-        d_py = grid._guide_normal_py(guide, x, y, 18.0)
-        d_nb = grid._guide_normal(guide, x, y, 18.0)
-        assert d_py == d_nb or (np.isnan(d_py) and np.isnan(d_nb))
-        off = d_nb if d_nb == d_nb else 0.0
-        assert grid._beside_py(xs, ys, guide, x, off, 18.0) == grid._beside(
-            xs, ys, guide, x, off, 18.0
-        )
+    # the neighbouring-marking check of the trace's second look: a guide along the
+    # parabola y = 0.001 x^2 and points on the parallel curve 0.75 m to its right
+    gx = 5.0 + grid.GUIDE_STEP * np.arange(40)
+    guide = np.column_stack([gx, 0.002 * gx, np.full(40, 0.001), 0.001 * gx * gx])
+    px = np.arange(6.0, 90.0, 2.0)
+    slope = 0.002 * px
+    py = 0.001 * px * px - 0.75 * np.sqrt(1.0 + slope * slope)
+    seen = set()
+    for k in range(0, len(px), 5):
+        d_py = grid._guide_normal_py(guide, px[k], py[k], 18.0)
+        assert d_py == grid._guide_normal(guide, px[k], py[k], 18.0)
+        assert abs(d_py + 0.75) < 0.01  # along the normal, however steep
+        for off in (d_py, d_py + 0.3):
+            got = grid._beside_py(px, py, guide, px[k], off, 18.0)
+            assert got == grid._beside(px, py, guide, px[k], off, 18.0)
+            seen.add(got)
+    assert seen == {True, False}
+    assert np.isnan(grid._guide_normal(guide, gx[-1] + 19.0, 0.0, 18.0))
     us, vs = xs[:20] - xs[19], ys[:20]
     w1, w2 = np.empty((2, 3, 3)), np.empty((2, 3, 3))
     r_py = fit._ridge_quadratic_py(us, vs, 20, 0.001, 0.0, 2.0, 1.0, 0.005, w1)

@@ -321,7 +321,8 @@ def grid_search_py(
     gated point in the window at most half as far off (an old marking diverging from
     the paint at a small angle, while the paint goes on). After a poor fit, a point on
     a neighbouring marking that has run beside the line ends the line
-    (:func:`_neighbour`: a solid shoulder line beside a broken edge line).
+    (:func:`_neighbour`: a solid shoulder line beside a broken edge line); like the
+    guide check, only where ``g_off`` is known.
 
     :return: index of the chosen point, or -1.
     """
