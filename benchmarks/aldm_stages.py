@@ -69,17 +69,7 @@ def stage_times(pts: np.ndarray, number: int = 1000) -> list[tuple[str, float]]:
     offsets = np.full(N_LINES, np.nan)
     a, b = R._robust_seeds(xs, ys, m, fp, ip, lam_a, lam_b, label, offsets)
     mask = np.zeros(n, dtype=np.uint8)
-    size = np.zeros(N_LINES)
-    first = np.full(N_LINES, -1, dtype=np.int64)
-    last = np.full(N_LINES, -1, dtype=np.int64)
-    for i in range(m):
-        s = label[i]
-        if s >= 0:
-            mask[i] |= np.uint8(1 << s)
-            size[s] += 1.0
-            last[s] = i
-            if first[s] < 0:
-                first[s] = i
+    size, first, last = R.claim_seeds(label, mask)
     grid = R.build_grid(xs, ys, fp[P.gate_max])
     guide = np.zeros((0, 4))
     for s in np.argsort(-size, kind="mergesort"):

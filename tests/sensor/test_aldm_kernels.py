@@ -45,6 +45,14 @@ def test_leaf_kernels_python_and_numba_agree_exactly() -> None:
     np.testing.assert_array_equal(
         robust._seed_chains_py(xs, ys, m, 4.5, 1.5), robust._seed_chains(xs, ys, m, 4.5, 1.5)
     )
+    label = np.arange(m) % (layout.N_LINES + 1) - 1  # -1: unlabelled
+    mask_py, mask_nb = np.zeros(len(xs), np.uint8), np.zeros(len(xs), np.uint8)
+    for a, b in zip(
+        robust.claim_seeds_py(label, mask_py), robust.claim_seeds(label, mask_nb), strict=True
+    ):
+        np.testing.assert_array_equal(a, b)
+    np.testing.assert_array_equal(mask_py, mask_nb)
+    assert mask_nb[1] == 1 and mask_nb[0] == 0
     g_py, g_nb = grid.build_grid_py(xs, ys, 1.2), grid.build_grid(xs, ys, 1.2)
     for a, b in zip(g_py, g_nb, strict=True):
         np.testing.assert_array_equal(a, b)

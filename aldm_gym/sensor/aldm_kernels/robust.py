@@ -613,6 +613,30 @@ def _guide_table_py(xs, ys, mask, bit, fp, a0, b0, lam_a, lam_b):
 _guide_table = numba.njit(cache=True)(_guide_table_py)
 
 
+def claim_seeds_py(label, mask):
+    """Claim each line's seed points: ``mask[i]`` gets bit ``1 << label[i]`` for every
+    labelled start-region point (``label[i] >= 0``).
+
+    :return: ``(size, first, last)``, each ``(N_LINES,)``: the seed's point count (as a
+        float), and its first and last point's index (-1: no seed).
+    """
+    size = np.zeros(N_LINES)
+    last = np.full(N_LINES, -1, dtype=np.int64)
+    first = np.full(N_LINES, -1, dtype=np.int64)
+    for i in range(label.shape[0]):
+        s = label[i]
+        if s >= 0:
+            mask[i] |= np.uint8(1 << s)
+            size[s] += 1.0
+            last[s] = i
+            if first[s] < 0:
+                first[s] = i
+    return size, first, last
+
+
+claim_seeds = numba.njit(cache=True)(claim_seeds_py)
+
+
 def robust_detect_py(xs, ys, fp, ip, mask, offsets):
     """Robust ALDM: seeds of the four lines, then traces with point exclusivity.
 
@@ -661,18 +685,7 @@ def robust_detect_py(xs, ys, fp, ip, mask, offsets):
                 if label2[i] == s and grown[i] < 0:
                     grown[i] = s
             label = grown
-        m = label.shape[0]
-    size = np.zeros(N_LINES)
-    last = np.full(N_LINES, -1, dtype=np.int64)
-    first = np.full(N_LINES, -1, dtype=np.int64)
-    for i in range(m):
-        s = label[i]
-        if s >= 0:
-            mask[i] |= np.uint8(1 << s)
-            size[s] += 1.0
-            last[s] = i
-            if first[s] < 0:
-                first[s] = i
+    size, first, last = claim_seeds(label, mask)
     # Trace order: larger seed first (ties: slot order); the first line traced with
     # enough support becomes the guide (shape prior) of the others.
     order = np.argsort(-size, kind="mergesort")
