@@ -50,7 +50,7 @@ def test_a_config_typo_is_a_config_error() -> None:
 def test_a_corrupt_map_is_a_map_error_and_a_missing_one_not_found(tmp_path: Path) -> None:
     bad = tmp_path / "bad.xodr"
     bad.write_text("<OpenDRIVE><road")
-    with pytest.raises(errors.MapError, match=r"bad\.xodr: malformed XML at line 1"):
+    with pytest.raises(errors.MapError, match=r"bad\.xodr:1: malformed XML"):
         OpenDriveRoad.from_file(bad)
     with pytest.raises(errors.MapNotFoundError, match="OpenDRIVE file not found"):
         OpenDriveRoad.from_file(tmp_path / "missing.xodr")

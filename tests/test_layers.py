@@ -10,6 +10,7 @@ from pathlib import Path
 PACKAGE = Path(__file__).resolve().parents[1] / "aldm_gym"
 LAYERS = (
     "errors",
+    "xmlfile",
     "types",
     "_compat",
     "_numba",

@@ -14,9 +14,11 @@ of the start and target speeds, or at the current speed for lateral actions) or 
 ``rate``, read as the largest rate of change along the shape (linear: constant;
 cubic: 1.5 × the mean; sinusoidal: π/2 × the mean). ``LaneOffsetAction``'s
 ``maxLateralAcc`` gives the duration of a sinusoidal (``π·√(|Δ|/2a)``) or cubic
-(``√(6|Δ|/a)``) shape; a linear shape would need an unbounded acceleration and is an
-error. A linear speed change by ``rate`` reaches its target at ``|rate|`` (a rate of
-0 never does: the action keeps running).
+(``√(6|Δ|/a)``) shape; a linear shape takes the cubic's duration (as esmini: a linear
+shape's acceleration is unbounded at its ends); the offset follows the shape one step
+late (the first step keeps it, as esmini). A linear speed change by ``rate`` reaches
+its target at ``|rate|`` (a rate of 0 never does: the action keeps running); a speed
+within 1e-6 m/s of its target has reached it.
 
 ``LongitudinalDistanceAction`` without ``DynamicConstraints`` places the actor at the
 distance at once (as the OSC-ALKS files expect: "will position the Lead vehicle
@@ -27,6 +29,7 @@ going; otherwise the action ends when the distance is reached (within 0.1 m).
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -54,6 +57,16 @@ __all__ = [
 
 SHAPES = ("step", "linear", "cubic", "sinusoidal")
 """The dynamics shapes."""
+
+_STARTS = itertools.count()
+"""Numbers the motions in the order they start (see :class:`FollowTrajectory`)."""
+
+_TIME_EPS = 1e-6
+"""A transition whose elapsed time is this close to its duration [s] has ended."""
+
+SPEED_EPS = 1e-6
+"""A speed this close to its target [m/s] has reached it (esmini's tolerance): a
+target that differs from the speed in the last bits completes the action."""
 
 _PEAK = {"linear": 1.0, "cubic": 1.5, "sinusoidal": math.pi / 2.0}
 """Largest rate of change along each shape, as a multiple of the mean rate."""
@@ -145,12 +158,20 @@ def _override(entity: Entity, slot: str, motion: Any) -> None:
     if old is not None and old is not motion:
         old.stop()
         setattr(entity, slot, None)
-    if slot in ("longitudinal", "lateral") and entity.trajectory is not None:
-        entity.trajectory.stop()
+    trajectory = entity.trajectory
+    if slot in ("longitudinal", "lateral") and trajectory is not None and trajectory is not motion:
+        # a trajectory without timing holds the lateral domain only
+        if slot == "lateral" or trajectory.timed:
+            trajectory.stop()
+            entity.trajectory = None
     if slot == "trajectory":
-        for other in ("longitudinal", "lateral"):
+        others = ("longitudinal", "lateral") if motion is None or motion.timed else ("lateral",)
+        for other in others:
             if getattr(entity, other) is not None:
                 getattr(entity, other).stop()
+                setattr(entity, other, None)
+        if entity.trajectory is not None and entity.trajectory is not motion:
+            entity.trajectory.stop()
     setattr(entity, slot, motion)
 
 
@@ -207,7 +228,13 @@ class SpeedChange(Instance):
         self.v0 = entity.speed
         self.v1 = float(self.target(world))
         self.elapsed = 0.0
-        self.T = self.dynamics.duration(self.v1 - self.v0, 0.5 * (self.v0 + self.v1))
+        self.order = next(_STARTS)
+        change = self.v1 - self.v0
+        self.T = (
+            0.0
+            if abs(change) < SPEED_EPS
+            else self.dynamics.duration(change, 0.5 * (self.v0 + self.v1))
+        )
         if self.T <= 0.0:
             entity.speed = self.v1
             if not self.continuous:
@@ -225,6 +252,8 @@ class SpeedChange(Instance):
             step = abs(self.dynamics.value) * dt
             v = entity.speed
             v = min(v + step, self.v1) if v < self.v1 else max(v - step, self.v1)
+            if abs(v - self.v1) < SPEED_EPS:
+                v = self.v1
             if v == self.v1 and not self.continuous:
                 self._finish(entity)
             return v
@@ -369,6 +398,8 @@ class LaneChange(Instance):
     its centre (along the road's ``t``)."""
 
     slot = "lateral"
+    speed_along_heading = True
+    """The entity's speed is along its heading: the lateral motion takes its share."""
 
     def __init__(
         self,
@@ -394,26 +425,31 @@ class LaneChange(Instance):
             key, _, _ = world.locate(c.road_id, lane_id, c.s, 0.0)
         except Exception as exc:
             raise ScenarioError(f"{self.where}: no target lane {lane_id} here: {exc}") from None
-        world.change_lane(entity, key)
         rec = world.road.lane_record(key)
+        if rec.direction == c.direction:
+            world.change_lane(entity, key)
+            self.t1 = self.target_offset * rec.direction
+        else:
+            # A lane of the other driving direction: a lane change is a lateral
+            # transition, the entity keeps its direction of travel. It goes on moving
+            # by its own lane, towards the target lane's centre (+ the offset) measured
+            # across it.
+            point, _ = world.pose(key, world.road.lane_u(key, c.s), 0.0)
+            _, right = world._lane(entity.lane).local_coordinates(point)
+            self.t1 = -float(right) + self.target_offset * c.direction
         self.t0 = entity.t
-        self.t1 = self.target_offset * rec.direction
         self.elapsed = 0.0
         self.T = self.dynamics.duration(self.t1 - self.t0, entity.speed)
         if not math.isfinite(self.T):
             raise ScenarioError(f"{self.where}: the lane change never ends (rate 0 or speed 0)")
-        if self.T <= 0.0:
-            _override(entity, "lateral", None)
-            entity.t = self.t1
-            world.place(entity, entity.lane, entity.u, entity.t, entity.heading_offset)
-            self.done = True
-            return
+        # a step shape too moves the entity at the next step (esmini: in the frame's
+        # action step, seen in the next frame)
         _override(entity, "lateral", self)
 
     def offset_after(self, world: World, entity: Entity, dt: float) -> float:
         """The offset [m] (driver's left) after ``dt`` [s]."""
         self.elapsed += dt
-        x = self.elapsed / self.T
+        x = self.elapsed / self.T if self.T > 0.0 else 1.0
         if x >= 1.0:
             self.done = True
             entity.lateral = None
@@ -458,44 +494,42 @@ class LaneOffset(Instance):
             raise ScenarioError(f"{self.where}: maxLateralAcc must be > 0, got {self.max_acc:g}")
         elif self.shape == "sinusoidal":
             self.T = math.pi * math.sqrt(change / (2.0 * self.max_acc))
-        elif self.shape == "cubic":
+        else:  # cubic; linear (its acceleration is unbounded) takes cubic's duration
             self.T = math.sqrt(6.0 * change / self.max_acc)
-        else:
-            raise ScenarioError(
-                f"{self.where}: dynamicsShape 'linear' with maxLateralAcc would need an "
-                "unbounded lateral acceleration: use 'sinusoidal' or 'cubic'"
-            )
-        if self.T <= 0.0:
-            entity.t = self.t1
-            world.place(entity, entity.lane, entity.u, entity.t, entity.heading_offset)
-            if not self.continuous:
-                _override(entity, "lateral", None)
-                self.done = True
-                return
+        # a step shape too moves the entity at the next step (esmini: in the frame's
+        # action step, seen in the next frame)
         _override(entity, "lateral", self)
 
     def offset_after(self, world: World, entity: Entity, dt: float) -> float:
-        """The offset [m] (driver's left) after ``dt`` [s]."""
-        self.elapsed += dt
-        if self.continuous and self.elapsed >= self.T:
-            self.t1 = float(self.target(world, entity)) * self.direction
-            return self.t1
-        x = 1.0 if self.T <= 0.0 else self.elapsed / self.T
-        if x >= 1.0:
-            if not self.continuous:
+        """The offset [m] (driver's left) after ``dt`` [s]: the shape at the time the
+        step began (a step late, as esmini plays it: the first step keeps the offset),
+        the target at the first step that begins after the duration."""
+        if self.elapsed >= self.T - _TIME_EPS:
+            if self.continuous:
+                self.t1 = float(self.target(world, entity)) * self.direction
+            else:
                 self.done = True
                 entity.lateral = None
             return self.t1
+        x = self.elapsed / self.T
+        self.elapsed += dt
         return self.t0 + (self.t1 - self.t0) * shape_value(self.shape, x)
 
 
 # ---------------------------------------------------------------------- trajectory
 class FollowTrajectory(Instance):
-    """``FollowTrajectoryAction`` on a ``Polyline`` with vertex times: the actor's
-    reference point moves linearly between the vertices in time (``followingMode``
-    ``position``; ``follow`` is played the same way), heading along the segment
-    unless the vertex gives an orientation. Without times, the polyline is driven at
-    the actor's current speed."""
+    """``FollowTrajectoryAction`` on a ``Polyline``.
+
+    With vertex times (``TimeReference/Timing``) the trajectory drives both domains:
+    the actor's reference point moves linearly between the vertices in time, at the
+    speed that takes; ``followingMode`` ``follow`` is played as ``position``. Without
+    them (``TimeReference/None``) it drives the lateral domain only: the actor moves
+    along the polyline at its own speed, which the longitudinal domain keeps setting
+    (a ``SpeedAction`` during the trajectory changes the speed and leaves the path,
+    OpenSCENARIO 1.3 §6.9). The heading is a vertex's ``h`` where the vertex gives an
+    orientation, else the direction of the segment. At the path's end the actor keeps
+    its speed and drives on along its lane.
+    """
 
     slot = "trajectory"
 
@@ -508,68 +542,108 @@ class FollowTrajectory(Instance):
         scale: float,
         offset: float,
     ) -> None:
-        """``vertices``: (time [s] or None, position) in order."""
+        """``vertices``: (time [s] or None, position) in order; all times given means
+        a timed trajectory."""
         super().__init__(entity, where)
         self.vertices = vertices
         self.absolute = absolute
         self.scale = scale
         self.time_offset = offset
+        self.timed = all(t is not None for t, _ in vertices)
 
     def start(self, runner: Any) -> None:
         """Resolve the vertices now; timing from the action's start (relative)."""
         entity = self._scripted(runner)
         world = runner.world
-        points, headings = [], []
+        points: list[np.ndarray] = []
+        headings: list[float | None] = []
         for _, pos in self.vertices:
             w = pos.resolve(world)
             if w.lane is not None:
                 p, h = world.pose(w.lane, w.u, w.t)
                 points.append(p)
-                headings.append(h + w.heading_offset if w.heading_offset else None)
+                headings.append(h + w.heading_offset if w.heading_given else None)
             else:
                 assert w.point is not None
                 points.append(w.point)
-                headings.append(w.heading)
+                headings.append(w.heading if w.heading_given else None)
         self.points = np.array(points)
         self.headings = headings
-        times = [t for t, _ in self.vertices]
-        if all(t is not None for t in times):
-            ts = np.array([float(t or 0.0) for t in times]) * self.scale + self.time_offset
+        seg = np.hypot(*np.diff(self.points, axis=0).T)
+        self.arc = np.concatenate(([0.0], np.cumsum(seg)))
+        """Arc length [m] at each vertex."""
+        self.along = 0.0
+        if self.timed:
+            ts = np.array([float(t or 0.0) for t, _ in self.vertices]) * self.scale
+            ts = ts + self.time_offset
             if not self.absolute:
                 ts = ts + world.time
-        else:
-            seg = np.hypot(*np.diff(self.points, axis=0).T)
-            v = max(entity.speed, 0.1)
-            ts = world.time + np.concatenate(([0.0], np.cumsum(seg) / v))
-        if np.any(np.diff(ts) < 0):
-            raise ScenarioError(f"{self.where}: the vertices' times decrease")
-        self.times = ts
+            if np.any(np.diff(ts) < 0):
+                raise ScenarioError(f"{self.where}: the vertices' times decrease")
+            self.times = ts
         _override(entity, "trajectory", self)
-        self.advance(world, entity, 0.0)
+        # The actor is put on the path by the first step (as esmini, which steps a new
+        # action in the frame it starts in: its first logged pose is a step along).
+        self.order = next(_STARTS)
 
-    def advance(self, world: World, entity: Entity, dt: float) -> None:
-        """Move along the polyline to the world's time + ``dt``."""
-        t = world.time + dt
-        ts, pts = self.times, self.points
+    def _at_time(self, t: float) -> tuple[int, float]:
+        """Segment and fraction along it at time ``t`` [s] (timed)."""
+        ts = self.times
         if t <= ts[0]:
-            i, x = 0, 0.0
-        elif t >= ts[-1]:
-            i, x = len(ts) - 2, 1.0
-        else:
-            i = int(np.searchsorted(ts, t, side="right")) - 1
-            span = ts[i + 1] - ts[i]
-            x = 1.0 if span <= 0 else (t - ts[i]) / span
-        a, b = pts[i], pts[i + 1]
-        point = a + x * (b - a)
-        seg = b - a
-        length = float(np.hypot(*seg))
+            return 0, 0.0
+        if t >= ts[-1]:
+            return len(ts) - 2, 1.0
+        i = int(np.searchsorted(ts, t, side="right")) - 1
         span = ts[i + 1] - ts[i]
-        entity.speed = 0.0 if t >= ts[-1] or span <= 0 else length / span
+        return i, 1.0 if span <= 0 else (t - ts[i]) / span
+
+    def _at_length(self, s: float) -> tuple[int, float]:
+        """Segment and fraction along it at arc length ``s`` [m]."""
+        arc = self.arc
+        if s >= arc[-1]:
+            return len(arc) - 2, 1.0
+        i = min(int(np.searchsorted(arc, s, side="right")) - 1, len(arc) - 2)
+        span = arc[i + 1] - arc[i]
+        return i, 1.0 if span <= 0 else (s - arc[i]) / span
+
+    def _place(self, world: World, entity: Entity, i: int, x: float) -> None:
+        a, b = self.points[i], self.points[i + 1]
+        seg = b - a
         given = self.headings[i]
         heading = given if given is not None else float(math.atan2(seg[1], seg[0]))
+        world.place_world(entity, a + x * seg, heading)
+
+    def advance(self, world: World, entity: Entity, dt: float) -> None:
+        """Move along the polyline by ``dt`` [s]: to the world's time + ``dt``
+        (timed), or by the actor's speed (untimed, after its longitudinal motion)."""
+        if self.timed:
+            t = world.time + dt
+            i, x = self._at_time(t)
+            span = self.times[i + 1] - self.times[i]
+            length = self.arc[i + 1] - self.arc[i]
+            if span > 0:
+                entity.speed = float(length / span)
+            finished = t >= self.times[-1]
+        else:
+            # The speed that moves the actor: the one before this step's longitudinal
+            # update if the trajectory started before that action (esmini steps the
+            # running actions in the order they started), else the updated one.
+            speed = entity.speed
+            motion = entity.longitudinal
+            if motion is not None:
+                entity.speed = float(motion.speed_after(world, entity, dt))
+                if getattr(motion, "order", -1) < self.order:
+                    speed = entity.speed
+            else:
+                speed = entity.speed
+            entity.speed = min(max(entity.speed, 0.0), entity.max_speed)
+            speed = min(max(speed, 0.0), entity.max_speed)
+            self.along += speed * dt
+            i, x = self._at_length(self.along)
+            finished = self.along >= self.arc[-1]
         entity.traveled += entity.speed * dt
-        world.place_world(entity, point, heading)
-        if t >= ts[-1]:
+        self._place(world, entity, i, x)
+        if finished:
             self.done = True
             entity.trajectory = None
 

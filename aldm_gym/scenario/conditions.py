@@ -14,8 +14,11 @@ systems:
   else between the reference points.
 - ``road``: longitudinal as the difference of the reference line's ``s``, lateral as
   the difference of the road's ``t``; ``lane``: along and across the source's lane
-  (the target's reference point projected on its centre line); with ``freespace`` less
-  the two half-lengths (half-widths). Euclidean distances are the same in every system.
+  (the target's reference point projected on its centre line). With ``freespace`` the
+  distance is between the bounding boxes: every corner projected into the system, the
+  gap between the two intervals (0 where they overlap), so a box's extent is its own
+  (a pedestrian crossing the road spans its width along ``s``) and the box centre need
+  not be the reference point. Euclidean distances are the same in every system.
 
 A distance is a magnitude (>= 0). ``TimeHeadwayCondition`` divides the distance from
 the triggering entity to the referenced one by the triggering entity's speed (inf when
@@ -116,16 +119,21 @@ def relative_distance(
     """The distance [m] from ``source`` to ``target`` of ``kind`` (``longitudinal``,
     ``lateral``, ``euclidianDistance``/``cartesianDistance``) in ``system``."""
     if system in ("road", "lane") and kind in ("longitudinal", "lateral"):
+        if freespace:  # between the boxes, their corners projected
+            if system == "road":
+                a, b = world.road_box(source), world.road_box(target)
+            else:
+                key = world.coordinates(source).lane
+                a, b = world.lane_box(source, key), world.lane_box(target, key)
+            if kind == "longitudinal":
+                return _gap((a[0], a[1]), (b[0], b[1]))
+            return _gap((a[2], a[3]), (b[2], b[3]))
         if system == "road":
-            a, b = world.coordinates(source), world.coordinates(target)
-            ds, dt = abs(b.s - a.s), abs(world.road_t(target) - world.road_t(source))
+            ca, cb = world.coordinates(source), world.coordinates(target)
+            ds, dt = abs(cb.s - ca.s), abs(world.road_t(target) - world.road_t(source))
         else:  # along and across the source's lane
             ds, dt = world.lane_offsets(source, target)
-        if kind == "longitudinal":
-            extent = 0.5 * (source.box.length + target.box.length)
-            return max(0.0, ds - extent) if freespace else ds
-        extent = 0.5 * (source.box.width + target.box.width)
-        return max(0.0, dt - extent) if freespace else dt
+        return ds if kind == "longitudinal" else dt
     if system not in ("road", "lane", "entity"):
         raise ValueError(f"coordinate system {system!r}")
     if kind in ("euclidianDistance", "cartesianDistance"):

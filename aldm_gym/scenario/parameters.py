@@ -69,6 +69,7 @@ import numpy as np
 from lxml import etree
 
 from aldm_gym.errors import InputError, ScenarioError
+from aldm_gym.xmlfile import parse_xml
 
 __all__ = [
     "MAX_RUNS",
@@ -964,14 +965,7 @@ class ConcreteRun:
 
 
 def _read_xml(path: Path) -> etree._Element:
-    if not path.is_file():
-        raise ScenarioError(f"{path}: no such file")
-    parser = etree.XMLParser(resolve_entities=False, no_network=True)
-    try:
-        return etree.parse(str(path), parser).getroot()
-    except etree.XMLSyntaxError as exc:
-        line = exc.lineno if exc.lineno is not None else "?"
-        raise ScenarioError(f"{path}: malformed XML at line {line}: {exc.msg}") from None
+    return parse_xml(path).getroot()
 
 
 class _Reader:

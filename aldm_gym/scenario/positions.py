@@ -60,6 +60,9 @@ class Where:
     heading_offset: float = 0.0
     point: np.ndarray | None = None
     heading: float = 0.0
+    heading_given: bool = True
+    """Whether the position gave an orientation (a trajectory vertex without one
+    takes its segment's direction)."""
 
 
 class Position:
@@ -98,7 +101,7 @@ def _lane_where(
         else:
             _, lane_heading = world.pose(key, u, 0.0)
             heading = -o.h - lane_heading
-    return Where(lane=key, u=u, t=t, heading_offset=heading)
+    return Where(lane=key, u=u, t=t, heading_offset=heading, heading_given=o is not None)
 
 
 @dataclass(frozen=True)
@@ -158,6 +161,7 @@ class RoadPos(Position):
             u=pos.s - world.road.chain_start(pos.lane),
             t=pos.offset,
             heading_offset=heading,
+            heading_given=o is not None,
         )
 
 
@@ -167,12 +171,16 @@ class WorldPos(Position):
 
     x: float
     y: float
-    h: float = 0.0
+    h: float | None = None
     where: str = ""
 
     def resolve(self, world: World) -> Where:
-        """See :class:`Position`."""
-        return Where(point=np.array([self.x, -self.y]), heading=-self.h)
+        """See :class:`Position` (without ``h`` the heading is 0, the standard's default
+        for a placement, and a trajectory takes its segment's direction)."""
+        h = 0.0 if self.h is None else self.h
+        return Where(
+            point=np.array([self.x, -self.y]), heading=-h, heading_given=self.h is not None
+        )
 
 
 @dataclass(frozen=True)
@@ -225,4 +233,4 @@ class RelativeObjectPos(Position):
             heading = (
                 heading - self.orientation.h if self.orientation.relative else -self.orientation.h
             )
-        return Where(point=point, heading=heading)
+        return Where(point=point, heading=heading, heading_given=self.orientation is not None)

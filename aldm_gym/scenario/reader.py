@@ -22,8 +22,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from lxml import etree
-
 from aldm_gym.errors import ScenarioError
 from aldm_gym.scenario import actions as A
 from aldm_gym.scenario import conditions as C
@@ -58,6 +56,7 @@ from aldm_gym.scenario.storyboard import (
     Trigger,
 )
 from aldm_gym.scenario.world import BoundingBox, Entity
+from aldm_gym.xmlfile import parse_xml
 
 __all__ = ["EntitySpec", "Scenario", "read_scenario"]
 
@@ -146,10 +145,7 @@ def read_scenario(path: str | Path, parameters: Mapping[str, Any] | None = None)
     path = Path(path)
     if not path.is_file():
         raise ScenarioError(f"{path}: no such scenario file")
-    try:
-        root = etree.parse(str(path)).getroot()
-    except etree.XMLSyntaxError as exc:
-        raise ScenarioError(f"{path.name}: malformed XML: {exc}") from None
+    root = parse_xml(path).getroot()
     if root.tag != "OpenSCENARIO":
         raise ScenarioError(
             f"{path.name}:{root.sourceline}: the root is <{root.tag}>, not <OpenSCENARIO>"
@@ -362,10 +358,7 @@ class _Reader:
                 if not folder.is_dir():
                     raise self.error(directory, f"the catalog folder {folder} does not exist")
                 for file in sorted(folder.glob("*.xosc")):
-                    try:
-                        croot = etree.parse(str(file)).getroot()
-                    except etree.XMLSyntaxError as exc:
-                        raise ScenarioError(f"{file.name}: malformed XML: {exc}") from None
+                    croot = parse_xml(file).getroot()
                     for catalog in croot.findall("Catalog"):
                         entries = found.setdefault(catalog.get("name", ""), {})
                         for entry in catalog:
@@ -512,7 +505,7 @@ class _Reader:
                 self.attr(p, "roadId"), self.num(p, "s"), self.num(p, "t"), orient, where
             )
         if p.tag == "WorldPosition":
-            return WorldPos(self.num(p, "x"), self.num(p, "y"), self.num(p, "h", 0.0), where)
+            return WorldPos(self.num(p, "x"), self.num(p, "y"), self.num(p, "h", None), where)
         self._entity_ref(p, "entityRef")
         return RelativeObjectPos(
             self.attr(p, "entityRef"), self.num(p, "dx"), self.num(p, "dy"), orient, where
@@ -899,8 +892,7 @@ class _Reader:
 
         def evaluate(runner: Any, kind: str = kind, name: str = name, state: str = state) -> bool:
             element = runner.storyboard.element(kind, name)
-            shown = element.shows(state, seen[0])
-            seen[0] = len(element.transitions)
+            shown, seen[0] = element.shows(state, seen[0], runner.storyboard.tick)
             return shown
 
         return evaluate

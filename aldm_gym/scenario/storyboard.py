@@ -77,19 +77,29 @@ class Element:
         self.transition: str | None = None
         self.transitions: list[str] = []
         """Every transition the element made, in order (conditions keep a cursor)."""
+        self.ticks: list[int] = []
+        """The storyboard update (1 at time 0) of each of :attr:`transitions`."""
+        self.visible: list[int] = []
+        """The first update whose conditions see each of :attr:`transitions`."""
         self.runs = 0
 
-    def _move(self, transition: str, state: str, tick: int) -> None:
+    def _move(self, transition: str, state: str, tick: int, later: bool = False) -> None:
         self.state = state
         self.transition = transition
         self.transitions.append(transition)
+        self.ticks.append(tick)
+        self.visible.append(tick + 1 if later else tick)
 
-    def shows(self, state: str, since: int) -> bool:
+    def shows(self, state: str, since: int, tick: int) -> tuple[bool, int]:
         """Whether the element is in ``state`` now (a state), or made ``state`` (a
-        transition) after the first ``since`` of its transitions."""
+        transition) after the first ``since`` of its transitions that update ``tick``
+        sees; and the cursor past the transitions seen."""
+        upto = since
+        while upto < len(self.transitions) and self.visible[upto] <= tick:
+            upto += 1
         if state in STATES:
-            return self.state == state
-        return state in self.transitions[since:]
+            return self.state == state, upto
+        return state in self.transitions[since:upto], upto
 
 
 @dataclass(eq=False)
@@ -250,7 +260,11 @@ class Storyboard:
         self.stories = list(stories)
         self.stop = stop
         self.tick = 0
+        self.times: list[float] = []
+        """The simulation time [s] of each update (``times[tick - 1]``)."""
         self.finished = False
+        self.finished_at: float | None = None
+        """The simulation time [s] the stop trigger fired at."""
         self.by_name: dict[str, list[Element]] = {}
         for element in self.elements():
             self.by_name.setdefault(element.name, []).append(element)
@@ -280,6 +294,7 @@ class Storyboard:
         if self.finished:
             return
         self.tick += 1
+        self.times.append(float(time))
         tick = self.tick
         for story in self.stories:
             if story.state == "standbyState":
@@ -292,6 +307,20 @@ class Storyboard:
                 story._move("endTransition", "completeState", tick)
         if self.stop.fires(runner, time):
             self.finished = True
+            self.finished_at = float(time)
+
+    def starts(self, kind: str = "event") -> dict[str, list[float]]:
+        """The simulation times [s] at which each element of ``kind`` started
+        (``startTransition``), by name, in order."""
+        out: dict[str, list[float]] = {}
+        for element in self.elements():
+            if element.kind != kind:
+                continue
+            times = out.setdefault(element.name, [])
+            for transition, tick in zip(element.transitions, element.ticks, strict=True):
+                if transition == "startTransition":
+                    times.append(self.times[tick - 1])
+        return out
 
     def _update_act(self, runner: Any, act: Act, time: float, tick: int) -> None:
         if act.state == "standbyState" and act.start.fires(runner, time):
@@ -347,25 +376,29 @@ class Storyboard:
                 action.instances = [action.make(runner, actor) for actor in group.actors or [None]]
                 for instance in action.instances:
                     instance.start(runner)
-            self._finish_actions(event, tick)
+            # An action that ended as it started (instant) completes now, but state
+            # conditions see its end from the next update on: esmini completes it in
+            # the frame's action step, after the triggers were evaluated.
+            self._finish_actions(event, tick, later=True)
         if all(e.state == "completeState" for e in maneuver.events):
             maneuver._move("endTransition", "completeState", tick)
 
-    def _finish_actions(self, event: Event, tick: int) -> None:
-        """Complete the event's actions whose instances all ended, then the event."""
+    def _finish_actions(self, event: Event, tick: int, later: bool = False) -> None:
+        """Complete the event's actions whose instances all ended, then the event
+        (``later``: state conditions see these transitions from the next update)."""
         for action in event.actions:
             if action.state == "runningState" and all(i.done for i in action.instances):
                 # an action overridden by a newer one of its domain ends by a stop
                 stopped = any(getattr(i, "stopped", False) for i in action.instances)
                 transition = "stopTransition" if stopped else "endTransition"
-                action._move(transition, "completeState", tick)
+                action._move(transition, "completeState", tick, later)
         if all(a.state == "completeState" for a in event.actions):
             if event.runs < event.maximum:
-                event._move("endTransition", "standbyState", tick)
+                event._move("endTransition", "standbyState", tick, later)
                 for a in event.actions:
                     a.state = "standbyState"
             else:
-                event._move("endTransition", "completeState", tick)
+                event._move("endTransition", "completeState", tick, later)
 
     def _stop(self, element: Element, tick: int) -> None:
         """Stop a running element and everything running below it."""

@@ -19,10 +19,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from lxml import etree
-
 from aldm_gym.errors import AldmGymError, ScenarioError
 from aldm_gym.scenario.criteria import RunResult, run_scenario
+from aldm_gym.xmlfile import parse_xml
 
 __all__ = ["Job", "format_table", "plan_suite", "play_suite", "summarise", "write_outputs"]
 
@@ -38,10 +37,7 @@ class Job:
 
 
 def _is_variation(path: Path) -> bool:
-    try:
-        root = etree.parse(str(path)).getroot()
-    except etree.XMLSyntaxError as exc:
-        raise ScenarioError(f"{path.name}: malformed XML: {exc}") from None
+    root = parse_xml(path).getroot()
     return root.find("ParameterValueDistribution") is not None
 
 
@@ -115,7 +111,7 @@ def plan_suite(
             concrete.append((file, {}))
             continue
         scenario, runs = expand_variation(file)
-        root = etree.parse(str(scenario)).getroot()
+        root = parse_xml(scenario).getroot()
         decls = declarations_from_xml(root.find("ParameterDeclarations"))
         kept, _ = filter_runs(runs, decls, scenario.name)
         concrete.extend((scenario, dict(r.parameters)) for r in _subset(kept, max_runs))

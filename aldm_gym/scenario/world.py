@@ -130,6 +130,9 @@ class Entity:
     longitudinal: Any = None
     lateral: Any = None
     trajectory: Any = None
+    last_lateral: Any = None
+    """The lateral motion that moved the entity in its last step (it may have ended
+    there and left ``lateral``)."""
     placed: bool = False
 
     @property
@@ -260,6 +263,33 @@ class World:
         h = float(hs[0])
         return (px - float(xs[0])) * -math.sin(h) + (py - float(ys[0])) * math.cos(h)
 
+    def road_box(self, entity: Entity) -> tuple[float, float, float, float]:
+        """``(s_min, s_max, t_min, t_max)`` [m] of the entity's bounding box in its
+        road's coordinates: every corner projected on the lane that holds the
+        reference point, along the reference line (``s``) and across it (``t``)."""
+        c = self.coordinates(entity)
+        lane = self._lane(c.lane)
+        _, r_ref = lane.local_coordinates(entity.reference_point())
+        t_ref = self.road_t(entity)
+        ss, ts = [], []
+        for corner in entity.corners():
+            u, r = lane.local_coordinates(corner)
+            ss.append(self.road.reference_s(c.lane, float(u)))
+            # r is to the driver's right; the road's t is left of its reference line
+            ts.append(t_ref - (float(r) - float(r_ref)) * c.direction)
+        return min(ss), max(ss), min(ts), max(ts)
+
+    def lane_box(self, entity: Entity, key: LaneKey) -> tuple[float, float, float, float]:
+        """``(u_min, u_max, left_min, left_max)`` [m] of the entity's bounding box along
+        and across lane ``key`` (every corner projected on its centre; left positive)."""
+        lane = self._lane(key)
+        us, ls = [], []
+        for corner in entity.corners():
+            u, r = lane.local_coordinates(corner)
+            us.append(float(u))
+            ls.append(-float(r))
+        return min(us), max(us), min(ls), max(ls)
+
     def lane_offsets(self, source: Entity, target: Entity) -> tuple[float, float]:
         """``(|du|, |dt|)`` [m] of the target from the source along and across the
         source's lane (reference points projected on the lane's centre)."""
@@ -317,12 +347,34 @@ class World:
         entity.placed = True
         self._set_vehicle(entity, point, heading)
 
-    def _update_pose(self, entity: Entity, lateral_speed: float) -> None:
+    def _update_pose(
+        self, entity: Entity, lateral_speed: float, along_heading: bool = False
+    ) -> None:
         point, lane_heading = self.pose(entity.lane, entity.u, entity.t)
         # Moving to the driver's left turns the heading towards it (heading decreases
-        # to the left in highway-env's world).
-        slip = math.atan2(lateral_speed, max(entity.speed, 0.1)) if lateral_speed else 0.0
+        # to the left in highway-env's world): the lateral speed is the sine's share of
+        # the speed where the speed is along the heading, else on top of it.
+        slip = 0.0
+        if lateral_speed:
+            speed = max(entity.speed, 0.1)
+            if along_heading:
+                slip = math.asin(min(max(lateral_speed / speed, -1.0), 1.0))
+            else:
+                slip = math.atan2(lateral_speed, speed)
         self._set_vehicle(entity, point, lane_heading + entity.heading_offset - slip)
+
+    def centre_step(self, key: LaneKey, u: float, t: float, along: float) -> float:
+        """The arc length [m] along lane ``key``'s centre that moves a point ``t`` [m]
+        to the driver's left of it by ``along`` [m] along its own path: longer on the
+        outside of a curve, shorter on the inside (the path's curvature radius is the
+        centre's minus ``t``)."""
+        lane = self._lane(key)
+        mid = min(max(u + 0.5 * along, 0.5), max(float(lane.length) - 0.5, 0.5))
+        h0 = float(lane.heading_at(mid - 0.5))
+        h1 = float(lane.heading_at(mid + 0.5))
+        kappa = wrap_angle(h1 - h0)  # per metre: highway-env's world, < 0 turning left
+        scale = 1.0 + kappa * t
+        return along / scale if scale > 0.05 else along / 0.05
 
     def _set_vehicle(self, entity: Entity, ref_point: np.ndarray, heading: float) -> None:
         v = entity.vehicle
@@ -347,13 +399,23 @@ class World:
             entity.speed = float(entity.longitudinal.speed_after(self, entity, dt))
         entity.speed = min(max(entity.speed, 0.0), entity.max_speed)
         lateral_speed = 0.0
+        t_before = entity.t
+        entity.last_lateral = entity.lateral
         if entity.lateral is not None:
-            t_before = entity.t
             entity.t = float(entity.lateral.offset_after(self, entity, dt))
             lateral_speed = (entity.t - t_before) / dt if dt > 0 else 0.0
+        # A lane change keeps the speed along the heading: its lateral motion takes
+        # its share; a lane offset moves sideways on top of the speed (as esmini plays
+        # both). The rest moves the entity along its own path (parallel to the lane's
+        # centre at its offset), which in a curve is longer or shorter than the centre's.
         step = entity.speed * dt
-        entity.traveled += math.hypot(step, lateral_speed * dt)
-        u = entity.u + step
+        lateral = entity.t - t_before
+        along = step
+        if getattr(entity.last_lateral, "speed_along_heading", False):
+            along = math.sqrt(step * step - lateral * lateral) if abs(lateral) < step else 0.0
+        entity.traveled += math.hypot(along, lateral)
+        mean_t = 0.5 * (entity.t + t_before)
+        u = entity.u + (self.centre_step(entity.lane, entity.u, mean_t, along) if along else 0.0)
         key = entity.lane
         length = self.road.lane_length(key)
         while u > length:
@@ -366,7 +428,8 @@ class World:
             key = nxt
             length = self.road.lane_length(key)
         entity.lane, entity.u = key, u
-        self._update_pose(entity, lateral_speed)
+        along_heading = bool(getattr(entity.last_lateral, "speed_along_heading", False))
+        self._update_pose(entity, lateral_speed, along_heading)
 
     def sync(self, entity: Entity) -> None:
         """Read an entity that moved on its own (the active ego) into its state."""

@@ -64,7 +64,7 @@ def write(
     events: Sequence[tuple[str, Sequence[xosc.Event]]] = (),
     *,
     ego_s: float = 50.0,
-    ego_speed: float = 20.0,
+    ego_speed: float | str = 20.0,
     target: tuple[int, float, float] | None = (1, 60.0, 20.0),
     stop: float = 10.0,
     activate_at: float | None = None,

@@ -31,10 +31,9 @@ pytestmark = pytest.mark.skipif(
 )
 
 KNOWN_FAILURES = {
-    # The function reacts to an object once it overlaps the perceived lane (it does not
-    # predict a crossing): the pedestrian steps into the ego lane 1.3 s ahead of the
-    # ego, the AEB brakes from TTC 1.5 s and the ego hits it at 4.6 m/s.
-    "alks_scenario_4_2_3_crossing_pedestrian_template.xosc": "no_collision",
+    # 4.2_3 (crossing pedestrian) passes with a small margin: the pedestrian starts
+    # when its box (its width along the road) is 2.16 s ahead, the AEB stops the ego
+    # about 0.2 m short of it (docs/results.md).
     # The cut-in leaves 0.26 s: the gap cannot be restored within 3 s (the suite calls
     # the collision unavoidable; the gap criterion is judged all the same).
     "alks_scenario_4_4_2_cut_in_unavoidable_collision_template.xosc": "time_gap",

@@ -23,6 +23,7 @@ from pathlib import Path
 from lxml import etree
 
 from aldm_gym.errors import MapError, MapNotFoundError
+from aldm_gym.xmlfile import parse_xml
 
 GEOMETRY_KINDS = ("line", "arc", "spiral", "poly3", "paramPoly3")
 """Plan-view geometry element names this reader evaluates."""
@@ -766,11 +767,7 @@ def parse_file(path: str | os.PathLike[str], *, warn: bool = True) -> OpenDriveF
     name = os.fspath(path)
     if not Path(name).is_file():
         raise not_found(name)
-    try:
-        root = etree.parse(name, etree.XMLParser(remove_blank_text=True)).getroot()
-    except etree.XMLSyntaxError as exc:
-        line = exc.lineno if exc.lineno is not None else "?"
-        raise MapError(f"{name}: malformed XML at line {line}: {exc.msg}") from None
+    root = parse_xml(name, error=MapError).getroot()
     r = _Reader(name)
     if root.tag != "OpenDRIVE":
         raise r.fail(root, "the root element is not <OpenDRIVE>")

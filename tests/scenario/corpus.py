@@ -1,0 +1,138 @@
+"""A corpus of small scenarios, one per behaviour the player must share with esmini.
+
+Each function writes one scenario with scenariogeneration (every entity scripted) into
+a folder and returns its path; :data:`CORPUS` names them all. tests/scenario/test_esmini.py
+plays each in both players and compares them step by step.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+from scenariogeneration import xodr, xosc
+
+from tests.scenario._build import at_time, car, step_speed, straight_road, write
+
+
+def _event(name: str, action: object, trigger: object, priority: object = None) -> xosc.Event:
+    ev = xosc.Event(name, priority or xosc.Priority.override)
+    ev.add_action(f"{name}_action", action)
+    ev.add_trigger(trigger)
+    return ev
+
+
+def _curved_road(folder: Path, radius: float = 250.0) -> Path:
+    """100 m straight, a 600 m arc of ``radius`` to the left, 500 m straight; three
+    lanes right of the reference line."""
+    path = folder / f"curve_{radius:g}.xodr"
+    if not path.exists():
+        plan = [xodr.Line(100.0), xodr.Arc(1.0 / radius, 600.0), xodr.Line(500.0)]
+        road = xodr.create_road(plan, id=0, left_lanes=0, right_lanes=3, lane_width=3.5)
+        odr = xodr.OpenDrive("curve")
+        odr.add_road(road)
+        odr.adjust_roads_and_lanes()
+        odr.write_xml(str(path))
+    return path
+
+
+def lane_change_relative(folder: Path) -> Path:
+    """A sinusoidal lane change by rate to the right, into the ego's lane ahead of it."""
+    dyn = xosc.TransitionDynamics(xosc.DynamicsShapes.sinusoidal, xosc.DynamicsDimension.rate, 1.5)
+    ev = _event("change", xosc.RelativeLaneChangeAction(-1, "Target", dyn), at_time(1.0))
+    return write(folder, [("Target", [ev])], name="lane_change.xosc")
+
+
+def lane_change_into_oncoming_lane(folder: Path) -> Path:
+    """A lane change across the centre line onto a lane driven the other way: the
+    vehicle keeps its direction of travel."""
+    road = straight_road(folder, left_lanes=2)
+    dyn = xosc.TransitionDynamics(xosc.DynamicsShapes.cubic, xosc.DynamicsDimension.time, 3.0)
+    ev = _event("overtake", xosc.AbsoluteLaneChangeAction(1, dyn), at_time(1.0))
+    return write(
+        folder,
+        [("Target", [ev])],
+        road=road,
+        lane_id=-1,
+        target=(0, 30.0, 15.0),
+        name="oncoming_lane_change.xosc",
+    )
+
+
+def lane_offset_in_a_curve(folder: Path) -> Path:
+    """An entity 1.2 m left of its lane centre through an arc of R 250 m keeps its own
+    speed along its own path."""
+    ev = _event(
+        "offset",
+        xosc.AbsoluteLaneOffsetAction(1.2, xosc.DynamicsShapes.sinusoidal, 1.0),
+        at_time(0.5),
+    )
+    return write(
+        folder,
+        [("Target", [ev])],
+        road=_curved_road(folder),
+        ego_s=20.0,
+        target=(0, 20.0, 20.0),
+        stop=40.0,
+        name="offset_curve.xosc",
+    )
+
+
+def speed_linear_to_its_own_speed(folder: Path) -> Path:
+    """A linear speed change by rate to a target equal to the speed (in the last bits):
+    it completes at once, and the next event waits for its end."""
+    dyn = xosc.TransitionDynamics(xosc.DynamicsShapes.linear, xosc.DynamicsDimension.rate, 0.0)
+    same = _event("same", xosc.AbsoluteSpeedAction(20.000000000000004, dyn), at_time(1.0))
+    after = xosc.Event("after", xosc.Priority.parallel)
+    after.add_action("after_action", step_speed(10.0))
+    after.add_trigger(
+        xosc.ValueTrigger(
+            "same_ended",
+            0.0,
+            xosc.ConditionEdge.none,
+            xosc.StoryboardElementStateCondition(
+                xosc.StoryboardElementType.action,
+                "same_action",
+                xosc.StoryboardElementState.endTransition,
+            ),
+        )
+    )
+    return write(folder, [("Target", [same, after])], name="speed_same.xosc")
+
+
+def trajectory_without_timing(folder: Path) -> Path:
+    """A polyline without timing (vertices without ``h``), driven at the entity's own
+    speed, which a later speed action changes without ending the path."""
+    poly = xosc.Polyline(
+        [],
+        [
+            xosc.WorldPosition(110.0, -5.25),
+            xosc.WorldPosition(160.0, -5.25),
+            xosc.WorldPosition(220.0, -8.75),
+            xosc.WorldPosition(300.0, -8.75),
+        ],
+    )
+    traj = xosc.Trajectory("path", False)
+    traj.add_shape(poly)
+    follow = xosc.FollowTrajectoryAction(
+        traj, xosc.FollowingMode.position, xosc.ReferenceContext.relative, 1, 0
+    )
+    dyn = xosc.TransitionDynamics(xosc.DynamicsShapes.linear, xosc.DynamicsDimension.time, 2.0)
+    go = _event("path", follow, at_time(0.5), xosc.Priority.parallel)
+    slow = _event("slow", xosc.AbsoluteSpeedAction(12.0, dyn), at_time(2.0), xosc.Priority.parallel)
+    return write(folder, [("Target", [go, slow])], stop=12.0, name="trajectory_none.xosc")
+
+
+CORPUS: dict[str, Callable[[Path], Path]] = {
+    f.__name__: f
+    for f in (
+        lane_change_relative,
+        lane_change_into_oncoming_lane,
+        lane_offset_in_a_curve,
+        speed_linear_to_its_own_speed,
+        trajectory_without_timing,
+    )
+}
+"""The corpus by name."""
+
+__all__ = ["CORPUS", "car"]
