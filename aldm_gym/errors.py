@@ -23,6 +23,7 @@ that catches those catches these too::
 
     AldmGymWarning (UserWarning)
     ├── NumbaCacheWarning               a kernel's cache was unusable: recompiled
+    ├── ScenarioWarning                 a scenario element with no meaning here: ignored
     └── TrainingWarning                 a training output was repaired or skipped
 
 Messages name what is wrong: the setting and the allowed values, the file, road,
@@ -48,6 +49,7 @@ __all__ = [
     "OutputLocked",
     "ResumeError",
     "ScenarioError",
+    "ScenarioWarning",
     "TraceError",
     "TrainingWarning",
 ]
@@ -132,6 +134,11 @@ class AldmGymWarning(UserWarning):
 
 class NumbaCacheWarning(AldmGymWarning):
     """numba's cache of a kernel was unusable; the kernel was (re)compiled."""
+
+
+class ScenarioWarning(AldmGymWarning):
+    """A valid OpenSCENARIO element with no meaning on the env (weather, traffic
+    signals, light states, ...) was ignored: one warning per element kind and file."""
 
 
 class TrainingWarning(AldmGymWarning):

@@ -47,6 +47,7 @@ __all__ = [
     "AssignRoute",
     "Dynamics",
     "FollowTrajectory",
+    "Ignored",
     "LaneChange",
     "LaneOffset",
     "LongitudinalDistance",
@@ -175,6 +176,15 @@ def _override(entity: Entity, slot: str, motion: Any) -> None:
     setattr(entity, slot, motion)
 
 
+class Ignored(Instance):
+    """An action with no meaning on the env (``EnvironmentAction``, light states, ...):
+    it completes at once and changes nothing."""
+
+    def start(self, runner: Any) -> None:
+        """Complete."""
+        self.done = True
+
+
 # ---------------------------------------------------------------------- teleport
 class Teleport(Instance):
     """``TeleportAction``: the actor is at the position at once."""
@@ -185,9 +195,15 @@ class Teleport(Instance):
         self.position = position
 
     def start(self, runner: Any) -> None:
-        """Place the actor."""
+        """Place the actor: in ``Init`` at once; from the storyboard at the next step
+        (the position resolved now, as esmini, which places it in the frame's action
+        step after the triggers), from where it moves on in that step."""
         entity = self._scripted(runner)
-        place(runner.world, entity, self.position.resolve(runner.world))
+        where = self.position.resolve(runner.world)
+        if runner.world.running:
+            entity.teleport = where
+        else:
+            place(runner.world, entity, where)
         self.done = True
 
 

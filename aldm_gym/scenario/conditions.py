@@ -179,9 +179,33 @@ def headway(
     return math.inf if v <= 0.0 else d / v
 
 
-def time_to_collision(world: World, source: Entity, target: Entity, freespace: bool) -> float:
-    """Time to collision [s]: distance over the closing speed along the line of sight
-    (inf when the two do not close)."""
+def time_to_collision(
+    world: World,
+    source: Entity,
+    target: Entity,
+    freespace: bool,
+    system: str = "entity",
+    kind: str = "euclidianDistance",
+) -> float:
+    """Time to collision [s]: the distance of ``kind`` in ``system`` over the speed at
+    which it closes (inf when it does not). Longitudinal and lateral distances close
+    at the difference of the two velocities along the source's heading (``entity``)
+    or its lane's direction (``road``, ``lane``), or across it; euclidean ones along
+    the line of sight."""
+    if kind in ("longitudinal", "lateral"):
+        if system == "entity":
+            axis = source.forward() if kind == "longitudinal" else source.left()
+        else:
+            c = world.coordinates(source)
+            _, h = world.pose(c.lane, c.u, 0.0)
+            forward = np.array([math.cos(h), math.sin(h)])
+            axis = forward if kind == "longitudinal" else np.array([forward[1], -forward[0]])
+        side = float((target.position - source.position) @ axis)
+        relative = source.velocity * source.forward() - target.velocity * target.forward()
+        closing = float(relative @ axis) * (1.0 if side >= 0 else -1.0)
+        if closing <= 0.0:
+            return math.inf
+        return relative_distance(world, source, target, kind, freespace, system) / closing
     los = target.position - source.position
     norm = float(np.hypot(*los))
     if norm == 0.0:
@@ -194,3 +218,100 @@ def time_to_collision(world: World, source: Entity, target: Entity, freespace: b
         return math.inf
     d = box_distance(source, target) if freespace else norm
     return d / closing
+
+
+def time_to_point(world: World, source: Entity, point: np.ndarray, freespace: bool) -> float:
+    """Time to collision with a point [s]: the distance to it over the source's speed
+    along the line of sight (inf when it does not close)."""
+    los = point - source.position
+    norm = float(np.hypot(*los))
+    if norm == 0.0:
+        return 0.0
+    closing = float(source.velocity * source.forward() @ (los / norm))
+    if closing <= 0.0:
+        return math.inf
+    return distance(world, source, point, freespace) / closing
+
+
+def boxes_overlap(a: Entity, b: Entity) -> bool:
+    """Whether two entities' bounding boxes overlap (``CollisionCondition``)."""
+    return a is not b and _overlap(a.corners(), b.corners())
+
+
+def stood_still(world: World, entity: Entity, duration: float) -> bool:
+    """Whether the entity has stood still (speed below 1e-3 m/s) for longer than
+    ``duration`` [s] (as esmini: a step after the duration)."""
+    since = entity.still_since
+    return since is not None and world.time - since > duration + 1e-9
+
+
+def acceleration(world: World, entity: Entity) -> float:
+    """The entity's longitudinal acceleration over the last step [m/s²]."""
+    return entity.acceleration
+
+
+def at_road_end(world: World, entity: Entity, duration: float) -> bool:
+    """Whether the entity has been at the end of its lane chain for longer than
+    ``duration`` [s]."""
+    since = entity.road_end_since
+    return since is not None and world.time - since > duration + 1e-9
+
+
+def off_road(world: World, entity: Entity, duration: float) -> bool:
+    """Whether the entity's reference point has been on no driving lane for longer
+    than ``duration`` [s]."""
+    since = entity.off_road_since
+    return since is not None and world.time - since > duration + 1e-9
+
+
+def _lane_index(lane_id: int) -> int:
+    """Position of a lane along the road's t axis (lane 0 skipped)."""
+    return lane_id if lane_id > 0 else lane_id + 1
+
+
+def lanes_clear(
+    world: World,
+    entity: Entity,
+    others: list[Entity],
+    ranges: list[tuple[int, int]],
+    backward: float,
+    forward: float,
+    freespace: bool,
+    opposite: bool,
+) -> bool:
+    """``RelativeClearanceCondition``: no other entity on the lanes ``ranges`` (relative
+    to the entity's, positive to its left; no range: its own lane) from ``backward``
+    [m] behind to ``forward`` [m] ahead of it along the road (between the boxes with
+    ``freespace``, else the reference points); lanes of the other driving direction
+    count only with ``opposite``."""
+    from aldm_gym.errors import OffRoadError
+
+    try:
+        c = world.coordinates(entity)
+        box = world.road_box(entity)
+    except OffRoadError:
+        return True
+    wanted = ranges or [(0, 0)]
+    for other in others:
+        if other is entity:
+            continue
+        try:
+            o = world.coordinates(other)
+        except OffRoadError:
+            continue
+        if o.road_id != c.road_id or (o.direction != c.direction and not opposite):
+            continue
+        rel = (_lane_index(o.lane_id) - _lane_index(c.lane_id)) * c.direction
+        if not any(min(a, b) <= rel <= max(a, b) for a, b in wanted):
+            continue
+        if freespace:
+            ob = world.road_box(other)
+            ahead = (ob[0] - box[1]) if c.direction > 0 else (box[0] - ob[1])
+            behind = (box[0] - ob[1]) if c.direction > 0 else (ob[0] - box[1])
+            if ahead <= forward and behind <= backward:
+                return False
+        else:
+            ds = (o.s - c.s) * c.direction
+            if -backward <= ds <= forward:
+                return False
+    return True

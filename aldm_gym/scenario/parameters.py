@@ -808,7 +808,10 @@ def _convert(value: Any, decl: ParameterDeclaration, where: str) -> ParamValue:
 
 
 def bind(
-    declarations: Sequence[ParameterDeclaration], overrides: Mapping[str, Any], file: str
+    declarations: Sequence[ParameterDeclaration],
+    overrides: Mapping[str, Any],
+    file: str,
+    outer: Mapping[str, ParamValue] | None = None,
 ) -> dict[str, ParamValue]:
     """The parameters' values: each declaration in order, its default (which may use
     earlier parameters through ``$x`` or ``${...}``) or its override, converted to its
@@ -820,6 +823,8 @@ def bind(
     :param overrides: values replacing defaults by name: strings are resolved like a
         default (so ``"${...}"`` works), other values are converted directly.
     :param file: the scenario file, named in errors.
+    :param outer: the values of the enclosing scope (a ``Story``'s declarations see the
+        file's parameters); the result holds them too, the inner ones shadowing.
     :raises ScenarioError: an override for an undeclared parameter (naming it and the
         declared ones), a name declared twice, a default or override that fails to
         resolve or does not convert to its type (naming the parameter and the type).
@@ -842,7 +847,7 @@ def bind(
             f"{file}: cannot override undeclared parameter{'s' if len(unknown) > 1 else ''} "
             f"{', '.join(unknown)}{hint}; the scenario declares: {allowed}"
         )
-    values: dict[str, ParamValue] = {}
+    values: dict[str, ParamValue] = dict(outer or {})
     for decl in declarations:
         if decl.name in overrides:
             raw = overrides[decl.name]

@@ -18,7 +18,7 @@ the centre lane 0; ``offset`` is along ``t``.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -32,6 +32,8 @@ __all__ = [
     "Position",
     "RelativeLanePos",
     "RelativeObjectPos",
+    "RelativeRoadPos",
+    "RelativeWorldPos",
     "RoadPos",
     "Where",
     "WorldPos",
@@ -228,6 +230,48 @@ class RelativeObjectPos(Position):
         """See :class:`Position`."""
         ref: Entity = world.entities[self.entity]
         point = ref.reference_point() + self.dx * ref.forward() + self.dy * ref.left()
+        heading = ref.heading
+        if self.orientation is not None:
+            heading = (
+                heading - self.orientation.h if self.orientation.relative else -self.orientation.h
+            )
+        return Where(point=point, heading=heading, heading_given=self.orientation is not None)
+
+
+@dataclass(frozen=True)
+class RelativeRoadPos(Position):
+    """``RelativeRoadPosition``: ``ds`` along and ``dt`` across the reference line [m]
+    from an entity's reference point, on the entity's road."""
+
+    entity: str
+    ds: float
+    dt: float
+    orientation: Orientation | None = None
+    where: str = ""
+
+    def resolve(self, world: World) -> Where:
+        """See :class:`Position`."""
+        ref = world.entities[self.entity]
+        c = world.coordinates(ref)
+        road = RoadPos(c.road_id, c.s + self.ds, world.road_t(ref) + self.dt, self.orientation)
+        return replace(road, where=self.where).resolve(world)
+
+
+@dataclass(frozen=True)
+class RelativeWorldPos(Position):
+    """``RelativeWorldPosition``: ``dx``, ``dy`` [m] in OpenDRIVE's inertial frame from
+    an entity's reference point."""
+
+    entity: str
+    dx: float
+    dy: float
+    orientation: Orientation | None = None
+    where: str = ""
+
+    def resolve(self, world: World) -> Where:
+        """See :class:`Position` (an orientation relative to the entity's heading)."""
+        ref: Entity = world.entities[self.entity]
+        point = ref.reference_point() + np.array([self.dx, -self.dy])
         heading = ref.heading
         if self.orientation is not None:
             heading = (

@@ -16,13 +16,15 @@ skipped action. The supported set: docs/scenarios.md.
 
 from __future__ import annotations
 
+import copy
 import math
+import warnings
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from aldm_gym.errors import ScenarioError
+from aldm_gym.errors import ScenarioError, ScenarioWarning
 from aldm_gym.scenario import actions as A
 from aldm_gym.scenario import conditions as C
 from aldm_gym.scenario.parameters import (
@@ -38,6 +40,8 @@ from aldm_gym.scenario.positions import (
     Position,
     RelativeLanePos,
     RelativeObjectPos,
+    RelativeRoadPos,
+    RelativeWorldPos,
     RoadPos,
     WorldPos,
     lane_step,
@@ -63,6 +67,19 @@ __all__ = ["EntitySpec", "Scenario", "read_scenario"]
 _MISSING: Any = object()
 
 _ELEMENT_TYPES = ("story", "act", "maneuverGroup", "maneuver", "event", "action")
+
+_NO_MEANING = {
+    "EnvironmentAction": "weather, time of day and road condition have no meaning on the env "
+    "(the line sensor's conditions are its own settings)",
+    "InfrastructureAction": "traffic signals have no meaning on the env",
+    "VisibilityAction": "every entity is seen by the sensors the env models",
+    "AppearanceAction": "light states and animations have no meaning on the env",
+    "UserDefinedAction": "a command for another tool",
+    "AssignControllerAction": "every entity but the function under test follows the storyboard",
+    "OverrideControllerValueAction": "the function under test's pedals and steering are its own",
+    "SetMonitorAction": "monitors have no meaning on the env",
+}
+"""Elements the player accepts and ignores, and why (one warning per kind and file)."""
 
 
 @dataclass(frozen=True)
@@ -113,6 +130,8 @@ class Scenario:
     map_path: Path
     entities: list[EntitySpec]
     violations: list[str] = field(default_factory=list)
+    ignored: dict[str, str] = field(default_factory=dict)
+    """Elements with no meaning on the env, by tag: why, and where they are."""
     _root: Any = None
 
     def entity(self, name: str) -> EntitySpec:
@@ -132,7 +151,11 @@ class Scenario:
         """A fresh run of the storyboard: the ``Init`` actions' instances (to start in
         order at time 0) and the stories, bound to these runtime entities."""
         reader = _Reader(self.path, self.parameters, self._root, entities)
-        return reader.init(), reader.storyboard()
+        out = reader.init(), reader.storyboard()
+        for tag, (_, why, lines) in reader.ignored.items():
+            shown = ", ".join(str(n) for n in lines[:5]) + (", ..." if len(lines) > 5 else "")
+            self.ignored[tag] = f"{why} (line{'s' if len(lines) > 1 else ''} {shown})"
+        return out
 
 
 def read_scenario(path: str | Path, parameters: Mapping[str, Any] | None = None) -> Scenario:
@@ -191,9 +214,13 @@ def read_scenario(path: str | Path, parameters: Mapping[str, Any] | None = None)
     reader = _Reader(path, values, root, None)
     network = root.find("RoadNetwork")
     if network is not None:
-        for k in reader.kids(network, ("LogicFile", "SceneGraphFile", "TrafficSignals")):
+        for k in reader.kids(
+            network, ("LogicFile", "SceneGraphFile", "TrafficSignals", "UsedArea")
+        ):
             if k.tag == "TrafficSignals" and len(k):
-                raise reader.error(k, "traffic signal controllers are not supported")
+                reader.ignored_network["TrafficSignals"] = (
+                    f"traffic signals have no meaning on the env (line {k.sourceline})"
+                )
     logic = root.find("RoadNetwork/LogicFile")
     if logic is None:
         raise ScenarioError(
@@ -214,6 +241,9 @@ def read_scenario(path: str | Path, parameters: Mapping[str, Any] | None = None)
     # Build the storyboard once now, so that what cannot be played is named before a
     # run starts (positions are resolved only when their action starts).
     scenario.build({e.name: e.entity(False) for e in scenario.entities})
+    for tag, why in {**reader.ignored_network, **scenario.ignored}.items():
+        scenario.ignored[tag] = why
+        warnings.warn(f"{path.name}: <{tag}> ignored: {why}", ScenarioWarning, stacklevel=2)
     return scenario
 
 
@@ -234,6 +264,9 @@ class _Reader:
         self._catalogs: dict[str, dict[str, tuple[Any, Path]]] | None = None
         self.actions: dict[str, ActionElement] = {}
         self.pending: list[tuple[Any, str, str]] = []
+        self.ignored: dict[str, tuple[int, str, list[int]]] = {}
+        """Elements with no meaning here: tag -> (first line, why, lines)."""
+        self.ignored_network: dict[str, str] = {}
 
     # ------------------------------------------------------------ attributes
     def where(self, el: Any, attr: str | None = None) -> str:
@@ -319,14 +352,20 @@ class _Reader:
                 raise self.unsupported(k, allowed)
         return out
 
-    def no_declarations(self, el: Any) -> None:
-        """A ``ParameterDeclarations`` below the file level must be empty."""
-        decls = el.find("ParameterDeclarations")
-        if decls is not None and len([k for k in decls if isinstance(k.tag, str)]):
-            raise self.error(
-                decls,
-                "parameter declarations here are not supported (declare them at the file level)",
-            )
+    def scoped(self, el: Any) -> _Reader:
+        """A reader for ``el``'s content that sees its ``ParameterDeclarations`` (a
+        ``Story``, ``Maneuver``, ``Route`` or ``Trajectory`` may declare parameters of
+        its own, which see the enclosing ones and shadow them)."""
+        decls = declarations_from_xml(el.find("ParameterDeclarations"))
+        if not decls:
+            return self
+        reader = copy.copy(self)
+        reader.params = bind(decls, {}, self.where(el), outer=self.params)
+        return reader
+
+    def ignore(self, el: Any, why: str) -> None:
+        """Note a valid element with no meaning here (one warning per kind and file)."""
+        self.ignored.setdefault(el.tag, (el.sourceline, why, []))[2].append(el.sourceline)
 
     def absent(
         self, el: Any, *names: str, allowed: Mapping[str, tuple[str, ...]] | None = None
@@ -468,6 +507,8 @@ class _Reader:
                 "RoadPosition",
                 "WorldPosition",
                 "RelativeObjectPosition",
+                "RelativeRoadPosition",
+                "RelativeWorldPosition",
             ),
         )
         where = self.where(p)
@@ -504,6 +545,16 @@ class _Reader:
             return RoadPos(
                 self.attr(p, "roadId"), self.num(p, "s"), self.num(p, "t"), orient, where
             )
+        if p.tag == "RelativeRoadPosition":
+            self._entity_ref(p, "entityRef")
+            return RelativeRoadPos(
+                self.attr(p, "entityRef"), self.num(p, "ds"), self.num(p, "dt"), orient, where
+            )
+        if p.tag == "RelativeWorldPosition":
+            self._entity_ref(p, "entityRef")
+            return RelativeWorldPos(
+                self.attr(p, "entityRef"), self.num(p, "dx"), self.num(p, "dy"), orient, where
+            )
         if p.tag == "WorldPosition":
             return WorldPos(self.num(p, "x"), self.num(p, "y"), self.num(p, "h", None), where)
         self._entity_ref(p, "entityRef")
@@ -536,9 +587,17 @@ class _Reader:
                 "RoutingAction",
                 "ControllerAction",
                 "ActivateControllerAction",
+                "VisibilityAction",
+                "AppearanceAction",
+                "SynchronizeAction",
             ),
         )
         where = self.where(body)
+        if body.tag in _NO_MEANING:
+            self.ignore(body, _NO_MEANING[body.tag])
+            return lambda actor: A.Ignored(actor, where)
+        if body.tag == "SynchronizeAction":
+            raise self.error(body, "SynchronizeAction is not supported yet")
         if body.tag == "TeleportAction":
             pos = self.position(self.child(body, "Position"))
             return lambda actor: A.Teleport(actor, where, pos)
@@ -547,18 +606,63 @@ class _Reader:
         if body.tag == "LateralAction":
             return self._lateral(self.one(body, ("LaneChangeAction", "LaneOffsetAction")))
         if body.tag == "RoutingAction":
-            routing = self.one(body, ("FollowTrajectoryAction", "AssignRouteAction"))
+            routing = self.one(
+                body, ("FollowTrajectoryAction", "AssignRouteAction", "AcquirePositionAction")
+            )
             if routing.tag == "AssignRouteAction":
                 return self._route(routing)
+            if routing.tag == "AcquirePositionAction":
+                waypoint = self.position(self.child(routing, "Position"))
+                return lambda actor: A.AssignRoute(actor, where, [waypoint])
             return self._routing(routing)
         if body.tag == "ControllerAction":
-            body = self.one(body, ("ActivateControllerAction",))
+            parts = self.kids(
+                body,
+                (
+                    "AssignControllerAction",
+                    "OverrideControllerValueAction",
+                    "ActivateControllerAction",
+                ),
+            )
+            for part in parts:
+                if part.tag != "ActivateControllerAction":
+                    self.ignore(part, _NO_MEANING[part.tag])
+            activate = [p for p in parts if p.tag == "ActivateControllerAction"]
+            if not activate:
+                return lambda actor: A.Ignored(actor, where)
+            body = activate[0]
         # a missing domain means "no change" (the standard)
         lat = self.flag(body, "lateral") if body.get("lateral") is not None else None
         lon = self.flag(body, "longitudinal") if body.get("longitudinal") is not None else None
-        self.absent(body, "animation", "lighting")
+        for name in ("animation", "lighting"):
+            if body.get(name) is not None and self.flag(body, name):
+                self.ignore(body, f"{name} has no meaning on the env")
         where = self.where(body)
         return lambda actor: A.ActivateController(actor, where, lat, lon)
+
+    def other(self, el: Any) -> Callable[[Entity | None], A.Instance]:
+        """A ``GlobalAction`` or ``UserDefinedAction``: those with no meaning on the
+        env are ignored (one warning each); the others are refused."""
+        where = self.where(el)
+        if el.tag == "UserDefinedAction":
+            self.ignore(el, _NO_MEANING["UserDefinedAction"])
+            return lambda actor: A.Ignored(actor, where)
+        body = self.one(
+            el,
+            (
+                "EnvironmentAction",
+                "EntityAction",
+                "InfrastructureAction",
+                "TrafficAction",
+                "ParameterAction",
+                "VariableAction",
+                "SetMonitorAction",
+            ),
+        )
+        if body.tag in _NO_MEANING:
+            self.ignore(body, _NO_MEANING[body.tag])
+            return lambda actor: A.Ignored(actor, where)
+        raise self.error(body, f"{body.tag} is not supported yet")
 
     def dynamics(self, el: Any) -> A.Dynamics:
         """``*Dynamics`` with shape, dimension, value."""
@@ -675,15 +779,13 @@ class _Reader:
         where = self.where(body)
         route = self.one(body, ("Route",))
         self.kids(route, ("ParameterDeclarations", "Waypoint"))
-        self.no_declarations(route)
-        if self.flag(route, "closed", False):
-            raise self.error(route, "closed routes are not supported")
+        r = self.scoped(route)
+        if r.flag(route, "closed", False):
+            raise r.error(route, "closed routes are not supported")
         waypoints = []
         for wp in route.findall("Waypoint"):
-            self.choice(
-                wp, "routeStrategy", ("fastest", "shortest", "leastIntersections", "random")
-            )
-            waypoints.append(self.position(self.child(wp, "Position")))
+            r.choice(wp, "routeStrategy", ("fastest", "shortest", "leastIntersections", "random"))
+            waypoints.append(r.position(r.child(wp, "Position")))
         if len(waypoints) < 2:
             raise self.error(route, f"a route needs at least 2 waypoints, has {len(waypoints)}")
         return lambda actor: A.AssignRoute(actor, where, waypoints)
@@ -712,19 +814,16 @@ class _Reader:
                     "trajectories from catalogs are not supported: give the <Trajectory> inline",
                 )
             raise self.error(body, "missing <TrajectoryRef><Trajectory>")
-        if traj.find("ParameterDeclarations") is not None and len(
-            traj.find("ParameterDeclarations")
-        ):
-            raise self.error(traj, "a trajectory's own parameter declarations are not supported")
         self.kids(traj, ("ParameterDeclarations", "Shape"))
-        if self.flag(traj, "closed", False):
-            raise self.error(traj, "closed trajectories are not supported")
-        poly = self.one(self.child(traj, "Shape"), ("Polyline",))
-        self.kids(poly, ("Vertex",))
+        r = self.scoped(traj)
+        if r.flag(traj, "closed", False):
+            raise r.error(traj, "closed trajectories are not supported")
+        poly = r.one(r.child(traj, "Shape"), ("Polyline",))
+        r.kids(poly, ("Vertex",))
         vertices: list[tuple[float | None, Position]] = []
         for v in poly.findall("Vertex"):
-            time = self.num(v, "time", None)
-            vertices.append((time, self.position(self.child(v, "Position"))))
+            time = r.num(v, "time", None)
+            vertices.append((time, r.position(r.child(v, "Position"))))
         if len(vertices) < 2:
             raise self.error(poly, f"a polyline needs at least 2 vertices, has {len(vertices)}")
         absolute, scale, offset = False, 1.0, 0.0
@@ -752,7 +851,10 @@ class _Reader:
         actions = init.find("Actions")
         if actions is None:
             return out
-        for el in self.kids(actions, ("Private",)):
+        for el in self.kids(actions, ("GlobalAction", "UserDefinedAction", "Private")):
+            if el.tag != "Private":
+                out.append(self.other(el)(None))
+                continue
             actor = self._rt(self._entity_ref(el, "entityRef"))
             for pa in self.kids(el, ("PrivateAction",)):
                 out.append(self.private(pa)(actor))
@@ -765,8 +867,8 @@ class _Reader:
         stories = []
         for story in sb.findall("Story"):
             self.kids(story, ("ParameterDeclarations", "Act"))
-            self.no_declarations(story)
-            acts = [self._act(a) for a in story.findall("Act")]
+            inner = self.scoped(story)
+            acts = [inner._act(a) for a in story.findall("Act")]
             stories.append(Story(self.attr(story, "name"), self.where(story), acts))
         stop_el = sb.find("StopTrigger")
         stop = self.trigger(stop_el, empty=False) if stop_el is not None else Trigger([], False)
@@ -806,8 +908,8 @@ class _Reader:
         maneuvers = []
         for m in el.findall("Maneuver"):
             self.kids(m, ("ParameterDeclarations", "Event"))
-            self.no_declarations(m)
-            events = [self._event(e) for e in m.findall("Event")]
+            inner = self.scoped(m)
+            events = [inner._event(e) for e in m.findall("Event")]
             maneuvers.append(Maneuver(self.attr(m, "name"), self.where(m), events))
         maximum = self.integer(el, "maximumExecutionCount", 1)
         return ManeuverGroup(
@@ -819,9 +921,7 @@ class _Reader:
         actions = []
         for a in el.findall("Action"):
             body = self.one(a, ("PrivateAction", "GlobalAction", "UserDefinedAction"))
-            if body.tag != "PrivateAction":
-                raise self.unsupported(body, ("PrivateAction",))
-            factory = self.private(body)
+            factory = self.private(body) if body.tag == "PrivateAction" else self.other(body)
             runtime = self.runtime
 
             def make(
@@ -916,13 +1016,75 @@ class _Reader:
                 "ReachPositionCondition",
                 "DistanceCondition",
                 "TraveledDistanceCondition",
+                "CollisionCondition",
+                "StandStillCondition",
+                "AccelerationCondition",
+                "EndOfRoadCondition",
+                "OffroadCondition",
+                "RelativeClearanceCondition",
             ),
         )
         one = self._entity_condition(c)
         combine = any if mode == "any" else all
         return lambda runner: combine(one(runner, runner.world.entities[n]) for n in triggering)
 
+    def _state_condition(self, c: Any) -> Callable[[Any, Entity], bool] | None:
+        """Conditions on one entity's state: collisions, standing still, acceleration,
+        the end of the road, off road, clearance; None for the others."""
+        if c.tag == "CollisionCondition":
+            target = self.one(c, ("EntityRef", "ByType"))
+            if target.tag == "EntityRef":
+                ref = self._entity_ref(target, "entityRef")
+                return lambda runner, e: C.boxes_overlap(e, runner.world.entities[ref])
+            kind = self.choice(
+                target, "type", ("vehicle", "pedestrian", "miscellaneous", "miscObject")
+            )
+            kind = "miscObject" if kind == "miscellaneous" else kind
+            return lambda runner, e: _collides(
+                runner.world, e, [o for o in runner.world.entities.values() if o.kind == kind]
+            )
+        if c.tag == "StandStillCondition":
+            duration = self.num(c, "duration")
+            return lambda runner, e: C.stood_still(runner.world, e, duration)
+        if c.tag == "AccelerationCondition":
+            self.absent(c, "direction", allowed={"direction": ("longitudinal",)})
+            rule, value = self._rule(c), self.num(c, "value")
+            return lambda runner, e: rule(C.acceleration(runner.world, e), value)
+        if c.tag == "EndOfRoadCondition":
+            duration = self.num(c, "duration")
+            return lambda runner, e: C.at_road_end(runner.world, e, duration)
+        if c.tag == "OffroadCondition":
+            duration = self.num(c, "duration")
+            return lambda runner, e: C.off_road(runner.world, e, duration)
+        if c.tag == "RelativeClearanceCondition":
+            return self._clearance(c)
+        return None
+
+    def _clearance(self, c: Any) -> Callable[[Any, Entity], bool]:
+        """``RelativeClearanceCondition``: the lanes ``from``..``to`` (relative to the
+        entity's, to its left positive) are clear of other entities over
+        ``distanceBackward`` and ``distanceForward`` [m] (the entities named, else all)."""
+        self.kids(c, ("RelativeLaneRange", "EntityRef"))
+        ranges = [
+            (self.integer(r, "from", 0), self.integer(r, "to", 0))
+            for r in c.findall("RelativeLaneRange")
+        ]
+        refs = [self._entity_ref(r, "entityRef") for r in c.findall("EntityRef")]
+        back, ahead = self.num(c, "distanceBackward"), self.num(c, "distanceForward")
+        free_space = self.flag(c, "freeSpace")
+        opposite = self.flag(c, "oppositeLanes")
+
+        def clear(runner: Any, e: Entity) -> bool:
+            w = runner.world
+            others = [w.entities[n] for n in refs] if refs else list(w.entities.values())
+            return C.lanes_clear(w, e, others, ranges, back, ahead, free_space, opposite)
+
+        return clear
+
     def _entity_condition(self, c: Any) -> Callable[[Any, Entity], bool]:
+        special = self._state_condition(c)
+        if special is not None:
+            return special
         if c.tag == "TraveledDistanceCondition":
             traveled = self.num(c, "value")
             return lambda runner, e: e.traveled >= traveled
@@ -965,22 +1127,27 @@ class _Reader:
 
             return head
         if c.tag == "TimeToCollisionCondition":
-            self.absent(
-                c,
-                "coordinateSystem",
-                "relativeDistanceType",
-                "alongRoute",
-                allowed={
-                    "coordinateSystem": ("entity",),
-                    "relativeDistanceType": ("euclidianDistance", "cartesianDistance"),
-                    "alongRoute": ("false",),
-                },
-            )
+            along = c.get("alongRoute") is not None and self.flag(c, "alongRoute")
+            system = self.choice(c, "coordinateSystem", systems, "road" if along else "entity")
+            if system == "trajectory":
+                raise self.error(c, "coordinateSystem='trajectory' is not supported")
+            kinds = ("longitudinal", "lateral", "euclidianDistance", "cartesianDistance")
+            kind = self.choice(c, "relativeDistanceType", kinds, "euclidianDistance")
             freespace = self.flag(c, "freespace")
-            target = self.one(self.child(c, "TimeToCollisionConditionTarget"), ("EntityRef",))
+            target = self.one(
+                self.child(c, "TimeToCollisionConditionTarget"), ("EntityRef", "Position")
+            )
+            if target.tag == "Position":
+                pos = self.position(target)
+                return lambda runner, e: rule(
+                    C.time_to_point(runner.world, e, _point(runner.world, pos), freespace), value
+                )
             ref = self._entity_ref(target, "entityRef")
             return lambda runner, e: rule(
-                C.time_to_collision(runner.world, e, runner.world.entities[ref], freespace), value
+                C.time_to_collision(
+                    runner.world, e, runner.world.entities[ref], freespace, system, kind
+                ),
+                value,
             )
         if c.tag in ("SpeedCondition", "RelativeSpeedCondition"):
             self.absent(c, "direction")  # 1.3's directional speeds
@@ -1006,6 +1173,10 @@ class _Reader:
         return lambda runner, e: rule(
             C.distance(runner.world, e, _point(runner.world, pos), freespace), value
         )
+
+
+def _collides(world: Any, e: Entity, others: Any) -> bool:
+    return any(o is not e and C.boxes_overlap(e, o) for o in others)
 
 
 def _point(world: Any, pos: Position) -> Any:

@@ -110,6 +110,8 @@ class ScenarioRunner:
                 traffic.vehicles.append(entity.vehicle)
         for entity in self.world.entities.values():
             entity.vehicle.on_state_update()
+        self.world.track(0.0)
+        self.world.running = True
         self.storyboard.update(self, 0.0)
         self.world.ego_due()
         return ego
@@ -128,6 +130,7 @@ class ScenarioRunner:
         self.steps += 1
         frequency = round(1.0 / dt)
         world.time = self.steps / frequency if abs(frequency * dt - 1.0) < 1e-9 else self.steps * dt
+        world.track(dt)
         self.storyboard.update(self, world.time)
         world.ego_due()
 

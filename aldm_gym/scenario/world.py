@@ -130,6 +130,17 @@ class Entity:
     longitudinal: Any = None
     lateral: Any = None
     trajectory: Any = None
+    still_since: float | None = None
+    """Simulation time [s] since which the entity stands still (None: it moves)."""
+    acceleration: float = 0.0
+    """Longitudinal acceleration over the last step [m/s²]."""
+    road_end_since: float | None = None
+    """Simulation time [s] since which it is at the end of its lane chain."""
+    off_road_since: float | None = None
+    """Simulation time [s] since which it is on no driving lane."""
+    last_speed: float | None = None
+    teleport: Any = None
+    """A position to put the entity at before its next step (a storyboard teleport)."""
     last_lateral: Any = None
     """The lateral motion that moved the entity in its last step (it may have ended
     there and left ``lateral``)."""
@@ -189,6 +200,8 @@ class World:
         """Simulation time [s]."""
         self.ego: Entity | None = None
         self._ego_due = False
+        self.running = False
+        """Whether the storyboard runs (``Init`` has been played)."""
 
     def add(self, entity: Entity) -> None:
         """Add an entity (its vehicle is set by the scene builder)."""
@@ -392,6 +405,13 @@ class World:
         its lane, on into the lane's successor at the lane's end."""
         if not entity.scripted or not entity.placed:
             return
+        if entity.teleport is not None:
+            where, entity.teleport = entity.teleport, None
+            if where.lane is not None:
+                self.place(entity, where.lane, where.u, where.t, where.heading_offset)
+            else:
+                self.place_world(entity, where.point, where.heading)
+            return  # the step that teleports does not move it on (as esmini)
         if entity.trajectory is not None:
             entity.trajectory.advance(self, entity, dt)
             return
@@ -430,6 +450,34 @@ class World:
         entity.lane, entity.u = key, u
         along_heading = bool(getattr(entity.last_lateral, "speed_along_heading", False))
         self._update_pose(entity, lateral_speed, along_heading)
+
+    def track(self, dt: float) -> None:
+        """After a step of ``dt`` [s], at the new time: what the state conditions need
+        (standing still, acceleration, at the road's end, off road) for every entity."""
+        for e in self.entities.values():
+            if e.vehicle is None:
+                continue
+            speed = e.speed if e.scripted else e.velocity
+            if e.last_speed is not None and dt > 0:
+                e.acceleration = (speed - e.last_speed) / dt
+            e.last_speed = speed
+            if abs(speed) < 1e-3:
+                e.still_since = self.time if e.still_since is None else e.still_since
+            else:
+                e.still_since = None
+            try:
+                c = self.coordinates(e)
+            except OffRoadError:
+                e.off_road_since = self.time if e.off_road_since is None else e.off_road_since
+                continue
+            e.off_road_since = None
+            at_end = self.road.successor(c.lane) is None and (
+                c.u >= self.road.lane_length(c.lane) - 0.5 * e.box.length
+            )
+            if at_end:
+                e.road_end_since = self.time if e.road_end_since is None else e.road_end_since
+            else:
+                e.road_end_since = None
 
     def sync(self, entity: Entity) -> None:
         """Read an entity that moved on its own (the active ego) into its state."""

@@ -123,6 +123,78 @@ def trajectory_without_timing(folder: Path) -> Path:
     return write(folder, [("Target", [go, slow])], stop=12.0, name="trajectory_none.xosc")
 
 
+def _entity_trigger(name: str, condition: object, entity: str = "Ego") -> xosc.EntityTrigger:
+    return xosc.EntityTrigger(name, 0.0, xosc.ConditionEdge.none, condition, entity)
+
+
+def ttc_in_road_coordinates_and_collision(folder: Path) -> Path:
+    """A slower car ahead in the ego's lane: at a road-coordinate time to collision
+    below 4 s (freespace, longitudinal) it brakes harder; when the boxes touch the ego
+    stops (``CollisionCondition``)."""
+    ttc = xosc.TimeToCollisionCondition(
+        4.0,
+        xosc.Rule.lessThan,
+        alongroute=False,
+        freespace=True,
+        entity="Target",
+        distance_type=xosc.RelativeDistanceType.longitudinal,
+        coordinate_system=xosc.CoordinateSystem.road,
+    )
+    dyn = xosc.TransitionDynamics(xosc.DynamicsShapes.linear, xosc.DynamicsDimension.rate, 2.0)
+    brake = _event("brake", xosc.AbsoluteSpeedAction(2.0, dyn), _entity_trigger("ttc", ttc))
+    crash = _event(
+        "crash",
+        step_speed(0.0),
+        _entity_trigger("touch", xosc.CollisionCondition("Target")),
+    )
+    return write(
+        folder,
+        [("Target", [brake]), ("Ego", [crash])],
+        target=(0, 40.0, 10.0),
+        stop=15.0,
+        name="ttc_collision.xosc",
+    )
+
+
+def story_parameters_and_relative_road_position(folder: Path) -> Path:
+    """A story declares its own parameter; a teleport to a ``RelativeRoadPosition``
+    from the ego uses it; an ``EndOfRoad`` of the target ends the scenario."""
+    params = xosc.ParameterDeclarations()
+    params.add_parameter(xosc.Parameter("Ahead", xosc.ParameterType.double, "25.0"))
+    story = xosc.Story("jump", params)
+    act = xosc.Act("jump_act", at_time(0.0))
+    group = xosc.ManeuverGroup("jump_group")
+    group.add_actor("Target")
+    man = xosc.Maneuver("jump_maneuver")
+    man.add_event(
+        _event(
+            "jump",
+            xosc.TeleportAction(xosc.RelativeRoadPosition("$Ahead", -3.5, "Ego")),
+            at_time(2.0),
+        )
+    )
+    group.add_maneuver(man)
+    act.add_maneuver_group(group)
+    story.add_act(act)
+    return write(folder, stories=[story], target=(1, 60.0, 25.0), name="story_params.xosc")
+
+
+def stand_still_and_acquire_position(folder: Path) -> Path:
+    """The target brakes to a stop; once it has stood still for 1 s it drives on to a
+    position along its lane (``AcquirePositionAction``)."""
+    dyn = xosc.TransitionDynamics(xosc.DynamicsShapes.linear, xosc.DynamicsDimension.rate, 5.0)
+    stop = _event("stop", xosc.AbsoluteSpeedAction(0.0, dyn), at_time(1.0))
+    still = _entity_trigger("still", xosc.StandStillCondition(1.0), "Target")
+    go = _event("go", xosc.AbsoluteSpeedAction(8.0, dyn), still, xosc.Priority.parallel)
+    acquire = _event(
+        "acquire",
+        xosc.AcquirePositionAction(xosc.LanePosition(400.0, 0, -1, 0)),
+        at_time(0.5),
+        xosc.Priority.parallel,
+    )
+    return write(folder, [("Target", [stop, go, acquire])], stop=12.0, name="standstill.xosc")
+
+
 CORPUS: dict[str, Callable[[Path], Path]] = {
     f.__name__: f
     for f in (
@@ -131,6 +203,9 @@ CORPUS: dict[str, Callable[[Path], Path]] = {
         lane_offset_in_a_curve,
         speed_linear_to_its_own_speed,
         trajectory_without_timing,
+        ttc_in_road_coordinates_and_collision,
+        story_parameters_and_relative_road_position,
+        stand_still_and_acquire_position,
     )
 }
 """The corpus by name."""

@@ -209,14 +209,30 @@ def test_unsupported_action_names_file_line_and_element(tmp_path: Path) -> None:
     path = _patched(
         tmp_path,
         "<TeleportAction>",
-        '<VisibilityAction graphics="true" traffic="true" sensors="true"/></PrivateAction>'
-        "<PrivateAction><TeleportAction>",
+        '<SynchronizeAction masterEntityRef="Ego"/></PrivateAction><PrivateAction><TeleportAction>',
     )
-    line = _line_of(path, "VisibilityAction")
+    line = _line_of(path, "SynchronizeAction")
     with pytest.raises(
-        ScenarioError, match=rf"scenario\.xosc:{line} <VisibilityAction>.*not supported"
+        ScenarioError, match=rf"scenario\.xosc:{line} <SynchronizeAction>.*not supported"
     ):
         read_scenario(path)
+
+
+def test_an_element_with_no_meaning_here_is_ignored_with_one_warning(tmp_path: Path) -> None:
+    from aldm_gym.errors import ScenarioWarning
+
+    visibility = '<VisibilityAction graphics="true" traffic="true" sensors="true"/>'
+    path = _patched(
+        tmp_path,
+        "<TeleportAction>",
+        f"{visibility}</PrivateAction><PrivateAction>{visibility}</PrivateAction>"
+        "<PrivateAction><TeleportAction>",
+    )
+    with pytest.warns(ScenarioWarning) as caught:
+        scenario = read_scenario(path)
+    texts = [str(w.message) for w in caught if issubclass(w.category, ScenarioWarning)]
+    assert len(texts) == 1 and "<VisibilityAction> ignored" in texts[0]
+    assert "lines" in scenario.ignored["VisibilityAction"]
 
 
 def test_unknown_parameter_reference_is_named(tmp_path: Path) -> None:
