@@ -20,11 +20,16 @@ late (the first step keeps it, as esmini). A linear speed change by ``rate`` rea
 its target at ``|rate|`` (a rate of 0 never does: the action keeps running); a speed
 within 1e-6 m/s of its target has reached it.
 
-``LongitudinalDistanceAction`` without ``DynamicConstraints`` places the actor at the
-distance at once (as the OSC-ALKS files expect: "will position the Lead vehicle
-precisely"), along its lane, and gives it the referenced entity's speed; with them, a
-proportional controller within the limits closes the gap. ``continuous`` keeps either
-going; otherwise the action ends when the distance is reached (within 0.1 m).
+``LongitudinalDistanceAction`` without ``DynamicConstraints`` (or without any
+acceleration limit in them) places the actor at the distance (as the OSC-ALKS files
+expect: "will position the Lead vehicle precisely"), along its lane, with the
+referenced entity's speed: at every step once every entity has moved, so the order of
+the entities does not matter. With them, a critically damped spring on the gap (as
+esmini: stiffness 0.4 × the limit it pulls with) within the acceleration, deceleration
+and speed limits and the rates ``maxAccelerationRate``/``maxDecelerationRate``, which
+bound how fast the acceleration grows away from 0; a time gap is at the referenced
+entity's speed. ``continuous`` keeps either going; otherwise the action ends when the
+distance is reached (within 0.1 m).
 """
 
 from __future__ import annotations
@@ -61,6 +66,11 @@ SHAPES = ("step", "linear", "cubic", "sinusoidal")
 
 _STARTS = itertools.count()
 """Numbers the motions in the order they start (see :class:`FollowTrajectory`)."""
+
+SPRING = 0.4
+"""The gap spring of a ``LongitudinalDistanceAction`` with ``DynamicConstraints``:
+its stiffness is this times the acceleration limit it pulls with [1/s² per m/s²]
+(esmini's choice), critically damped."""
 
 _TIME_EPS = 1e-6
 """A transition whose elapsed time is this close to its duration [s] has ended."""
@@ -139,15 +149,20 @@ class Instance:
             if getattr(self.entity, self.slot) is self:
                 setattr(self.entity, self.slot, None)
 
+    domains: tuple[str, ...] = ("lateral", "longitudinal")
+    """The domains the action drives; none of them may be the function's."""
+
     def _scripted(self, runner: Any) -> Entity:
-        """The actor, which must be scripted (not the active ego)."""
+        """The actor, which the storyboard must drive in the action's domains (not
+        the function under test)."""
         entity = self.entity
         if entity is None:
             raise ScenarioError(f"{self.where}: a private action needs an actor")
-        if not entity.scripted:
+        taken = [d for d in self.domains if d in entity.controlled]
+        if taken:
             raise ScenarioError(
-                f"{self.where}: acts on {entity.name!r} while its controller drives it "
-                "(the function under test): not supported"
+                f"{self.where}: acts on {entity.name!r} in the {' and '.join(taken)} "
+                "domain its controller drives (the function under test): not supported"
             )
         return entity
 
@@ -221,6 +236,7 @@ class SpeedChange(Instance):
     """``SpeedAction``: towards an absolute or relative target speed."""
 
     slot = "longitudinal"
+    domains = ("longitudinal",)
 
     def __init__(
         self,
@@ -296,6 +312,7 @@ class LongitudinalDistance(Instance):
     """``LongitudinalDistanceAction`` (module docstring)."""
 
     slot = "longitudinal"
+    domains = ("longitudinal",)
 
     def __init__(
         self,
@@ -307,7 +324,7 @@ class LongitudinalDistance(Instance):
         freespace: bool,
         leading: bool | None,
         continuous: bool,
-        limits: tuple[float, float, float] | None,
+        limits: tuple[float, float, float, float, float] | None,
         system: str = "entity",
     ) -> None:
         """``leading``: the actor leads the referenced entity (``displacement``
@@ -332,7 +349,9 @@ class LongitudinalDistance(Instance):
         entity = self.entity
         assert entity is not None
         v_ref = ref.speed if ref.scripted else ref.velocity
-        d = self.distance if self.distance is not None else (self.time_gap or 0.0) * v_ref
+        # a time gap is at the follower's speed: the actor's when it trails
+        v_follower = v_ref
+        d = self.distance if self.distance is not None else (self.time_gap or 0.0) * v_follower
         if self.freespace:
             if self.leading:  # ref's front to the actor's rear
                 d += (ref.box.cx + 0.5 * ref.box.length) - (entity.box.cx - 0.5 * entity.box.length)
@@ -355,18 +374,33 @@ class LongitudinalDistance(Instance):
             return float(u_a) - float(u_b)
         return float((entity.reference_point() - ref.reference_point()) @ ref.forward())
 
+    @property
+    def rigid(self) -> bool:
+        """Without ``DynamicConstraints``: the actor is placed at the distance."""
+        return self.limits is None
+
     def start(self, runner: Any) -> None:
-        """Place (no limits) or start closing the gap."""
+        """Take the longitudinal domain; the first step places the actor (rigid) or
+        starts closing the gap."""
         entity = self._scripted(runner)
         if self.leading is None:
             self.leading = self._now(runner.world) >= 0.0
-        if self.limits is None:
-            self._snap(runner.world, entity)
-            if not self.continuous:
-                _override(entity, "longitudinal", None)
-                self.done = True
-                return
+        self.acceleration = 0.0
         _override(entity, "longitudinal", self)
+        if self.rigid and not runner.world.running:
+            self.settle(runner.world)  # in Init: the actor starts there
+
+    def settle(self, world: World) -> None:
+        """After every entity moved in a step: put the actor at the distance from where
+        the referenced entity is now (rigid), whatever order they moved in; a
+        non-continuous action ends there."""
+        entity = self.entity
+        assert entity is not None
+        self._snap(world, entity)
+        if not self.continuous:
+            self.done = True
+            if entity.longitudinal is self:
+                entity.longitudinal = None
 
     def _snap(self, world: World, entity: Entity) -> None:
         """Put the actor at the distance along its lane (a rigid connection), at the
@@ -390,17 +424,46 @@ class LongitudinalDistance(Instance):
                 f"{self.where}: the distance puts the actor off the map: {exc}"
             ) from None
 
+    def prepare(self, world: World, dt: float) -> None:
+        """Before a step of ``dt`` [s], with every entity where the step begins: the
+        speed the actor will have, from the gap measured now (as esmini, which
+        measures it at the start of the frame), whatever order the entities move in."""
+        entity = self.entity
+        assert entity is not None
+        self.next_speed: float | None = self._spring(world, entity, dt)
+
     def speed_after(self, world: World, entity: Entity, dt: float) -> float:
-        """The speed [m/s] after ``dt`` [s]."""
+        """The speed [m/s] after ``dt`` [s]: a rigid action keeps it (:meth:`settle`
+        places the actor); else the one :meth:`prepare` found (the spring now if the
+        action started within this step)."""
+        if self.limits is None:
+            return entity.speed
+        speed = getattr(self, "next_speed", None)
+        self.next_speed = None
+        return self._spring(world, entity, dt) if speed is None else speed
+
+    def _spring(self, world: World, entity: Entity, dt: float) -> float:
+        """A critically damped spring on the gap, within the limits and their rates."""
+        assert self.limits is not None
         ref = world.entities[self.ref]
         v_ref = ref.speed if ref.scripted else ref.velocity
-        if self.limits is None:
-            self._snap(world, entity)
-            return entity.speed
-        max_acc, max_dec, max_speed = self.limits
+        max_acc, max_dec, max_speed, acc_rate, dec_rate = self.limits
+        max_acc = min(max_acc, entity.max_acceleration)
+        max_dec = min(max_dec, entity.max_deceleration)
+        max_speed = min(max_speed, entity.max_speed)
         error = self._now(world) - self._wanted(world)  # > 0: too far ahead
-        accel = -0.5 * error + 1.0 * (v_ref - entity.speed)
+        # the spring's stiffness scales with the acceleration limit when the actor is
+        # too far ahead, with the deceleration limit when it lags (esmini's choice)
+        pull = max_acc if error > 0.0 else max_dec
+        k = SPRING * (pull if math.isfinite(pull) else min(max_acc, max_dec))
+        accel = -k * error - 2.0 * math.sqrt(k) * (entity.speed - v_ref)
         accel = min(max(accel, -max_dec), max_acc)
+        # the rates limit how fast the acceleration grows away from 0 [m/s³]
+        if accel < 0.0 and accel < self.acceleration:
+            accel = max(self.acceleration - dec_rate * dt, accel)
+        elif accel > 0.0 and accel > self.acceleration:
+            accel = min(self.acceleration + acc_rate * dt, accel)
+        self.acceleration = accel
         v = min(max(entity.speed + accel * dt, 0.0), max_speed)
         if not self.continuous and abs(error) < 0.1 and abs(v_ref - v) < 0.1:
             self.done = True
@@ -414,6 +477,7 @@ class LaneChange(Instance):
     its centre (along the road's ``t``)."""
 
     slot = "lateral"
+    domains = ("lateral",)
     speed_along_heading = True
     """The entity's speed is along its heading: the lateral motion takes its share."""
 
@@ -477,6 +541,7 @@ class LaneOffset(Instance):
     """``LaneOffsetAction``: towards an offset from the lane centre (module docstring)."""
 
     slot = "lateral"
+    domains = ("lateral",)
 
     def __init__(
         self,
@@ -700,7 +765,8 @@ class AssignRoute(Instance):
 
 # ---------------------------------------------------------------------- controller
 class ActivateController(Instance):
-    """``ActivateControllerAction``: the ego's function takes over (both domains)."""
+    """``ActivateControllerAction``: the ego's function takes over the domains given
+    (lateral: LKA; longitudinal: ACC/AEB; both), the storyboard keeps the others."""
 
     def __init__(
         self, entity: Entity | None, where: str, lateral: bool | None, longitudinal: bool | None
@@ -717,15 +783,8 @@ class ActivateController(Instance):
             raise ScenarioError(
                 f"{self.where}: only the ego ({runner.ego.name!r}) has a controller here"
             )
-        lateral = runner.active if self.lateral is None else self.lateral
-        longitudinal = runner.active if self.longitudinal is None else self.longitudinal
-        if lateral != longitudinal:
-            raise ScenarioError(
-                f"{self.where}: the function would drive one domain alone (lateral="
-                f"{lateral}, longitudinal={longitudinal}): not supported, it drives both"
-            )
-        if lateral:
-            runner.activate()
-        else:
-            runner.deactivate()
+        domains = runner.domains
+        lateral = "lateral" in domains if self.lateral is None else self.lateral
+        longitudinal = "longitudinal" in domains if self.longitudinal is None else self.longitudinal
+        runner.control(lateral, longitudinal)
         self.done = True

@@ -230,12 +230,7 @@ class RelativeObjectPos(Position):
         """See :class:`Position`."""
         ref: Entity = world.entities[self.entity]
         point = ref.reference_point() + self.dx * ref.forward() + self.dy * ref.left()
-        heading = ref.heading
-        if self.orientation is not None:
-            heading = (
-                heading - self.orientation.h if self.orientation.relative else -self.orientation.h
-            )
-        return Where(point=point, heading=heading, heading_given=self.orientation is not None)
+        return _relative_to(ref, point, self.orientation)
 
 
 @dataclass(frozen=True)
@@ -272,9 +267,13 @@ class RelativeWorldPos(Position):
         """See :class:`Position` (an orientation relative to the entity's heading)."""
         ref: Entity = world.entities[self.entity]
         point = ref.reference_point() + np.array([self.dx, -self.dy])
-        heading = ref.heading
-        if self.orientation is not None:
-            heading = (
-                heading - self.orientation.h if self.orientation.relative else -self.orientation.h
-            )
-        return Where(point=point, heading=heading, heading_given=self.orientation is not None)
+        return _relative_to(ref, point, self.orientation)
+
+
+def _relative_to(ref: Entity, point: np.ndarray, orientation: Orientation | None) -> Where:
+    """A world point with the heading of ``ref`` turned by a relative orientation, or an
+    absolute one (OpenDRIVE's counter-clockwise is negative in highway-env's world)."""
+    heading = ref.heading
+    if orientation is not None:
+        heading = heading - orientation.h if orientation.relative else -orientation.h
+    return Where(point=point, heading=heading, heading_given=orientation is not None)

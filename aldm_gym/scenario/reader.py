@@ -722,7 +722,24 @@ class _Reader:
                 self.num(dc, "maxAcceleration", math.inf),
                 self.num(dc, "maxDeceleration", math.inf),
                 self.num(dc, "maxSpeed", math.inf),
+                self.num(dc, "maxAccelerationRate", math.inf),
+                self.num(dc, "maxDecelerationRate", math.inf),
             )
+            for name, value in zip(
+                (
+                    "maxAcceleration",
+                    "maxDeceleration",
+                    "maxSpeed",
+                    "maxAccelerationRate",
+                    "maxDecelerationRate",
+                ),
+                limits,
+                strict=True,
+            ):
+                if not value > 0.0:
+                    raise self.error(dc, f"{name} must be > 0, got {value:g}")
+            if math.isinf(limits[0]) and math.isinf(limits[1]):
+                limits = None  # no acceleration limit at all: a rigid connection
         leading: bool | None = {
             "leadingReferencedEntity": True,
             "trailingReferencedEntity": False,

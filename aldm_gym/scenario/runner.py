@@ -64,11 +64,17 @@ class ScenarioRunner:
         self.ego: Entity = self.world.entities[ego]
         self.init_actions, self.storyboard = scenario.build(self.world.entities)
         self.steps = 0
-        self.active = False
-        """Whether the function under test drives the ego."""
+        self.domains: frozenset[str] = frozenset()
+        """The domains the function under test drives (``lateral``, ``longitudinal``);
+        the storyboard drives the others."""
         self.activated_at: float | None = None
         """Simulation time of the ``ActivateControllerAction`` [s]."""
         self.on_activate: Callable[[Entity], None] | None = None
+
+    @property
+    def active(self) -> bool:
+        """Whether the function under test drives the ego in any domain."""
+        return bool(self.domains)
 
     @property
     def finished(self) -> bool:
@@ -122,9 +128,15 @@ class ScenarioRunner:
         world = self.world
         if not self.active:
             world.advance_ego(dt)  # unless a scripted entity's step already moved it
+        elif self.domains == {"longitudinal"}:
+            world.follow_lateral(self.ego, dt)  # its speed the function's, its lane the script's
         else:
+            speed = self.ego.speed
             world.sync(self.ego)
             self.ego.traveled += self.ego.velocity * dt
+            if self.domains == {"lateral"}:
+                self.ego.speed = speed  # the script's (the vehicle's has the env's push)
+        world.settle()
         # the clock counts steps at the simulation frequency: 12 / 10 is 1.2 exactly,
         # where 12 * 0.1 (or a sum of 0.1 s) is 1.2000000000000002
         self.steps += 1
@@ -132,24 +144,44 @@ class ScenarioRunner:
         world.time = self.steps / frequency if abs(frequency * dt - 1.0) < 1e-9 else self.steps * dt
         world.track(dt)
         self.storyboard.update(self, world.time)
+        if self.domains == {"lateral"}:
+            world.script_speed(self.ego, dt)  # the next step's speed is the script's
+        world.prepare(dt)
         world.ego_due()
 
-    def activate(self) -> None:
-        """The function under test takes the ego over (``ActivateControllerAction``)."""
-        if self.active:
+    def control(self, lateral: bool, longitudinal: bool) -> None:
+        """``ActivateControllerAction``: the function under test drives the ego in the
+        domains given, the storyboard in the others. The motions of the domains handed
+        to the function end; where it gives a domain back, the storyboard drives it on
+        from where the ego is."""
+        wanted = frozenset(
+            d for d, on in (("lateral", lateral), ("longitudinal", longitudinal)) if on
+        )
+        if wanted == self.domains:
             return
-        self.active = True
-        self.activated_at = self.world.time
-        self.ego.scripted = False
-        self.ego.longitudinal = self.ego.lateral = self.ego.trajectory = None
-        if self.on_activate is not None:
-            self.on_activate(self.ego)
+        ego = self.ego
+        before = self.domains
+        if before:
+            self.world.sync(ego)
+        self.domains = wanted
+        ego.controlled = wanted
+        ego.scripted = not wanted
+        for domain in wanted - before:
+            motion = getattr(ego, domain)
+            if motion is not None:
+                motion.stop()
+            trajectory = ego.trajectory
+            if trajectory is not None and (trajectory.timed or domain == "lateral"):
+                trajectory.stop()
+        if wanted and not before:
+            self.activated_at = self.world.time
+            if self.on_activate is not None:
+                self.on_activate(ego)
+
+    def activate(self) -> None:
+        """The function under test takes the ego over in both domains."""
+        self.control(True, True)
 
     def deactivate(self) -> None:
-        """``ActivateControllerAction`` with both domains false: the scenario drives the
-        ego again from where it is."""
-        if not self.active:
-            return
-        self.active = False
-        self.world.sync(self.ego)
-        self.ego.scripted = True
+        """The scenario drives the ego again from where it is."""
+        self.control(False, False)

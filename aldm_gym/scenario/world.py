@@ -139,6 +139,8 @@ class Entity:
     off_road_since: float | None = None
     """Simulation time [s] since which it is on no driving lane."""
     last_speed: float | None = None
+    controlled: frozenset[str] = frozenset()
+    """The domains the function under test drives (the ego only)."""
     teleport: Any = None
     """A position to put the entity at before its next step (a storyboard teleport)."""
     last_lateral: Any = None
@@ -418,6 +420,8 @@ class World:
         if entity.longitudinal is not None:
             entity.speed = float(entity.longitudinal.speed_after(self, entity, dt))
         entity.speed = min(max(entity.speed, 0.0), entity.max_speed)
+        # a rigid distance places the actor once everyone has moved (settle)
+        settles = getattr(entity.longitudinal, "rigid", False)
         lateral_speed = 0.0
         t_before = entity.t
         entity.last_lateral = entity.lateral
@@ -435,6 +439,8 @@ class World:
             along = math.sqrt(step * step - lateral * lateral) if abs(lateral) < step else 0.0
         entity.traveled += math.hypot(along, lateral)
         mean_t = 0.5 * (entity.t + t_before)
+        if settles:
+            along = 0.0
         u = entity.u + (self.centre_step(entity.lane, entity.u, mean_t, along) if along else 0.0)
         key = entity.lane
         length = self.road.lane_length(key)
@@ -478,6 +484,60 @@ class World:
                 e.road_end_since = self.time if e.road_end_since is None else e.road_end_since
             else:
                 e.road_end_since = None
+
+    def prepare(self, dt: float) -> None:
+        """Before a step of ``dt`` [s]: the distance actions with dynamics measure their
+        gaps where every entity is now."""
+        for entity in self.entities.values():
+            motion = entity.longitudinal
+            if entity.scripted and hasattr(motion, "prepare") and not motion.rigid:
+                motion.prepare(self, dt)
+
+    def settle(self) -> None:
+        """After every entity moved in a step: the rigid distance actions place their
+        actors from where their referenced entities are now."""
+        for entity in self.entities.values():
+            motion = entity.longitudinal
+            if entity.scripted and getattr(motion, "rigid", False):
+                motion.settle(self)
+
+    def follow_lateral(self, entity: Entity, dt: float) -> None:
+        """The ego after a step of ``dt`` [s] whose speed the function drives and whose
+        lane the storyboard does: its progress along its lane and its speed are the
+        vehicle's, its offset from the lane's centre (and its heading) the script's."""
+        vehicle = entity.vehicle
+        lane = self._lane(entity.lane)
+        u, _ = lane.local_coordinates(entity.reference_point())
+        u = float(u)
+        entity.speed = float(vehicle.speed)
+        entity.traveled += entity.speed * dt
+        t_before = entity.t
+        entity.last_lateral = entity.lateral
+        if entity.lateral is not None:
+            entity.t = float(entity.lateral.offset_after(self, entity, dt))
+        key, length = entity.lane, self.road.lane_length(entity.lane)
+        while u > length:
+            nxt = self.road.successor(key)
+            if nxt is None:
+                u = length
+                break
+            u -= length
+            key = nxt
+            length = self.road.lane_length(key)
+        entity.lane, entity.u = key, max(u, 0.0)
+        lateral_speed = (entity.t - t_before) / dt if dt > 0 else 0.0
+        along = bool(getattr(entity.last_lateral, "speed_along_heading", False))
+        self._update_pose(entity, lateral_speed, along)
+        vehicle.speed = entity.speed
+
+    def script_speed(self, entity: Entity, dt: float) -> None:
+        """The ego whose lane the function drives and whose speed the storyboard does:
+        its speed for the next step of ``dt`` [s] is the script's (its longitudinal
+        motion's, else the speed it has)."""
+        if entity.longitudinal is not None:
+            entity.speed = float(entity.longitudinal.speed_after(self, entity, dt))
+        entity.speed = min(max(entity.speed, 0.0), entity.max_speed)
+        entity.vehicle.speed = entity.speed
 
     def sync(self, entity: Entity) -> None:
         """Read an entity that moved on its own (the active ego) into its state."""

@@ -74,22 +74,28 @@ def write(
     lane_id: int = -2,
     road_id: int = 0,
     name: str = "scenario.xosc",
+    domains: tuple[bool, bool] = (True, True),
+    target_first: bool = False,
 ) -> Path:
     """A scenario: the ego on lane ``lane_id`` at ``ego_s`` [m] and ``ego_speed`` [m/s];
     the target ``(dLane, ds [m], speed [m/s])`` from it; ``events`` as ``(actor, [Event])``
     maneuvers; the ego's controller activated at ``activate_at`` [s] (0: in ``Init``;
     never if None);
-    the scenario stops at ``stop`` [s]; the ego's road is ``road_id``; ``stories`` are
+    the scenario stops at ``stop`` [s]; ``domains`` are the (lateral, longitudinal)
+    domains the activation hands to the function; ``target_first`` puts the target
+    before the ego in the file; the ego's road is ``road_id``; ``stories`` are
     added as they are."""
     ents = xosc.Entities()
+    if target is not None and target_first:
+        ents.add_scenario_object("Target", car())
     ents.add_scenario_object("Ego", car())
-    if target is not None:
+    if target is not None and not target_first:
         ents.add_scenario_object("Target", car())
     init = xosc.Init()
     init.add_init_action("Ego", xosc.TeleportAction(xosc.LanePosition(ego_s, 0, lane_id, road_id)))
     init.add_init_action("Ego", step_speed(ego_speed))
     if activate_at == 0.0:  # in Init: the function drives from the start
-        init.add_init_action("Ego", xosc.ActivateControllerAction(True, True))
+        init.add_init_action("Ego", xosc.ActivateControllerAction(*domains))
     if target is not None:
         d_lane, ds, v = target
         init.add_init_action(
@@ -116,7 +122,7 @@ def write(
         board.add_story(story)
     if activate_at is not None and activate_at != 0.0:
         ev = xosc.Event("activate", xosc.Priority.override)
-        ev.add_action("activate_action", xosc.ActivateControllerAction(True, True))
+        ev.add_action("activate_action", xosc.ActivateControllerAction(*domains))
         ev.add_trigger(at_time(activate_at))
         man = xosc.Maneuver("activation")
         man.add_event(ev)

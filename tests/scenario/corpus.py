@@ -195,6 +195,54 @@ def stand_still_and_acquire_position(folder: Path) -> Path:
     return write(folder, [("Target", [stop, go, acquire])], stop=12.0, name="standstill.xosc")
 
 
+def distance_rigid_before_its_reference(folder: Path) -> Path:
+    """A rigid continuous ``LongitudinalDistanceAction`` (no ``DynamicConstraints``)
+    behind the ego, which is written after it in the file and changes its speed: the
+    actor keeps the gap, whatever the entities' order."""
+    follow = _event(
+        "follow",
+        xosc.LongitudinalDistanceAction("Ego", freespace=True, continuous=True, distance=15.0),
+        at_time(0.5),
+    )
+    dyn = xosc.TransitionDynamics(xosc.DynamicsShapes.sinusoidal, xosc.DynamicsDimension.time, 3.0)
+    slow = _event("slow", xosc.AbsoluteSpeedAction(12.0, dyn), at_time(2.0))
+    return write(
+        folder,
+        [("Target", [follow]), ("Ego", [slow])],
+        target=(0, -40.0, 20.0),
+        target_first=True,
+        name="distance_rigid.xosc",
+    )
+
+
+def distance_with_dynamic_constraints(folder: Path) -> Path:
+    """A ``LongitudinalDistanceAction`` by time gap with ``DynamicConstraints`` (limits
+    on acceleration, deceleration, their rates, and speed) closing on the ego."""
+    follow = _event(
+        "close",
+        xosc.LongitudinalDistanceAction(
+            "Ego",
+            freespace=False,
+            continuous=True,
+            max_acceleration=3.0,
+            max_deceleration=4.0,
+            max_speed=30.0,
+            timeGap=1.5,
+            max_acceleration_rate=2.0,
+            max_deceleration_rate=3.0,
+        ),
+        at_time(0.5),
+    )
+    return write(
+        folder,
+        [("Target", [follow])],
+        ego_s=150.0,
+        target=(0, -80.0, 20.0),
+        stop=20.0,
+        name="distance_dyn.xosc",
+    )
+
+
 CORPUS: dict[str, Callable[[Path], Path]] = {
     f.__name__: f
     for f in (
@@ -206,6 +254,8 @@ CORPUS: dict[str, Callable[[Path], Path]] = {
         ttc_in_road_coordinates_and_collision,
         story_parameters_and_relative_road_position,
         stand_still_and_acquire_position,
+        distance_rigid_before_its_reference,
+        distance_with_dynamic_constraints,
     )
 }
 """The corpus by name."""

@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 from scenariogeneration import xosc
 
@@ -171,6 +172,65 @@ def test_controller_activation_hands_the_ego_over(tmp_path: Path) -> None:
     end = rec[-1]["Ego"]
     assert end[0] == -2 and abs(end[2]) < 0.2 and end[3] == pytest.approx(20.0, abs=0.5)
     assert env.vehicle.target_speed == pytest.approx(20.0)
+
+
+def test_acc_only_activation_keeps_the_lane_change_scripted(tmp_path: Path) -> None:
+    # the function drives the speed (ACC behind a slower car), the storyboard the lane
+    dyn = xosc.TransitionDynamics(xosc.DynamicsShapes.sinusoidal, xosc.DynamicsDimension.time, 3.0)
+    change = _event("change", xosc.AbsoluteLaneChangeAction(-3, dyn), at_time(2.0))
+    path = write(
+        tmp_path,
+        [("Ego", [change])],
+        activate_at=0.0,
+        domains=(False, True),
+        target=(0, 40.0, 12.0),
+        stop=10.0,
+    )
+    env, rec = play(path, 10.0)
+    assert env.scenario.domains == {"longitudinal"}
+    assert at(rec, 1.9)["Ego"][0] == -2 and rec[-1]["Ego"][0] == -3
+    assert abs(rec[-1]["Ego"][2]) < 1e-6  # on the target lane's centre, as scripted
+    # the ACC slowed down behind the slower car before the change
+    assert at(rec, 1.9)["Ego"][3] < 19.5
+
+
+def test_lka_only_activation_keeps_the_speed_scripted(tmp_path: Path) -> None:
+    # the function steers (LKA on the detected lanes), the storyboard sets the speed
+    dyn = xosc.TransitionDynamics(xosc.DynamicsShapes.linear, xosc.DynamicsDimension.rate, 2.0)
+    slow = _event("slow", xosc.AbsoluteSpeedAction(10.0, dyn), at_time(1.0))
+    path = write(tmp_path, [("Ego", [slow])], activate_at=0.0, domains=(True, False), target=None)
+    env, rec = play(path, 10.0)
+    assert env.scenario.domains == {"lateral"}
+    speeds = [r["Ego"][3] for r in rec]
+    assert at(rec, 1.0)["Ego"][3] == pytest.approx(20.0)
+    assert at(rec, 3.5)["Ego"][3] == pytest.approx(15.0, abs=0.25)
+    assert speeds[-1] == pytest.approx(10.0)
+    assert all(r["Ego"][0] == -2 for r in rec)  # the LKA keeps its lane
+
+
+def test_an_action_on_the_functions_domain_is_refused(tmp_path: Path) -> None:
+    slow = _event("slow", step_speed(10.0), at_time(1.0))
+    path = write(tmp_path, [("Ego", [slow])], activate_at=0.0, domains=(False, True), target=None)
+    with pytest.raises(ScenarioError, match="longitudinal domain its controller drives"):
+        play(path, 2.0)
+
+
+def test_distance_with_dynamic_constraints_keeps_its_limits_and_rates(tmp_path: Path) -> None:
+    from tests.scenario.corpus import distance_with_dynamic_constraints
+
+    _, rec = play(distance_with_dynamic_constraints(tmp_path), 20.0)
+    v = np.array([r["Target"][3] for r in rec])
+    acc = np.diff(v) / 0.1
+    jerk = np.diff(acc) / 0.1
+    assert acc.max() <= 3.0 + 1e-9 and acc.min() >= -4.0 - 1e-9
+    assert v.max() <= 30.0 + 1e-9
+    # the rates bound how fast the acceleration grows away from 0
+    growing = np.sign(acc[1:]) * jerk > 0
+    assert np.all(jerk[growing & (acc[1:] > 0)] <= 2.0 + 1e-6)
+    assert np.all(jerk[growing & (acc[1:] < 0)] >= -3.0 - 1e-6)
+    # it settles at the time gap behind the ego (1.5 s at 20 m/s between the rear axles)
+    gap = rec[-1]["Ego"][1] - rec[-1]["Target"][1]
+    assert gap == pytest.approx(30.0, abs=0.5) and v[-1] == pytest.approx(20.0, abs=0.1)
 
 
 def test_same_seed_same_run(tmp_path: Path) -> None:
@@ -338,7 +398,9 @@ def test_longitudinal_distance_places_the_actor_at_the_time_gap(tmp_path: Path) 
     ev = _event("gap", action, at_time(0.5))
     path = write(tmp_path, [("Target", [ev])], target=(0, 90.0, 12.0))
     _, rec = play(path, 2.0)
-    placed = at(rec, 0.6)
+    # started at 0.6 s, placed by the next step (as esmini), where everyone has moved
+    assert at(rec, 0.6)["Target"][3] == 12.0
+    placed = at(rec, 0.7)
     assert placed["Target"][1] - placed["Ego"][1] == pytest.approx(45.0)
     assert placed["Target"][3] == pytest.approx(20.0)
 
