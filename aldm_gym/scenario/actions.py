@@ -44,6 +44,7 @@ import numpy as np
 
 from aldm_gym.errors import MapError, ScenarioError
 from aldm_gym.scenario.positions import Position, Where
+from aldm_gym.scenario.shapes import Shape
 from aldm_gym.scenario.world import Entity, World
 
 __all__ = [
@@ -55,8 +56,11 @@ __all__ = [
     "Ignored",
     "LaneChange",
     "LaneOffset",
+    "LateralDistance",
     "LongitudinalDistance",
     "SpeedChange",
+    "SpeedProfile",
+    "StoreChange",
     "Teleport",
     "shape_value",
 ]
@@ -200,6 +204,58 @@ class Ignored(Instance):
         self.done = True
 
 
+class StoreChange(Instance):
+    """``ParameterAction`` / ``VariableAction``: set a parameter or variable, or add to
+    it or multiply it, at run time (conditions on it see the new value; attributes
+    were resolved when the file was read, as in esmini)."""
+
+    def __init__(
+        self, entity: Entity | None, where: str, store: str, name: str, op: str, value: Any
+    ) -> None:
+        """``store``: ``parameters`` or ``variables``; ``op``: ``set`` (``value`` the
+        attribute's text), ``add`` or ``multiply`` (``value`` a number)."""
+        super().__init__(entity, where)
+        self.store, self.name, self.op, self.value = store, name, op, value
+
+    def start(self, runner: Any) -> None:
+        """Change the value in the runner's store."""
+        values = getattr(runner, self.store)
+        current = values[self.name]
+        if self.op == "set":
+            values[self.name] = _like(current, str(self.value), self.where)
+        else:
+            if isinstance(current, bool) or not isinstance(current, int | float):
+                raise ScenarioError(f"{self.where}: {self.name} is not a number ({current!r})")
+            new = current + self.value if self.op == "add" else current * self.value
+            if not math.isfinite(new):
+                raise ScenarioError(f"{self.where}: {self.name} becomes {new}")
+            values[self.name] = (
+                int(new) if isinstance(current, int) and float(new).is_integer() else new
+            )
+        self.done = True
+
+
+def _like(current: Any, text: str, where: str) -> Any:
+    """``text`` as a value of ``current``'s type."""
+    try:
+        if isinstance(current, bool):
+            if text.strip().lower() not in ("true", "false", "1", "0"):
+                raise ValueError(text)
+            return text.strip().lower() in ("true", "1")
+        if isinstance(current, int):
+            return int(text)
+        if isinstance(current, float):
+            value = float(text)
+            if not math.isfinite(value):
+                raise ValueError(text)
+            return value
+    except ValueError:
+        raise ScenarioError(
+            f"{where}: {text!r} is not a {type(current).__name__} like the value it sets"
+        ) from None
+    return text
+
+
 # ---------------------------------------------------------------------- teleport
 class Teleport(Instance):
     """``TeleportAction``: the actor is at the position at once."""
@@ -305,6 +361,75 @@ class SpeedChange(Instance):
         self.done = True
         if entity.longitudinal is self:
             entity.longitudinal = None
+
+
+class SpeedProfile(Instance):
+    """``SpeedProfileAction``: the entries' speeds one after another, each linearly in
+    its ``time`` [s] from the speed the previous one reached (longer where that would
+    need more than the limits), or without a time as fast as the limits allow (the
+    ``DynamicConstraints``, capped by the entity's ``Performance``; none: at once).
+    With ``entityRef`` each speed is relative to that
+    entity's speed when the entry begins. ``followingMode`` ``follow`` is played as
+    ``position``."""
+
+    slot = "longitudinal"
+    domains = ("longitudinal",)
+
+    def __init__(
+        self,
+        entity: Entity | None,
+        where: str,
+        entries: list[tuple[float, float | None]],
+        ref: str | None,
+        limits: tuple[float, float],
+    ) -> None:
+        """``entries``: (speed [m/s], time [s] or None); ``limits``: (acceleration,
+        deceleration) [m/s²]."""
+        super().__init__(entity, where)
+        self.entries = entries
+        self.ref = ref
+        self.limits = limits
+
+    def start(self, runner: Any) -> None:
+        """Begin the first entry."""
+        entity = self._scripted(runner)
+        self.order = next(_STARTS)
+        self.index = -1
+        self._next(runner.world, entity)
+        _override(entity, "longitudinal", self)
+
+    def _next(self, world: World, entity: Entity) -> None:
+        """Begin the next entry from the speed the entity has."""
+        self.index += 1
+        if self.index >= len(self.entries):
+            return
+        speed, time = self.entries[self.index]
+        if self.ref is not None:
+            other = world.entities[self.ref]
+            speed += other.speed if other.scripted else other.velocity
+        self.v0, self.v1, self.elapsed = entity.speed, speed, 0.0
+        acc = min(self.limits[0], entity.max_acceleration)
+        dec = min(self.limits[1], entity.max_deceleration)
+        limit = acc if self.v1 > self.v0 else dec
+        fastest = abs(self.v1 - self.v0) / limit if math.isfinite(limit) else 0.0
+        # an entry's time is stretched where it would need more than the limits (esmini)
+        self.T = fastest if time is None else max(time, fastest)
+
+    def speed_after(self, world: World, entity: Entity, dt: float) -> float:
+        """The speed [m/s] after ``dt`` [s]."""
+        self.elapsed += dt
+        while self.index < len(self.entries) and self.elapsed >= self.T - _TIME_EPS:
+            left = self.elapsed - self.T
+            entity.speed = self.v1
+            self._next(world, entity)
+            if self.index < len(self.entries):
+                self.elapsed = left
+        if self.index >= len(self.entries):
+            self.done = True
+            if entity.longitudinal is self:
+                entity.longitudinal = None
+            return entity.speed
+        return self.v0 + (self.v1 - self.v0) * self.elapsed / self.T
 
 
 # ---------------------------------------------------------------------- distance
@@ -537,6 +662,74 @@ class LaneChange(Instance):
         return self.t0 + (self.t1 - self.t0) * shape_value(self.dynamics.shape, x)
 
 
+class LateralDistance(Instance):
+    """``LateralDistanceAction``: the actor keeps ``distance`` [m] across the road from
+    the referenced entity (between the boxes with ``freespace``, taken as along the
+    road, else the reference points), on its left or right (``any``: the side it is
+    on when the action starts),
+    measured along the road's ``t``. Without ``DynamicConstraints`` the actor is put
+    there at every step; with them a critically damped spring moves it there within
+    the lateral acceleration, deceleration and speed limits. Not ``continuous``: it
+    ends when the distance is reached (within 0.1 m)."""
+
+    slot = "lateral"
+    domains = ("lateral",)
+
+    def __init__(
+        self,
+        entity: Entity | None,
+        where: str,
+        ref: str,
+        distance: float,
+        freespace: bool,
+        left: bool | None,
+        continuous: bool,
+        limits: tuple[float, float, float] | None,
+    ) -> None:
+        """``left``: the actor is on the referenced entity's left (None: any)."""
+        super().__init__(entity, where)
+        self.ref, self.distance, self.freespace = ref, distance, freespace
+        self.left, self.continuous, self.limits = left, continuous, limits
+
+    def start(self, runner: Any) -> None:
+        """Take the lateral domain; the side if ``any``."""
+        entity = self._scripted(runner)
+        world = runner.world
+        if self.left is None:
+            self.left = world.road_t(entity) >= world.road_t(world.entities[self.ref])
+        self.lateral_speed = 0.0
+        _override(entity, "lateral", self)
+
+    def _target(self, world: World, entity: Entity) -> float:
+        """The actor's wanted offset [m] to the driver's left of its lane's centre."""
+        ref = world.entities[self.ref]
+        side = 1.0 if self.left else -1.0
+        gap = self.distance
+        if self.freespace:  # the boxes' half widths (boxes along the road)
+            gap += 0.5 * (ref.box.width + entity.box.width)
+        wanted_t = world.road_t(ref) + side * gap
+        c = world.coordinates(entity)
+        return entity.t + (wanted_t - world.road_t(entity)) * c.direction
+
+    def offset_after(self, world: World, entity: Entity, dt: float) -> float:
+        """The offset [m] (driver's left) after ``dt`` [s]."""
+        target = self._target(world, entity)
+        if self.limits is None or dt <= 0:
+            new = target
+        else:
+            max_acc, max_dec, max_speed = self.limits
+            k = SPRING * min(max_acc, max_dec)
+            error = target - entity.t
+            accel = k * error - 2.0 * math.sqrt(k) * self.lateral_speed
+            accel = min(max(accel, -max_dec), max_acc)
+            self.lateral_speed = min(max(self.lateral_speed + accel * dt, -max_speed), max_speed)
+            new = entity.t + self.lateral_speed * dt
+        if not self.continuous and abs(target - new) < 0.1:
+            self.done = True
+            entity.lateral = None
+        return new
+
+
 class LaneOffset(Instance):
     """``LaneOffsetAction``: towards an offset from the lane centre (module docstring)."""
 
@@ -599,7 +792,8 @@ class LaneOffset(Instance):
 
 # ---------------------------------------------------------------------- trajectory
 class FollowTrajectory(Instance):
-    """``FollowTrajectoryAction`` on a ``Polyline``.
+    """``FollowTrajectoryAction`` on a shape (``Polyline``, ``Clothoid``,
+    ``ClothoidSpline``, ``Nurbs``: :mod:`~aldm_gym.scenario.shapes`).
 
     With vertex times (``TimeReference/Timing``) the trajectory drives both domains:
     the actor's reference point moves linearly between the vertices in time, at the
@@ -618,49 +812,37 @@ class FollowTrajectory(Instance):
         self,
         entity: Entity | None,
         where: str,
-        vertices: list[tuple[float | None, Position]],
-        absolute: bool,
-        scale: float,
-        offset: float,
+        shape: Shape,
+        timing: tuple[bool, float, float] | None,
     ) -> None:
-        """``vertices``: (time [s] or None, position) in order; all times given means
-        a timed trajectory."""
+        """``shape``: the path (:mod:`~aldm_gym.scenario.shapes`); ``timing``:
+        ``(absolute, scale, offset [s])`` of ``TimeReference/Timing``, None without
+        timing (the shape's times, if any, are then not used)."""
         super().__init__(entity, where)
-        self.vertices = vertices
-        self.absolute = absolute
-        self.scale = scale
-        self.time_offset = offset
-        self.timed = all(t is not None for t, _ in vertices)
+        self.shape = shape
+        self.timing = timing
+        self.timed = False
 
     def start(self, runner: Any) -> None:
-        """Resolve the vertices now; timing from the action's start (relative)."""
+        """Resolve the shape now; timing from the action's start (relative)."""
         entity = self._scripted(runner)
         world = runner.world
-        points: list[np.ndarray] = []
-        headings: list[float | None] = []
-        for _, pos in self.vertices:
-            w = pos.resolve(world)
-            if w.lane is not None:
-                p, h = world.pose(w.lane, w.u, w.t)
-                points.append(p)
-                headings.append(h + w.heading_offset if w.heading_given else None)
-            else:
-                assert w.point is not None
-                points.append(w.point)
-                headings.append(w.heading if w.heading_given else None)
-        self.points = np.array(points)
-        self.headings = headings
+        path = self.shape.resolve(world)
+        self.points = path.points
+        self.headings = path.headings
         seg = np.hypot(*np.diff(self.points, axis=0).T)
         self.arc = np.concatenate(([0.0], np.cumsum(seg)))
-        """Arc length [m] at each vertex."""
+        """Arc length [m] at each point."""
         self.along = 0.0
+        self.timed = self.timing is not None and path.times is not None
         if self.timed:
-            ts = np.array([float(t or 0.0) for t, _ in self.vertices]) * self.scale
-            ts = ts + self.time_offset
-            if not self.absolute:
+            assert self.timing is not None and path.times is not None
+            absolute, scale, offset = self.timing
+            ts = np.asarray(path.times, dtype=float) * scale + offset
+            if not absolute:
                 ts = ts + world.time
-            if np.any(np.diff(ts) < 0):
-                raise ScenarioError(f"{self.where}: the vertices' times decrease")
+            if np.any(np.diff(ts) < 0) or not np.all(np.isfinite(ts)):
+                raise ScenarioError(f"{self.where}: the trajectory's times decrease")
             self.times = ts
         _override(entity, "trajectory", self)
         # The actor is put on the path by the first step (as esmini, which steps a new
@@ -727,6 +909,12 @@ class FollowTrajectory(Instance):
         if finished:
             self.done = True
             entity.trajectory = None
+            if not self.timed and self.along > self.arc[-1]:
+                # the rest of the step's travel goes on along the lane (as esmini)
+                entity.u += world.centre_step(
+                    entity.lane, entity.u, entity.t, self.along - float(self.arc[-1])
+                )
+                world.place(entity, entity.lane, entity.u, entity.t, entity.heading_offset)
 
 
 # ---------------------------------------------------------------------- route

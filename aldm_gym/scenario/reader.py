@@ -27,10 +27,12 @@ from typing import Any
 from aldm_gym.errors import ScenarioError, ScenarioWarning
 from aldm_gym.scenario import actions as A
 from aldm_gym.scenario import conditions as C
+from aldm_gym.scenario import shapes as S
 from aldm_gym.scenario.parameters import (
     ParamValue,
     bind,
     declarations_from_xml,
+    format_value,
     resolve,
     resolve_number,
 )
@@ -81,6 +83,14 @@ _NO_MEANING = {
 }
 """Elements the player accepts and ignores, and why (one warning per kind and file)."""
 
+_NEVER = {
+    "TimeOfDayCondition": "the env has no time of day: the condition never holds",
+    "UserDefinedValueCondition": "values of another tool: the condition never holds",
+    "TrafficSignalCondition": "the env has no traffic signals: the condition never holds",
+    "TrafficSignalControllerCondition": "the env has no traffic signals: the condition never holds",
+}
+"""Conditions on things the env does not have: accepted, never true, one warning each."""
+
 
 @dataclass(frozen=True)
 class EntitySpec:
@@ -130,6 +140,8 @@ class Scenario:
     map_path: Path
     entities: list[EntitySpec]
     violations: list[str] = field(default_factory=list)
+    variables: dict[str, ParamValue] = field(default_factory=dict)
+    """The ``VariableDeclarations``' initial values (1.2+)."""
     ignored: dict[str, str] = field(default_factory=dict)
     """Elements with no meaning on the env, by tag: why, and where they are."""
     _root: Any = None
@@ -202,6 +214,8 @@ def read_scenario(path: str | Path, parameters: Mapping[str, Any] | None = None)
         (
             "FileHeader",
             "ParameterDeclarations",
+            "VariableDeclarations",
+            "MonitorDeclarations",
             "CatalogLocations",
             "RoadNetwork",
             "Entities",
@@ -236,6 +250,7 @@ def read_scenario(path: str | Path, parameters: Mapping[str, Any] | None = None)
         map_path=map_path,
         entities=reader.entities(),
         violations=broken,
+        variables=reader.variables(),
         _root=root,
     )
     # Build the storyboard once now, so that what cannot be played is named before a
@@ -602,9 +617,13 @@ class _Reader:
             pos = self.position(self.child(body, "Position"))
             return lambda actor: A.Teleport(actor, where, pos)
         if body.tag == "LongitudinalAction":
-            return self._longitudinal(self.one(body, ("SpeedAction", "LongitudinalDistanceAction")))
+            return self._longitudinal(
+                self.one(body, ("SpeedAction", "LongitudinalDistanceAction", "SpeedProfileAction"))
+            )
         if body.tag == "LateralAction":
-            return self._lateral(self.one(body, ("LaneChangeAction", "LaneOffsetAction")))
+            return self._lateral(
+                self.one(body, ("LaneChangeAction", "LaneOffsetAction", "LateralDistanceAction"))
+            )
         if body.tag == "RoutingAction":
             routing = self.one(
                 body, ("FollowTrajectoryAction", "AssignRouteAction", "AcquirePositionAction")
@@ -640,6 +659,52 @@ class _Reader:
         where = self.where(body)
         return lambda actor: A.ActivateController(actor, where, lat, lon)
 
+    def variables(self) -> dict[str, ParamValue]:
+        """The file's ``VariableDeclarations``: name -> initial value, typed."""
+        out: dict[str, ParamValue] = {}
+        decls = self.root.find("VariableDeclarations")
+        if decls is None:
+            return out
+        for d in self.kids(decls, ("VariableDeclaration",)):
+            name = self.attr(d, "name")
+            kind = self.choice(
+                d,
+                "variableType",
+                (
+                    "double",
+                    "int",
+                    "integer",
+                    "unsignedInt",
+                    "unsignedShort",
+                    "boolean",
+                    "string",
+                    "dateTime",
+                ),
+            )
+            if name in out:
+                raise self.error(d, f"variable {name} is declared twice")
+            out[name] = _typed(self, d, "value", kind)
+        return out
+
+    def _store_change(self, body: Any, store: str) -> Callable[[Entity | None], A.Instance]:
+        """``ParameterAction`` or ``VariableAction``: set or modify a value at run time."""
+        ref_attr = "parameterRef" if store == "parameters" else "variableRef"
+        name = self.attr(body, ref_attr)
+        known = self.params if store == "parameters" else self.variables()
+        if name not in known:
+            raise self.error(
+                body, f"{ref_attr}={name!r} is not declared; declared: {sorted(known)}"
+            )
+        op = self.one(body, ("SetAction", "ModifyAction"))
+        where = self.where(body)
+        if op.tag == "SetAction":
+            value = self.attr(op, "value")
+            return lambda actor: A.StoreChange(actor, where, store, name, "set", value)
+        rule = self.one(self.child(op, "Rule"), ("AddValue", "MultiplyByValue"))
+        amount = self.num(rule, "value")
+        kind = "add" if rule.tag == "AddValue" else "multiply"
+        return lambda actor: A.StoreChange(actor, where, store, name, kind, amount)
+
     def other(self, el: Any) -> Callable[[Entity | None], A.Instance]:
         """A ``GlobalAction`` or ``UserDefinedAction``: those with no meaning on the
         env are ignored (one warning each); the others are refused."""
@@ -662,6 +727,10 @@ class _Reader:
         if body.tag in _NO_MEANING:
             self.ignore(body, _NO_MEANING[body.tag])
             return lambda actor: A.Ignored(actor, where)
+        if body.tag == "ParameterAction":
+            return self._store_change(body, "parameters")
+        if body.tag == "VariableAction":
+            return self._store_change(body, "variables")
         raise self.error(body, f"{body.tag} is not supported yet")
 
     def dynamics(self, el: Any) -> A.Dynamics:
@@ -700,6 +769,8 @@ class _Reader:
                     return base + value if kind == "delta" else base * value
 
             return lambda actor: A.SpeedChange(actor, where, dyn, target, continuous)
+        if body.tag == "SpeedProfileAction":
+            return self._speed_profile(body)
         self.kids(body, ("DynamicConstraints",))
         ref = self._entity_ref(body, "entityRef")
         distance = self.num(body, "distance", None)
@@ -715,31 +786,7 @@ class _Reader:
             "trailingReferencedEntity",
         )
         continuous = self.flag(body, "continuous")
-        dc = body.find("DynamicConstraints")
-        limits = None
-        if dc is not None:
-            limits = (
-                self.num(dc, "maxAcceleration", math.inf),
-                self.num(dc, "maxDeceleration", math.inf),
-                self.num(dc, "maxSpeed", math.inf),
-                self.num(dc, "maxAccelerationRate", math.inf),
-                self.num(dc, "maxDecelerationRate", math.inf),
-            )
-            for name, value in zip(
-                (
-                    "maxAcceleration",
-                    "maxDeceleration",
-                    "maxSpeed",
-                    "maxAccelerationRate",
-                    "maxDecelerationRate",
-                ),
-                limits,
-                strict=True,
-            ):
-                if not value > 0.0:
-                    raise self.error(dc, f"{name} must be > 0, got {value:g}")
-            if math.isinf(limits[0]) and math.isinf(limits[1]):
-                limits = None  # no acceleration limit at all: a rigid connection
+        limits = self.constraints(body.find("DynamicConstraints"), rates=True)
         leading: bool | None = {
             "leadingReferencedEntity": True,
             "trailingReferencedEntity": False,
@@ -747,6 +794,30 @@ class _Reader:
         return lambda actor: A.LongitudinalDistance(
             actor, where, ref, distance, gap, freespace, leading, continuous, limits, system
         )
+
+    def _speed_profile(self, body: Any) -> Callable[[Entity | None], A.Instance]:
+        """``SpeedProfileAction`` (1.2+): speeds reached one after another, each in its
+        ``time`` [s] or as fast as the limits allow."""
+        where = self.where(body)
+        self.kids(body, ("DynamicConstraints", "SpeedProfileEntry"))
+        ref = self._entity_ref(body, "entityRef") if body.get("entityRef") is not None else None
+        self.choice(body, "followingMode", ("position", "follow"))
+        dc = body.find("DynamicConstraints")
+        acc = dec = math.inf
+        if dc is not None:
+            acc = self.num(dc, "maxAcceleration", math.inf)
+            dec = self.num(dc, "maxDeceleration", math.inf)
+            if not (acc > 0 and dec > 0):
+                raise self.error(dc, "maxAcceleration and maxDeceleration must be > 0")
+        entries = []
+        for e in body.findall("SpeedProfileEntry"):
+            time = self.num(e, "time", None)
+            if time is not None and time < 0:
+                raise self.error(e, f"time must be >= 0, got {time:g}")
+            entries.append((self.num(e, "speed"), time))
+        if not entries:
+            raise self.error(body, "no <SpeedProfileEntry>")
+        return lambda actor: A.SpeedProfile(actor, where, entries, ref, (acc, dec))
 
     def _lateral(self, body: Any) -> Callable[[Entity | None], A.Instance]:
         where = self.where(body)
@@ -770,6 +841,8 @@ class _Reader:
                     return lane_step(c.lane_id, d * c.direction)
 
             return lambda actor: A.LaneChange(actor, where, dyn, target, offset)
+        if body.tag == "LateralDistanceAction":
+            return self._lateral_distance(body)
         self.kids(body, ("LaneOffsetActionDynamics", "LaneOffsetTarget"))
         dyn_el = self.child(body, "LaneOffsetActionDynamics")
         shape = self.choice(dyn_el, "dynamicsShape", A.SHAPES)
@@ -791,6 +864,50 @@ class _Reader:
                 return world.coordinates(world.entities[ref]).offset + value
 
         return lambda actor: A.LaneOffset(actor, where, shape, acc, offset_target, continuous)
+
+    def constraints(self, dc: Any, rates: bool) -> tuple[float, ...] | None:
+        """``DynamicConstraints``: ``(maxAcceleration, maxDeceleration, maxSpeed)`` and,
+        with ``rates``, ``maxAccelerationRate, maxDecelerationRate`` (inf where not
+        given); None without the element or without any acceleration limit (a rigid
+        connection).
+
+        :raises ScenarioError: a limit that is not > 0.
+        """
+        if dc is None:
+            return None
+        names = ["maxAcceleration", "maxDeceleration", "maxSpeed"]
+        if rates:
+            names += ["maxAccelerationRate", "maxDecelerationRate"]
+        limits = tuple(self.num(dc, name, math.inf) for name in names)
+        for name, value in zip(names, limits, strict=True):
+            if not value > 0.0:
+                raise self.error(dc, f"{name} must be > 0, got {value:g}")
+        if math.isinf(limits[0]) and math.isinf(limits[1]):
+            return None
+        return limits
+
+    def _lateral_distance(self, body: Any) -> Callable[[Entity | None], A.Instance]:
+        """``LateralDistanceAction``: a distance across the road from an entity."""
+        where = self.where(body)
+        self.kids(body, ("DynamicConstraints",))
+        ref = self._entity_ref(body, "entityRef")
+        distance = self.num(body, "distance", 0.0)
+        if distance < 0:
+            raise self.error(body, f"distance must be >= 0, got {distance:g}")
+        freespace = self.flag(body, "freespace")
+        continuous = self.flag(body, "continuous")
+        self.choice(body, "coordinateSystem", ("entity", "road", "lane"), "entity")
+        side = self.choice(
+            body,
+            "displacement",
+            ("leftToReferencedEntity", "rightToReferencedEntity", "any"),
+            "any",
+        )
+        limits = self.constraints(body.find("DynamicConstraints"), rates=False)
+        left = {"leftToReferencedEntity": True, "rightToReferencedEntity": False}.get(side)
+        return lambda actor: A.LateralDistance(
+            actor, where, ref, distance, freespace, left, continuous, limits
+        )
 
     def _route(self, body: Any) -> Callable[[Entity | None], A.Instance]:
         where = self.where(body)
@@ -822,42 +939,101 @@ class _Reader:
         if self.num(body, "initialDistanceOffset", 0.0) != 0.0:
             raise self.error(body, "initialDistanceOffset is not supported")
         ref = body.find("TrajectoryRef")
-        traj = ref.find("Trajectory") if ref is not None else body.find("Trajectory")
+        holder = ref if ref is not None else body
+        traj = holder.find("Trajectory")
+        r: _Reader = self
         if traj is None:
-            bad = ref.find("CatalogReference") if ref is not None else body.find("CatalogReference")
-            if bad is not None:
+            catalog = holder.find("CatalogReference")
+            if catalog is None:
+                raise self.error(body, "missing <TrajectoryRef><Trajectory>")
+            traj, r = self.from_catalog(catalog)
+            if traj.tag != "Trajectory":
                 raise self.error(
-                    bad,
-                    "trajectories from catalogs are not supported: give the <Trajectory> inline",
+                    catalog, f"the catalog entry is a <{traj.tag}>, not a <Trajectory>"
                 )
-            raise self.error(body, "missing <TrajectoryRef><Trajectory>")
-        self.kids(traj, ("ParameterDeclarations", "Shape"))
-        r = self.scoped(traj)
+        r.kids(traj, ("ParameterDeclarations", "Shape"))
+        r = r.scoped(traj)
         if r.flag(traj, "closed", False):
             raise r.error(traj, "closed trajectories are not supported")
-        poly = r.one(r.child(traj, "Shape"), ("Polyline",))
-        r.kids(poly, ("Vertex",))
-        vertices: list[tuple[float | None, Position]] = []
-        for v in poly.findall("Vertex"):
-            time = r.num(v, "time", None)
-            vertices.append((time, r.position(r.child(v, "Position"))))
-        if len(vertices) < 2:
-            raise self.error(poly, f"a polyline needs at least 2 vertices, has {len(vertices)}")
-        absolute, scale, offset = False, 1.0, 0.0
-        timing = body.find("TimeReference/Timing")
-        if timing is not None:
+        shape = r.shape(
+            r.one(r.child(traj, "Shape"), ("Polyline", "Clothoid", "ClothoidSpline", "Nurbs"))
+        )
+        timing: tuple[bool, float, float] | None = (False, 1.0, 0.0)
+        timing_el = body.find("TimeReference/Timing")
+        if timing_el is not None:
             absolute = (
-                self.choice(timing, "domainAbsoluteRelative", ("absolute", "relative"))
+                self.choice(timing_el, "domainAbsoluteRelative", ("absolute", "relative"))
                 == "absolute"
             )
-            scale = self.num(timing, "scale", 1.0)
-            offset = self.num(timing, "offset", 0.0)
+            timing = (
+                absolute,
+                self.num(timing_el, "scale", 1.0),
+                self.num(timing_el, "offset", 0.0),
+            )
         elif body.find("TimeReference/None") is not None:
-            vertices = [(None, p) for _, p in vertices]
+            timing = None
         mode = body.find("TrajectoryFollowingMode")
         if mode is not None:
             self.choice(mode, "followingMode", ("position", "follow"))
-        return lambda actor: A.FollowTrajectory(actor, where, vertices, absolute, scale, offset)
+        return lambda actor: A.FollowTrajectory(actor, where, shape, timing)
+
+    def shape(self, el: Any) -> S.Shape:
+        """A trajectory's ``Shape`` child."""
+        where = self.where(el)
+        if el.tag == "Polyline":
+            self.kids(el, ("Vertex",))
+            vertices: list[tuple[float | None, Position]] = []
+            for v in el.findall("Vertex"):
+                vertices.append(
+                    (self.num(v, "time", None), self.position(self.child(v, "Position")))
+                )
+            if len(vertices) < 2:
+                raise self.error(el, f"a polyline needs at least 2 vertices, has {len(vertices)}")
+            return S.Polyline(vertices, where)
+        if el.tag == "Clothoid":
+            self.kids(el, ("Position",))
+            prime = self.num(el, "curvaturePrime", None)
+            if prime is None:  # 1.0's name
+                prime = self.num(el, "curvatureDot", 0.0)
+            return S.Clothoid(
+                self.position(self.child(el, "Position")),
+                self.num(el, "curvature"),
+                prime,
+                self.num(el, "length"),
+                self.num(el, "startTime", None),
+                self.num(el, "stopTime", None),
+                where,
+            )
+        if el.tag == "ClothoidSpline":
+            self.kids(el, ("Segment",))
+            segments = []
+            for seg in el.findall("Segment"):
+                self.kids(seg, ("PositionStart",))
+                start = seg.find("PositionStart")
+                segments.append(
+                    (
+                        self.num(seg, "curvatureStart"),
+                        self.num(seg, "curvatureEnd"),
+                        self.num(seg, "length"),
+                        self.num(seg, "hOffset", 0.0),
+                        self.num(seg, "timeStart", None),
+                        None if start is None else self.position(start),
+                    )
+                )
+            if not segments:
+                raise self.error(el, "a clothoid spline needs at least one <Segment>")
+            return S.ClothoidSpline(segments, self.num(el, "timeEnd", None), where)
+        self.kids(el, ("ControlPoint", "Knot"))
+        points = [
+            (
+                self.position(self.child(cp, "Position")),
+                self.num(cp, "time", None),
+                self.num(cp, "weight", 1.0),
+            )
+            for cp in el.findall("ControlPoint")
+        ]
+        knots = [self.num(k, "value") for k in el.findall("Knot")]
+        return S.Nurbs(self.integer(el, "order"), points, knots, where)
 
     # ------------------------------------------------------------ init and storyboard
     def init(self) -> list[A.Instance]:
@@ -983,23 +1159,34 @@ class _Reader:
     def _by_value(self, body: Any) -> Callable[[Any], bool]:
         c = self.one(
             body,
-            ("SimulationTimeCondition", "StoryboardElementStateCondition", "ParameterCondition"),
+            (
+                "SimulationTimeCondition",
+                "StoryboardElementStateCondition",
+                "ParameterCondition",
+                "VariableCondition",
+                "TimeOfDayCondition",
+                "UserDefinedValueCondition",
+                "TrafficSignalCondition",
+                "TrafficSignalControllerCondition",
+            ),
         )
         if c.tag == "SimulationTimeCondition":
             value, rule = self.num(c, "value"), self._rule(c)
             return lambda runner: rule(runner.world.time, value)
-        if c.tag == "ParameterCondition":
-            name = self.attr(c, "parameterRef")
-            if name not in self.params:
+        if c.tag in ("ParameterCondition", "VariableCondition"):
+            store = "parameters" if c.tag == "ParameterCondition" else "variables"
+            ref_attr = "parameterRef" if store == "parameters" else "variableRef"
+            name = self.attr(c, ref_attr)
+            known = self.params if store == "parameters" else self.variables()
+            if name not in known:
                 raise self.error(
-                    c, f"parameterRef={name!r} is not declared; declared: {sorted(self.params)}"
+                    c, f"{ref_attr}={name!r} is not declared; declared: {sorted(known)}"
                 )
-            current, given, rule = self.params[name], self.attr(c, "value"), self._rule(c)
-            try:
-                result = rule(float(current), float(given))
-            except (TypeError, ValueError):
-                result = rule(str(current), given)
-            return lambda runner: result
+            given, rule = self.attr(c, "value"), self._rule(c)
+            return lambda runner: _compare(rule, getattr(runner, store)[name], given)
+        if c.tag in _NEVER:
+            self.ignore(c, _NEVER[c.tag])
+            return lambda runner: False
         kind = self.choice(c, "storyboardElementType", _ELEMENT_TYPES)
         name = self.attr(c, "storyboardElementRef")
         state = self.choice(c, "state", STATES + TRANSITIONS)
@@ -1190,6 +1377,31 @@ class _Reader:
         return lambda runner, e: rule(
             C.distance(runner.world, e, _point(runner.world, pos), freespace), value
         )
+
+
+def _compare(rule: Callable[[Any, Any], bool], current: Any, given: str) -> bool:
+    """A parameter's or variable's value against a condition's text: as numbers where
+    both read as numbers, else as text (booleans as ``true``/``false``)."""
+    if isinstance(current, bool):
+        return rule(format_value(current), given.strip().lower())
+    try:
+        return rule(float(current), float(given))
+    except (TypeError, ValueError):
+        return rule(str(current), given)
+
+
+def _typed(reader: _Reader, el: Any, attr: str, kind: str) -> ParamValue:
+    """An attribute as a value of an OpenSCENARIO type."""
+    if kind == "double":
+        return reader.num(el, attr)
+    if kind in ("int", "integer", "unsignedInt", "unsignedShort"):
+        value = reader.integer(el, attr)
+        if kind.startswith("unsigned") and value < 0:
+            raise reader.error(el, f"{attr} of an {kind} must be >= 0, got {value}")
+        return value
+    if kind == "boolean":
+        return reader.flag(el, attr)
+    return reader.attr(el, attr)
 
 
 def _collides(world: Any, e: Entity, others: Any) -> bool:

@@ -62,6 +62,10 @@ class ScenarioRunner:
         for spec in scenario.entities:
             self.world.add(spec.entity(is_ego=spec.name == ego))
         self.ego: Entity = self.world.entities[ego]
+        self.parameters: dict[str, Any] = dict(scenario.parameters)
+        """The parameters' values now (``ParameterAction`` changes them)."""
+        self.variables: dict[str, Any] = dict(scenario.variables)
+        """The variables' values now (``VariableAction`` changes them)."""
         self.init_actions, self.storyboard = scenario.build(self.world.entities)
         self.steps = 0
         self.domains: frozenset[str] = frozenset()

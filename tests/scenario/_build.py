@@ -76,6 +76,7 @@ def write(
     name: str = "scenario.xosc",
     domains: tuple[bool, bool] = (True, True),
     target_first: bool = False,
+    variables: xosc.VariableDeclarations | None = None,
 ) -> Path:
     """A scenario: the ego on lane ``lane_id`` at ``ego_s`` [m] and ``ego_speed`` [m/s];
     the target ``(dLane, ds [m], speed [m/s])`` from it; ``events`` as ``(actor, [Event])``
@@ -83,8 +84,8 @@ def write(
     never if None);
     the scenario stops at ``stop`` [s]; ``domains`` are the (lateral, longitudinal)
     domains the activation hands to the function; ``target_first`` puts the target
-    before the ego in the file; the ego's road is ``road_id``; ``stories`` are
-    added as they are."""
+    before the ego in the file; ``variables`` are the file's variable declarations;
+    the ego's road is ``road_id``; ``stories`` are added as they are."""
     ents = xosc.Entities()
     if target is not None and target_first:
         ents.add_scenario_object("Target", car())
@@ -135,6 +136,7 @@ def write(
         board,
         xosc.RoadNetwork(str(road or straight_road(folder))),
         xosc.Catalog(),
+        variable_declaration=variables,
     )
     path = folder / name
     scenario.write_xml(str(path))

@@ -243,6 +243,107 @@ def distance_with_dynamic_constraints(folder: Path) -> Path:
     )
 
 
+def parameter_and_variable_actions(folder: Path) -> Path:
+    """A variable counted up by a repeated event; at 3 another is set, and its new
+    value starts the target's speed change."""
+    variables = xosc.VariableDeclarations()
+    variables.add_variable(xosc.Variable("Count", xosc.ParameterType.int, "0"))
+    variables.add_variable(xosc.Variable("Go", xosc.ParameterType.double, "0"))
+    bump = xosc.Event("bump", xosc.Priority.parallel, maxexecution=3)
+    bump.add_action("bump_action", xosc.VariableAddAction("Count", 1))
+    bump.add_trigger(at_time(1.0))
+    go = _event(
+        "go",
+        xosc.VariableSetAction("Go", 1.5),
+        xosc.ValueTrigger(
+            "counted", 0.0, xosc.ConditionEdge.none,
+            xosc.VariableCondition("Count", 3, xosc.Rule.equalTo),
+        ),
+        xosc.Priority.parallel,
+    )  # fmt: skip
+    dyn = xosc.TransitionDynamics(xosc.DynamicsShapes.linear, xosc.DynamicsDimension.rate, 2.0)
+    slow = _event(
+        "slow",
+        xosc.AbsoluteSpeedAction(10.0, dyn),
+        xosc.ValueTrigger(
+            "set", 0.0, xosc.ConditionEdge.none,
+            xosc.VariableCondition("Go", 1.0, xosc.Rule.greaterThan),
+        ),
+        xosc.Priority.parallel,
+    )  # fmt: skip
+    return write(
+        folder,
+        [("Target", [bump, go, slow])],
+        variables=variables,
+        name="parameters_variables.xosc",
+    )
+
+
+def speed_profile(folder: Path) -> Path:
+    """A ``SpeedProfileAction``: three speeds, two with a time, one as fast as the
+    dynamic constraints allow."""
+    profile = xosc.SpeedProfileAction(
+        [25.0, 15.0, 18.0],
+        xosc.FollowingMode.position,
+        times=[2.0, 3.0, None],  # type: ignore[list-item]
+        dynamics_constraint=xosc.DynamicsConstraints(2.0, 3.0, 40.0),
+    )
+    path = write(
+        folder,
+        [("Target", [_event("profile", profile, at_time(1.0))])],
+        stop=12.0,
+        name="speed_profile.xosc",
+    )
+    path.write_text(path.read_text().replace(' time="None"', ""))  # the third has no time
+    return path
+
+
+def _follow(shape: object, timed: bool) -> xosc.FollowTrajectoryAction:
+    traj = xosc.Trajectory("shape", False)
+    traj.add_shape(shape)
+    if timed:
+        return xosc.FollowTrajectoryAction(
+            traj, xosc.FollowingMode.position, xosc.ReferenceContext.relative, 1, 0
+        )
+    return xosc.FollowTrajectoryAction(traj, xosc.FollowingMode.position)
+
+
+def clothoid_trajectories(folder: Path) -> Path:
+    """A clothoid without timing (the target, at its speed) and a timed one (the ego)."""
+    untimed = xosc.Clothoid(0.0, -0.00002, 120.0, xosc.WorldPosition(112.0, -1.75, 0, 0))
+    timed = xosc.Clothoid(0.001, -0.00002, 80.0, xosc.WorldPosition(70.0, -5.25, 0, 0), 0.0, 5.0)
+    return write(
+        folder,
+        [
+            ("Target", [_event("curl", _follow(untimed, False), at_time(0.5))]),
+            ("Ego", [_event("timed", _follow(timed, True), at_time(0.9))]),
+        ],
+        stop=9.0,
+        name="clothoids.xosc",
+    )
+
+
+def nurbs_trajectory(folder: Path) -> Path:
+    """Rational B-splines without timing: order 3 with one weight above 1, and order 4."""
+    weighted = xosc.Nurbs(3)
+    for x, y, w in ((112, -1.75, 1), (140, -1.75, 1), (160, -5.0, 2), (200, -5.25, 1)):
+        weighted.add_control_point(xosc.ControlPoint(xosc.WorldPosition(x, y), weight=w))
+    weighted.add_knots([0, 0, 0, 1, 2, 2, 2])
+    untimed = xosc.Nurbs(4)
+    for x, y in ((70, -5.25), (100, -5.25), (120, -8.75), (160, -8.75)):
+        untimed.add_control_point(xosc.ControlPoint(xosc.WorldPosition(x, y)))
+    untimed.add_knots([0, 0, 0, 0, 1, 1, 1, 1])
+    return write(
+        folder,
+        [
+            ("Target", [_event("bend", _follow(weighted, False), at_time(0.5))]),
+            ("Ego", [_event("swerve", _follow(untimed, False), at_time(0.9))]),
+        ],
+        stop=8.0,
+        name="nurbs.xosc",
+    )  # fmt: skip
+
+
 CORPUS: dict[str, Callable[[Path], Path]] = {
     f.__name__: f
     for f in (
@@ -256,6 +357,10 @@ CORPUS: dict[str, Callable[[Path], Path]] = {
         stand_still_and_acquire_position,
         distance_rigid_before_its_reference,
         distance_with_dynamic_constraints,
+        parameter_and_variable_actions,
+        speed_profile,
+        clothoid_trajectories,
+        nurbs_trajectory,
     )
 }
 """The corpus by name."""

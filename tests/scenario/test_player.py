@@ -233,6 +233,95 @@ def test_distance_with_dynamic_constraints_keeps_its_limits_and_rates(tmp_path: 
     assert gap == pytest.approx(30.0, abs=0.5) and v[-1] == pytest.approx(20.0, abs=0.1)
 
 
+def test_a_parameter_action_changes_what_a_parameter_condition_sees(tmp_path: Path) -> None:
+    # OpenSCENARIO 1.0/1.1: ParameterAction and ParameterCondition at run time
+    from tests.scenario.corpus import parameter_and_variable_actions
+
+    text = parameter_and_variable_actions(tmp_path).read_text()
+    start, end = text.index("<VariableDeclarations>"), text.index("</VariableDeclarations>")
+    declarations = text[start : end + len("</VariableDeclarations>")]
+    params = declarations.replace("Variable", "Parameter")
+    text = text.replace(declarations, params).replace('revMinor="3"', 'revMinor="1"')
+    for old, new in (
+        ("VariableAction variableRef", "ParameterAction parameterRef"),
+        ("</VariableAction>", "</ParameterAction>"),
+        ("VariableCondition variableRef", "ParameterCondition parameterRef"),
+        ("variableType", "parameterType"),
+    ):
+        text = text.replace(old, new)
+    path = tmp_path / "parameters.xosc"
+    path.write_text(text)
+    env, rec = play(path, 10.0)
+    assert env.scenario.parameters == {"Count": 3, "Go": 1.5}
+    assert at(rec, 1.3)["Target"][3] == 20.0 and rec[-1]["Target"][3] == 10.0
+
+
+def test_a_variable_set_to_a_value_of_another_type_is_named(tmp_path: Path) -> None:
+    from tests.scenario.corpus import parameter_and_variable_actions
+
+    path = parameter_and_variable_actions(tmp_path)
+    path.write_text(path.read_text().replace('value="1.5"', 'value="fast"'))
+    with pytest.raises(ScenarioError, match="'fast' is not a float"):
+        play(path, 3.0)
+
+
+@pytest.mark.parametrize("limits", [None, (1.0, 1.0, 1.0)])
+def test_lateral_distance_holds_the_gap_beside_the_ego(
+    tmp_path: Path, limits: tuple[float, float, float] | None
+) -> None:
+    # 2 m between the boxes (2 m wide): the target's centre 4 m left of the ego's
+    kwargs = {}
+    if limits is not None:
+        names = ("max_acceleration", "max_deceleration", "max_speed")
+        kwargs = dict(zip(names, limits, strict=True))
+    act = xosc.LateralDistanceAction(
+        "Ego",
+        distance=2.0,
+        freespace=True,
+        continuous=True,
+        displacement=xosc.LateralDisplacement.leftToReferencedEntity,
+        **kwargs,
+    )
+    ev = _event("lat", act, at_time(1.0))
+    path = write(tmp_path, [("Target", [ev])], target=(1, 10.0, 20.0), stop=14.0)
+    _, rec = play(path, 14.0)
+    offsets = [r["Target"][2] for r in rec]
+    if limits is None:  # put there at the next step, and kept
+        assert at(rec, 1.1)["Target"][2] == 0.0 and at(rec, 1.2)["Target"][2] == 0.5
+        assert rec[-1]["Target"][2] == pytest.approx(0.5)
+    else:  # moved there within the lateral speed limit
+        steps = np.abs(np.diff(offsets)) / 0.1
+        assert steps.max() <= 1.0 + 1e-9
+        assert rec[-1]["Target"][2] == pytest.approx(0.5, abs=0.02)
+
+
+def test_a_trajectory_from_a_catalog_plays_as_the_inline_one(tmp_path: Path) -> None:
+    from tests.scenario.corpus import trajectory_without_timing
+
+    inline = trajectory_without_timing(tmp_path)
+    text = inline.read_text()
+    start, end = text.index("<Trajectory "), text.index("</Trajectory>") + len("</Trajectory>")
+    catalogs = tmp_path / "catalogs"
+    catalogs.mkdir()
+    (catalogs / "trajectories.xosc").write_text(
+        '<?xml version="1.0"?><OpenSCENARIO><FileHeader revMajor="1" revMinor="3" '
+        'date="2026-01-01T00:00:00" description="" author=""/>'
+        f'<Catalog name="paths">{text[start:end]}</Catalog></OpenSCENARIO>'
+    )
+    text = text[:start] + '<CatalogReference catalogName="paths" entryName="path"/>' + text[end:]
+    text = text.replace(
+        "<CatalogLocations/>",
+        '<CatalogLocations><TrajectoryCatalog><Directory path="catalogs"/>'
+        "</TrajectoryCatalog></CatalogLocations>",
+    )
+    from_catalog = tmp_path / "from_catalog.xosc"
+    from_catalog.write_text(text)
+    _, a = play(inline, 6.0)
+    _, b = play(from_catalog, 6.0)
+    assert [r["Target"] for r in a] == [r["Target"] for r in b]
+    assert a[-1]["Target"][0] == -3  # it left its lane along the path
+
+
 def test_same_seed_same_run(tmp_path: Path) -> None:
     dyn = xosc.TransitionDynamics(xosc.DynamicsShapes.cubic, xosc.DynamicsDimension.rate, 1.0)
     ev = _event("change", xosc.AbsoluteLaneChangeAction(-2, dyn), at_time(1.0))
