@@ -814,13 +814,16 @@ class FollowTrajectory(Instance):
         where: str,
         shape: Shape,
         timing: tuple[bool, float, float] | None,
+        initial: float = 0.0,
     ) -> None:
         """``shape``: the path (:mod:`~aldm_gym.scenario.shapes`); ``timing``:
         ``(absolute, scale, offset [s])`` of ``TimeReference/Timing``, None without
-        timing (the shape's times, if any, are then not used)."""
+        timing (the shape's times, if any, are then not used); ``initial``: where
+        along the path an untimed one begins [m] (``initialDistanceOffset``)."""
         super().__init__(entity, where)
         self.shape = shape
         self.timing = timing
+        self.initial = initial
         self.timed = False
 
     def start(self, runner: Any) -> None:
@@ -833,8 +836,8 @@ class FollowTrajectory(Instance):
         seg = np.hypot(*np.diff(self.points, axis=0).T)
         self.arc = np.concatenate(([0.0], np.cumsum(seg)))
         """Arc length [m] at each point."""
-        self.along = 0.0
         self.timed = self.timing is not None and path.times is not None
+        self.along = 0.0 if self.timed else min(self.initial, float(self.arc[-1]))
         if self.timed:
             assert self.timing is not None and path.times is not None
             absolute, scale, offset = self.timing

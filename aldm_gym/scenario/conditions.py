@@ -315,3 +315,42 @@ def lanes_clear(
             if -backward <= ds <= forward:
                 return False
     return True
+
+
+def speed(entity: Entity, other: Entity | None, direction: str | None) -> float:
+    """The entity's speed [m/s] (``other``: relative to that entity's), total or along
+    the entity's ``longitudinal``, ``lateral`` or ``vertical`` axis (OpenSCENARIO 1.3's
+    ``direction``); an entity moves along its heading, the world is planar."""
+    if direction is None:  # the total speeds (their difference)
+        return entity.velocity - (0.0 if other is None else other.velocity)
+    velocity = entity.velocity * entity.forward()
+    if other is not None:
+        velocity = velocity - other.velocity * other.forward()
+    if direction == "vertical":
+        return 0.0
+    axis = entity.forward() if direction == "longitudinal" else entity.left()
+    return float(velocity @ axis)
+
+
+class _Point:
+    """A point as the vehicle of a zero-size entity (for distances to positions)."""
+
+    def __init__(self, point: np.ndarray) -> None:
+        self.position = np.asarray(point, dtype=float)
+        self.heading = 0.0
+        self.speed = 0.0
+
+
+def at_point(point: np.ndarray) -> Entity:
+    """A zero-size entity standing at a world point [m], to measure distances to it
+    like to an entity (``DistanceCondition`` in road and lane coordinates)."""
+    from aldm_gym.scenario.world import BoundingBox
+
+    return Entity(
+        name="<position>",
+        kind="miscObject",
+        category="point",
+        box=BoundingBox(0.0, 0.0, 1e-9, 1e-9, 0.0),
+        vehicle=_Point(point),
+        scripted=False,
+    )

@@ -936,8 +936,9 @@ class _Reader:
                 "TrajectoryFollowingMode",
             ),
         )
-        if self.num(body, "initialDistanceOffset", 0.0) != 0.0:
-            raise self.error(body, "initialDistanceOffset is not supported")
+        initial = self.num(body, "initialDistanceOffset", 0.0)
+        if initial < 0.0:
+            raise self.error(body, f"initialDistanceOffset must be >= 0, got {initial:g}")
         ref = body.find("TrajectoryRef")
         holder = ref if ref is not None else body
         traj = holder.find("Trajectory")
@@ -975,7 +976,9 @@ class _Reader:
         mode = body.find("TrajectoryFollowingMode")
         if mode is not None:
             self.choice(mode, "followingMode", ("position", "follow"))
-        return lambda actor: A.FollowTrajectory(actor, where, shape, timing)
+        if initial and timing is not None and body.find("TimeReference/Timing") is not None:
+            raise self.error(body, "initialDistanceOffset with timing is not supported")
+        return lambda actor: A.FollowTrajectory(actor, where, shape, timing, initial)
 
     def shape(self, el: Any) -> S.Shape:
         """A trajectory's ``Shape`` child."""
@@ -1354,28 +1357,38 @@ class _Reader:
                 value,
             )
         if c.tag in ("SpeedCondition", "RelativeSpeedCondition"):
-            self.absent(c, "direction")  # 1.3's directional speeds
-        if c.tag == "SpeedCondition":
-            return lambda runner, e: rule(e.velocity, value)
-        if c.tag == "RelativeSpeedCondition":
+            # 1.3: the speed along one of the triggering entity's axes, else the total
+            direction = c.get("direction")
+            if direction is not None:
+                direction = self.choice(c, "direction", ("longitudinal", "lateral", "vertical"))
+            if c.tag == "SpeedCondition":
+                return lambda runner, e: rule(C.speed(e, None, direction), value)
             ref = self._entity_ref(c, "entityRef")
-            return lambda runner, e: rule(e.velocity - runner.world.entities[ref].velocity, value)
-        self.absent(
+            return lambda runner, e: rule(C.speed(e, runner.world.entities[ref], direction), value)
+        # DistanceCondition: to a position, in any system but trajectory
+        along = c.get("alongRoute") is not None and self.flag(c, "alongRoute")
+        system = self.choice(c, "coordinateSystem", systems, "road" if along else "entity")
+        if system == "trajectory":
+            raise self.error(c, "coordinateSystem='trajectory' is not supported")
+        kind = self.choice(
             c,
-            "coordinateSystem",
             "relativeDistanceType",
-            "alongRoute",
-            "routingAlgorithm",
-            allowed={
-                "coordinateSystem": ("entity",),
-                "relativeDistanceType": ("euclidianDistance", "cartesianDistance"),
-                "alongRoute": ("false",),
-            },
+            ("longitudinal", "lateral", "euclidianDistance", "cartesianDistance"),
+            "euclidianDistance",
         )
+        self.choice(c, "routingAlgorithm", ("assumedRoute", "fastest", "leastIntersections",
+                                            "shortest", "undefined"), "undefined")  # fmt: skip
         pos = self.position(self.child(c, "Position"))
         freespace = self.flag(c, "freespace")
+        if kind in ("euclidianDistance", "cartesianDistance"):
+            return lambda runner, e: rule(
+                C.distance(runner.world, e, _point(runner.world, pos), freespace), value
+            )
         return lambda runner, e: rule(
-            C.distance(runner.world, e, _point(runner.world, pos), freespace), value
+            C.relative_distance(
+                runner.world, e, C.at_point(_point(runner.world, pos)), kind, freespace, system
+            ),
+            value,
         )
 
 

@@ -344,6 +344,42 @@ def nurbs_trajectory(folder: Path) -> Path:
     )  # fmt: skip
 
 
+def state_conditions(folder: Path) -> Path:
+    """Conditions on an entity's state: the target's acceleration, the clearance of
+    the lane left of the ego, the ego's distance to a position in road coordinates."""
+    dyn = xosc.TransitionDynamics(xosc.DynamicsShapes.linear, xosc.DynamicsDimension.rate, 2.0)
+    speed_up = _event("speed_up", xosc.AbsoluteSpeedAction(30.0, dyn), at_time(1.0))
+    accelerating = _entity_trigger(
+        "accelerating", xosc.AccelerationCondition(1.5, xosc.Rule.greaterThan), "Target"
+    )
+    shift = xosc.AbsoluteLaneOffsetAction(-0.5, xosc.DynamicsShapes.sinusoidal, 1.0)
+    clearance = xosc.RelativeClearanceCondition(False, 10.0, 20.0, True)
+    clearance.add_relative_lane_range(1, 1)
+    faster = _event(
+        "faster", step_speed(25.0), _entity_trigger("clear", clearance), xosc.Priority.parallel
+    )
+    near = xosc.DistanceCondition(
+        40.0,
+        xosc.Rule.lessThan,
+        xosc.LanePosition(400.0, 0, -2, 0),
+        alongroute=False,
+        freespace=False,
+        distance_type=xosc.RelativeDistanceType.longitudinal,
+        coordinate_system=xosc.CoordinateSystem.road,
+    )
+    slow = _event("slow", step_speed(10.0), _entity_trigger("near", near), xosc.Priority.parallel)
+    return write(
+        folder,
+        [
+            ("Target", [speed_up]),
+            ("Ego", [_event("shift", shift, accelerating), faster, slow]),
+        ],
+        target=(1, 5.0, 20.0),
+        stop=16.0,
+        name="state_conditions.xosc",
+    )
+
+
 CORPUS: dict[str, Callable[[Path], Path]] = {
     f.__name__: f
     for f in (
@@ -361,6 +397,7 @@ CORPUS: dict[str, Callable[[Path], Path]] = {
         speed_profile,
         clothoid_trajectories,
         nurbs_trajectory,
+        state_conditions,
     )
 }
 """The corpus by name."""
