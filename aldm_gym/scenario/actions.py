@@ -61,6 +61,7 @@ __all__ = [
     "SpeedChange",
     "SpeedProfile",
     "StoreChange",
+    "Synchronize",
     "Teleport",
     "shape_value",
 ]
@@ -430,6 +431,215 @@ class SpeedProfile(Instance):
                 entity.longitudinal = None
             return entity.speed
         return self.v0 + (self.v1 - self.v0) * self.elapsed / self.T
+
+
+_LARGE = 1e10
+"""esmini's "large number": a master that stands still never arrives."""
+
+_MAX_DECELERATION = 8.0
+"""The braking of a synchronisation that must stop at once [m/s²] (esmini's)."""
+
+
+class Synchronize(Instance):
+    """``SynchronizeAction``: the actor reaches its target position when the master
+    entity reaches its own, optionally at a final speed (absolute, or relative to the
+    master's as a delta or a factor) held over a steady state (a distance or a time
+    before the target). esmini's algorithm: every step both distances to go are
+    measured along the road (in a straight line where the two are on different
+    roads), the master's time to its target is its distance over its speed, and the
+    actor's acceleration follows a linear speed profile to the final speed where one
+    fits, else a two-phase one (accelerate then decelerate, or the reverse), or a stop
+    and wait; without a final speed it takes the constant acceleration that arrives in
+    time. It ends when either is within its tolerance of its target, when a distance
+    grows again (a target passed), or when the master arrives within the step."""
+
+    slot = "longitudinal"
+    domains = ("longitudinal",)
+
+    def __init__(
+        self,
+        entity: Entity | None,
+        where: str,
+        master: str,
+        target_master: Position,
+        target: Position,
+        tolerances: tuple[float, float],
+        final: tuple[str, float] | None,
+        steady: tuple[str, float] | None,
+    ) -> None:
+        """``tolerances``: (master's, actor's) [m]; ``final``: (``absolute``,
+        ``delta`` or ``factor``, value); ``steady``: (``distance`` [m] or ``time`` [s],
+        value)."""
+        super().__init__(entity, where)
+        self.master = master
+        self.target_master, self.target = target_master, target
+        self.tol_master, self.tol = tolerances
+        self.final, self.steady = final, steady
+
+    def start(self, runner: Any) -> None:
+        """Resolve both targets now."""
+        entity = self._scripted(runner)
+        world = runner.world
+        self.where_master = self.target_master.resolve(world)
+        self.where_target = self.target.resolve(world)
+        self.mode = "none"
+        self.submode = "none"
+        self.last = (math.inf, math.inf)
+        self.steady_dist: float | None = None
+        self.order = next(_STARTS)
+        _override(entity, "longitudinal", self)
+
+    def _final_speed(self, world: World) -> float | None:
+        if self.final is None:
+            return None
+        kind, value = self.final
+        if kind == "absolute":
+            return value
+        master = world.entities[self.master]
+        v = master.speed if master.scripted else master.velocity
+        return v + value if kind == "delta" else v * value
+
+    def _to_go(self, world: World, entity: Entity, where: Where) -> float:
+        """Distance [m] from the entity's reference point to a resolved position:
+        along the road on one road, else in a straight line."""
+        if where.lane is not None:
+            point, _ = world.pose(where.lane, where.u, where.t)
+            road_id = world.road.lane_record(where.lane).road_id
+            s = world.road.reference_s(where.lane, where.u)
+        else:
+            assert where.point is not None
+            point, road_id, s = where.point, None, 0.0
+            try:
+                pos = world.road.lane_position(where.point)
+                road_id = world.road.lane_record(pos.lane).road_id
+                s = world.road.reference_s(pos.lane, pos.s - world.road.chain_start(pos.lane))
+            except Exception:  # off the road: a straight line
+                road_id = None
+        try:
+            c = world.coordinates(entity)
+        except Exception:
+            c = None
+        if c is not None and road_id is not None and c.road_id == road_id:
+            return abs(s - c.s)
+        return float(np.hypot(*(np.asarray(point) - entity.reference_point())))
+
+    def prepare(self, world: World, dt: float) -> None:
+        """Before a step of ``dt`` [s], where every entity begins it: the speed the
+        actor will have (esmini measures at the start of the frame)."""
+        entity = self.entity
+        assert entity is not None
+        self.next_speed: float | None = self._step(world, entity, dt)
+
+    def speed_after(self, world: World, entity: Entity, dt: float) -> float:
+        """The speed [m/s] after ``dt`` [s]."""
+        speed = getattr(self, "next_speed", None)
+        self.next_speed = None
+        return self._step(world, entity, dt) if speed is None else speed
+
+    def _finish(self, entity: Entity, speed: float) -> float:
+        self.done = True
+        if entity.longitudinal is self:
+            entity.longitudinal = None
+        return speed
+
+    def _step(self, world: World, entity: Entity, dt: float) -> float:
+        master = world.entities[self.master]
+        dist = self._to_go(world, entity, self.where_target)
+        master_dist = self._to_go(world, master, self.where_master)
+        done = (
+            dist < self.tol + 1e-6
+            or master_dist < self.tol_master + 1e-6
+            or dist > self.last[0]
+            or master_dist > self.last[1]
+        )
+        self.last = (dist, master_dist)
+        dist = max(dist - self.tol, 1e-6)
+        master_dist = max(master_dist - self.tol_master, 1e-6)
+        v_master = master.speed if master.scripted else master.velocity
+        time_to_go = master_dist / v_master if v_master > 1e-6 else _LARGE
+        if v_master > 1e-6 and time_to_go < dt:
+            done = True
+        final = self._final_speed(world)
+        v = entity.speed
+        if done:
+            return self._finish(entity, v if final is None else final)
+        if final is None:
+            average = dist / time_to_go
+            return v + (2.0 * average - v - v) / time_to_go * dt
+        if self.steady is not None and self.mode != "steady":
+            if self.steady_dist is None:
+                kind, value = self.steady
+                self.steady_dist = value * final if kind == "time" else value
+            steady_time = self.steady_dist / final if final > 0 else _LARGE
+            if dist - self.steady_dist < 1e-6 or time_to_go - steady_time < 1e-6:
+                self.mode, self.submode = "steady", "none"
+            else:
+                dist -= self.steady_dist
+                time_to_go -= steady_time
+        if self.mode == "steady":
+            return final
+        if self.mode == "waiting":
+            if time_to_go >= _LARGE:
+                return v
+            self.mode = "none"
+        if self.mode == "stop_now":
+            v -= _MAX_DECELERATION * dt
+            if v < 0.0:
+                self.mode = "waiting"
+                return 0.0
+            return v
+        if self.mode == "stopped":
+            if time_to_go < 2.0 * dist / final:
+                self.mode = "linear"
+            else:
+                return 0.0
+        if self.mode == "linear":
+            if time_to_go > _LARGE - 1:
+                return 0.0
+            return max(
+                0.0,
+                2.0 * dist / time_to_go - max(0.0, final)
+                if time_to_go > 1e-3 and dist > 1e-3
+                else 0.0,
+            )
+        if self.mode == "nonlinear" and time_to_go < _LARGE:
+            if abs(v - (2.0 * dist / time_to_go - final)) < 0.1:
+                self.mode = "linear"  # on the straight profile: reach it with a constant rate
+                return v
+        if self.mode == "none":
+            self.mode = "nonlinear"
+            self.submode = "convex" if (final + v) / 2.0 < dist / time_to_go else "concave"
+        s_, t_, v0, v1 = dist, time_to_go, v, final
+        root = math.sqrt(2.0) * math.sqrt(
+            max(2.0 * s_ * s_ - 2.0 * (v1 + v0) * t_ * s_ + (v1 * v1 + v0 * v0) * t_ * t_, 0.0)
+        )
+        if abs(v1 - v0) < 1e-6:
+            vx = (s_ - t_ / 2.0 * v0) / (t_ / 2.0)
+            acc = (vx - v0) / (t_ / 2.0)
+        else:
+            x1 = -(root + 2.0 * s_ - 2.0 * v1 * t_) / (2.0 * (v1 - v0))
+            x2 = -(-root + 2.0 * s_ - 2.0 * v1 * t_) / (2.0 * (v1 - v0))
+            vx1, vx2 = (2.0 * s_ - root) / (2.0 * t_), (2.0 * s_ + root) / (2.0 * t_)
+            if 0.0 < x1 < t_:
+                vx, acc = vx1, (vx1 - v0) / x1
+            elif 0.0 < x2 < t_:
+                vx, acc = vx2, (vx2 - v0) / x2
+            else:
+                vx, acc = 0.0, 0.0
+        if (self.submode == "concave" and acc > 0) or (self.submode == "convex" and acc < 0):
+            self.mode = "linear"  # the apex of the profile: keep the speed for this step
+            acc = 0.0
+        if self.mode == "nonlinear" and vx < 0.0:
+            # stop on the way, wait, then go on: decelerate in proportion
+            t1 = 2.0 * v0 * s_ / (v0 * v0 + v1 * v1) if v0 * v0 + v1 * v1 > 0 else 0.0
+            acc = -v0 / t1 if abs(t1) > 1e-6 else 0.0
+            if t1 * v0 / 2.0 > s_ / 2.0:
+                acc = -_MAX_DECELERATION
+                self.mode = "stop_now"
+            if v0 + acc * dt < 0.0:
+                self.mode = "stopped"
+                return 0.0
+        return v + acc * dt
 
 
 # ---------------------------------------------------------------------- distance

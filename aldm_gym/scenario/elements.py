@@ -212,12 +212,12 @@ ELEMENTS: dict[str, tuple[str, str]] = {
         "PedestrianAnimation PedestrianGesture",
     ),
     **_each(
-        "refused",
-        "not played yet",
+        "played",
+        "synchronisation: arrive when the master arrives, at a final speed",
         "SynchronizeAction TargetPositionMaster TargetPosition FinalSpeed AbsoluteSpeed "
-        "RelativeSpeedToMaster TargetDistanceSteadyState TargetTimeSteadyState "
-        "RandomRouteAction",
+        "RelativeSpeedToMaster TargetDistanceSteadyState TargetTimeSteadyState",
     ),
+    **_each("refused", "a random route is not played", "RandomRouteAction"),
     # ---------------------------------------------------------------- global actions
     **_each(
         "played",

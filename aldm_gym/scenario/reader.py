@@ -612,7 +612,7 @@ class _Reader:
             self.ignore(body, _NO_MEANING[body.tag])
             return lambda actor: A.Ignored(actor, where)
         if body.tag == "SynchronizeAction":
-            raise self.error(body, "SynchronizeAction is not supported yet")
+            return self._synchronize(body)
         if body.tag == "TeleportAction":
             pos = self.position(self.child(body, "Position"))
             return lambda actor: A.Teleport(actor, where, pos)
@@ -793,6 +793,43 @@ class _Reader:
         }.get(displacement)  # None ("any"): the side the actor is on when it starts
         return lambda actor: A.LongitudinalDistance(
             actor, where, ref, distance, gap, freespace, leading, continuous, limits, system
+        )
+
+    def _synchronize(self, body: Any) -> Callable[[Entity | None], A.Instance]:
+        """``SynchronizeAction``: arrive when the master arrives."""
+        where = self.where(body)
+        self.kids(body, ("TargetPositionMaster", "TargetPosition", "FinalSpeed"))
+        master = self._entity_ref(body, "masterEntityRef")
+        target_master = self.position(self.child(body, "TargetPositionMaster"))
+        target = self.position(self.child(body, "TargetPosition"))
+        tolerances = (
+            self.num(body, "targetToleranceMaster", 1.0),
+            self.num(body, "targetTolerance", 1.0),
+        )
+        if min(tolerances) < 0:
+            raise self.error(body, "the target tolerances must be >= 0")
+        final: tuple[str, float] | None = None
+        steady: tuple[str, float] | None = None
+        final_el = body.find("FinalSpeed")
+        if final_el is not None:
+            speed = self.one(final_el, ("AbsoluteSpeed", "RelativeSpeedToMaster"))
+            if speed.tag == "AbsoluteSpeed":
+                final = ("absolute", self.num(speed, "value"))
+            else:
+                kind = self.choice(speed, "speedTargetValueType", ("delta", "factor"))
+                final = (kind, self.num(speed, "value"))
+            state = [k for k in speed if isinstance(k.tag, str)]
+            for k in state:
+                if k.tag == "TargetDistanceSteadyState":
+                    steady = ("distance", self.num(k, "distance"))
+                elif k.tag == "TargetTimeSteadyState":
+                    steady = ("time", self.num(k, "time"))
+                else:
+                    raise self.unsupported(
+                        k, ("TargetDistanceSteadyState", "TargetTimeSteadyState")
+                    )
+        return lambda actor: A.Synchronize(
+            actor, where, master, target_master, target, tolerances, final, steady
         )
 
     def _speed_profile(self, body: Any) -> Callable[[Entity | None], A.Instance]:

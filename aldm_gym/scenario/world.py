@@ -490,8 +490,9 @@ class World:
         gaps where every entity is now."""
         for entity in self.entities.values():
             motion = entity.longitudinal
-            if entity.scripted and hasattr(motion, "prepare") and not motion.rigid:
-                motion.prepare(self, dt)
+            if entity.scripted and hasattr(motion, "prepare"):
+                if not getattr(motion, "rigid", False):
+                    motion.prepare(self, dt)
 
     def settle(self) -> None:
         """After every entity moved in a step: the rigid distance actions place their

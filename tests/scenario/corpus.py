@@ -380,6 +380,26 @@ def state_conditions(folder: Path) -> Path:
     )
 
 
+def synchronize(folder: Path) -> Path:
+    """The target arrives at s = 300 m of its lane when the ego arrives at s = 300 m of
+    its own, at 15 m/s held over the last 20 m."""
+    sync = xosc.SynchronizeAction(
+        "Ego",
+        xosc.LanePosition(300.0, 0, -2, 0),
+        xosc.LanePosition(300.0, 0, -1, 0),
+        1.0,
+        1.0,
+        xosc.AbsoluteSpeed(15.0, xosc.TargetDistanceSteadyState(20.0)),
+    )
+    return write(
+        folder,
+        [("Target", [_event("sync", sync, at_time(0.5))])],
+        target=(1, 60.0, 20.0),
+        stop=14.0,
+        name="synchronize.xosc",
+    )
+
+
 CORPUS: dict[str, Callable[[Path], Path]] = {
     f.__name__: f
     for f in (
@@ -398,6 +418,7 @@ CORPUS: dict[str, Callable[[Path], Path]] = {
         clothoid_trajectories,
         nurbs_trajectory,
         state_conditions,
+        synchronize,
     )
 }
 """The corpus by name."""

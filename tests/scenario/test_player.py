@@ -358,11 +358,11 @@ def test_unsupported_action_names_file_line_and_element(tmp_path: Path) -> None:
     path = _patched(
         tmp_path,
         "<TeleportAction>",
-        '<SynchronizeAction masterEntityRef="Ego"/></PrivateAction><PrivateAction><TeleportAction>',
+        "<TrailerAction><DisconnectTrailerAction/></TrailerAction></PrivateAction><PrivateAction><TeleportAction>",
     )
-    line = _line_of(path, "SynchronizeAction")
+    line = _line_of(path, "TrailerAction")
     with pytest.raises(
-        ScenarioError, match=rf"scenario\.xosc:{line} <SynchronizeAction>.*not supported"
+        ScenarioError, match=rf"scenario\.xosc:{line} <TrailerAction>.*not supported"
     ):
         read_scenario(path)
 
