@@ -143,6 +143,16 @@ _COMPARISONS = ("==", "!=", "<", "<=", ">", ">=")
 # Expressions
 
 
+MAX_EXPRESSION = 2000
+"""The longest expression read [characters]."""
+
+MAX_TOKENS = 256
+"""The most tokens an expression may have (the tree it builds stays shallow)."""
+
+MAX_NESTING = 64
+"""The deepest nesting of parentheses, calls and unary operators in an expression."""
+
+
 class _ExprError(Exception):
     """An expression cannot be parsed or evaluated; ``pos`` indexes the text."""
 
@@ -210,6 +220,8 @@ def _tokens(text: str, start: int, end: int) -> list[_Token]:
             out.append(_Token(kind, m.group(), pos))
         pos = m.end()
     out.append(_Token("end", "", end))
+    if len(out) > MAX_TOKENS + 1:
+        raise _ExprError(f"{len(out) - 1} tokens, more than the {MAX_TOKENS} allowed", start)
     return out
 
 
@@ -219,6 +231,13 @@ class _Parser:
     def __init__(self, tokens: list[_Token]) -> None:
         self.tokens = tokens
         self.i = 0
+        self.depth = 0
+
+    def nest(self) -> None:
+        """One level deeper (parentheses, a call, a unary operator, a power)."""
+        self.depth += 1
+        if self.depth > MAX_NESTING:
+            raise _ExprError(f"nested deeper than {MAX_NESTING} levels", self.tok.pos)
 
     @property
     def tok(self) -> _Token:
@@ -261,7 +280,10 @@ class _Parser:
     def negation(self) -> _Node:
         if self.at("not"):
             tok = self.take()
-            return _Unary("not", self.negation(), tok.pos)
+            self.nest()
+            node = _Unary("not", self.negation(), tok.pos)
+            self.depth -= 1
+            return node
         return self.comparison()
 
     def comparison(self) -> _Node:
@@ -291,21 +313,32 @@ class _Parser:
         base = self.unary()
         if self.at("**"):
             tok = self.take()
-            return _Binary("**", base, self.power(), tok.pos)
+            self.nest()
+            node = _Binary("**", base, self.power(), tok.pos)
+            self.depth -= 1
+            return node
         return base
 
     def unary(self) -> _Node:
         if self.at("-"):
             tok = self.take()
-            return _Unary("-", self.unary(), tok.pos)
+            self.nest()
+            node = _Unary("-", self.unary(), tok.pos)
+            self.depth -= 1
+            return node
         return self.atom()
 
     def atom(self) -> _Node:
         tok = self.tok
         if tok.kind == "number":
             self.take()
+            if len(tok.text) > 40:
+                raise _ExprError(f"a number of {len(tok.text)} characters", tok.pos)
             is_int = not any(c in tok.text for c in ".eE")
-            return _Literal(int(tok.text) if is_int else float(tok.text), tok.pos)
+            value: int | float = int(tok.text) if is_int else float(tok.text)
+            if not math.isfinite(value) or (is_int and abs(value) > 2**63):
+                raise _ExprError(f"{tok.text} is out of range", tok.pos)
+            return _Literal(value, tok.pos)
         if tok.kind == "param":
             self.take()
             return _Ref(tok.text[1:], tok.pos)
@@ -316,10 +349,12 @@ class _Parser:
             return self.call()
         if self.at("("):
             self.take()
+            self.nest()
             node = self.disjunction()
             if not self.at(")"):
                 raise self.fail("')'")
             self.take()
+            self.depth -= 1
             return node
         raise self.fail("a number, $parameter, function or '('")
 
@@ -334,6 +369,7 @@ class _Parser:
         if not self.at("("):
             raise self.fail(f"'(' after {tok.text}")
         self.take()
+        self.nest()
         args = [self.disjunction()]
         while self.at(","):
             self.take()
@@ -341,6 +377,7 @@ class _Parser:
         if not self.at(")"):
             raise self.fail("',' or ')'")
         self.take()
+        self.depth -= 1
         arity = _FUNCTIONS[tok.text][0]
         if len(args) != arity:
             raise _ExprError(
@@ -557,12 +594,18 @@ def evaluate(text: str, params: Mapping[str, ParamValue], where: str = "") -> Pa
         with the known ones), an operand of the wrong type, division by zero, an
         argument outside a function's domain (``sqrt(-1)``), or a non-finite result.
     """
+    if len(text) > MAX_EXPRESSION:
+        raise ScenarioError(
+            f"{_prefix(where)}an expression of {len(text)} characters (at most {MAX_EXPRESSION})"
+        )
     try:
         return _eval(_parse(text), params)
     except _ExprError as exc:
         raise ScenarioError(
             f"{_prefix(where)}{text!r}, column {exc.pos + 1}: {exc.problem}"
         ) from None
+    except (OverflowError, ValueError, ZeroDivisionError, RecursionError) as exc:
+        raise ScenarioError(f"{_prefix(where)}{text!r} cannot be evaluated: {exc}") from None
 
 
 def format_value(value: ParamValue) -> str:

@@ -13,7 +13,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 from lxml import etree
 
-from aldm_gym.errors import InputError
+from aldm_gym.errors import InputError, ScenarioError
 from aldm_gym.scenario.parameters import (
     ConcreteRun,
     ParameterDeclaration,
@@ -838,3 +838,21 @@ def test_alks_variations_expand_and_filter(name: str) -> None:
     assert (len(runs), len(kept)) == ALKS_RUNS[name]
     assert len(kept) + len(dropped) == len(runs)
     assert all(reasons for _, reasons in dropped)
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("${" + "(" * 120 + "1" + ")" * 120 + "}", "nested deeper than 64 levels"),
+        ("${" + "-" * 100 + "1}", "nested deeper than 64 levels"),
+        ("${" + "+".join(["1"] * 300) + "}", r"599 tokens, more than the 256 allowed"),
+        ("${" + "1+" * 1500 + "1}", r"an expression of \d+ characters \(at most 2000\)"),
+        ("${99999999999999999999}", "is out of range"),
+        ("${" + "9" * 50 + ".0}", "a number of 52 characters"),
+        ("${10**400}", "overflows"),
+        ("${pow(10, 400)}", "overflows"),
+    ],
+)
+def test_an_expression_too_large_or_deep_is_refused_by_name(text: str, message: str) -> None:
+    with pytest.raises(ScenarioError, match=message):
+        evaluate(text, {})
