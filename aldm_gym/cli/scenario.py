@@ -118,7 +118,7 @@ def _scenario_error(argument: str, exc: Exception) -> BadArgument:
 
 def run_one(args: argparse.Namespace) -> int:
     """``aldm-gym scenario run``."""
-    from aldm_gym.errors import MapError, MapNotFoundError, MissingOSIDependencies, ScenarioError
+    from aldm_gym.errors import AldmGymError, MissingOSIDependencies
     from aldm_gym.scenario.criteria import run_scenario
 
     frames: list[Any] | None = [] if args.video is not None else None
@@ -131,10 +131,14 @@ def run_one(args: argparse.Namespace) -> int:
             config={"osi": {"trace": str(args.osi)}} if args.osi is not None else None,
             frames=frames,
         )
-    except (ScenarioError, MapError, MapNotFoundError) as exc:  # the file, its map, a --param
-        raise _scenario_error("FILE.xosc", exc) from None
     except MissingOSIDependencies as exc:
         raise _scenario_error("--osi", exc) from None
+    except AldmGymError as exc:  # the file, its map, a --param, a position off the map
+        raise _scenario_error("FILE.xosc", exc) from None
+    if result.error:
+        print(f"{result.scenario} ({args.detector}, {args.marking_model}): NOT JUDGED")
+        print(f"  {result.error}")
+        return 1
     verdict = "PASS" if result.passed else "FAIL"
     print(f"{result.scenario} ({args.detector}, {args.marking_model}): {verdict}")
     for name, ok, detail in (

@@ -128,6 +128,8 @@ class Judge:
         """Start with every criterion met."""
         self.result = result
         self.short_since: float | None = None
+        self.activated = False
+        """Whether the function under test drove the ego at any step."""
 
     def observe(self, runner: Any, info: Mapping[str, Any], dt: float) -> None:
         """One step: ``info`` is the env's, ``runner`` the scenario's runtime."""
@@ -139,6 +141,7 @@ class Judge:
             if info.get("crashed"):
                 r.collision_before = True
             return
+        self.activated = True
         if info.get("crashed") and not r.collision_before:
             r.collision = True
         if info.get("lane_departure"):
@@ -171,6 +174,11 @@ class Judge:
         r.in_lane = r.departures == 0
         if r.collision_before:
             r.error = "a collision before the function was activated (the scenario's own)"
+        elif not self.activated:
+            r.error = (
+                "the function under test never drove the ego (no ActivateControllerAction "
+                "handed it over before the run ended): not judged"
+            )
         r.passed = bool(r.no_collision and r.in_lane and r.time_gap and not r.error)
         return r
 

@@ -322,6 +322,20 @@ def test_a_trajectory_from_a_catalog_plays_as_the_inline_one(tmp_path: Path) -> 
     assert a[-1]["Target"][0] == -3  # it left its lane along the path
 
 
+def test_a_run_the_function_never_drove_is_not_judged(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from aldm_gym.cli import main
+    from aldm_gym.scenario.criteria import run_scenario
+
+    path = write(tmp_path, activate_at=None, stop=3.0)
+    result = run_scenario(path, detector="ground_truth")
+    assert not result.passed and "never drove the ego" in result.error
+    assert main(["scenario", "run", str(path), "--detector", "ground_truth"]) == 1
+    out = capsys.readouterr().out
+    assert "NOT JUDGED" in out and "PASS" not in out
+
+
 def test_same_seed_same_run(tmp_path: Path) -> None:
     dyn = xosc.TransitionDynamics(xosc.DynamicsShapes.cubic, xosc.DynamicsDimension.rate, 1.0)
     ev = _event("change", xosc.AbsoluteLaneChangeAction(-2, dyn), at_time(1.0))

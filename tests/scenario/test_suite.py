@@ -11,8 +11,8 @@ from tests.scenario._build import write
 
 
 def test_a_folder_of_concrete_scenarios_plays_in_two_processes(tmp_path: Path) -> None:
-    write(tmp_path, name="a.xosc", stop=2.0)
-    write(tmp_path, name="b.xosc", stop=3.0, target=None)
+    write(tmp_path, name="a.xosc", stop=2.0, activate_at=0.0)
+    write(tmp_path, name="b.xosc", stop=3.0, target=None, activate_at=0.0)
     jobs = plan_suite(tmp_path, ["aldm", "naive"], ["per_dash"])
     assert [(Path(j.xosc).name, j.detector) for j in jobs] == [
         ("a.xosc", "aldm"),
