@@ -343,6 +343,17 @@ class OpenDriveRoad(PolylineRoad):
         """The first driving lane continuing ``lane`` in its direction, or ``None``."""
         return self._succ.get(lane)
 
+    def predecessor(self, lane: LaneKey) -> LaneKey | None:
+        """A driving lane that ``lane`` continues (whose :meth:`successor` it is), or
+        ``None``: the way back for an entity driving against its lane."""
+        pred = getattr(self, "_pred", None)
+        if pred is None:
+            pred = {}
+            for before, after in self._succ.items():
+                pred.setdefault(after, before)
+            self._pred = pred
+        return pred.get(lane)
+
     def _nearest_lane(self, position: FloatArray, only: int = -1) -> tuple[int, int, float, float]:
         """Nearest driving-lane centre: ``(lane row, segment, offset [m] > 0 left, u [m])``.
 

@@ -324,6 +324,12 @@ class SpeedChange(Instance):
             if abs(change) < SPEED_EPS
             else self.dynamics.duration(change, 0.5 * (self.v0 + self.v1))
         )
+        # the entity's Performance limits stretch a change that would need more (esmini)
+        self.limit = entity.max_acceleration if change > 0 else entity.max_deceleration
+        if self.T > 0.0 and math.isfinite(self.T) and self.dynamics.shape != "step":
+            peak = _PEAK[self.dynamics.shape] * abs(change) / self.T
+            if peak > self.limit:
+                self.T = _PEAK[self.dynamics.shape] * abs(change) / self.limit
         if self.T <= 0.0:
             entity.speed = self.v1
             if not self.continuous:
@@ -338,7 +344,7 @@ class SpeedChange(Instance):
             self.v1 = float(self.target(world))
         self.elapsed += dt
         if self.dynamics.dimension == "rate" and self.dynamics.shape == "linear":
-            step = abs(self.dynamics.value) * dt
+            step = min(abs(self.dynamics.value), self.limit) * dt
             v = entity.speed
             v = min(v + step, self.v1) if v < self.v1 else max(v - step, self.v1)
             if abs(v - self.v1) < SPEED_EPS:
@@ -799,7 +805,7 @@ class LongitudinalDistance(Instance):
         elif accel > 0.0 and accel > self.acceleration:
             accel = min(self.acceleration + acc_rate * dt, accel)
         self.acceleration = accel
-        v = min(max(entity.speed + accel * dt, 0.0), max_speed)
+        v = min(max(entity.speed + accel * dt, -max_speed), max_speed)  # it may reverse
         if not self.continuous and abs(error) < 0.1 and abs(v_ref - v) < 0.1:
             self.done = True
             entity.longitudinal = None
@@ -1040,7 +1046,7 @@ class FollowTrajectory(Instance):
         """Resolve the shape now; timing from the action's start (relative)."""
         entity = self._scripted(runner)
         world = runner.world
-        path = self.shape.resolve(world)
+        path = self.shape.resolve(world, entity)
         self.points = path.points
         self.headings = path.headings
         seg = np.hypot(*np.diff(self.points, axis=0).T)
@@ -1112,7 +1118,7 @@ class FollowTrajectory(Instance):
                     speed = entity.speed
             else:
                 speed = entity.speed
-            entity.speed = min(max(entity.speed, 0.0), entity.max_speed)
+            entity.speed = min(max(entity.speed, -entity.max_speed), entity.max_speed)
             speed = min(max(speed, 0.0), entity.max_speed)
             self.along += speed * dt
             i, x = self._at_length(self.along)

@@ -129,12 +129,13 @@ _PATH_ATTRIBUTES = (
 )
 
 
-def scripted_copy(xosc: str | Path, folder: str | Path) -> Path:
+def scripted_copy(xosc: str | Path, folder: str | Path, max_time: float = 600.0) -> Path:
     """A copy of ``xosc`` in ``folder`` with every ``ActivateControllerAction`` taken
     out (an event, maneuver left empty goes too), so that every entity follows its
-    actions in both players. Relative map and catalog paths are made absolute, and the
-    original folder's entries are linked into ``folder`` for paths that parameters
-    give.
+    actions in both players, and a stop at ``max_time`` [s] added to the storyboard's
+    stop trigger (esmini runs a file without one for ever). Relative map and catalog
+    paths are made absolute, and the original folder's entries are linked into
+    ``folder`` for paths that parameters give.
 
     :raises ScenarioError: the file is not XML.
     """
@@ -157,6 +158,7 @@ def scripted_copy(xosc: str | Path, folder: str | Path) -> Path:
         if holder is None:
             continue
         _remove_empty(holder)
+    _stop_at(root, max_time)
     out = Path(folder) / source.name
     # paths set by parameters (``filepath="$Road"``) resolve beside the copy as beside
     # the original: the original folder's entries are linked into ``folder``
@@ -188,9 +190,28 @@ def _resolve_expressions(source: Path, root: Any) -> None:
         if any(a.tag == "ParameterDeclarations" for a in el.iterancestors()):
             continue  # declarations below the file level: their own scope
         for name, raw in el.attrib.items():
-            if raw.strip().startswith("${"):
+            if name != "name" and raw.strip().startswith("${"):  # names are labels
                 value = resolve(raw, values, f"{source.name}:{el.sourceline}")
                 el.set(name, format_value(value))
+
+
+def _stop_at(root: Any, max_time: float) -> None:
+    """Add ``SimulationTime > max_time`` as a condition group of the storyboard's stop
+    trigger (making one where there is none)."""
+    board = root.find("Storyboard")
+    if board is None:
+        return
+    stop = board.find("StopTrigger")
+    if stop is None:
+        stop = etree.SubElement(board, "StopTrigger")
+    group = etree.SubElement(stop, "ConditionGroup")
+    condition = etree.SubElement(
+        group, "Condition", name="max_time", delay="0", conditionEdge="none"
+    )
+    by_value = etree.SubElement(condition, "ByValueCondition")
+    etree.SubElement(
+        by_value, "SimulationTimeCondition", value=repr(float(max_time)), rule="greaterThan"
+    )
 
 
 def _remove_empty(element: Any) -> None:
@@ -306,7 +327,11 @@ def player_trace(
 
     scenario = read_scenario(xosc, parameters)
     road = OpenDriveRoad.from_file(str(scenario.map_path), marking_model="editor")
-    runner = ScenarioRunner(scenario, road, choose_ego(scenario))
+    try:
+        ego = choose_ego(scenario)
+    except ScenarioError:  # no ego to tell: every entity is scripted here anyway
+        ego = scenario.entities[0].name
+    runner = ScenarioRunner(scenario, road, ego)
     traffic = Road(network=road.network, vehicles=[])
     runner.populate(traffic, lambda tr, pos, h, v: ScenarioVehicle(tr, pos, h, v))
     if runner.active:
@@ -384,11 +409,13 @@ def agreement(
     binary: str | Path,
     step: float = 0.1,
     parameters: Mapping[str, Any] | None = None,
+    max_time: float = 600.0,
 ) -> Agreement:
-    """Play the scripted copy of ``xosc`` (:func:`scripted_copy`) in esmini and in the
-    player and compare them (:func:`compare`)."""
+    """Play the scripted copy of ``xosc`` (:func:`scripted_copy`, stopped at
+    ``max_time`` [s] at the latest) in esmini and in the player and compare them
+    (:func:`compare`)."""
     with tempfile.TemporaryDirectory() as tmp:
-        copy = scripted_copy(xosc, tmp)
+        copy = scripted_copy(xosc, tmp, max_time)
         ref = esmini_trace(copy, binary, step, tmp)
         ours = player_trace(copy, step, max_time=float(ref.times[-1]) + step, parameters=parameters)
     return compare(ref, ours, step)

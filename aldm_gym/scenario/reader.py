@@ -568,13 +568,17 @@ class _Reader:
         if p.tag == "RelativeWorldPosition":
             self._entity_ref(p, "entityRef")
             return RelativeWorldPos(
-                self.attr(p, "entityRef"), self.num(p, "dx"), self.num(p, "dy"), orient, where
+                self.attr(p, "entityRef"),
+                self.num(p, "dx", 0.0),
+                self.num(p, "dy", 0.0),
+                orient,
+                where,
             )
         if p.tag == "WorldPosition":
             return WorldPos(self.num(p, "x"), self.num(p, "y"), self.num(p, "h", None), where)
         self._entity_ref(p, "entityRef")
         return RelativeObjectPos(
-            self.attr(p, "entityRef"), self.num(p, "dx"), self.num(p, "dy"), orient, where
+            self.attr(p, "entityRef"), self.num(p, "dx", 0.0), self.num(p, "dy", 0.0), orient, where
         )
 
     def _entity_ref(self, el: Any, attr: str) -> str:
@@ -735,10 +739,15 @@ class _Reader:
 
     def dynamics(self, el: Any) -> A.Dynamics:
         """``*Dynamics`` with shape, dimension, value."""
+        shape = self.choice(el, "dynamicsShape", A.SHAPES)
+        # a step has no duration: files written for esmini often leave both out
+        step = shape == "step"
         return A.Dynamics(
-            shape=self.choice(el, "dynamicsShape", A.SHAPES),
-            dimension=self.choice(el, "dynamicsDimension", ("time", "distance", "rate")),
-            value=self.num(el, "value"),
+            shape=shape,
+            dimension=self.choice(
+                el, "dynamicsDimension", ("time", "distance", "rate"), "time" if step else _MISSING
+            ),
+            value=self.num(el, "value", 0.0 if step else _MISSING),
             where=self.where(el),
         )
 
@@ -758,7 +767,7 @@ class _Reader:
             else:
                 ref = self._entity_ref(target_el, "entityRef")
                 value = self.num(target_el, "value")
-                kind = self.choice(target_el, "speedTargetValueType", ("delta", "factor"))
+                kind = self.choice(target_el, "speedTargetValueType", ("delta", "factor"), "delta")
                 continuous = self.flag(target_el, "continuous")
 
                 def target(
@@ -1045,9 +1054,9 @@ class _Reader:
                 where,
             )
         if el.tag == "ClothoidSpline":
-            self.kids(el, ("Segment",))
+            self.kids(el, ("ClothoidSplineSegment",))
             segments = []
-            for seg in el.findall("Segment"):
+            for seg in el.findall("ClothoidSplineSegment"):
                 self.kids(seg, ("PositionStart",))
                 start = seg.find("PositionStart")
                 segments.append(
@@ -1061,7 +1070,7 @@ class _Reader:
                     )
                 )
             if not segments:
-                raise self.error(el, "a clothoid spline needs at least one <Segment>")
+                raise self.error(el, "a clothoid spline needs at least one <ClothoidSplineSegment>")
             return S.ClothoidSpline(segments, self.num(el, "timeEnd", None), where)
         self.kids(el, ("ControlPoint", "Knot"))
         points = [
@@ -1185,13 +1194,16 @@ class _Reader:
 
     def condition(self, el: Any) -> Condition:
         """One ``Condition`` with its edge and delay."""
-        edge = self.choice(el, "conditionEdge", ("none", "rising", "falling", "risingOrFalling"))
+        edge = self.choice(
+            el, "conditionEdge", ("none", "rising", "falling", "risingOrFalling"), "none"
+        )
         delay = self.num(el, "delay", 0.0)
         if delay < 0:
             raise self.error(el, f"delay must be >= 0, got {delay:g}")
         body = self.one(el, ("ByValueCondition", "ByEntityCondition"))
         evaluate = self._by_value(body) if body.tag == "ByValueCondition" else self._by_entity(body)
-        return Condition(self.attr(el, "name", ""), evaluate, edge, delay, self.where(el))
+        # a name is a label: written as it is (esmini files build names from strings)
+        return Condition(el.get("name", ""), evaluate, edge, delay, self.where(el))
 
     def _rule(self, el: Any) -> Callable[[Any, Any], bool]:
         return C.rule(self.choice(el, "rule", tuple(C.RULES)))

@@ -24,7 +24,7 @@ from aldm_gym.errors import ScenarioError
 
 if TYPE_CHECKING:
     from aldm_gym.scenario.positions import Position
-    from aldm_gym.scenario.world import World
+    from aldm_gym.scenario.world import Entity, World
 
 __all__ = ["SAMPLE", "Clothoid", "ClothoidSpline", "Nurbs", "Path", "Polyline", "Shape"]
 
@@ -55,8 +55,9 @@ class Shape:
 
     where: str = ""
 
-    def resolve(self, world: World) -> Path:
-        """The shape's path in the world's current state."""
+    def resolve(self, world: World, entity: Entity | None = None) -> Path:
+        """The shape's path in the world's current state (``entity``: the actor, where
+        the shape starts when it names no start)."""
         raise NotImplementedError
 
 
@@ -77,7 +78,7 @@ class Polyline(Shape):
     vertices: list[tuple[float | None, Position]]
     where: str = ""
 
-    def resolve(self, world: World) -> Path:
+    def resolve(self, world: World, entity: Entity | None = None) -> Path:
         """See :class:`Shape`."""
         points, headings = [], []
         for _, pos in self.vertices:
@@ -126,7 +127,7 @@ class Clothoid(Shape):
     stop_time: float | None = None
     where: str = ""
 
-    def resolve(self, world: World) -> Path:
+    def resolve(self, world: World, entity: Entity | None = None) -> Path:
         """See :class:`Shape`."""
         p0, h0, _ = _pose(world, self.start)
         s = _sample(self.length, self.where)
@@ -142,7 +143,8 @@ class Clothoid(Shape):
 class ClothoidSpline(Shape):
     """``ClothoidSpline`` (1.3): segments, each from its start curvature to its end
     curvature over its length [m], continuing the previous one's heading (plus its
-    ``h_offset`` [rad]); the first starts at its ``position_start``. Times: each
+    ``h_offset`` [rad]); the first starts at its ``position_start``, or where the actor
+    is. Times: each
     segment's ``time_start`` to the next's (the last to ``time_end``) along its length.
 
     :ivar segments: ``(curvature_start, curvature_end, length, h_offset, time_start,
@@ -153,12 +155,15 @@ class ClothoidSpline(Shape):
     time_end: float | None = None
     where: str = ""
 
-    def resolve(self, world: World) -> Path:
+    def resolve(self, world: World, entity: Entity | None = None) -> Path:
         """See :class:`Shape`."""
         first = self.segments[0][5]
-        if first is None:
+        if first is not None:
+            point, heading, _ = _pose(world, first)
+        elif entity is not None:  # from where the actor is, along its heading
+            point, heading = entity.reference_point(), entity.heading
+        else:
             raise ScenarioError(f"{self.where}: the first segment needs a positionStart")
-        point, heading, _ = _pose(world, first)
         all_points, all_h, all_t = [point[None, :]], [heading], []
         starts = [seg[4] for seg in self.segments] + [self.time_end]
         timed = all(t is not None for t in starts)
@@ -191,7 +196,7 @@ class Nurbs(Shape):
     knots: list[float]
     where: str = ""
 
-    def resolve(self, world: World) -> Path:
+    def resolve(self, world: World, entity: Entity | None = None) -> Path:
         """See :class:`Shape`."""
         from scipy.interpolate import BSpline
 

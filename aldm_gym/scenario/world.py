@@ -419,7 +419,7 @@ class World:
             return
         if entity.longitudinal is not None:
             entity.speed = float(entity.longitudinal.speed_after(self, entity, dt))
-        entity.speed = min(max(entity.speed, 0.0), entity.max_speed)
+        entity.speed = min(max(entity.speed, -entity.max_speed), entity.max_speed)
         # a rigid distance places the actor once everyone has moved (settle)
         settles = getattr(entity.longitudinal, "rigid", False)
         lateral_speed = 0.0
@@ -432,7 +432,7 @@ class World:
         # its share; a lane offset moves sideways on top of the speed (as esmini plays
         # both). The rest moves the entity along its own path (parallel to the lane's
         # centre at its offset), which in a curve is longer or shorter than the centre's.
-        step = entity.speed * dt
+        step = abs(entity.speed) * dt
         lateral = entity.t - t_before
         along = step
         if getattr(entity.last_lateral, "speed_along_heading", False):
@@ -441,19 +441,12 @@ class World:
         mean_t = 0.5 * (entity.t + t_before)
         if settles:
             along = 0.0
-        u = entity.u + (self.centre_step(entity.lane, entity.u, mean_t, along) if along else 0.0)
-        key = entity.lane
-        length = self.road.lane_length(key)
-        while u > length:
-            nxt = self.road.successor(key)
-            if nxt is None:
-                u = length  # the lane chain ends: the entity stops at its end
-                entity.speed = 0.0
-                break
-            u -= length
-            key = nxt
-            length = self.road.lane_length(key)
-        entity.lane, entity.u = key, u
+        # an entity turned round on its lane (|heading offset| > 90°) drives against it,
+        # and a negative speed (reversing) against its heading
+        sign = -1.0 if math.cos(entity.heading_offset) < 0.0 else 1.0
+        sign = -sign if entity.speed < 0.0 else sign
+        du = self.centre_step(entity.lane, entity.u, mean_t, along) if along else 0.0
+        entity.lane, entity.u = self._along_chain(entity, entity.lane, entity.u + sign * du)
         along_heading = bool(getattr(entity.last_lateral, "speed_along_heading", False))
         self._update_pose(entity, lateral_speed, along_heading)
 
@@ -477,8 +470,10 @@ class World:
                 e.off_road_since = self.time if e.off_road_since is None else e.off_road_since
                 continue
             e.off_road_since = None
-            at_end = self.road.successor(c.lane) is None and (
-                c.u >= self.road.lane_length(c.lane) - 0.5 * e.box.length
+            # the lane it moves by (scripted: its own, which it may drive beside)
+            lane, u = (e.lane, e.u) if e.scripted and e.lane is not None else (c.lane, c.u)
+            at_end = self.road.successor(lane) is None and (
+                u >= self.road.lane_length(lane) - 0.5 * e.box.length
             )
             if at_end:
                 e.road_end_since = self.time if e.road_end_since is None else e.road_end_since
@@ -493,6 +488,28 @@ class World:
             if entity.scripted and hasattr(motion, "prepare"):
                 if not getattr(motion, "rigid", False):
                     motion.prepare(self, dt)
+
+    def _along_chain(self, entity: Entity, key: LaneKey, u: float) -> tuple[LaneKey, float]:
+        """``(lane, u)`` of arc length ``u`` [m] from the start of lane ``key``, on along
+        its successors (or back along its predecessors where ``u`` < 0); at the end of
+        the chain the entity stops there."""
+        road = self.road
+        length = road.lane_length(key)
+        while u > length:
+            nxt = road.successor(key)
+            if nxt is None:
+                entity.speed = 0.0  # the lane chain ends: the entity stops at its end
+                return key, length
+            u -= length
+            key, length = nxt, road.lane_length(nxt)
+        while u < 0.0:
+            prev = road.predecessor(key)
+            if prev is None:
+                entity.speed = 0.0
+                return key, 0.0
+            key = prev
+            u += road.lane_length(key)
+        return key, u
 
     def settle(self) -> None:
         """After every entity moved in a step: the rigid distance actions place their
@@ -537,7 +554,7 @@ class World:
         motion's, else the speed it has)."""
         if entity.longitudinal is not None:
             entity.speed = float(entity.longitudinal.speed_after(self, entity, dt))
-        entity.speed = min(max(entity.speed, 0.0), entity.max_speed)
+        entity.speed = min(max(entity.speed, -entity.max_speed), entity.max_speed)
         entity.vehicle.speed = entity.speed
 
     def sync(self, entity: Entity) -> None:
