@@ -45,7 +45,7 @@ import numpy as np
 from aldm_gym.errors import MapError, ScenarioError
 from aldm_gym.scenario.positions import Position, Where
 from aldm_gym.scenario.shapes import Shape
-from aldm_gym.scenario.world import Entity, World
+from aldm_gym.scenario.world import Entity, World, wrap_angle
 
 __all__ = [
     "SHAPES",
@@ -79,6 +79,9 @@ its stiffness is this times the acceleration limit it pulls with [1/sÂ² per m/sÂ
 
 _TIME_EPS = 1e-6
 """A transition whose elapsed time is this close to its duration [s] has ended."""
+
+_LENGTH_EPS = 1e-6
+"""A path travelled to this close to its end [m] has ended (esmini's tolerance)."""
 
 SPEED_EPS = 1e-6
 """A speed this close to its target [m/s] has reached it (esmini's tolerance): a
@@ -1049,6 +1052,7 @@ class FollowTrajectory(Instance):
         path = self.shape.resolve(world, entity)
         self.points = path.points
         self.headings = path.headings
+        self.smooth = path.smooth
         seg = np.hypot(*np.diff(self.points, axis=0).T)
         self.arc = np.concatenate(([0.0], np.cumsum(seg)))
         """Arc length [m] at each point."""
@@ -1091,8 +1095,10 @@ class FollowTrajectory(Instance):
     def _place(self, world: World, entity: Entity, i: int, x: float) -> None:
         a, b = self.points[i], self.points[i + 1]
         seg = b - a
-        given = self.headings[i]
+        given, after = self.headings[i], self.headings[i + 1]
         heading = given if given is not None else float(math.atan2(seg[1], seg[0]))
+        if self.smooth and given is not None and after is not None:
+            heading = given + x * wrap_angle(after - given)  # along a sampled curve
         world.place_world(entity, a + x * seg, heading)
 
     def advance(self, world: World, entity: Entity, dt: float) -> None:
@@ -1122,18 +1128,18 @@ class FollowTrajectory(Instance):
             speed = min(max(speed, 0.0), entity.max_speed)
             self.along += speed * dt
             i, x = self._at_length(self.along)
-            finished = self.along >= self.arc[-1]
+            finished = self.along >= self.arc[-1] - _LENGTH_EPS
         entity.traveled += entity.speed * dt
         self._place(world, entity, i, x)
         if finished:
             self.done = True
             entity.trajectory = None
             if not self.timed and self.along > self.arc[-1]:
-                # the rest of the step's travel goes on along the lane (as esmini)
-                entity.u += world.centre_step(
-                    entity.lane, entity.u, entity.t, self.along - float(self.arc[-1])
-                )
-                world.place(entity, entity.lane, entity.u, entity.t, entity.heading_offset)
+                # the rest of the step's travel goes on along the end heading (as esmini)
+                rest = self.along - float(self.arc[-1])
+                h = entity.heading
+                end = entity.reference_point() + rest * np.array([math.cos(h), math.sin(h)])
+                world.place_world(entity, end, h)
 
 
 # ---------------------------------------------------------------------- route

@@ -48,6 +48,8 @@ class Path:
     points: np.ndarray
     headings: list[float | None]
     times: np.ndarray | None
+    smooth: bool = False
+    """The headings are samples of a smooth curve: interpolate between them."""
 
 
 class Shape:
@@ -136,7 +138,7 @@ class Clothoid(Shape):
         times = None
         if self.start_time is not None and self.stop_time is not None:
             times = self.start_time + (self.stop_time - self.start_time) * s / self.length
-        return Path(points, [float(x) for x in h], times)
+        return Path(points, [float(x) for x in h], times, smooth=True)
 
 
 @dataclass(frozen=True)
@@ -182,7 +184,9 @@ class ClothoidSpline(Shape):
                     all_t.append(ta)
                 all_t.extend(list(ta + (tb - ta) * s[1:] / length))
             point, heading = points[-1], float(h[-1])
-        return Path(np.vstack(all_points), list(all_h), np.array(all_t) if timed else None)
+        return Path(
+            np.vstack(all_points), list(all_h), np.array(all_t) if timed else None, smooth=True
+        )
 
 
 @dataclass(frozen=True)
