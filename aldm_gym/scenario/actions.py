@@ -356,9 +356,13 @@ class SpeedChange(Instance):
                 self._finish(entity)
             return v
         if self.T <= 0.0 or not math.isfinite(self.T):
-            if self.T <= 0.0:
+            if self.T > 0.0:
+                return entity.speed
+            if not self.continuous:
                 return self.v1
-            return entity.speed
+            # following a speed: within the entity's Performance at every step (esmini)
+            rise, fall = entity.max_acceleration * dt, entity.max_deceleration * dt
+            return min(max(self.v1, entity.speed - fall), entity.speed + rise)
         x = self.elapsed / self.T
         v = self.v0 + (self.v1 - self.v0) * shape_value(self.dynamics.shape, x)
         if x >= 1.0:
@@ -809,7 +813,7 @@ class LongitudinalDistance(Instance):
             accel = min(self.acceleration + acc_rate * dt, accel)
         self.acceleration = accel
         v = min(max(entity.speed + accel * dt, -max_speed), max_speed)  # it may reverse
-        if not self.continuous and abs(error) < 0.1 and abs(v_ref - v) < 0.1:
+        if not self.continuous and abs(error) < 0.1:  # the distance is reached (esmini)
             self.done = True
             entity.longitudinal = None
         return v
@@ -868,6 +872,7 @@ class LaneChange(Instance):
             raise ScenarioError(f"{self.where}: the lane change never ends (rate 0 or speed 0)")
         # a step shape too moves the entity at the next step (esmini: in the frame's
         # action step, seen in the next frame)
+        self.order = next(_STARTS)
         _override(entity, "lateral", self)
 
     def offset_after(self, world: World, entity: Entity, dt: float) -> float:
@@ -888,7 +893,8 @@ class LateralDistance(Instance):
     on when the action starts),
     measured along the road's ``t``. Without ``DynamicConstraints`` the actor is put
     there at every step; with them a critically damped spring moves it there within
-    the lateral acceleration, deceleration and speed limits. Not ``continuous``: it
+    the lateral acceleration, deceleration and speed limits (a speed limit alone:
+    straight towards it at most that fast). Not ``continuous``: it
     ends when the distance is reached (within 0.1 m)."""
 
     slot = "lateral"
@@ -935,6 +941,10 @@ class LateralDistance(Instance):
         target = self._target(world, entity)
         if self.limits is None or dt <= 0:
             new = target
+        elif math.isinf(self.limits[0]) and math.isinf(self.limits[1]):
+            # a lateral speed limit alone: towards the target at most that fast
+            reach = self.limits[2] * dt
+            new = entity.t + min(max(target - entity.t, -reach), reach)
         else:
             max_acc, max_dec, max_speed = self.limits
             k = SPRING * min(max_acc, max_dec)

@@ -11,8 +11,8 @@ says where the two agree:
 >>> report.ok, report.worst_distance, report.event_offsets             # doctest: +SKIP
 
 Positions are compared in OpenDRIVE's inertial frame (x east, y north [m]), at the
-reference point (a vehicle's rear axle centre); event starts by the time of their
-``startTransition`` [s]. The tests run this on a corpus where the binary exists
+reference point (a vehicle's rear axle centre), and headings [rad]; event starts by
+the time of their ``startTransition`` [s]. The tests run this on a corpus where the binary exists
 (docs/scenarios.md, "Agreement with esmini").
 """
 
@@ -44,6 +44,9 @@ __all__ = [
 
 POSITION_TOLERANCE = 0.05
 """Largest distance [m] between the two players' reference points that agrees."""
+
+HEADING_TOLERANCE = 0.05
+"""Largest difference [rad] between the two players' headings that agrees."""
 
 
 @dataclass(frozen=True)
@@ -83,6 +86,8 @@ class Agreement:
     event_offsets: dict[str, float]
     stop_offset: float
     step: float
+    heading: dict[str, float] = field(default_factory=dict)
+    """Per entity, the largest difference of the headings [rad]."""
     tolerance: float = POSITION_TOLERANCE
 
     @property
@@ -97,10 +102,11 @@ class Agreement:
 
     @property
     def ok(self) -> bool:
-        """Every entity within the tolerance, every event start and the stop within one
-        step."""
+        """Every entity within the tolerances (position and heading), every event start
+        and the stop within one step."""
         return (
             self.worst_distance <= self.tolerance
+            and max(self.heading.values(), default=0.0) <= HEADING_TOLERANCE
             and not self.late_events
             and self.stop_offset <= self.step + 1e-6
         )
@@ -114,6 +120,9 @@ class Agreement:
         )
         if self.first_off.get(worst) is not None:
             text += f" (off from {self.first_off[worst]:.1f} s)"
+        turned = max(self.heading, key=self.heading.__getitem__, default=None)
+        if turned is not None and self.heading[turned] > HEADING_TOLERANCE:
+            text += f", {turned}'s heading {self.heading[turned]:.3f} rad apart"
         if self.late_events:
             text += f", events apart: {self.late_events}"
         if self.stop_offset > self.step + 1e-6:
@@ -376,17 +385,22 @@ def compare(reference: Trace, ours: Trace, step: float = 0.1) -> Agreement:
     our_k = {round(t / step): i for i, t in enumerate(ours.times)}
     common = sorted(set(ref_k) & set(our_k))
     distance: dict[str, float] = {}
+    heading: dict[str, float] = {}
     first_off: dict[str, float | None] = {}
     for name, ref in reference.poses.items():
         mine = ours.poses.get(name)
         if mine is None:
-            distance[name], first_off[name] = math.inf, 0.0
+            distance[name], first_off[name], heading[name] = math.inf, 0.0, math.inf
             continue
-        a = ref[[ref_k[k] for k in common], :2]
-        b = mine[[our_k[k] for k in common], :2]
-        d = np.hypot(*(a - b).T)
+        a = ref[[ref_k[k] for k in common], :3]
+        b = mine[[our_k[k] for k in common], :3]
+        d = np.hypot(*(a[:, :2] - b[:, :2]).T)
         both = ~(np.isnan(a[:, 0]) & np.isnan(b[:, 0]))
         d = np.where(both, np.nan_to_num(d, nan=math.inf), 0.0)
+        turn = np.abs((a[:, 2] - b[:, 2] + math.pi) % (2.0 * math.pi) - math.pi)
+        heading[name] = float(
+            np.where(both, np.nan_to_num(turn, nan=math.inf), 0.0).max(initial=0.0)
+        )
         distance[name] = float(d.max(initial=0.0))
         off = np.flatnonzero(d > POSITION_TOLERANCE)
         first_off[name] = common[off[0]] * step if off.size else None
@@ -401,7 +415,7 @@ def compare(reference: Trace, ours: Trace, step: float = 0.1) -> Agreement:
         stop_offset = math.inf
     else:
         stop_offset = abs((reference.stop or 0.0) - (ours.stop or 0.0))
-    return Agreement(len(common), distance, first_off, events, stop_offset, step)
+    return Agreement(len(common), distance, first_off, events, stop_offset, step, heading)
 
 
 def agreement(

@@ -949,7 +949,11 @@ class _Reader:
             ("leftToReferencedEntity", "rightToReferencedEntity", "any"),
             "any",
         )
-        limits = self.constraints(body.find("DynamicConstraints"), rates=False)
+        dc = body.find("DynamicConstraints")
+        limits = self.constraints(dc, rates=False)
+        if limits is None and dc is not None:  # a lateral speed limit alone
+            speed = self.num(dc, "maxSpeed", math.inf)
+            limits = (math.inf, math.inf, speed) if math.isfinite(speed) else None
         left = {"leftToReferencedEntity": True, "rightToReferencedEntity": False}.get(side)
         return lambda actor: A.LateralDistance(
             actor, where, ref, distance, freespace, left, continuous, limits

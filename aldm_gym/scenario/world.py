@@ -143,6 +143,8 @@ class Entity:
     """The domains the function under test drives (the ego only)."""
     teleport: Any = None
     """A position to put the entity at before its next step (a storyboard teleport)."""
+    ended: bool = False
+    """It drove to the end of its road: it stays there until placed elsewhere."""
     last_lateral: Any = None
     """The lateral motion that moved the entity in its last step (it may have ended
     there and left ``lateral``)."""
@@ -346,6 +348,7 @@ class World:
         entity.lane, entity.u, entity.t = key, float(u), float(t)
         entity.heading_offset = float(heading_offset)
         entity.placed = True
+        entity.ended = False
         self._update_pose(entity, lateral_speed)
 
     def place_world(self, entity: Entity, point: np.ndarray, heading: float) -> None:
@@ -360,6 +363,7 @@ class World:
         entity.t = pos.offset
         entity.heading_offset = wrap_angle(heading - pos.heading)
         entity.placed = True
+        entity.ended = False
         self._set_vehicle(entity, point, heading)
 
     def _update_pose(
@@ -371,11 +375,13 @@ class World:
         # the speed where the speed is along the heading, else on top of it.
         slip = 0.0
         if lateral_speed:
-            speed = max(entity.speed, 0.1)
+            speed = max(abs(entity.speed), 0.1)
             if along_heading:
                 slip = math.asin(min(max(lateral_speed / speed, -1.0), 1.0))
             else:
                 slip = math.atan2(lateral_speed, speed)
+            if math.cos(entity.heading_offset) < 0.0:
+                slip = -slip  # turned round on its lane: the lane's left is its right
         self._set_vehicle(entity, point, lane_heading + entity.heading_offset - slip)
 
     def centre_step(self, key: LaneKey, u: float, t: float, along: float) -> float:
@@ -414,14 +420,25 @@ class World:
             else:
                 self.place_world(entity, where.point, where.heading)
             return  # the step that teleports does not move it on (as esmini)
+        if entity.ended:
+            entity.speed = 0.0  # at the end of its road it stays until placed elsewhere
+            return
         if entity.trajectory is not None:
             entity.trajectory.advance(self, entity, dt)
             return
-        if entity.longitudinal is not None:
-            entity.speed = float(entity.longitudinal.speed_after(self, entity, dt))
+        speed_before = entity.speed
+        longitudinal = entity.longitudinal
+        if longitudinal is not None:
+            entity.speed = float(longitudinal.speed_after(self, entity, dt))
         entity.speed = min(max(entity.speed, -entity.max_speed), entity.max_speed)
         # a rigid distance places the actor once everyone has moved (settle)
-        settles = getattr(entity.longitudinal, "rigid", False)
+        settles = getattr(longitudinal, "rigid", False)
+        # A lane change moves the entity itself, before a speed action that started
+        # after it has changed the speed (esmini steps actions in the order they began)
+        travel_speed = entity.speed
+        lateral_order = getattr(entity.lateral, "order", None)
+        if lateral_order is not None and getattr(longitudinal, "order", -1) > lateral_order:
+            travel_speed = speed_before
         lateral_speed = 0.0
         t_before = entity.t
         entity.last_lateral = entity.lateral
@@ -432,7 +449,7 @@ class World:
         # its share; a lane offset moves sideways on top of the speed (as esmini plays
         # both). The rest moves the entity along its own path (parallel to the lane's
         # centre at its offset), which in a curve is longer or shorter than the centre's.
-        step = abs(entity.speed) * dt
+        step = abs(travel_speed) * dt
         lateral = entity.t - t_before
         along = step
         if getattr(entity.last_lateral, "speed_along_heading", False):
@@ -444,7 +461,7 @@ class World:
         # an entity turned round on its lane (|heading offset| > 90°) drives against it,
         # and a negative speed (reversing) against its heading
         sign = -1.0 if math.cos(entity.heading_offset) < 0.0 else 1.0
-        sign = -sign if entity.speed < 0.0 else sign
+        sign = -sign if travel_speed < 0.0 else sign
         du = self.centre_step(entity.lane, entity.u, mean_t, along) if along else 0.0
         entity.lane, entity.u = self._along_chain(entity, entity.lane, entity.u + sign * du)
         along_heading = bool(getattr(entity.last_lateral, "speed_along_heading", False))
@@ -499,6 +516,7 @@ class World:
             nxt = road.successor(key)
             if nxt is None:
                 entity.speed = 0.0  # the lane chain ends: the entity stops at its end
+                entity.ended = True
                 return key, length
             u -= length
             key, length = nxt, road.lane_length(nxt)
@@ -506,6 +524,7 @@ class World:
             prev = road.predecessor(key)
             if prev is None:
                 entity.speed = 0.0
+                entity.ended = True
                 return key, 0.0
             key = prev
             u += road.lane_length(key)

@@ -400,6 +400,39 @@ def synchronize(folder: Path) -> Path:
     )
 
 
+def turned_round_and_braking_in_a_lane_change(folder: Path) -> Path:
+    """On a lane driven the other way, the target faces and drives along ``s`` (turned
+    round on its lane) and changes lanes; a brake starts during its lane change."""
+    road = straight_road(folder, left_lanes=2)
+    dyn = xosc.TransitionDynamics(xosc.DynamicsShapes.sinusoidal, xosc.DynamicsDimension.time, 3.0)
+    change = _event("change", xosc.AbsoluteLaneChangeAction(-1, dyn), at_time(1.0))
+    brake_dyn = xosc.TransitionDynamics(
+        xosc.DynamicsShapes.linear, xosc.DynamicsDimension.rate, 4.0
+    )
+    brake = _event(
+        "brake", xosc.AbsoluteSpeedAction(8.0, brake_dyn), at_time(2.0), xosc.Priority.parallel
+    )
+    path = write(
+        folder,
+        [("Target", [change, brake])],
+        road=road,
+        lane_id=-1,
+        target=(0, 30.0, 15.0),
+        name="turned_round.xosc",
+    )
+    # the target on lane 1 (driven against s), turned round: it faces along s
+    text = path.read_text()
+    marker = '<RelativeLanePosition entityRef="Ego" ds="30.0" offset="0.0" dLane="0"/>'
+    assert marker in text
+    text = text.replace(
+        marker,
+        '<LanePosition roadId="0" laneId="1" s="80.0" offset="0.0">'
+        '<Orientation type="relative" h="3.141592653589793"/></LanePosition>',
+    )
+    path.write_text(text)
+    return path
+
+
 CORPUS: dict[str, Callable[[Path], Path]] = {
     f.__name__: f
     for f in (
@@ -419,6 +452,7 @@ CORPUS: dict[str, Callable[[Path], Path]] = {
         nurbs_trajectory,
         state_conditions,
         synchronize,
+        turned_round_and_braking_in_a_lane_change,
     )
 }
 """The corpus by name."""

@@ -71,6 +71,11 @@ def test_compare_finds_the_first_step_off_and_late_events() -> None:
     assert off.stop_offset == math.inf
     twice = compare(ref, _trace([0.0, 1.0, 2.0, 3.0], {"go": [0.1, 0.2]}, 0.3))
     assert twice.event_offsets["go"] == math.inf and not twice.ok
+    turned = _trace([0.0, 1.0, 2.0, 3.0], {"go": [0.1]}, 0.3)
+    turned.poses["A"][2, 2] = 2.0 * math.pi - 0.1  # -0.1 rad, written the other way round
+    mirrored = compare(ref, turned)
+    assert mirrored.heading["A"] == pytest.approx(0.1) and not mirrored.ok
+    assert "heading 0.100 rad apart" in mirrored.summary()
 
 
 def test_scripted_copy_takes_the_controller_out_and_keeps_the_paths(tmp_path: Path) -> None:
