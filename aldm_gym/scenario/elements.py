@@ -172,12 +172,15 @@ ELEMENTS: dict[str, tuple[str, str]] = {
         "RelativeRoadPosition LanePosition RelativeLanePosition Orientation",
     ),
     **_each(
-        "refused",
-        "positions along routes and trajectories, geographic positions and road cursors "
-        "are not played yet",
+        "played",
+        "positions along a route or a trajectory",
         "RoutePosition InRoutePosition FromCurrentEntity FromRoadCoordinates "
-        "FromLaneCoordinates RouteRef TrajectoryPosition GeoPosition RoadCursor RoadRange "
-        "Lane Polygon",
+        "FromLaneCoordinates RouteRef TrajectoryPosition",
+    ),
+    **_each(
+        "refused",
+        "geographic positions and the road cursors and areas of generated traffic are not played",
+        "GeoPosition RoadCursor RoadRange Lane Polygon",
     ),
     # ---------------------------------------------------------------- private actions
     **_each(

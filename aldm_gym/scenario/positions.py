@@ -35,6 +35,8 @@ __all__ = [
     "RelativeRoadPos",
     "RelativeWorldPos",
     "RoadPos",
+    "RoutePos",
+    "TrajectoryPos",
     "Where",
     "WorldPos",
     "lane_step",
@@ -277,3 +279,87 @@ def _relative_to(ref: Entity, point: np.ndarray, orientation: Orientation | None
     if orientation is not None:
         heading = heading - orientation.h if orientation.relative else -orientation.h
     return Where(point=point, heading=heading, heading_given=orientation is not None)
+
+
+@dataclass(frozen=True)
+class TrajectoryPos(Position):
+    """``TrajectoryPosition``: ``s`` [m] along a trajectory's shape and ``t`` [m] to
+    its left; the heading is the trajectory's there, turned by an orientation."""
+
+    shape: Any
+    s: float
+    t: float = 0.0
+    orientation: Orientation | None = None
+    where: str = ""
+
+    def resolve(self, world: World) -> Where:
+        """See :class:`Position`."""
+        path = self.shape.resolve(world)
+        pts = path.points
+        arc = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))))
+        if not -1e-9 <= self.s <= arc[-1] + 1e-9:
+            raise self._error(MapError(f"s = {self.s:g} m is off the {arc[-1]:.1f} m trajectory"))
+        i = min(max(int(np.searchsorted(arc, self.s, side="right")) - 1, 0), len(arc) - 2)
+        span = arc[i + 1] - arc[i]
+        x = 0.0 if span <= 0 else (self.s - arc[i]) / span
+        seg = pts[i + 1] - pts[i]
+        h = path.headings[i]
+        heading = float(math.atan2(seg[1], seg[0])) if h is None else float(h)
+        after = path.headings[i + 1]
+        if path.smooth and h is not None and after is not None:
+            heading = h + x * wrap_angle(after - h)
+        left = np.array([math.sin(heading), -math.cos(heading)])  # highway-env's world
+        point = pts[i] + x * seg + self.t * left
+        o = self.orientation
+        if o is not None:
+            heading = heading - o.h if o.relative else -o.h
+        return Where(point=point, heading=heading)
+
+
+@dataclass(frozen=True)
+class RoutePos(Position):
+    """``RoutePosition``: on a route (its waypoints' lane chain), from an entity's
+    current position (``FromCurrentEntity``), or ``path_s`` [m] along the route from its
+    first waypoint, then ``t`` [m] from the reference line (``FromRoadCoordinates``) or
+    ``lane_offset`` [m] from the centre of lane ``lane_id`` (``FromLaneCoordinates``)."""
+
+    waypoints: tuple[Position, ...]
+    mode: str
+    entity: str = ""
+    path_s: float = 0.0
+    t: float = 0.0
+    lane_id: int = 0
+    lane_offset: float = 0.0
+    orientation: Orientation | None = None
+    where: str = ""
+
+    def resolve(self, world: World) -> Where:
+        """See :class:`Position`."""
+        if self.mode == "entity":
+            ref: Entity = world.entities[self.entity]
+            return _relative_to(ref, ref.reference_point(), self.orientation)
+        start = self.waypoints[0].resolve(world)
+        road = world.road
+        try:
+            if start.lane is not None:
+                key, u = start.lane, start.u
+            else:
+                assert start.point is not None
+                pos = road.lane_position(start.point)
+                key, u = pos.lane, pos.s - road.chain_start(pos.lane)
+            u += self.path_s
+            while u > road.lane_length(key):
+                nxt = road.successor(key)
+                if nxt is None:
+                    raise MapError(f"pathS = {self.path_s:g} m runs past the route's end")
+                u -= road.lane_length(key)
+                key = nxt
+            rec = road.lane_record(key)
+            s = road.reference_s(key, u)
+            if self.mode == "road":
+                return RoadPos(rec.road_id, s, self.t, self.orientation, self.where).resolve(world)
+            return _lane_where(
+                world, rec.road_id, self.lane_id, s, self.lane_offset, self.orientation
+            )
+        except (MapError, OffRoadError) as exc:
+            raise self._error(exc) from None

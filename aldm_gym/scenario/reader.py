@@ -45,6 +45,8 @@ from aldm_gym.scenario.positions import (
     RelativeRoadPos,
     RelativeWorldPos,
     RoadPos,
+    RoutePos,
+    TrajectoryPos,
     WorldPos,
     lane_step,
 )
@@ -82,6 +84,9 @@ _NO_MEANING = {
     "SetMonitorAction": "monitors have no meaning on the env",
 }
 """Elements the player accepts and ignores, and why (one warning per kind and file)."""
+
+_SHAPES = ("Polyline", "Clothoid", "ClothoidSpline", "Nurbs")
+"""The trajectory shapes."""
 
 _NEVER = {
     "TimeOfDayCondition": "the env has no time of day: the condition never holds",
@@ -282,6 +287,8 @@ class _Reader:
         self.ignored: dict[str, tuple[int, str, list[int]]] = {}
         """Elements with no meaning here: tag -> (first line, why, lines)."""
         self.ignored_network: dict[str, str] = {}
+        self.el: Any = None
+        """The element a scoped reader reads (a trajectory)."""
 
     # ------------------------------------------------------------ attributes
     def where(self, el: Any, attr: str | None = None) -> str:
@@ -524,6 +531,8 @@ class _Reader:
                 "RelativeObjectPosition",
                 "RelativeRoadPosition",
                 "RelativeWorldPosition",
+                "TrajectoryPosition",
+                "RoutePosition",
             ),
         )
         where = self.where(p)
@@ -560,6 +569,13 @@ class _Reader:
             return RoadPos(
                 self.attr(p, "roadId"), self.num(p, "s"), self.num(p, "t"), orient, where
             )
+        if p.tag == "TrajectoryPosition":
+            self.kids(p, ("Orientation", "TrajectoryRef"))
+            traj = self._trajectory(self.child(p, "TrajectoryRef"))
+            shape = traj.shape(traj.one(traj.child(traj.el, "Shape"), _SHAPES))
+            return TrajectoryPos(shape, self.num(p, "s"), self.num(p, "t", 0.0), orient, where)
+        if p.tag == "RoutePosition":
+            return self._route_position(p, orient, where)
         if p.tag == "RelativeRoadPosition":
             self._entity_ref(p, "entityRef")
             return RelativeRoadPos(
@@ -990,25 +1006,8 @@ class _Reader:
         if initial < 0.0:
             raise self.error(body, f"initialDistanceOffset must be >= 0, got {initial:g}")
         ref = body.find("TrajectoryRef")
-        holder = ref if ref is not None else body
-        traj = holder.find("Trajectory")
-        r: _Reader = self
-        if traj is None:
-            catalog = holder.find("CatalogReference")
-            if catalog is None:
-                raise self.error(body, "missing <TrajectoryRef><Trajectory>")
-            traj, r = self.from_catalog(catalog)
-            if traj.tag != "Trajectory":
-                raise self.error(
-                    catalog, f"the catalog entry is a <{traj.tag}>, not a <Trajectory>"
-                )
-        r.kids(traj, ("ParameterDeclarations", "Shape"))
-        r = r.scoped(traj)
-        if r.flag(traj, "closed", False):
-            raise r.error(traj, "closed trajectories are not supported")
-        shape = r.shape(
-            r.one(r.child(traj, "Shape"), ("Polyline", "Clothoid", "ClothoidSpline", "Nurbs"))
-        )
+        r = self._trajectory(ref if ref is not None else body)
+        shape = r.shape(r.one(r.child(r.el, "Shape"), _SHAPES))
         timing: tuple[bool, float, float] | None = (False, 1.0, 0.0)
         timing_el = body.find("TimeReference/Timing")
         if timing_el is not None:
@@ -1029,6 +1028,66 @@ class _Reader:
         if initial and timing is not None and body.find("TimeReference/Timing") is not None:
             raise self.error(body, "initialDistanceOffset with timing is not supported")
         return lambda actor: A.FollowTrajectory(actor, where, shape, timing, initial)
+
+    def _trajectory(self, holder: Any) -> _Reader:
+        """A reader for the ``Trajectory`` that ``holder`` gives inline or from a
+        catalog (its ``el``), with the trajectory's own parameters."""
+        traj = holder.find("Trajectory")
+        r: _Reader = self
+        if traj is None:
+            catalog = holder.find("CatalogReference")
+            if catalog is None:
+                raise self.error(holder, "missing <Trajectory> (inline or a CatalogReference)")
+            traj, r = self.from_catalog(catalog)
+            if traj.tag != "Trajectory":
+                raise self.error(
+                    catalog, f"the catalog entry is a <{traj.tag}>, not a <Trajectory>"
+                )
+        r.kids(traj, ("ParameterDeclarations", "Shape"))
+        r = copy.copy(r.scoped(traj))
+        if r.flag(traj, "closed", False):
+            raise r.error(traj, "closed trajectories are not supported")
+        r.el = traj
+        return r
+
+    def _route_position(self, p: Any, orient: Orientation | None, where: str) -> Position:
+        """``RoutePosition``: a route and where on it."""
+        self.kids(p, ("RouteRef", "Orientation", "InRoutePosition"))
+        ref = self.child(p, "RouteRef")
+        route = ref.find("Route")
+        r: _Reader = self
+        if route is None:
+            catalog = ref.find("CatalogReference")
+            if catalog is None:
+                raise self.error(ref, "missing <Route> (inline or a CatalogReference)")
+            route, r = self.from_catalog(catalog)
+        r.kids(route, ("ParameterDeclarations", "Waypoint"))
+        r = r.scoped(route)
+        waypoints = tuple(r.position(r.child(wp, "Position")) for wp in route.findall("Waypoint"))
+        if not waypoints:
+            raise r.error(route, "a route needs waypoints")
+        at = self.one(
+            self.child(p, "InRoutePosition"),
+            ("FromCurrentEntity", "FromRoadCoordinates", "FromLaneCoordinates"),
+        )
+        if at.tag == "FromCurrentEntity":
+            entity = self._entity_ref(at, "entityRef")
+            return RoutePos(waypoints, "entity", entity=entity, orientation=orient, where=where)
+        path_s = self.num(at, "pathS")
+        if path_s < 0:
+            raise self.error(at, f"pathS must be >= 0, got {path_s:g}")
+        if at.tag == "FromRoadCoordinates":
+            t = self.num(at, "t")
+            return RoutePos(waypoints, "road", path_s=path_s, t=t, orientation=orient, where=where)
+        return RoutePos(
+            waypoints,
+            "lane",
+            path_s=path_s,
+            lane_id=self.integer(at, "laneId"),
+            lane_offset=self.num(at, "laneOffset", 0.0),
+            orientation=orient,
+            where=where,
+        )
 
     def shape(self, el: Any) -> S.Shape:
         """A trajectory's ``Shape`` child."""

@@ -433,6 +433,27 @@ def turned_round_and_braking_in_a_lane_change(folder: Path) -> Path:
     return path
 
 
+def trajectory_and_route_positions(folder: Path) -> Path:
+    """Teleports to a ``TrajectoryPosition`` (30 m along a polyline, 0.5 m to its
+    left) and to a ``RoutePosition`` (100 m along a route, on another lane)."""
+    poly = xosc.Polyline([], [xosc.WorldPosition(100.0, -1.75), xosc.WorldPosition(200.0, -5.25)])
+    traj = xosc.Trajectory("path", False)
+    traj.add_shape(poly)
+    jump = xosc.TeleportAction(xosc.TrajectoryPosition(traj, 30.0, 0.5))
+    route = xosc.Route("route")
+    route.add_waypoint(xosc.LanePosition(60.0, 0, -2, 0), xosc.RouteStrategy.shortest)
+    route.add_waypoint(xosc.LanePosition(900.0, 0, -2, 0), xosc.RouteStrategy.shortest)
+    hop = xosc.TeleportAction(xosc.RoutePositionInLaneCoordinates(route, 100.0, -3, 0.5))
+    return write(
+        folder,
+        [
+            ("Target", [_event("jump", jump, at_time(1.0))]),
+            ("Ego", [_event("hop", hop, at_time(2.0))]),
+        ],
+        name="trajectory_route_positions.xosc",
+    )
+
+
 CORPUS: dict[str, Callable[[Path], Path]] = {
     f.__name__: f
     for f in (
@@ -453,6 +474,7 @@ CORPUS: dict[str, Callable[[Path], Path]] = {
         state_conditions,
         synchronize,
         turned_round_and_braking_in_a_lane_change,
+        trajectory_and_route_positions,
     )
 }
 """The corpus by name."""
