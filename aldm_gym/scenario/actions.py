@@ -829,6 +829,11 @@ class LaneChange(Instance):
     speed_along_heading = True
     """The entity's speed is along its heading: the lateral motion takes its share."""
 
+    @property
+    def jumps(self) -> bool:
+        """Whether the change is a jump (a step shape: no duration)."""
+        return getattr(self, "T", 1.0) <= 0.0
+
     def __init__(
         self,
         entity: Entity | None,
@@ -900,6 +905,11 @@ class LateralDistance(Instance):
     slot = "lateral"
     domains = ("lateral",)
 
+    @property
+    def jumps(self) -> bool:
+        """Whether the actor is put at the distance (no dynamics): a jump."""
+        return self.limits is None
+
     def __init__(
         self,
         entity: Entity | None,
@@ -964,6 +974,11 @@ class LaneOffset(Instance):
 
     slot = "lateral"
     domains = ("lateral",)
+
+    @property
+    def jumps(self) -> bool:
+        """Whether the change is a jump (a step shape: no duration)."""
+        return getattr(self, "T", 1.0) <= 0.0
 
     def __init__(
         self,

@@ -14,7 +14,8 @@ element (story, act, maneuver group, maneuver, event, action) is in one of three
 - A maneuver's events start when their start triggers fire, by ``priority``:
   ``overwrite`` (``override`` since 1.2) stops the maneuver's other running events,
   ``skip`` does not start while another event of the maneuver runs (a skip transition
-  that counts as an execution), ``parallel`` starts regardless. An event runs its
+  that leaves it in standby: it starts once its trigger fires with none running),
+  ``parallel`` starts regardless. An event runs its
   actions (on every actor of its maneuver group) and ends when they all have; it can
   start again up to its ``maximumExecutionCount`` (default 1). A maneuver is complete
   when all its events are.
@@ -362,9 +363,9 @@ class Storyboard:
                 continue
             running = [e for e in maneuver.events if e is not event and e.state == "runningState"]
             if event.priority == "skip" and running:
-                event.runs += 1
-                done = event.runs >= event.maximum
-                event._move("skipTransition", "completeState" if done else "standbyState", tick)
+                # skipped: it stays in standby (the standard's skipTransition) and starts
+                # when its trigger fires with no other event running (as esmini)
+                event._move("skipTransition", "standbyState", tick)
                 continue
             if event.priority == "overwrite":
                 for other in running:

@@ -442,15 +442,21 @@ class World:
         lateral_speed = 0.0
         t_before = entity.t
         entity.last_lateral = entity.lateral
+        jumped = False
         if entity.lateral is not None:
             entity.t = float(entity.lateral.offset_after(self, entity, dt))
             lateral_speed = (entity.t - t_before) / dt if dt > 0 else 0.0
+            # a step-shaped (or rigid) lateral change is a jump, not a motion: it takes
+            # no travel and turns no heading (as esmini)
+            jumped = bool(getattr(entity.last_lateral, "jumps", False))
+            if jumped:
+                lateral_speed = 0.0
         # A lane change keeps the speed along the heading: its lateral motion takes
         # its share; a lane offset moves sideways on top of the speed (as esmini plays
         # both). The rest moves the entity along its own path (parallel to the lane's
         # centre at its offset), which in a curve is longer or shorter than the centre's.
         step = abs(travel_speed) * dt
-        lateral = entity.t - t_before
+        lateral = 0.0 if jumped else entity.t - t_before
         along = step
         if getattr(entity.last_lateral, "speed_along_heading", False):
             along = math.sqrt(step * step - lateral * lateral) if abs(lateral) < step else 0.0

@@ -454,6 +454,86 @@ def trajectory_and_route_positions(folder: Path) -> Path:
     )
 
 
+def speed_shapes_and_priorities(folder: Path) -> Path:
+    """Speed changes of every shape and dimension, and event priorities: a cubic by
+    rate, a step skipped while it runs, a sinusoid by time in parallel once the target
+    has travelled 60 m, a linear by distance overriding it when the target is 2 m/s
+    faster than the ego."""
+    cubic = xosc.TransitionDynamics(xosc.DynamicsShapes.cubic, xosc.DynamicsDimension.rate, 2.0)
+    sine = xosc.TransitionDynamics(xosc.DynamicsShapes.sinusoidal, xosc.DynamicsDimension.time, 2.0)
+    by_distance = xosc.TransitionDynamics(
+        xosc.DynamicsShapes.linear, xosc.DynamicsDimension.distance, 40.0
+    )
+    first = _event("cubic", xosc.AbsoluteSpeedAction(25.0, cubic), at_time(1.0))
+    skipped = _event("skipped", step_speed(5.0), at_time(1.5), xosc.Priority.skip)
+    travelled = _entity_trigger("travelled", xosc.TraveledDistanceCondition(60.0), "Target")
+    sinus = _event("sinus", xosc.AbsoluteSpeedAction(15.0, sine), travelled, xosc.Priority.parallel)
+    faster = _entity_trigger(
+        "faster", xosc.RelativeSpeedCondition(2.0, xosc.Rule.greaterThan, "Ego"), "Target"
+    )
+    last = _event("distance", xosc.AbsoluteSpeedAction(20.0, by_distance), faster)
+    return write(
+        folder,
+        [("Target", [first, skipped, sinus, last])],
+        stop=12.0,
+        name="speed_shapes.xosc",
+    )
+
+
+def reach_headway_and_route(folder: Path) -> Path:
+    """The ego shifts in its lane when it comes within 2 m of a world position
+    (``DistanceCondition``, euclidean, between reference points); the target speeds
+    up once its time headway to the ego (entity coordinates, longitudinal, freespace)
+    falls below 2.5 s; the target's route along its lane is assigned; a teleport to a
+    position relative to the ego (RelativeObjectPosition) and one to a RoadPosition."""
+    reach = _entity_trigger(
+        "reach",
+        xosc.DistanceCondition(
+            2.0, xosc.Rule.lessThan, xosc.WorldPosition(150.0, -5.25), False, False
+        ),
+    )
+    shift = xosc.AbsoluteLaneOffsetAction(0.6, xosc.DynamicsShapes.step, 1.0)
+    headway = _entity_trigger(
+        "close",
+        xosc.TimeHeadwayCondition(
+            "Target",
+            2.5,
+            xosc.Rule.lessThan,
+            alongroute=False,
+            freespace=True,
+            distance_type=xosc.RelativeDistanceType.longitudinal,
+            coordinate_system=xosc.CoordinateSystem.entity,
+        ),
+    )
+    route = xosc.Route("along")
+    route.add_waypoint(xosc.LanePosition(60.0, 0, -1, 0), xosc.RouteStrategy.shortest)
+    route.add_waypoint(xosc.LanePosition(600.0, 0, -1, 0), xosc.RouteStrategy.shortest)
+    dyn = xosc.TransitionDynamics(xosc.DynamicsShapes.linear, xosc.DynamicsDimension.rate, 3.0)
+    beside = xosc.TeleportAction(xosc.RelativeObjectPosition("Ego", 12.0, 3.5))
+    on_road = xosc.TeleportAction(xosc.RoadPosition(400.0, -8.75, 0))
+    return write(
+        folder,
+        [
+            ("Ego", [_event("shift", shift, reach)]),
+            (
+                "Target",
+                [
+                    _event("route", xosc.AssignRouteAction(route), at_time(0.2)),
+                    _event("away", xosc.AbsoluteSpeedAction(12.0, dyn), at_time(0.5),
+                           xosc.Priority.parallel),
+                    _event("speed_up", xosc.AbsoluteSpeedAction(30.0, dyn), headway,
+                           xosc.Priority.parallel),
+                    _event("beside", beside, at_time(6.0), xosc.Priority.parallel),
+                    _event("on_road", on_road, at_time(8.0), xosc.Priority.parallel),
+                ],
+            ),
+        ],
+        target=(1, 30.0, 20.0),
+        stop=10.0,
+        name="reach_headway_route.xosc",
+    )  # fmt: skip
+
+
 CORPUS: dict[str, Callable[[Path], Path]] = {
     f.__name__: f
     for f in (
@@ -475,6 +555,8 @@ CORPUS: dict[str, Callable[[Path], Path]] = {
         synchronize,
         turned_round_and_braking_in_a_lane_change,
         trajectory_and_route_positions,
+        speed_shapes_and_priorities,
+        reach_headway_and_route,
     )
 }
 """The corpus by name."""
