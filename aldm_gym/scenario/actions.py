@@ -42,7 +42,7 @@ from typing import Any
 
 import numpy as np
 
-from aldm_gym.errors import MapError, ScenarioError
+from aldm_gym.errors import MapError, OffRoadError, ScenarioError
 from aldm_gym.scenario.positions import Position, Where
 from aldm_gym.scenario.shapes import Shape
 from aldm_gym.scenario.world import Entity, World, wrap_angle
@@ -214,17 +214,27 @@ class StoreChange(Instance):
     were resolved when the file was read, as in esmini)."""
 
     def __init__(
-        self, entity: Entity | None, where: str, store: str, name: str, op: str, value: Any
+        self,
+        entity: Entity | None,
+        where: str,
+        store: str,
+        name: str,
+        op: str,
+        value: Any,
+        initial: Any = None,
     ) -> None:
         """``store``: ``parameters`` or ``variables``; ``op``: ``set`` (``value`` the
-        attribute's text), ``add`` or ``multiply`` (``value`` a number)."""
+        attribute's text), ``add`` or ``multiply`` (``value`` a number); ``initial``:
+        the value where the run's store does not hold the name yet (a parameter a
+        story or a maneuver declares)."""
         super().__init__(entity, where)
         self.store, self.name, self.op, self.value = store, name, op, value
+        self.initial = initial
 
     def start(self, runner: Any) -> None:
         """Change the value in the runner's store."""
         values = getattr(runner, self.store)
-        current = values[self.name]
+        current = values.get(self.name, self.initial)
         if self.op == "set":
             values[self.name] = _like(current, str(self.value), self.where)
         else:
@@ -272,7 +282,7 @@ class Teleport(Instance):
     def start(self, runner: Any) -> None:
         """Place the actor: in ``Init`` at once; from the storyboard at the next step
         (the position resolved now, as esmini, which places it in the frame's action
-        step after the triggers), from where it moves on in that step."""
+        step after the triggers), which it does not move on in."""
         entity = self._scripted(runner)
         where = self.position.resolve(runner.world)
         if runner.world.running:
@@ -347,7 +357,8 @@ class SpeedChange(Instance):
             self.v1 = float(self.target(world))
         self.elapsed += dt
         if self.dynamics.dimension == "rate" and self.dynamics.shape == "linear":
-            step = min(abs(self.dynamics.value), self.limit) * dt
+            limit = entity.max_acceleration if self.v1 > entity.speed else entity.max_deceleration
+            step = min(abs(self.dynamics.value), limit) * dt
             v = entity.speed
             v = min(v + step, self.v1) if v < self.v1 else max(v - step, self.v1)
             if abs(v - self.v1) < SPEED_EPS:
@@ -542,6 +553,8 @@ class Synchronize(Instance):
         entity = self.entity
         assert entity is not None
         self.next_speed: float | None = self._step(world, entity, dt)
+        if self.done:  # it ended: the speed it ends with is the entity's from now on
+            entity.speed, self.next_speed = float(self.next_speed), None
 
     def speed_after(self, world: World, entity: Entity, dt: float) -> float:
         """The speed [m/s] after ``dt`` [s]."""
@@ -602,7 +615,7 @@ class Synchronize(Instance):
                 return 0.0
             return v
         if self.mode == "stopped":
-            if time_to_go < 2.0 * dist / final:
+            if final <= 0.0 or time_to_go < 2.0 * dist / final:
                 self.mode = "linear"
             else:
                 return 0.0
@@ -697,7 +710,7 @@ class LongitudinalDistance(Instance):
         entity = self.entity
         assert entity is not None
         v_ref = ref.speed if ref.scripted else ref.velocity
-        # a time gap is at the follower's speed: the actor's when it trails
+        # a time gap is at the referenced entity's speed (esmini's choice)
         v_follower = v_ref
         d = self.distance if self.distance is not None else (self.time_gap or 0.0) * v_follower
         if self.freespace:
@@ -735,8 +748,8 @@ class LongitudinalDistance(Instance):
             self.leading = self._now(runner.world) >= 0.0
         self.acceleration = 0.0
         _override(entity, "longitudinal", self)
-        if self.rigid and not runner.world.running:
-            self.settle(runner.world)  # in Init: the actor starts there
+        if self.rigid and not runner.world.running and runner.world.entities[self.ref].placed:
+            self.settle(runner.world)  # in Init: the actor starts there (else: first step)
 
     def settle(self, world: World) -> None:
         """After every entity moved in a step: put the actor at the distance from where
@@ -767,7 +780,7 @@ class LongitudinalDistance(Instance):
                 if abs(error) < 1e-6:
                     break
                 world.place(entity, entity.lane, entity.u - error, entity.t, entity.heading_offset)
-        except MapError as exc:
+        except (MapError, OffRoadError) as exc:
             raise ScenarioError(
                 f"{self.where}: the distance puts the actor off the map: {exc}"
             ) from None
@@ -779,6 +792,8 @@ class LongitudinalDistance(Instance):
         entity = self.entity
         assert entity is not None
         self.next_speed: float | None = self._spring(world, entity, dt)
+        if self.done:  # it ended: the speed it ends with is the entity's from now on
+            entity.speed, self.next_speed = float(self.next_speed), None
 
     def speed_after(self, world: World, entity: Entity, dt: float) -> float:
         """The speed [m/s] after ``dt`` [s]: a rigid action keeps it (:meth:`settle`

@@ -138,13 +138,19 @@ _PATH_ATTRIBUTES = (
 )
 
 
-def scripted_copy(xosc: str | Path, folder: str | Path, max_time: float = 600.0) -> Path:
+def scripted_copy(
+    xosc: str | Path,
+    folder: str | Path,
+    max_time: float = 600.0,
+    parameters: Mapping[str, Any] | None = None,
+) -> Path:
     """A copy of ``xosc`` in ``folder`` with every ``ActivateControllerAction`` taken
     out (an event, maneuver left empty goes too), so that every entity follows its
     actions in both players, and a stop at ``max_time`` [s] added to the storyboard's
     stop trigger (esmini runs a file without one for ever). Relative map and catalog
     paths are made absolute, and the original folder's entries are linked into
-    ``folder`` for paths that parameters give.
+    ``folder`` for paths that parameters give. ``parameters`` override the file's
+    declarations (written into the copy, so that both players play them).
 
     :raises ScenarioError: the file is not XML.
     """
@@ -158,7 +164,7 @@ def scripted_copy(xosc: str | Path, folder: str | Path, max_time: float = 600.0)
             value = el.get(attr)
             if value and "$" not in value and not Path(value).is_absolute():
                 el.set(attr, str((base / value).resolve()))
-    _resolve_expressions(source, root)
+    _resolve_expressions(source, root, parameters or {})
     for activate in list(root.iter("ActivateControllerAction")):
         holder = activate.getparent()  # ControllerAction
         # up to the PrivateAction (Init, or inside an Action)
@@ -179,7 +185,7 @@ def scripted_copy(xosc: str | Path, folder: str | Path, max_time: float = 600.0)
     return out
 
 
-def _resolve_expressions(source: Path, root: Any) -> None:
+def _resolve_expressions(source: Path, root: Any, overrides: Mapping[str, Any]) -> None:
     """Write every ``${...}`` of the file's top-level scope as the double it evaluates
     to (17 significant digits). esmini 3.6 keeps an expression's result as text with 6
     decimals (C++ ``std::to_string``): 60 / 3.6 becomes 16.666667, and a scenario that
@@ -188,10 +194,10 @@ def _resolve_expressions(source: Path, root: Any) -> None:
     from aldm_gym.scenario.parameters import bind, declarations_from_xml, format_value, resolve
 
     top = root.find("ParameterDeclarations")
-    values = bind(declarations_from_xml(top), {}, source.name)
+    values = bind(declarations_from_xml(top), dict(overrides), source.name)
     for decl in top if top is not None else ():
         if isinstance(decl.tag, str) and decl.get("name") in values:
-            if "${" in (decl.get("value") or ""):
+            if "${" in (decl.get("value") or "") or decl.get("name") in overrides:
                 decl.set("value", format_value(values[decl.get("name")]))
     for el in root.iter():
         if not isinstance(el.tag, str) or el.tag == "ParameterDeclaration":
@@ -425,11 +431,11 @@ def agreement(
     parameters: Mapping[str, Any] | None = None,
     max_time: float = 600.0,
 ) -> Agreement:
-    """Play the scripted copy of ``xosc`` (:func:`scripted_copy`, stopped at
-    ``max_time`` [s] at the latest) in esmini and in the player and compare them
-    (:func:`compare`)."""
+    """Play the scripted copy of ``xosc`` (:func:`scripted_copy`, with ``parameters``,
+    stopped at ``max_time`` [s] at the latest) in esmini and in the player and compare
+    them (:func:`compare`)."""
     with tempfile.TemporaryDirectory() as tmp:
-        copy = scripted_copy(xosc, tmp, max_time)
+        copy = scripted_copy(xosc, tmp, max_time, parameters)
         ref = esmini_trace(copy, binary, step, tmp)
-        ours = player_trace(copy, step, max_time=float(ref.times[-1]) + step, parameters=parameters)
+        ours = player_trace(copy, step, max_time=float(ref.times[-1]) + step)
     return compare(ref, ours, step)

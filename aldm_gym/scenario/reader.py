@@ -514,6 +514,12 @@ class _Reader:
                 self.num(perf, "maxAcceleration"),
                 self.num(perf, "maxDeceleration"),
             )
+            if limits[0] < 0 or limits[1] <= 0 or limits[2] <= 0:
+                raise self.error(
+                    perf,
+                    "maxSpeed must be >= 0 and maxAcceleration, maxDeceleration > 0, got "
+                    f"{limits[0]:g}, {limits[1]:g}, {limits[2]:g}",
+                )
         else:
             limits = (math.inf, math.inf, math.inf)
         return EntitySpec(name, kind, category, box, *limits, controlled=controlled, where=where)
@@ -717,13 +723,14 @@ class _Reader:
             )
         op = self.one(body, ("SetAction", "ModifyAction"))
         where = self.where(body)
+        initial = known[name]
         if op.tag == "SetAction":
             value = self.attr(op, "value")
-            return lambda actor: A.StoreChange(actor, where, store, name, "set", value)
+            return lambda actor: A.StoreChange(actor, where, store, name, "set", value, initial)
         rule = self.one(self.child(op, "Rule"), ("AddValue", "MultiplyByValue"))
         amount = self.num(rule, "value")
         kind = "add" if rule.tag == "AddValue" else "multiply"
-        return lambda actor: A.StoreChange(actor, where, store, name, kind, amount)
+        return lambda actor: A.StoreChange(actor, where, store, name, kind, amount, initial)
 
     def other(self, el: Any) -> Callable[[Entity | None], A.Instance]:
         """A ``GlobalAction`` or ``UserDefinedAction``: those with no meaning on the
@@ -1298,7 +1305,8 @@ class _Reader:
                     c, f"{ref_attr}={name!r} is not declared; declared: {sorted(known)}"
                 )
             given, rule = self.attr(c, "value"), self._rule(c)
-            return lambda runner: _compare(rule, getattr(runner, store)[name], given)
+            initial = known[name]
+            return lambda runner: _compare(rule, getattr(runner, store).get(name, initial), given)
         if c.tag in _NEVER:
             self.ignore(c, _NEVER[c.tag])
             return lambda runner: False

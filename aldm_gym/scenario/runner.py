@@ -174,9 +174,9 @@ class ScenarioRunner:
             motion = getattr(ego, domain)
             if motion is not None:
                 motion.stop()
-            trajectory = ego.trajectory
-            if trajectory is not None and (trajectory.timed or domain == "lateral"):
-                trajectory.stop()
+            # a trajectory moves the scripted ego only: it ends with either domain
+            if ego.trajectory is not None:
+                ego.trajectory.stop()
         if wanted and not before:
             self.activated_at = self.world.time
             if self.on_activate is not None:

@@ -234,9 +234,9 @@ class Nurbs(Shape):
             raise ScenarioError(f"{self.where}: the knots leave no span to evaluate")
         # sample finely enough: the control polygon's length bounds the curve's
         polygon = float(np.hypot(*np.diff(points, axis=0).T).sum())
-        u = np.linspace(lo, hi, max(math.ceil(polygon / SAMPLE) * 4 + 1, 2 * n + 1))
-        if u.size > MAX_POINTS:
+        if not math.isfinite(polygon) or polygon / SAMPLE * 4 > MAX_POINTS:
             raise ScenarioError(f"{self.where}: the curve is longer than the player samples")
+        u = np.linspace(lo, hi, max(math.ceil(polygon / SAMPLE) * 4 + 1, 2 * n + 1))
         values = spline(u)
         curve = values[:, :2] / values[:, 2:3]
         out_times = values[:, 3] / values[:, 2] if timed else None

@@ -39,6 +39,8 @@ from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
+from aldm_gym.errors import OffRoadError
+
 __all__ = [
     "STATES",
     "TRANSITIONS",
@@ -82,6 +84,8 @@ class Element:
         """The storyboard update (1 at time 0) of each of :attr:`transitions`."""
         self.visible: list[int] = []
         """The first update whose conditions see each of :attr:`transitions`."""
+        self.state_log: list[tuple[int, str]] = []
+        """(first update that sees it, state) of every state change, in order."""
         self.runs = 0
 
     def _move(self, transition: str, state: str, tick: int, later: bool = False) -> None:
@@ -90,16 +94,24 @@ class Element:
         self.transitions.append(transition)
         self.ticks.append(tick)
         self.visible.append(tick + 1 if later else tick)
+        self.state_log.append((tick + 1 if later else tick, state))
+
+    def _set_state(self, state: str, tick: int, later: bool = False) -> None:
+        """A state change without a transition (a reset for a next execution)."""
+        self.state = state
+        self.state_log.append((tick + 1 if later else tick, state))
 
     def shows(self, state: str, since: int, tick: int) -> tuple[bool, int]:
-        """Whether the element is in ``state`` now (a state), or made ``state`` (a
-        transition) after the first ``since`` of its transitions that update ``tick``
-        sees; and the cursor past the transitions seen."""
+        """Whether the element is in ``state`` (a state: after the last transition
+        update ``tick`` sees), or made ``state`` (a transition) after the first
+        ``since`` of its transitions that update ``tick`` sees; and the cursor past the
+        transitions seen."""
         upto = since
         while upto < len(self.transitions) and self.visible[upto] <= tick:
             upto += 1
         if state in STATES:
-            return self.state == state, upto
+            seen = [s for v, s in self.state_log if v <= tick]
+            return (seen[-1] if seen else "standbyState") == state, upto
         return state in self.transitions[since:upto], upto
 
 
@@ -120,7 +132,10 @@ class Condition:
 
     def value(self, runner: Any, time: float) -> bool:
         """The condition's value at ``time`` [s] (edge and delay applied)."""
-        now = bool(self.evaluate(runner))
+        try:
+            now = bool(self.evaluate(runner))
+        except OffRoadError:  # an entity on no lane (the function drove it off): false
+            now = False
         before, self._previous = self._previous, now
         if self.edge == "none":
             edged = now
@@ -346,7 +361,7 @@ class Storyboard:
                 if group.runs < group.maximum:
                     group.runs += 1
                     for m in group.maneuvers:
-                        self._reset(m)
+                        self._reset(m, tick)
                 else:
                     group._move("endTransition", "completeState", tick)
         if all(g.state == "completeState" for g in act.groups):
@@ -397,7 +412,7 @@ class Storyboard:
             if event.runs < event.maximum:
                 event._move("endTransition", "standbyState", tick, later)
                 for a in event.actions:
-                    a.state = "standbyState"
+                    a._set_state("standbyState", tick, later)
             else:
                 event._move("endTransition", "completeState", tick, later)
 
@@ -411,12 +426,12 @@ class Storyboard:
                 instance.stop()
         element._move("stopTransition", "completeState", tick)
 
-    def _reset(self, element: Element) -> None:
+    def _reset(self, element: Element, tick: int) -> None:
         """Back to standby for a maneuver group's next execution."""
-        element.state = "standbyState"
+        element._set_state("standbyState", tick)
         element.runs = 0
         for child in _children(element):
-            self._reset(child)
+            self._reset(child, tick)
 
 
 def _children(element: Element) -> list[Element]:

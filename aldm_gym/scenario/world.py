@@ -508,9 +508,9 @@ class World:
         gaps where every entity is now."""
         for entity in self.entities.values():
             motion = entity.longitudinal
-            if entity.scripted and hasattr(motion, "prepare"):
-                if not getattr(motion, "rigid", False):
-                    motion.prepare(self, dt)
+            own = "longitudinal" not in entity.controlled  # the storyboard's speed
+            if own and hasattr(motion, "prepare") and not getattr(motion, "rigid", False):
+                motion.prepare(self, dt)
 
     def _along_chain(self, entity: Entity, key: LaneKey, u: float) -> tuple[LaneKey, float]:
         """``(lane, u)`` of arc length ``u`` [m] from the start of lane ``key``, on along
@@ -541,7 +541,8 @@ class World:
         actors from where their referenced entities are now."""
         for entity in self.entities.values():
             motion = entity.longitudinal
-            if entity.scripted and getattr(motion, "rigid", False):
+            own = "longitudinal" not in entity.controlled  # the storyboard's speed
+            if own and entity.placed and getattr(motion, "rigid", False):
                 motion.settle(self)
 
     def follow_lateral(self, entity: Entity, dt: float) -> None:
@@ -601,5 +602,5 @@ class World:
 
 
 def wrap_angle(angle: float) -> float:
-    """An angle in (-pi, pi] [rad]."""
+    """An angle in [-pi, pi) [rad]."""
     return (angle + math.pi) % (2.0 * math.pi) - math.pi

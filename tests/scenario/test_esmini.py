@@ -111,3 +111,18 @@ def test_scripted_copy_writes_expressions_as_their_doubles(tmp_path: Path) -> No
     root = etree.parse(str(scripted_copy(path, out))).getroot()
     speeds = [e.get("value") for e in root.iter("AbsoluteTargetSpeed")]
     assert repr(60 / 3.6) in speeds
+
+
+def test_scripted_copy_writes_the_parameters_given(tmp_path: Path) -> None:
+    from scenariogeneration import xosc
+
+    from tests.scenario._build import write
+
+    params = xosc.ParameterDeclarations()
+    params.add_parameter(xosc.Parameter("v", xosc.ParameterType.double, "60"))
+    path = write(tmp_path, parameters=params, ego_speed="${$v / 3.6}")  # type: ignore[arg-type]
+    out = tmp_path / "out"
+    out.mkdir()
+    root = etree.parse(str(scripted_copy(path, out, parameters={"v": 36.0}))).getroot()
+    assert root.find("ParameterDeclarations/ParameterDeclaration").get("value") == "36.0"
+    assert repr(36.0 / 3.6) in [e.get("value") for e in root.iter("AbsoluteTargetSpeed")]

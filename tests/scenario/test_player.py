@@ -336,6 +336,37 @@ def test_a_run_the_function_never_drove_is_not_judged(
     assert "NOT JUDGED" in out and "PASS" not in out
 
 
+@pytest.mark.parametrize(
+    "performance", ['maxSpeed="-1.0"', 'maxAcceleration="0"', 'maxDeceleration="-3"']
+)
+def test_impossible_performance_limits_are_refused(tmp_path: Path, performance: str) -> None:
+    name = performance.split("=")[0]
+    path = write(tmp_path)
+    text = path.read_text()
+    start = text.index("<Performance ")
+    end = text.index("/>", start)
+    attrs = {a.split("=")[0]: a for a in text[start + 13 : end].split()}
+    attrs[name] = performance
+    path.write_text(text[:start] + "<Performance " + " ".join(attrs.values()) + text[end:])
+    with pytest.raises(ScenarioError, match="maxSpeed must be >= 0"):
+        read_scenario(path)
+
+
+def test_synchronizing_to_a_stop_arrives_without_error(tmp_path: Path) -> None:
+    sync = xosc.SynchronizeAction(
+        "Ego",
+        xosc.LanePosition(300.0, 0, -2, 0),
+        xosc.LanePosition(250.0, 0, -1, 0),
+        1.0,
+        1.0,
+        xosc.AbsoluteSpeed(0.0),
+    )
+    path = write(tmp_path, [("Target", [_event("sync", sync, at_time(0.5))])], stop=14.0)
+    _, rec = play(path, 14.0)
+    assert rec[-1]["Target"][3] == pytest.approx(0.0, abs=1e-6)
+    assert rec[-1]["Target"][1] == pytest.approx(250.0, abs=2.0)
+
+
 def test_same_seed_same_run(tmp_path: Path) -> None:
     dyn = xosc.TransitionDynamics(xosc.DynamicsShapes.cubic, xosc.DynamicsDimension.rate, 1.0)
     ev = _event("change", xosc.AbsoluteLaneChangeAction(-2, dyn), at_time(1.0))
