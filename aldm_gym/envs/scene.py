@@ -269,7 +269,8 @@ class ScenarioScene(MapScene):
         from aldm_gym.scenario import ScenarioRunner
 
         self.runner = ScenarioRunner(self.scenario, self.map, self.ego_name)
-        return self.runner.populate(traffic, make_ego)
+        dt = 1.0 / float(self.settings.simulation_frequency)
+        return self.runner.populate(traffic, make_ego, dt)
 
 
 def make_scene(settings: EnvConfig, map_road: OpenDriveRoad | None, scenario: Any = None) -> Scene:

@@ -348,7 +348,7 @@ def player_trace(
         ego = scenario.entities[0].name
     runner = ScenarioRunner(scenario, road, ego)
     traffic = Road(network=road.network, vehicles=[])
-    runner.populate(traffic, lambda tr, pos, h, v: ScenarioVehicle(tr, pos, h, v))
+    runner.populate(traffic, lambda tr, pos, h, v: ScenarioVehicle(tr, pos, h, v), step)
     if runner.active:
         raise ScenarioError(f"{Path(xosc).name}: the ego is handed to a function in Init")
     names = list(runner.world.entities)

@@ -85,9 +85,16 @@ class ScenarioRunner:
         """Whether the storyboard's stop trigger has fired."""
         return self.storyboard.finished
 
-    def populate(self, traffic: Any, make_ego: Callable[[Any, Any, float, float], Any]) -> Any:
+    def populate(
+        self,
+        traffic: Any,
+        make_ego: Callable[[Any, Any, float, float], Any],
+        dt: float | None = None,
+    ) -> Any:
         """Make every entity's vehicle on ``traffic`` (the ego with ``make_ego``), play
-        ``Init`` at time 0, and start the storyboard; return the ego's vehicle.
+        ``Init`` at time 0, and start the storyboard; return the ego's vehicle. ``dt``
+        [s]: the simulation step, to prepare the first one (the actions that measure
+        where every entity begins a step).
 
         :raises ScenarioError: an entity that ``Init`` does not place.
         """
@@ -123,6 +130,8 @@ class ScenarioRunner:
         self.world.track(0.0)
         self.world.running = True
         self.storyboard.update(self, 0.0)
+        if dt is not None:
+            self.world.prepare(dt)
         self.world.ego_due()
         return ego
 
