@@ -42,7 +42,7 @@ from typing import Any
 
 import numpy as np
 
-from aldm_gym.errors import MapError, OffRoadError, ScenarioError
+from aldm_gym.errors import InputError, MapError, OffRoadError, ScenarioError
 from aldm_gym.scenario.positions import Position, Where
 from aldm_gym.scenario.shapes import Shape
 from aldm_gym.scenario.world import Entity, World, wrap_angle
@@ -156,6 +156,11 @@ class Instance:
         if self.slot is not None and self.entity is not None:
             if getattr(self.entity, self.slot) is self:
                 setattr(self.entity, self.slot, None)
+
+    def _complete(self) -> None:
+        """End now, having done what it does (its motion leaves the entity)."""
+        self.done = True
+        self._release()
 
     domains: tuple[str, ...] = ("lateral", "longitudinal")
     """The domains the action drives; none of them may be the function's."""
@@ -338,11 +343,11 @@ class SpeedChange(Instance):
             else self.dynamics.duration(change, 0.5 * (self.v0 + self.v1))
         )
         # the entity's Performance limits stretch a change that would need more (esmini)
-        self.limit = entity.max_acceleration if change > 0 else entity.max_deceleration
+        limit = entity.acceleration_limit(change > 0)
         if self.T > 0.0 and math.isfinite(self.T) and self.dynamics.shape != "step":
             peak = _PEAK[self.dynamics.shape] * abs(change) / self.T
-            if peak > self.limit:
-                self.T = _PEAK[self.dynamics.shape] * abs(change) / self.limit
+            if peak > limit:
+                self.T = _PEAK[self.dynamics.shape] * abs(change) / limit
         if self.T <= 0.0:
             entity.speed = self.v1
             if not self.continuous:
@@ -357,14 +362,14 @@ class SpeedChange(Instance):
             self.v1 = float(self.target(world))
         self.elapsed += dt
         if self.dynamics.dimension == "rate" and self.dynamics.shape == "linear":
-            limit = entity.max_acceleration if self.v1 > entity.speed else entity.max_deceleration
+            limit = entity.acceleration_limit(self.v1 > entity.speed)
             step = min(abs(self.dynamics.value), limit) * dt
             v = entity.speed
             v = min(v + step, self.v1) if v < self.v1 else max(v - step, self.v1)
             if abs(v - self.v1) < SPEED_EPS:
                 v = self.v1
             if v == self.v1 and not self.continuous:
-                self._finish(entity)
+                self._complete()
             return v
         if self.T <= 0.0 or not math.isfinite(self.T):
             if self.T > 0.0:
@@ -379,13 +384,8 @@ class SpeedChange(Instance):
         if x >= 1.0:
             v = self.v1
             if not self.continuous:
-                self._finish(entity)
+                self._complete()
         return v
-
-    def _finish(self, entity: Entity) -> None:
-        self.done = True
-        if entity.longitudinal is self:
-            entity.longitudinal = None
 
 
 class SpeedProfile(Instance):
@@ -431,11 +431,10 @@ class SpeedProfile(Instance):
         speed, time = self.entries[self.index]
         if self.ref is not None:
             other = world.entities[self.ref]
-            speed += other.speed if other.scripted else other.velocity
+            speed += other.current_speed
         self.v0, self.v1, self.elapsed = entity.speed, speed, 0.0
-        acc = min(self.limits[0], entity.max_acceleration)
-        dec = min(self.limits[1], entity.max_deceleration)
-        limit = acc if self.v1 > self.v0 else dec
+        rising = self.v1 > self.v0
+        limit = min(self.limits[0 if rising else 1], entity.acceleration_limit(rising))
         fastest = abs(self.v1 - self.v0) / limit if math.isfinite(limit) else 0.0
         # an entry's time is stretched where it would need more than the limits (esmini)
         self.T = fastest if time is None else max(time, fastest)
@@ -450,11 +449,38 @@ class SpeedProfile(Instance):
             if self.index < len(self.entries):
                 self.elapsed = left
         if self.index >= len(self.entries):
-            self.done = True
-            if entity.longitudinal is self:
-                entity.longitudinal = None
+            self._complete()
             return entity.speed
         return self.v0 + (self.v1 - self.v0) * self.elapsed / self.T
+
+
+class _Measured(Instance):
+    """A longitudinal action that measures where every entity begins a step: the
+    world calls :meth:`prepare` then (as esmini measures at the start of the frame,
+    whatever order the entities move in), and the step takes the speed found."""
+
+    next_speed: float | None = None
+
+    def _measure(self, world: World, entity: Entity, dt: float) -> float:
+        """The speed [m/s] the actor will have after ``dt`` [s], measured now."""
+        raise NotImplementedError
+
+    def prepare(self, world: World, dt: float) -> None:
+        """Before a step of ``dt`` [s], with every entity where the step begins: the
+        speed the actor will have."""
+        entity = self.entity
+        assert entity is not None
+        speed = self._measure(world, entity, dt)
+        if self.done:  # it ended: the speed it ends with is the entity's from now on
+            entity.speed = float(speed)
+        else:
+            self.next_speed = speed
+
+    def speed_after(self, world: World, entity: Entity, dt: float) -> float:
+        """The speed [m/s] after ``dt`` [s]: the one :meth:`prepare` found (measured
+        now if the action started within this step)."""
+        speed, self.next_speed = self.next_speed, None
+        return self._measure(world, entity, dt) if speed is None else speed
 
 
 _LARGE = 1e10
@@ -464,7 +490,7 @@ _MAX_DECELERATION = 8.0
 """The braking of a synchronisation that must stop at once [m/s²] (esmini's)."""
 
 
-class Synchronize(Instance):
+class Synchronize(_Measured):
     """``SynchronizeAction``: the actor reaches its target position when the master
     entity reaches its own, optionally at a final speed (absolute, or relative to the
     master's as a delta or a factor) held over a steady state (a distance or a time
@@ -520,7 +546,7 @@ class Synchronize(Instance):
         if kind == "absolute":
             return value
         master = world.entities[self.master]
-        v = master.speed if master.scripted else master.velocity
+        v = master.current_speed
         return v + value if kind == "delta" else v * value
 
     def _to_go(self, world: World, entity: Entity, where: Where) -> float:
@@ -537,38 +563,21 @@ class Synchronize(Instance):
                 pos = world.road.lane_position(where.point)
                 road_id = world.road.lane_record(pos.lane).road_id
                 s = world.road.reference_s(pos.lane, pos.s - world.road.chain_start(pos.lane))
-            except Exception:  # off the road: a straight line
+            except InputError:  # off the road (or no finite point): a straight line
                 road_id = None
         try:
             c = world.coordinates(entity)
-        except Exception:
+        except OffRoadError:
             c = None
         if c is not None and road_id is not None and c.road_id == road_id:
             return abs(s - c.s)
         return float(np.hypot(*(np.asarray(point) - entity.reference_point())))
 
-    def prepare(self, world: World, dt: float) -> None:
-        """Before a step of ``dt`` [s], where every entity begins it: the speed the
-        actor will have (esmini measures at the start of the frame)."""
-        entity = self.entity
-        assert entity is not None
-        self.next_speed: float | None = self._step(world, entity, dt)
-        if self.done:  # it ended: the speed it ends with is the entity's from now on
-            entity.speed, self.next_speed = float(self.next_speed), None
-
-    def speed_after(self, world: World, entity: Entity, dt: float) -> float:
-        """The speed [m/s] after ``dt`` [s]."""
-        speed = getattr(self, "next_speed", None)
-        self.next_speed = None
-        return self._step(world, entity, dt) if speed is None else speed
-
-    def _finish(self, entity: Entity, speed: float) -> float:
-        self.done = True
-        if entity.longitudinal is self:
-            entity.longitudinal = None
+    def _finish(self, speed: float) -> float:
+        self._complete()
         return speed
 
-    def _step(self, world: World, entity: Entity, dt: float) -> float:
+    def _measure(self, world: World, entity: Entity, dt: float) -> float:
         master = world.entities[self.master]
         dist = self._to_go(world, entity, self.where_target)
         master_dist = self._to_go(world, master, self.where_master)
@@ -581,14 +590,14 @@ class Synchronize(Instance):
         self.last = (dist, master_dist)
         dist = max(dist - self.tol, 1e-6)
         master_dist = max(master_dist - self.tol_master, 1e-6)
-        v_master = master.speed if master.scripted else master.velocity
+        v_master = master.current_speed
         time_to_go = master_dist / v_master if v_master > 1e-6 else _LARGE
         if v_master > 1e-6 and time_to_go < dt:
             done = True
         final = self._final_speed(world)
         v = entity.speed
         if done:
-            return self._finish(entity, v if final is None else final)
+            return self._finish(v if final is None else final)
         if final is None:
             average = dist / time_to_go
             return v + (2.0 * average - v - v) / time_to_go * dt
@@ -669,7 +678,7 @@ class Synchronize(Instance):
 
 
 # ---------------------------------------------------------------------- distance
-class LongitudinalDistance(Instance):
+class LongitudinalDistance(_Measured):
     """``LongitudinalDistanceAction`` (module docstring)."""
 
     slot = "longitudinal"
@@ -709,7 +718,7 @@ class LongitudinalDistance(Instance):
         ref = world.entities[self.ref]
         entity = self.entity
         assert entity is not None
-        v_ref = ref.speed if ref.scripted else ref.velocity
+        v_ref = ref.current_speed
         # a time gap is at the referenced entity's speed (esmini's choice)
         v_follower = v_ref
         d = self.distance if self.distance is not None else (self.time_gap or 0.0) * v_follower
@@ -759,15 +768,13 @@ class LongitudinalDistance(Instance):
         assert entity is not None
         self._snap(world, entity)
         if not self.continuous:
-            self.done = True
-            if entity.longitudinal is self:
-                entity.longitudinal = None
+            self._complete()
 
     def _snap(self, world: World, entity: Entity) -> None:
         """Put the actor at the distance along its lane (a rigid connection), at the
         referenced entity's speed."""
         ref = world.entities[self.ref]
-        entity.speed = ref.speed if ref.scripted else ref.velocity
+        entity.speed = ref.current_speed
         c = world.coordinates(ref)
         mine = world.coordinates(entity)
         try:
@@ -785,31 +792,18 @@ class LongitudinalDistance(Instance):
                 f"{self.where}: the distance puts the actor off the map: {exc}"
             ) from None
 
-    def prepare(self, world: World, dt: float) -> None:
-        """Before a step of ``dt`` [s], with every entity where the step begins: the
-        speed the actor will have, from the gap measured now (as esmini, which
-        measures it at the start of the frame), whatever order the entities move in."""
-        entity = self.entity
-        assert entity is not None
-        self.next_speed: float | None = self._spring(world, entity, dt)
-        if self.done:  # it ended: the speed it ends with is the entity's from now on
-            entity.speed, self.next_speed = float(self.next_speed), None
-
     def speed_after(self, world: World, entity: Entity, dt: float) -> float:
         """The speed [m/s] after ``dt`` [s]: a rigid action keeps it (:meth:`settle`
-        places the actor); else the one :meth:`prepare` found (the spring now if the
-        action started within this step)."""
+        places the actor); else the spring's (:meth:`prepare`)."""
         if self.limits is None:
             return entity.speed
-        speed = getattr(self, "next_speed", None)
-        self.next_speed = None
-        return self._spring(world, entity, dt) if speed is None else speed
+        return super().speed_after(world, entity, dt)
 
-    def _spring(self, world: World, entity: Entity, dt: float) -> float:
+    def _measure(self, world: World, entity: Entity, dt: float) -> float:
         """A critically damped spring on the gap, within the limits and their rates."""
         assert self.limits is not None
         ref = world.entities[self.ref]
-        v_ref = ref.speed if ref.scripted else ref.velocity
+        v_ref = ref.current_speed
         max_acc, max_dec, max_speed, acc_rate, dec_rate = self.limits
         max_acc = min(max_acc, entity.max_acceleration)
         max_dec = min(max_dec, entity.max_deceleration)
@@ -829,8 +823,7 @@ class LongitudinalDistance(Instance):
         self.acceleration = accel
         v = min(max(entity.speed + accel * dt, -max_speed), max_speed)  # it may reverse
         if not self.continuous and abs(error) < 0.1:  # the distance is reached (esmini)
-            self.done = True
-            entity.longitudinal = None
+            self._complete()
         return v
 
 
@@ -900,8 +893,7 @@ class LaneChange(Instance):
         self.elapsed += dt
         x = self.elapsed / self.T if self.T > 0.0 else 1.0
         if x >= 1.0:
-            self.done = True
-            entity.lateral = None
+            self._complete()
             return self.t1
         return self.t0 + (self.t1 - self.t0) * shape_value(self.dynamics.shape, x)
 
@@ -979,8 +971,7 @@ class LateralDistance(Instance):
             self.lateral_speed = min(max(self.lateral_speed + accel * dt, -max_speed), max_speed)
             new = entity.t + self.lateral_speed * dt
         if not self.continuous and abs(target - new) < 0.1:
-            self.done = True
-            entity.lateral = None
+            self._complete()
         return new
 
 
@@ -1041,8 +1032,7 @@ class LaneOffset(Instance):
             if self.continuous:
                 self.t1 = float(self.target(world, entity)) * self.direction
             else:
-                self.done = True
-                entity.lateral = None
+                self._complete()
             return self.t1
         x = self.elapsed / self.T
         self.elapsed += dt
@@ -1172,8 +1162,7 @@ class FollowTrajectory(Instance):
         entity.traveled += entity.speed * dt
         self._place(world, entity, i, x)
         if finished:
-            self.done = True
-            entity.trajectory = None
+            self._complete()
             if not self.timed and self.along > self.arc[-1]:
                 # the rest of the step's travel goes on along the end heading (as esmini)
                 rest = self.along - float(self.arc[-1])

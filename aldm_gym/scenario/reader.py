@@ -64,7 +64,7 @@ from aldm_gym.scenario.storyboard import (
     Trigger,
 )
 from aldm_gym.scenario.world import BoundingBox, Entity
-from aldm_gym.xmlfile import parse_xml
+from aldm_gym.xmlfile import parse_xml, where
 
 __all__ = ["EntitySpec", "Scenario", "read_scenario"]
 
@@ -287,14 +287,11 @@ class _Reader:
         self.ignored: dict[str, tuple[int, str, list[int]]] = {}
         """Elements with no meaning here: tag -> (first line, why, lines)."""
         self.ignored_network: dict[str, str] = {}
-        self.el: Any = None
-        """The element a scoped reader reads (a trajectory)."""
 
     # ------------------------------------------------------------ attributes
     def where(self, el: Any, attr: str | None = None) -> str:
         """``file:line <Tag>`` (and ``attr``) of an element."""
-        base = f"{self.path.name}:{el.sourceline} <{el.tag}>"
-        return base if attr is None else f"{base} {attr}"
+        return where(self.path, el, attr)
 
     def error(self, el: Any, message: str) -> ScenarioError:
         """A :class:`ScenarioError` naming the element."""
@@ -577,8 +574,8 @@ class _Reader:
             )
         if p.tag == "TrajectoryPosition":
             self.kids(p, ("Orientation", "TrajectoryRef"))
-            traj = self._trajectory(self.child(p, "TrajectoryRef"))
-            shape = traj.shape(traj.one(traj.child(traj.el, "Shape"), _SHAPES))
+            el, traj = self._trajectory(self.child(p, "TrajectoryRef"))
+            shape = traj.shape(traj.one(traj.child(el, "Shape"), _SHAPES))
             return TrajectoryPos(shape, self.num(p, "s"), self.num(p, "t", 0.0), orient, where)
         if p.tag == "RoutePosition":
             return self._route_position(p, orient, where)
@@ -797,7 +794,7 @@ class _Reader:
                     world: Any, ref: str = ref, value: float = value, kind: str = kind
                 ) -> float:
                     e = world.entities[ref]
-                    base = e.speed if e.scripted else e.velocity
+                    base = e.current_speed
                     return base + value if kind == "delta" else base * value
 
             return lambda actor: A.SpeedChange(actor, where, dyn, target, continuous)
@@ -1013,8 +1010,8 @@ class _Reader:
         if initial < 0.0:
             raise self.error(body, f"initialDistanceOffset must be >= 0, got {initial:g}")
         ref = body.find("TrajectoryRef")
-        r = self._trajectory(ref if ref is not None else body)
-        shape = r.shape(r.one(r.child(r.el, "Shape"), _SHAPES))
+        el, r = self._trajectory(ref if ref is not None else body)
+        shape = r.shape(r.one(r.child(el, "Shape"), _SHAPES))
         timing: tuple[bool, float, float] | None = (False, 1.0, 0.0)
         timing_el = body.find("TimeReference/Timing")
         if timing_el is not None:
@@ -1036,38 +1033,34 @@ class _Reader:
             raise self.error(body, "initialDistanceOffset with timing is not supported")
         return lambda actor: A.FollowTrajectory(actor, where, shape, timing, initial)
 
-    def _trajectory(self, holder: Any) -> _Reader:
-        """A reader for the ``Trajectory`` that ``holder`` gives inline or from a
-        catalog (its ``el``), with the trajectory's own parameters."""
-        traj = holder.find("Trajectory")
-        r: _Reader = self
-        if traj is None:
-            catalog = holder.find("CatalogReference")
-            if catalog is None:
-                raise self.error(holder, "missing <Trajectory> (inline or a CatalogReference)")
-            traj, r = self.from_catalog(catalog)
-            if traj.tag != "Trajectory":
-                raise self.error(
-                    catalog, f"the catalog entry is a <{traj.tag}>, not a <Trajectory>"
-                )
+    def _inline_or_catalog(self, holder: Any, tag: str) -> tuple[Any, _Reader]:
+        """The ``tag`` element that ``holder`` gives inline or by a ``CatalogReference``,
+        with the reader for it (a catalog entry's parameters)."""
+        el = holder.find(tag)
+        if el is not None:
+            return el, self
+        catalog = holder.find("CatalogReference")
+        if catalog is None:
+            raise self.error(holder, f"missing <{tag}> (inline or a CatalogReference)")
+        el, reader = self.from_catalog(catalog)
+        if el.tag != tag:
+            raise self.error(catalog, f"the catalog entry is a <{el.tag}>, not a <{tag}>")
+        return el, reader
+
+    def _trajectory(self, holder: Any) -> tuple[Any, _Reader]:
+        """The ``Trajectory`` that ``holder`` gives inline or from a catalog, with a
+        reader that sees the trajectory's own parameters."""
+        traj, r = self._inline_or_catalog(holder, "Trajectory")
         r.kids(traj, ("ParameterDeclarations", "Shape"))
-        r = copy.copy(r.scoped(traj))
+        r = r.scoped(traj)
         if r.flag(traj, "closed", False):
             raise r.error(traj, "closed trajectories are not supported")
-        r.el = traj
-        return r
+        return traj, r
 
     def _route_position(self, p: Any, orient: Orientation | None, where: str) -> Position:
         """``RoutePosition``: a route and where on it."""
         self.kids(p, ("RouteRef", "Orientation", "InRoutePosition"))
-        ref = self.child(p, "RouteRef")
-        route = ref.find("Route")
-        r: _Reader = self
-        if route is None:
-            catalog = ref.find("CatalogReference")
-            if catalog is None:
-                raise self.error(ref, "missing <Route> (inline or a CatalogReference)")
-            route, r = self.from_catalog(catalog)
+        route, r = self._inline_or_catalog(self.child(p, "RouteRef"), "Route")
         r.kids(route, ("ParameterDeclarations", "Waypoint"))
         r = r.scoped(route)
         waypoints = tuple(r.position(r.child(wp, "Position")) for wp in route.findall("Waypoint"))

@@ -110,8 +110,8 @@ class Element:
         while upto < len(self.transitions) and self.visible[upto] <= tick:
             upto += 1
         if state in STATES:
-            seen = [s for v, s in self.state_log if v <= tick]
-            return (seen[-1] if seen else "standbyState") == state, upto
+            now = next((s for v, s in reversed(self.state_log) if v <= tick), "standbyState")
+            return now == state, upto
         return state in self.transitions[since:upto], upto
 
 

@@ -151,6 +151,15 @@ class Entity:
     placed: bool = False
 
     @property
+    def current_speed(self) -> float:
+        """Its speed now [m/s]: the script's while scripted, else its vehicle's."""
+        return self.speed if self.scripted else self.velocity
+
+    def acceleration_limit(self, rising: bool) -> float:
+        """The ``Performance`` limit [m/s²] of a speed change up (``rising``) or down."""
+        return self.max_acceleration if rising else self.max_deceleration
+
+    @property
     def position(self) -> np.ndarray:
         """The vehicle's box centre, highway-env's world [m]."""
         return np.asarray(self.vehicle.position, dtype=np.float64)
@@ -479,7 +488,7 @@ class World:
         for e in self.entities.values():
             if e.vehicle is None:
                 continue
-            speed = e.speed if e.scripted else e.velocity
+            speed = e.current_speed
             if e.last_speed is not None and dt > 0:
                 e.acceleration = (speed - e.last_speed) / dt
             e.last_speed = speed
@@ -512,25 +521,27 @@ class World:
             if own and hasattr(motion, "prepare") and not getattr(motion, "rigid", False):
                 motion.prepare(self, dt)
 
-    def _along_chain(self, entity: Entity, key: LaneKey, u: float) -> tuple[LaneKey, float]:
+    def _along_chain(
+        self, entity: Entity, key: LaneKey, u: float, halt: bool = True
+    ) -> tuple[LaneKey, float]:
         """``(lane, u)`` of arc length ``u`` [m] from the start of lane ``key``, on along
         its successors (or back along its predecessors where ``u`` < 0); at the end of
-        the chain the entity stops there."""
+        the chain it is there, and a scripted entity (``halt``) stops there."""
         road = self.road
         length = road.lane_length(key)
         while u > length:
             nxt = road.successor(key)
             if nxt is None:
-                entity.speed = 0.0  # the lane chain ends: the entity stops at its end
-                entity.ended = True
+                if halt:  # the lane chain ends: the entity stops at its end
+                    entity.speed, entity.ended = 0.0, True
                 return key, length
             u -= length
             key, length = nxt, road.lane_length(nxt)
         while u < 0.0:
             prev = road.predecessor(key)
             if prev is None:
-                entity.speed = 0.0
-                entity.ended = True
+                if halt:
+                    entity.speed, entity.ended = 0.0, True
                 return key, 0.0
             key = prev
             u += road.lane_length(key)
@@ -559,16 +570,8 @@ class World:
         entity.last_lateral = entity.lateral
         if entity.lateral is not None:
             entity.t = float(entity.lateral.offset_after(self, entity, dt))
-        key, length = entity.lane, self.road.lane_length(entity.lane)
-        while u > length:
-            nxt = self.road.successor(key)
-            if nxt is None:
-                u = length
-                break
-            u -= length
-            key = nxt
-            length = self.road.lane_length(key)
-        entity.lane, entity.u = key, max(u, 0.0)
+        key, u = self._along_chain(entity, entity.lane, max(u, 0.0), halt=False)
+        entity.lane, entity.u = key, u
         lateral_speed = (entity.t - t_before) / dt if dt > 0 else 0.0
         along = bool(getattr(entity.last_lateral, "speed_along_heading", False))
         self._update_pose(entity, lateral_speed, along)

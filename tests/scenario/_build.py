@@ -171,7 +171,7 @@ def _snapshot(runner: Any, done: bool, info: Any = None) -> dict[str, Any]:
     out: dict[str, Any] = {"time": world.time, "active": runner.active, "done": done}
     for name, e in world.entities.items():
         c = world.coordinates(e)
-        out[name] = (c.lane_id, c.s, c.offset, e.speed if e.scripted else e.velocity)
+        out[name] = (c.lane_id, c.s, c.offset, e.current_speed)
     out["crashed"] = bool(info and info.get("crashed"))
     return out
 
