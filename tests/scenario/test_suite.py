@@ -41,7 +41,7 @@ def test_on_a_ray_cluster(tmp_path: Path) -> None:
     pytest.importorskip("ray")
     import ray
 
-    path = write(tmp_path, stop=2.0)
+    path = write(tmp_path, stop=2.0, activate_at=0.0)
     try:
         results = play_suite(
             plan_suite(path, ["aldm", "ground_truth"], ["per_dash"]),
