@@ -29,7 +29,7 @@ from collections.abc import Sequence
 from aldm_gym import __version__
 from aldm_gym.cli import compare, evaluate, osi, plot, scenario, train, tune
 from aldm_gym.cli.argtypes import BadArgument
-from aldm_gym.errors import ConfigError, InputError, MapError, MapNotFoundError
+from aldm_gym.errors import AldmGymError
 
 SUBCOMMANDS = (compare, plot, scenario, osi, train, tune, evaluate)
 """The subcommand modules, in the order of ``aldm-gym --help``."""
@@ -76,7 +76,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     An unknown argument is reported with the usage of the subcommand it was given to
     (argparse would print the top-level usage), and exits with code 2; so is a
     :class:`~aldm_gym.cli.argtypes.BadArgument` raised while the subcommand runs, and
-    any input error of the package's (a setting, a file, a map) that escapes it.
+    any error of the package's (:class:`~aldm_gym.errors.AldmGymError`: a setting, a
+    file, a map, a trace) that escapes it.
     """
     parser = build_parser()
     args, extra = parser.parse_known_args(argv)
@@ -90,7 +91,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return int(args.func(args))
     except BadArgument as exc:
         sub.error(str(exc))
-    except (ConfigError, InputError, MapError, MapNotFoundError) as exc:
+    except AldmGymError as exc:
         sub.error(str(exc))  # bad input a command did not name more precisely
     except KeyboardInterrupt:  # Ctrl-C (or SIGTERM during a training) outside a safe point
         return 130
