@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from aldm_gym.errors import ConfigError
+from aldm_gym.errors import ConfigError, TraceError
 from aldm_gym.osi.messages import sensor_data
 from aldm_gym.osi.reader import ViewReader
 from aldm_gym.osi.trace import TraceWriter, read_messages
@@ -232,5 +232,7 @@ def detect_trace(
             n = len(rows)
             if progress is not None:
                 progress(n)
-    share = {k: (v / n if n else float("nan")) for k, v in found.items()}
+    if n == 0:
+        raise TraceError(f"{path}: no frames (an empty trace, or one that cannot be decoded)")
+    share = {k: v / n for k, v in found.items()}
     return DetectSummary(n, share, Path(out))

@@ -31,6 +31,7 @@ from aldm_gym.osi.messages import BOUNDARY_TYPE
 from aldm_gym.osi.wire import decode_points
 from aldm_gym.roads.markings import MARKING_MODELS, MarkingType
 from aldm_gym.roads.polyline import MarkingCurve, PolylineRoad
+from aldm_gym.roads.position import MAX_COORDINATE
 from aldm_gym.sensor.frame import SensorFrame
 from aldm_gym.sensor.line_sensor import LineSensor, LineSensorConfig
 
@@ -100,6 +101,11 @@ def _boundary_curve(lb: Any, where: str, data: bytes | None = None) -> MarkingCu
         raise _fail(where, f"lane boundary {ident}: {exc}") from None
     if not np.isfinite(rows[:2]).all():
         raise _fail(where, f"lane boundary {ident} has a NaN or infinite point")
+    if np.abs(rows[:2]).max() > MAX_COORDINATE:
+        raise _fail(
+            where,
+            f"lane boundary {ident} has a point more than {MAX_COORDINATE:g} m from the origin",
+        )
     first = pts[0]
     width = float(first.width) if first.HasField("width") and first.width > 0.0 else 0.15
     if first.HasField("height") and first.height > 0.0:
@@ -126,6 +132,18 @@ def _boundary_curve(lb: Any, where: str, data: bytes | None = None) -> MarkingCu
         width=width,
         height=height,
     )
+
+
+def _unique_ids(gt: Any, where: str) -> None:
+    """Raise unless the moving objects' ids, and the lane boundaries', are unique (OSI:
+    an identifier names one object)."""
+    for kind, items in (("moving object", gt.moving_object), ("lane boundary", gt.lane_boundary)):
+        seen: set[int] = set()
+        for item in items:
+            ident = int(item.id.value)
+            if ident in seen:
+                raise _fail(where, f"two {kind} entries have the id {ident}")
+            seen.add(ident)
 
 
 class ViewReader:
@@ -170,6 +188,7 @@ class ViewReader:
         message's own, or the line sensor's mount placed there)."""
         self.sensor_id: int | None = None
         """The message's ``sensor_id``, if it has one."""
+        self._time: float | None = None
 
     def _sensor(self, mount: tuple[float, float, float, float], where: str = "") -> LineSensor:
         sensor = self._sensors.get(mount)
@@ -198,9 +217,24 @@ class ViewReader:
             raise _fail(where, f"no host vehicle: no moving object has the host's id {host_id}")
         base = host.base
         x, y, yaw = float(base.position.x), float(base.position.y), float(base.orientation.yaw)
-        if not all(math.isfinite(v) for v in (x, y, yaw)):
+        pose = (x, y, float(base.position.z), yaw, base.orientation.pitch, base.orientation.roll)
+        if not all(math.isfinite(v) for v in pose):
             raise _fail(where, f"the host vehicle {host_id} has a NaN or infinite pose")
+        if abs(x) > MAX_COORDINATE or abs(y) > MAX_COORDINATE:
+            raise _fail(
+                where,
+                f"the host vehicle {host_id} is more than {MAX_COORDINATE:g} m from the origin",
+            )
+        dim = base.dimension
+        if not all(math.isfinite(v) and v >= 0.0 for v in (dim.length, dim.width, dim.height)):
+            raise _fail(
+                where,
+                f"the host vehicle {host_id}'s dimension must be finite and not negative, "
+                f"got {dim.length} x {dim.width} x {dim.height} m",
+            )
         b2r = host.vehicle_attributes.bbcenter_to_rear
+        if not all(math.isfinite(v) for v in (b2r.x, b2r.y, b2r.z)):
+            raise _fail(where, f"the host vehicle {host_id}'s bbcenter_to_rear is not finite")
         mounting = _osi3.MountingPosition()
         if is_view and msg.HasField("mounting_position"):
             mp = msg.mounting_position
@@ -254,10 +288,13 @@ class ViewReader:
         :param msg: an ``osi3.SensorView`` or ``osi3.GroundTruth``.
         :param index: the message's frame number (for error messages).
         :raises TraceError: naming the file and frame: another message type, no host
-            vehicle, a mounting the line sensor cannot take, a boundary with fewer than
-            two points or non-finite points. A message with nothing painted gives a
-            frame without line objects; one with neither lane boundaries nor lanes
-            keeps the last boundaries read (static ground truth sent once).
+            vehicle, a host with a non-finite pose, dimension or ``bbcenter_to_rear``
+            or outside the world, a mounting the line sensor cannot take, a boundary
+            with fewer than two points, non-finite or far points, two objects or
+            boundaries with one id, a time before the previous frame's. A message
+            with nothing painted gives a frame without line objects; one with
+            neither lane boundaries nor lanes keeps the last boundaries read (static
+            ground truth sent once).
         """
         where = f"{self.source} frame {index}"
         name = getattr(getattr(msg, "DESCRIPTOR", None), "name", type(msg).__name__)
@@ -274,8 +311,21 @@ class ViewReader:
             gt, t = msg, _time(msg)
         else:
             raise _fail(where, f"expected an osi3.SensorView or osi3.GroundTruth, got {name}")
+        if self._time is not None and t < self._time:
+            raise _fail(
+                where,
+                f"its time {t:.9g} s is before the previous frame's {self._time:.9g} s "
+                "(OSI timestamps do not go back)",
+            )
+        _unique_ids(gt, where)
         host = self._host(msg, gt, where)
-        road = self._road_of(gt, where)
+        try:
+            road = self._road_of(gt, where)
+        except TraceError:
+            raise
+        except InputError as exc:  # boundaries the road cannot be built from
+            raise _fail(where, f"the lane boundaries: {exc}") from None
+        self._time = t
         self.road, self.host = road, host
         return self._sensor(host.mount, where).measure(road, host.pose, t)
 

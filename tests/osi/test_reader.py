@@ -280,7 +280,26 @@ def _errors() -> dict:
     del one_point.lane_boundary[1].boundary_line[1:]
     nan_point = ground_truth()
     nan_point.lane_boundary[0].boundary_line[3].position.y = math.nan
+    nan_rear = ground_truth()
+    nan_rear.moving_object[0].vehicle_attributes.bbcenter_to_rear.x = math.nan
+    negative = ground_truth()
+    negative.moving_object[0].base.dimension.width = -1.8
+    far_host = ground_truth()
+    far_host.moving_object[0].base.position.x = 1e300
+    far_point = ground_truth()
+    far_point.lane_boundary[0].boundary_line[3].position.x = -1e300
+    twin_object = ground_truth()
+    twin_object.moving_object.add().CopyFrom(twin_object.moving_object[0])
+    twin_boundary = ground_truth()
+    twin_boundary.lane_boundary[1].id.value = 1
     return {
+        "bbcenter_to_rear is not finite": nan_rear,
+        "dimension must be finite and not negative": negative,
+        "host vehicle 7 is more than 1e\\+09 m": far_host,
+        "lane boundary 1 has a point more than": far_point,
+        "two moving object entries have the id 7": twin_object,
+        "two lane boundary entries have the id 1": twin_boundary,
+        "its time -1 s is before the previous frame's 0 s": ground_truth(t=-1.0),
         "no host vehicle \\(host_vehicle_id": no_host,
         "no moving object has the host's id 99": wrong_host,
         "lane boundary 2 has 1 point": one_point,
@@ -293,6 +312,13 @@ def test_bad_frames_name_the_file_and_frame(tmp_path: Path, message: str) -> Non
     good = ground_truth()
     src = _write_osi(tmp_path / "bad_gt.osi", [good, _errors()[message]])
     with pytest.raises(TraceError, match=rf"bad_gt.osi frame 1: .*{message}"):
+        detect_trace(src, tmp_path / "out.osi")
+
+
+def test_an_empty_trace_is_an_error(tmp_path: Path) -> None:
+    src = tmp_path / "empty_gt.osi"
+    src.write_bytes(b"")
+    with pytest.raises(TraceError, match=r"empty_gt.osi: no frames"):
         detect_trace(src, tmp_path / "out.osi")
 
 
