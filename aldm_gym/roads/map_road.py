@@ -78,13 +78,14 @@ def _dedupe(xy: FloatArray) -> np.ndarray:
 
 
 def load_map(path: str | os.PathLike[str], **options: Any) -> OpenDriveMap:
-    """:meth:`OpenDriveMap.from_file`, cached per file content and options (a small LRU)."""
+    """:meth:`OpenDriveMap.from_file`, cached per file, content and options (a small LRU)."""
     try:
         with open(path, "rb") as fh:
             digest = hashlib.sha256(fh.read()).hexdigest()
     except FileNotFoundError:
         raise not_found(path) from None
-    key = (digest, tuple(sorted((k, repr(v)) for k, v in options.items())))
+    # the path is in the key: a map's errors and paths name the file they came from
+    key = (os.path.abspath(path), digest, tuple(sorted((k, repr(v)) for k, v in options.items())))
     return _MAPS.get(key, lambda: OpenDriveMap.from_file(path, **options))
 
 

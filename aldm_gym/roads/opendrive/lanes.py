@@ -63,7 +63,9 @@ def outer_borders(
     :param s: (N,) reference arc lengths inside the section [m].
     :param where: text naming the file in errors.
     :returns: lane id -> ``(t (N,) [m], dt/ds (N,) [1])``.
-    :raises MapError: a lane has neither width nor border records.
+    :raises MapError: a lane has neither width nor border records, or a width
+        that is negative (beyond :data:`WIDTH_TOLERANCE`), not finite or more than
+        :data:`MAX_OFFSET` at one of ``s``.
     """
     offset = cubic_at(road.lane_offsets, s)
     borders = {0: offset}
@@ -72,19 +74,41 @@ def outer_borders(
         for lane in sorted(
             (ln for ln in section.lanes if ln.id * side > 0), key=lambda ln: abs(ln.id)
         ):
+            here = f"{where}, road {road.id!r}, laneSection s={section.s}: lane {lane.id}"
             if lane.widths:
                 w, dw = cubic_at(lane.widths, s, section.s)
-                outer = (inner[0] + side * w, inner[1] + side * dw)
             elif lane.borders:
-                outer = cubic_at(lane.borders, s, section.s)
+                t, dt = cubic_at(lane.borders, s, section.s)
+                w, dw = side * (t - inner[0]), side * (dt - inner[1])
             else:
-                raise MapError(
-                    f"{where}, road {road.id!r}, laneSection s={section.s}: lane {lane.id} has "
-                    "neither <width> nor <border> records"
-                )
+                raise MapError(f"{here} has neither <width> nor <border> records")
+            _check_width(w, s, here)
+            w = np.maximum(w, 0.0)
+            outer = (inner[0] + side * w, inner[1] + side * dw)
             borders[lane.id] = outer
             inner = outer
     return borders
+
+
+WIDTH_TOLERANCE = 0.01
+"""A lane's width may dip this far below zero [m] (rounding at a lane's end); it is
+read as 0 there. A larger negative width is an error."""
+
+MAX_OFFSET = 1e4
+"""Largest distance of a lane border from the reference line [m]."""
+
+
+def _check_width(w: FloatArray, s: FloatArray, here: str) -> None:
+    """Raise :class:`MapError` unless the width ``w`` (N,) [m] at ``s`` (N,) [m] is
+    finite, at least ``-WIDTH_TOLERANCE`` and at most ``MAX_OFFSET``."""
+    bad = ~np.isfinite(w) | (w < -WIDTH_TOLERANCE) | (w > MAX_OFFSET)
+    if bad.any():
+        k = int(np.argmax(bad))
+        what = "negative" if w[k] < 0.0 else "not finite" if not np.isfinite(w[k]) else "too wide"
+        raise MapError(
+            f"{here}: its width is {what} at s={s[k]:.3f} m ({w[k]:.6g} m; a lane is 0 "
+            f"to {MAX_OFFSET:g} m wide)"
+        )
 
 
 def inner_border_id(lane_id: int) -> int:

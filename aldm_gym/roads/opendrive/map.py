@@ -45,6 +45,12 @@ LaneKey = tuple[str, int, int]
 """``(road id, lane-section index, lane id)``."""
 
 DEFAULT_SAMPLE_STEP = 0.5
+
+MAX_SAMPLES = 4e6
+"""Most border samples a map may need: the length of every road's reference line and
+of its lanes, over the sample step. 4e6 is 500 km of a three-lane road at the default
+step, about 1 GB. It bounds the memory a map takes before anything is allocated; a
+larger map is a :class:`~aldm_gym.errors.MapError`."""
 """Sampling step along each road's reference line [m]."""
 
 
@@ -136,6 +142,18 @@ class OpenDriveMap:
         self.junctions = junctions
         self.broken_pattern = broken_pattern
         self.sample_step = sample_step
+        # the memory a map takes grows with its roads' lane-metres: bounded before any table
+        ends = {rid: max(g.s + g.length for g in r.geometries) for rid, r in roads.items()}
+        metres = {rid: ends[rid] + lane_metres(r, ends[rid]) for rid, r in roads.items()}
+        samples_needed = sum(metres.values()) / sample_step
+        if samples_needed > MAX_SAMPLES:
+            largest = max(metres, key=metres.__getitem__)
+            raise MapError(
+                f"{path}: its roads need {samples_needed:.3g} border samples at "
+                f"{sample_step} m (road {largest!r}: {ends[largest]:.6g} m long, "
+                f"{metres[largest]:.6g} border-metres), more than the {MAX_SAMPLES:g} a "
+                "map may have"
+            )
         self.plan_views = {
             rid: PlanView(r.geometries, f"{path}, road {rid!r}") for rid, r in roads.items()
         }

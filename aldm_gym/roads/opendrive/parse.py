@@ -23,6 +23,7 @@ from pathlib import Path
 from lxml import etree
 
 from aldm_gym.errors import MapError, MapNotFoundError
+from aldm_gym.roads.position import MAX_COORDINATE
 from aldm_gym.xmlfile import parse_xml
 
 GEOMETRY_KINDS = ("line", "arc", "spiral", "poly3", "paramPoly3")
@@ -58,6 +59,11 @@ ROAD_MARK_COLOURS = (
 """``roadMark/@color`` values of ASAM OpenDRIVE 1.4-1.8 (``standard`` is white)."""
 
 MAPS_DIR = Path(__file__).resolve().parents[1] / "maps"
+
+MAX_LENGTH = 1e6
+"""Largest arc length a file may give (a road's or geometry's length, an ``s`` or
+``sOffset``) [m]: 1000 km, beyond any road; larger ones are refused before they size
+a table."""
 """The folder of the example maps that ship inside the package."""
 
 SHIPPED_MAPS: tuple[str, ...] = ("bridges", "features", "motorway", "two_plus_one")
@@ -469,6 +475,16 @@ class _Reader:
         value = self.num(el, name, default)
         if value < 0.0:
             raise self.fail(el, f"attribute {name}={value!r} is negative")
+        if value > MAX_LENGTH:
+            raise self.fail(el, f"attribute {name}={value!r} is more than {MAX_LENGTH:g} m")
+        return value
+
+    def coordinate(self, el: etree._Element, name: str) -> float:
+        value = self.num(el, name)
+        if abs(value) > MAX_COORDINATE:
+            raise self.fail(
+                el, f"attribute {name}={value!r} is more than {MAX_COORDINATE:g} m from the origin"
+            )
         return value
 
     def integer(self, el: etree._Element, name: str) -> int:
@@ -531,8 +547,8 @@ def _geometry(r: _Reader, el: etree._Element) -> Geometry:
         raise r.fail(k, f"unknown geometry type (expected one of {GEOMETRY_KINDS})")
     return Geometry(
         s=r.length(el, "s"),
-        x=r.num(el, "x"),
-        y=r.num(el, "y"),
+        x=r.coordinate(el, "x"),
+        y=r.coordinate(el, "y"),
         hdg=r.num(el, "hdg"),
         length=r.length(el, "length"),
         shape=shape,

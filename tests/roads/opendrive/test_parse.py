@@ -188,3 +188,57 @@ def test_parse_records(tmp_path: Path) -> None:
     c = parsed.junctions[0].connections[0]
     assert (c.incoming_road, c.connecting_road, c.contact_point) == ("1", "5", "start")
     assert (c.lane_links[0].from_id, c.lane_links[0].to_id) == (-1, -2)
+
+
+def test_numbers_that_would_size_an_array_or_leave_the_world(tmp_path: Path) -> None:
+    """Lengths, coordinates and lane widths are checked before a table is allocated:
+    each a ``MapError`` naming file, road and element (or lane and s)."""
+    from aldm_gym.errors import MapError
+    from aldm_gym.roads.opendrive import OpenDriveMap
+
+    def plain(geometry: str, width: str = '<width sOffset="0" a="3.5" b="0" c="0" d="0"/>') -> str:
+        return road_xml("6", geometry, 100.0, section_xml(right=lane_xml(-1, width=width)))
+
+    cases = [
+        (plain(geometry_xml("<line/>", 1e308)), r"road '6', <geometry> .*length=1e\+308 is more"),
+        (plain(geometry_xml("<line/>", 100.0, x=1e300)), r"<geometry> .*x=1e\+300 is more than"),
+        # 3.5 m - 1e-3 ds^3 is below zero from ds = 15.2 m
+        (
+            plain(
+                geometry_xml("<line/>", 100.0),
+                '<width sOffset="0" a="3.5" b="0" c="0" d="-1e-3"/>',
+            ),
+            r"road '6', laneSection s=0.0: lane -1: its width is negative at s=15\.",
+        ),
+        # 1000 km of a two-lane road at 0.5 m: 6e6 border samples, more than a map may need
+        (
+            road_xml(
+                "6",
+                geometry_xml("<line/>", 999_999.0),
+                999_999.0,
+                section_xml(right=lane_xml(-1) + lane_xml(-2)),
+            ),
+            r"border samples .*more than the 4e\+06",
+        ),
+    ]
+    for k, (road, message) in enumerate(cases):
+        path = write_xodr(tmp_path / f"bad{k}.xodr", road)
+        with pytest.raises(MapError, match=rf"bad{k}\.xodr.*{message}"):
+            OpenDriveMap.from_file(path)
+    # a width that dips below zero by less than the tolerance reads as 0
+    dip = '<width sOffset="0" a="3.5" b="-0.0351" c="0" d="0"/>'  # -0.01 m at s = 100 m
+    odr = OpenDriveMap.from_file(
+        write_xodr(tmp_path / "dip.xodr", plain(geometry_xml("<line/>", 100.0), dip))
+    )
+    assert min(w.min() for w in (rec.width for rec in odr.lanes.values())) >= 0.0
+
+
+def test_two_files_with_one_content_name_themselves(tmp_path: Path) -> None:
+    """The map cache keys by path too: an error or a map's path names its own file."""
+    from aldm_gym.errors import MapError
+    from aldm_gym.roads import OpenDriveRoad
+
+    road = road_xml("1", geometry_xml("<line/>", 100.0), 100.0, section_xml())  # no lanes
+    for name in ("first.xodr", "second.xodr"):
+        with pytest.raises(MapError, match=rf"{name}: no driving lane"):
+            OpenDriveRoad.from_file(write_xodr(tmp_path / name, road))
