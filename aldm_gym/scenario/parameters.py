@@ -826,7 +826,10 @@ def _convert(value: Any, decl: ParameterDeclaration, where: str) -> ParamValue:
             raise bad("a number")
         if isinstance(value, str) and not _NUMBER.fullmatch(value.strip()):
             raise bad("a number")
-        number = float(value)
+        try:
+            number = float(value)
+        except OverflowError:  # an integer beyond a double
+            raise bad("a finite number") from None
         if not math.isfinite(number):
             raise bad("a finite number")
         return number

@@ -50,6 +50,7 @@ from aldm_gym.scenario.positions import (
     WorldPos,
     lane_step,
 )
+from aldm_gym.scenario.schema import check_single_children
 from aldm_gym.scenario.storyboard import (
     STATES,
     TRANSITIONS,
@@ -69,6 +70,10 @@ from aldm_gym.xmlfile import parse_xml, where
 __all__ = ["EntitySpec", "Scenario", "read_scenario"]
 
 _MISSING: Any = object()
+
+MAX_SIZE = 1000.0
+"""Largest bounding-box dimension, and distance of its centre from the reference
+point, an entity may have [m] (a road train is 50 m long)."""
 
 _ELEMENT_TYPES = ("story", "act", "maneuverGroup", "maneuver", "event", "action")
 
@@ -190,6 +195,7 @@ def read_scenario(path: str | Path, parameters: Mapping[str, Any] | None = None)
         raise ScenarioError(
             f"{path.name}:{root.sourceline}: the root is <{root.tag}>, not <OpenSCENARIO>"
         )
+    check_single_children(root, path.name)
     header = root.find("FileHeader")
     if header is None:
         raise ScenarioError(f"{path.name}: no <FileHeader>")
@@ -417,6 +423,7 @@ class _Reader:
                     raise self.error(directory, f"the catalog folder {folder} does not exist")
                 for file in sorted(folder.glob("*.xosc")):
                     croot = parse_xml(file).getroot()
+                    check_single_children(croot, file.name)
                     for catalog in croot.findall("Catalog"):
                         entries = found.setdefault(catalog.get("name", ""), {})
                         for entry in catalog:
@@ -495,15 +502,19 @@ class _Reader:
         bb = self.child(body, "BoundingBox")
         centre, dims = self.child(bb, "Center"), self.child(bb, "Dimensions")
         length, width = self.num(dims, "length"), self.num(dims, "width")
-        if length <= 0 or width <= 0:
-            raise self.error(dims, f"length and width must be > 0, got {length:g} x {width:g}")
-        box = BoundingBox(
-            cx=self.num(centre, "x"),
-            cy=self.num(centre, "y"),
-            length=length,
-            width=width,
-            height=self.num(dims, "height", 0.0),
-        )
+        height = self.num(dims, "height", 0.0)
+        if not (0 < length <= MAX_SIZE and 0 < width <= MAX_SIZE and 0 <= height <= MAX_SIZE):
+            raise self.error(
+                dims,
+                f"length and width must be in (0, {MAX_SIZE:g}] m and height in "
+                f"[0, {MAX_SIZE:g}] m, got {length:g} x {width:g} x {height:g}",
+            )
+        cx, cy = self.num(centre, "x"), self.num(centre, "y")
+        if max(abs(cx), abs(cy), abs(self.num(centre, "z", 0.0))) > MAX_SIZE:
+            raise self.error(
+                centre, f"the box's centre must lie within {MAX_SIZE:g} m of the reference point"
+            )
+        box = BoundingBox(cx=cx, cy=cy, length=length, width=width, height=height)
         perf = body.find("Performance")
         if perf is not None:
             limits = (

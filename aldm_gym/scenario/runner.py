@@ -14,7 +14,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from aldm_gym.errors import ScenarioError
+from aldm_gym.errors import InputError, ScenarioError
 from aldm_gym.scenario.reader import Scenario
 from aldm_gym.scenario.world import Entity, ScenarioVehicle, World
 
@@ -110,7 +110,12 @@ class ScenarioRunner:
             v.diagonal = float(np.hypot(v.LENGTH, v.WIDTH))
             entity.vehicle = v
         for action in self.init_actions:
-            action.start(self)
+            try:
+                action.start(self)
+            except ScenarioError:
+                raise
+            except InputError as exc:  # a value that puts an entity outside the world
+                raise ScenarioError(f"{action.where}: {exc}") from None
         missing = [e.name for e in self.world.entities.values() if not e.placed]
         if missing:
             raise ScenarioError(
@@ -137,7 +142,21 @@ class ScenarioRunner:
 
     def step(self, dt: float) -> None:
         """After the road moved everyone by ``dt`` [s]: move the ego where the scenario
-        still drives it, then update the storyboard at the new time."""
+        still drives it, then update the storyboard at the new time.
+
+        :raises ScenarioError: naming the file and the time, where the scenario's values
+            put an entity outside the world (an :class:`InputError` of the road's).
+        """
+        try:
+            self._step(dt)
+        except ScenarioError:
+            raise
+        except InputError as exc:
+            raise ScenarioError(
+                f"{self.scenario.path.name} at {self.world.time:g} s: {exc}"
+            ) from None
+
+    def _step(self, dt: float) -> None:
         world = self.world
         if not self.active:
             world.advance_ego(dt)  # unless a scripted entity's step already moved it

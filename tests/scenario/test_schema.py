@@ -1,0 +1,84 @@
+"""Children the schema allows once (aldm_gym.scenario.schema): the table against the
+XSD, and the reader refusing a repeated one."""
+
+from __future__ import annotations
+
+from collections import defaultdict
+from pathlib import Path
+from typing import Any
+
+import pytest
+from lxml import etree
+
+from aldm_gym.errors import ScenarioError
+from aldm_gym.scenario.reader import read_scenario
+from aldm_gym.scenario.schema import SINGLE_CHILDREN
+from tests.scenario._build import write
+from tests.scenario.test_elements import _schema
+
+XS = "{http://www.w3.org/2001/XMLSchema}"
+
+
+def _children(node: Any, types: dict, groups: dict, once: bool, out: list) -> list:
+    """``(name, type, may repeat)`` of the elements a complexType's content declares."""
+    for c in node:
+        repeats = c.get("maxOccurs", "1") != "1"
+        if c.tag == XS + "element":
+            out.append((c.get("name"), c.get("type"), repeats or not once))
+        elif c.tag in (XS + "sequence", XS + "choice", XS + "all"):
+            _children(c, types, groups, once and not repeats, out)
+        elif c.tag == XS + "group":
+            _children(groups[c.get("ref")], types, groups, once and not repeats, out)
+        elif c.tag in (XS + "complexContent", XS + "simpleContent"):
+            for ext in c:
+                if ext.get("base") in types:
+                    _children(types[ext.get("base")], types, groups, once, out)
+                _children(ext, types, groups, once, out)
+    return out
+
+
+def test_the_table_is_the_schemas() -> None:
+    schema = _schema()
+    if schema is None:
+        pytest.skip("the OpenSCENARIO 1.3 schema is not installed (scenariogeneration)")
+    xsd = etree.parse(str(schema)).getroot()
+    types = {t.get("name"): t for t in xsd.iter(XS + "complexType") if t.get("name")}
+    groups = {g.get("name"): g for g in xsd.iter(XS + "group") if g.get("name")}
+    of_element: dict[str, set[str]] = defaultdict(set)  # element name -> its types
+    for t in types.values():
+        for name, type_name, _ in _children(t, types, groups, True, []):
+            of_element[name].add(type_name)
+    for e in xsd.findall(XS + "element"):
+        of_element[e.get("name")].add(e.get("type"))
+    derived = {}
+    for name, type_names in of_element.items():
+        sets = [
+            {n for n, _, repeats in _children(types[t], types, groups, True, []) if not repeats}
+            for t in type_names
+            if t in types
+        ]
+        common = set.intersection(*sets) if sets else set()
+        if common:  # an element name of several types: the children single in all
+            derived[name] = frozenset(common)
+    assert derived == SINGLE_CHILDREN
+
+
+@pytest.mark.parametrize(
+    ("parent", "child"),
+    [("Event", "StartTrigger"), ("BoundingBox", "Dimensions"), ("TeleportAction", "Position")],
+)
+def test_a_repeated_single_child_is_refused(tmp_path: Path, parent: str, child: str) -> None:
+    from scenariogeneration import xosc
+
+    from tests.scenario._build import at_time, step_speed
+
+    ev = xosc.Event("slower", xosc.Priority.override)
+    ev.add_action("slower_action", step_speed(10.0))
+    ev.add_trigger(at_time(1.0))
+    path = write(tmp_path, [("Target", [ev])])
+    tree = etree.parse(str(path))
+    node = tree.getroot().iter(parent).__next__().find(child)
+    node.addnext(etree.fromstring(etree.tostring(node)))
+    tree.write(str(path))
+    with pytest.raises(ScenarioError, match=rf"scenario.xosc:\d+ <{parent}>: a second <{child}>"):
+        read_scenario(path)
