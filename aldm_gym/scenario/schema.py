@@ -3,13 +3,15 @@ XML 1.3.1's schema: ``maxOccurs`` 1 in a sequence, or one branch of a choice).
 
 :data:`SINGLE_CHILDREN` is written from the schema (tests/scenario/test_schema.py derives
 it again from the XSD that scenariogeneration ships and checks the two agree). The
-reader refuses a file that repeats one of them (:func:`check_single_children`): a
-second ``StartTrigger`` on an event, a second ``Position`` in a vertex would otherwise
-be read as the first one alone.
+reader refuses a file that repeats one of them, or has an element the schema does not
+know (:func:`check_single_children`): a second ``StartTrigger`` on an event, a second
+``Position`` in a vertex would otherwise be read as the first one alone, and a
+misspelt element inside one the player reads only in part would be skipped.
 """
 
 from __future__ import annotations
 
+import difflib
 from typing import Any
 
 from aldm_gym.errors import ScenarioError
@@ -419,24 +421,40 @@ SINGLE_CHILDREN: dict[str, frozenset[str]] = {
 
 
 def check_single_children(root: Any, source: str) -> None:
-    """Raise unless no element under ``root`` repeats a child the schema allows once.
+    """Raise unless every element under ``root`` is an element of OpenSCENARIO 1.3 and
+    none repeats a child the schema allows once.
 
     :param source: the file's name, for the message.
     :raises ScenarioError: ``file.xosc:57 <Event>: a second <StartTrigger>; the schema
-        allows one``.
+        allows one``, or ``file.xosc:12 <SpeedActionDynamic>: not an element of
+        OpenSCENARIO 1.3 (did you mean <SpeedActionDynamics>?)``.
     """
+    from aldm_gym.scenario.elements import ELEMENTS
+
     for el in root.iter():
-        single = SINGLE_CHILDREN.get(el.tag) if isinstance(el.tag, str) else None
+        tag = el.tag
+        if not isinstance(tag, str):
+            continue  # comments, processing instructions
+        if tag not in ELEMENTS:
+            near = difflib.get_close_matches(tag, list(ELEMENTS), n=1)
+            hint = f" (did you mean <{near[0]}>?)" if near else ""
+            parent = el.getparent()
+            inside = f" inside <{parent.tag}>" if parent is not None else ""
+            raise ScenarioError(
+                f"{source}:{el.sourceline} <{tag}>: not an element of OpenSCENARIO "
+                f"1.3{inside}{hint}"
+            )
+        single = SINGLE_CHILDREN.get(tag)
         if not single:
             continue
         seen: set[str] = set()
         for child in el:
-            tag = child.tag
-            if not isinstance(tag, str) or tag not in single:
+            kid = child.tag
+            if not isinstance(kid, str) or kid not in single:
                 continue
-            if tag in seen:
+            if kid in seen:
                 raise ScenarioError(
-                    f"{source}:{child.sourceline} <{el.tag}>: a second <{tag}>; the schema "
+                    f"{source}:{child.sourceline} <{tag}>: a second <{kid}>; the schema "
                     "allows one"
                 )
-            seen.add(tag)
+            seen.add(kid)

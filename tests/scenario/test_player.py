@@ -733,7 +733,11 @@ def test_a_misspelled_element_is_an_error(tmp_path: Path) -> None:
     )
     path.write_text(text)
     line = _line_of(path, "<StartTriger>")
-    with pytest.raises(ScenarioError, match=rf"scenario\.xosc:{line} <StartTriger>.*not supported"):
+    with pytest.raises(
+        ScenarioError,
+        match=rf"scenario\.xosc:{line} <StartTriger>: not an element of OpenSCENARIO 1.3 "
+        r"inside <Event> \(did you mean <StartTrigger>\?\)",
+    ):
         read_scenario(path)
 
 

@@ -82,3 +82,31 @@ def test_a_repeated_single_child_is_refused(tmp_path: Path, parent: str, child: 
     tree.write(str(path))
     with pytest.raises(ScenarioError, match=rf"scenario.xosc:\d+ <{parent}>: a second <{child}>"):
         read_scenario(path)
+
+
+@pytest.mark.parametrize(
+    "parent", ["SpeedActionDynamics", "LogicFile", "Performance", "FileHeader"]
+)
+def test_an_unknown_element_is_refused_where_the_player_reads_in_part(
+    tmp_path: Path, parent: str
+) -> None:
+    """An element the schema does not know is refused wherever it is, also inside
+    elements the player reads only some children or attributes of."""
+    from scenariogeneration import xosc
+
+    from tests.scenario._build import at_time
+
+    dyn = xosc.TransitionDynamics(xosc.DynamicsShapes.linear, xosc.DynamicsDimension.rate, 2.0)
+    ev = xosc.Event("slower", xosc.Priority.override)
+    ev.add_action("slower_action", xosc.AbsoluteSpeedAction(10.0, dyn))
+    ev.add_trigger(at_time(1.0))
+    path = write(tmp_path, [("Target", [ev])])
+    tree = etree.parse(str(path))
+    etree.SubElement(next(tree.getroot().iter(parent)), "SpeedActionDynamic")
+    tree.write(str(path))
+    with pytest.raises(
+        ScenarioError,
+        match=rf"scenario.xosc:\d+ <SpeedActionDynamic>: not an element of OpenSCENARIO 1.3 "
+        rf"inside <{parent}> \(did you mean <SpeedActionDynamics>\?\)",
+    ):
+        read_scenario(path)
