@@ -136,10 +136,13 @@ def _boundary_curve(lb: Any, where: str, data: bytes | None = None) -> MarkingCu
 
 def _unique_ids(gt: Any, where: str) -> None:
     """Raise unless the moving objects' ids, and the lane boundaries', are unique (OSI:
-    an identifier names one object)."""
+    an identifier names one object). Unset ids are not compared (some writers leave a
+    boundary's id out)."""
     for kind, items in (("moving object", gt.moving_object), ("lane boundary", gt.lane_boundary)):
         seen: set[int] = set()
         for item in items:
+            if not item.HasField("id"):
+                continue
             ident = int(item.id.value)
             if ident in seen:
                 raise _fail(where, f"two {kind} entries have the id {ident}")

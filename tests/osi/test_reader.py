@@ -400,3 +400,12 @@ def test_cli_detect(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     src.write_bytes(src.read_bytes()[:-5])
     err = usage_error(["osi", "detect", str(src), "--out", str(out), "--no-progress"], capsys)
     assert "c_gt.osi frame 2" in err
+
+
+def test_boundaries_without_ids_are_read() -> None:
+    """Unset ids are not duplicates: a writer that leaves boundary ids out is read."""
+    gt = ground_truth()
+    for lb in gt.lane_boundary:
+        lb.ClearField("id")
+    frame = ViewReader().frame(gt, 0)
+    assert len(frame.line_type) > 0 and len(frame.all_points) > 0
