@@ -36,6 +36,7 @@ class OsiRecorder:
         self.writer: TraceWriter | None = None
         self.cycle = 0
         self._lanes: dict[Any, int] = {}
+        self._vehicles: dict[int, tuple[Any, int]] = {}
 
     def start(self) -> None:
         """A new episode: close the last trace, open the next. An episode that ended
@@ -45,6 +46,7 @@ class OsiRecorder:
         if not empty:
             self.episode += 1
         self.cycle = 0
+        self._vehicles = {}
         self.writer = TraceWriter(self.settings.episode_path(self.episode))
 
     def record(self, env: Any) -> None:
@@ -73,6 +75,7 @@ class OsiRecorder:
             table=road.marking_table,
             lines=lines,
             lane_ids={name: self._lane_id(key) for name, key in _lane_keys(lane).items()},
+            ids=[self._vehicle_number(v) for v in env.road.vehicles],
         )
         ids = range(BOUNDARY_ID, BOUNDARY_ID + len(road.marking_table["type"]))
         data = sensor_data(
@@ -81,6 +84,16 @@ class OsiRecorder:
         self.writer.write(view)
         self.writer.write(data)
         self.cycle += 1
+
+    def _vehicle_number(self, vehicle: Any) -> int:
+        """A vehicle's number for the episode: the next free one when it is first seen
+        (its index in the traffic while no vehicle has left), kept while it is away (a
+        scenario's deleted entity added back is the same object)."""
+        entry = self._vehicles.get(id(vehicle))  # holding the vehicle keeps its id(·) unique
+        if entry is None:
+            entry = (vehicle, len(self._vehicles))
+            self._vehicles[id(vehicle)] = entry
+        return entry[1]
 
     def _lane_id(self, key: Any) -> int:
         """A lane's OSI id: ``LANE_ID`` + a generated road's lane id; on a map the next

@@ -211,6 +211,7 @@ def sensor_view(
     lines: Mapping[str, Any] | None = None,
     lane_ids: Mapping[str, int] | None = None,
     reach: float = 300.0,
+    ids: Sequence[int] | None = None,
 ) -> Any:
     """One ``osi3.SensorView``: the host and the vehicles within ``reach`` [m], the lane
     boundaries in view (:func:`~aldm_gym.osi.boundaries.sample_boundaries`) and, when
@@ -219,11 +220,16 @@ def sensor_view(
     neighbours.
 
     :param t: simulation time [s].
-    :param vehicles: every vehicle of the traffic (ids: their index).
+    :param vehicles: every vehicle of the traffic.
     :param host: the ego (one of ``vehicles``).
     :param frame: the sensor frame measured at this step (mounting position, sensor id).
     :param table: the road's ``marking_table`` (type, colour, width, height).
+    :param ids: each vehicle's number (its OSI id is ``VEHICLE_ID`` + it; default its
+        index), so that a vehicle keeps its id when others leave the traffic.
     """
+    numbers = list(range(len(vehicles))) if ids is None else list(ids)
+    if len(numbers) != len(vehicles):
+        raise ValueError(f"{len(numbers)} ids for {len(vehicles)} vehicles")
     sv = osi3.SensorView()
     _version(sv.version)
     _timestamp(sv.timestamp, t)
@@ -234,14 +240,14 @@ def sensor_view(
     _timestamp(gt.timestamp, t)
     hx, hy = float(host.position[0]), float(host.position[1])
     host_id = None
-    for i, v in enumerate(vehicles):
+    for i, v in zip(numbers, vehicles, strict=True):
         if v is host:
             host_id = VEHICLE_ID + i
         elif math.hypot(float(v.position[0]) - hx, float(v.position[1]) - hy) > reach:
             continue
         _moving_object(gt.moving_object.add(), v, VEHICLE_ID + i)
     if host_id is None:  # a host outside the traffic list
-        host_id = VEHICLE_ID + len(vehicles)
+        host_id = VEHICLE_ID + max(numbers, default=-1) + 1
         _moving_object(gt.moving_object.add(), host, host_id)
     gt.host_vehicle_id.value = host_id
     sv.host_vehicle_id.value = host_id

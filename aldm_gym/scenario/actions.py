@@ -297,6 +297,56 @@ class Teleport(Instance):
         self.done = True
 
 
+class EntityChange(Instance):
+    """``EntityAction``: ``DeleteEntityAction`` takes an entity out of the scenario,
+    ``AddEntityAction`` puts it back at a position.
+
+    From the storyboard the entity is out (or in) at once for every condition, and
+    its vehicle leaves (or enters) the road at the next step, as a teleport moves it
+    then (esmini plays both so): a deleted entity's vehicle is there at the step its
+    action starts and gone from the next; an added one is placed at the position and
+    moves on from it in the next step, at the speed it had. In ``Init`` they take
+    effect at once; an entity that ``Init`` does not place and that an
+    ``AddEntityAction`` adds starts absent (as in esmini). Adding an entity that is
+    there, or deleting one that is gone, changes nothing (esmini skips both), except
+    that an ``AddEntityAction`` in ``Init`` places an entity not yet placed. The
+    function under test cannot be deleted.
+    """
+
+    def __init__(
+        self, entity: Entity | None, where: str, name: str, position: Position | None
+    ) -> None:
+        """``name``: the entity's; ``position``: where to add it (None: delete it)."""
+        super().__init__(entity, where)
+        self.name, self.position = name, position
+
+    def start(self, runner: Any) -> None:
+        """Delete or add the entity (see the class docstring)."""
+        world = runner.world
+        entity = world.entities[self.name]
+        self.done = True
+        if self.position is None:
+            if entity.is_ego:
+                raise ScenarioError(f"{self.where}: deletes {self.name!r}, the function under test")
+            if entity.present:
+                entity.present, entity.arrival = False, None
+                entity.leaving = world.running and runner.on_road(entity)
+            return
+        where = self.position.resolve(world)
+        if entity.present:
+            if not world.running and not entity.placed:
+                place(world, entity, where)
+            return
+        entity.present = True
+        if not world.running:
+            place(world, entity, where)
+        elif entity.leaving:  # deleted and added back before it left: it moves there
+            entity.leaving = False
+            entity.teleport = where
+        else:
+            entity.arrival = where
+
+
 def place(world: World, entity: Entity, where: Where) -> None:
     """Put ``entity`` at a resolved position."""
     if where.lane is not None:

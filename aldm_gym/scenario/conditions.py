@@ -36,11 +36,14 @@ from typing import Any
 
 import numpy as np
 
-from aldm_gym.scenario.world import Entity, World
+from aldm_gym.scenario.world import Entity, World, wrap_angle
 
 __all__ = [
     "RULES",
+    "angle",
+    "angle_within",
     "distance",
+    "relative_angle",
     "relative_distance",
     "rule",
 ]
@@ -330,6 +333,40 @@ def speed(entity: Entity, other: Entity | None, direction: str | None) -> float:
         return 0.0
     axis = entity.forward() if direction == "longitudinal" else entity.left()
     return float(velocity @ axis)
+
+
+def angle(world: World, entity: Entity, kind: str, system: str) -> float:
+    """The entity's ``heading``, ``pitch`` or ``roll`` [rad] (``AngleCondition``) in
+    OpenDRIVE's sense (counter-clockwise, from above): in ``world`` coordinates, or
+    relative to the road's reference line (``road``: along increasing ``s``) or to its
+    lane's driving direction (``lane``) where it is. The world is planar: pitch and
+    roll are 0.
+
+    :raises OffRoadError: ``road`` or ``lane`` and the entity is on no driving lane.
+    """
+    if kind != "heading":
+        return 0.0
+    heading = -entity.heading  # highway-env's y points down
+    if system == "world":
+        return wrap_angle(heading)
+    c = world.coordinates(entity)
+    _, lane_heading = world.pose(c.lane, c.u, 0.0)
+    along = -lane_heading + (math.pi if system == "road" and c.direction < 0 else 0.0)
+    return wrap_angle(heading - along)
+
+
+def relative_angle(world: World, entity: Entity, other: Entity, kind: str, system: str) -> float:
+    """The entity's ``heading``, ``pitch`` or ``roll`` relative to ``other``'s [rad]
+    (``RelativeAngleCondition``): the difference of their angles, each in the same
+    system (``entity``: the world's, as the difference is the angle in ``other``'s
+    frame)."""
+    system = "world" if system == "entity" else system
+    return wrap_angle(angle(world, entity, kind, system) - angle(world, other, kind, system))
+
+
+def angle_within(value: float, target: float, tolerance: float) -> bool:
+    """Whether an angle is within ``tolerance`` [rad] of ``target`` (both wrapped)."""
+    return abs(wrap_angle(value - target)) <= tolerance
 
 
 class _Point:

@@ -160,8 +160,9 @@ ELEMENTS: dict[str, tuple[str, str]] = {
         "TrafficSignalControllerCondition",
     ),
     **_each(
-        "refused",
-        "angle conditions (1.3) are not played yet",
+        "played",
+        "angle conditions (1.3): heading in world, road or lane coordinates, relative "
+        "to another entity; pitch and roll are 0 on the planar world",
         "AngleCondition RelativeAngleCondition",
     ),
     # ---------------------------------------------------------------- positions
@@ -241,8 +242,8 @@ ELEMENTS: dict[str, tuple[str, str]] = {
         "UserDefinedAction CustomCommandAction",
     ),
     **_each(
-        "refused",
-        "adding and deleting entities at run time is not played yet",
+        "played",
+        "deleting an entity and adding it back at a position (not the function under test)",
         "EntityAction AddEntityAction DeleteEntityAction",
     ),
     **_each(

@@ -360,6 +360,9 @@ def player_trace(
         row: list[float] = []
         for name in names:
             e = runner.world.entities[name]
+            if not runner.on_road(e):  # deleted: not in esmini's log either
+                row += [math.nan] * 4
+                continue
             ref = e.reference_point()
             row += [float(ref[0]), -float(ref[1]), -e.heading, float(e.speed)]
         rows.append(row)

@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from aldm_gym.errors import ScenarioError, ScenarioWarning
+from aldm_gym.errors import OffRoadError, ScenarioError, ScenarioWarning
 from aldm_gym.scenario import actions as A
 from aldm_gym.scenario import conditions as C
 from aldm_gym.scenario import shapes as S
@@ -154,6 +154,9 @@ class Scenario:
     """The ``VariableDeclarations``' initial values (1.2+)."""
     ignored: dict[str, str] = field(default_factory=dict)
     """Elements with no meaning on the env, by tag: why, and where they are."""
+    added: frozenset[str] = frozenset()
+    """The entities an ``AddEntityAction`` adds: one that ``Init`` does not place
+    starts absent (as in esmini) until it is added."""
     _root: Any = None
 
     def entity(self, name: str) -> EntitySpec:
@@ -174,6 +177,7 @@ class Scenario:
         order at time 0) and the stories, bound to these runtime entities."""
         reader = _Reader(self.path, self.parameters, self._root, entities)
         out = reader.init(), reader.storyboard()
+        self.added = frozenset(reader.added)
         for tag, (_, why, lines) in reader.ignored.items():
             shown = ", ".join(str(n) for n in lines[:5]) + (", ..." if len(lines) > 5 else "")
             self.ignored[tag] = f"{why} (line{'s' if len(lines) > 1 else ''} {shown})"
@@ -293,6 +297,11 @@ class _Reader:
         self.ignored: dict[str, tuple[int, str, list[int]]] = {}
         """Elements with no meaning here: tag -> (first line, why, lines)."""
         self.ignored_network: dict[str, str] = {}
+        self.added: set[str] = set()
+        """The entities an ``AddEntityAction`` names (shared with scoped readers)."""
+        self.refs: list[str] = []
+        """Every entity name read so far (a condition's names are those read while
+        reading it), shared with the scoped readers."""
 
     # ------------------------------------------------------------ attributes
     def where(self, el: Any, attr: str | None = None) -> str:
@@ -611,13 +620,17 @@ class _Reader:
             self.attr(p, "entityRef"), self.num(p, "dx", 0.0), self.num(p, "dy", 0.0), orient, where
         )
 
-    def _entity_ref(self, el: Any, attr: str) -> str:
+    def _entity_ref(self, el: Any, attr: str, record: bool = True) -> str:
+        """The name of a scenario object in attribute ``attr`` (noted in :attr:`refs`
+        with ``record``)."""
         name = self.attr(el, attr)
         known = [e.get("name") for e in self.root.findall("Entities/ScenarioObject")]
         if name not in known:
             raise self.error(
                 el, f"{attr}={name!r} names no scenario object; the scenario has {known}"
             )
+        if record:
+            self.refs.append(name)
         return name
 
     def _rt(self, name: str) -> Entity:
@@ -766,6 +779,14 @@ class _Reader:
             return self._store_change(body, "parameters")
         if body.tag == "VariableAction":
             return self._store_change(body, "variables")
+        if body.tag == "EntityAction":
+            name = self._entity_ref(body, "entityRef")
+            change = self.one(body, ("AddEntityAction", "DeleteEntityAction"))
+            pos = None
+            if change.tag == "AddEntityAction":
+                pos = self.position(self.child(change, "Position"))
+                self.added.add(name)
+            return lambda actor: A.EntityChange(actor, where, name, pos)
         raise self.error(body, f"{body.tag} is not supported yet")
 
     def dynamics(self, el: Any) -> A.Dynamics:
@@ -1353,11 +1374,22 @@ class _Reader:
                 "EndOfRoadCondition",
                 "OffroadCondition",
                 "RelativeClearanceCondition",
+                "AngleCondition",
+                "RelativeAngleCondition",
             ),
         )
+        mark = len(self.refs)
         one = self._entity_condition(c)
+        named = tuple(dict.fromkeys(self.refs[mark:]))
         combine = any if mode == "any" else all
-        return lambda runner: combine(one(runner, runner.world.entities[n]) for n in triggering)
+
+        def holds(runner: Any, name: str) -> bool:
+            # no condition holds on an entity that is not in the scenario (deleted)
+            entities = runner.world.entities
+            e = entities[name]
+            return e.present and all(entities[n].present for n in named) and one(runner, e)
+
+        return lambda runner: combine(holds(runner, n) for n in triggering)
 
     def _state_condition(self, c: Any) -> Callable[[Any, Entity], bool] | None:
         """Conditions on one entity's state: collisions, standing still, acceleration,
@@ -1372,7 +1404,9 @@ class _Reader:
             )
             kind = "miscObject" if kind == "miscellaneous" else kind
             return lambda runner, e: _collides(
-                runner.world, e, [o for o in runner.world.entities.values() if o.kind == kind]
+                runner.world,
+                e,
+                [o for o in runner.world.entities.values() if o.kind == kind and o.present],
             )
         if c.tag == "StandStillCondition":
             duration = self.num(c, "duration")
@@ -1389,7 +1423,42 @@ class _Reader:
             return lambda runner, e: C.off_road(runner.world, e, duration)
         if c.tag == "RelativeClearanceCondition":
             return self._clearance(c)
+        if c.tag in ("AngleCondition", "RelativeAngleCondition"):
+            return self._angle(c)
         return None
+
+    def _angle(self, c: Any) -> Callable[[Any, Entity], bool]:
+        """``AngleCondition`` / ``RelativeAngleCondition`` (1.3): the heading, pitch or
+        roll within ``angleTolerance`` of ``angle`` [rad], in world, road or lane
+        coordinates (relative: also the other entity's frame)."""
+        kind = self.choice(c, "angleType", ("heading", "pitch", "roll"))
+        target, tolerance = self.num(c, "angle"), self.num(c, "angleTolerance")
+        if tolerance < 0.0:
+            raise self.error(c, f"angleTolerance must be >= 0, got {tolerance:g}")
+        systems = ("entity", "world", "road", "lane", "trajectory")
+        if c.tag == "AngleCondition":
+            system = self.choice(c, "coordinateSystem", systems, "world")
+            if system == "entity":
+                raise self.error(c, "an entity's angle in its own coordinate system is 0")
+        else:
+            system = self.choice(c, "coordinateSystem", systems, "entity")
+        if system == "trajectory":
+            raise self.error(c, "coordinateSystem='trajectory' is not supported")
+
+        def measure(runner: Any, e: Entity) -> float:
+            if c.tag == "AngleCondition":
+                return C.angle(runner.world, e, kind, system)
+            return C.relative_angle(runner.world, e, runner.world.entities[ref], kind, system)
+
+        ref = self._entity_ref(c, "entityRef") if c.tag == "RelativeAngleCondition" else ""
+
+        def within(runner: Any, e: Entity) -> bool:
+            try:
+                return C.angle_within(measure(runner, e), target, tolerance)
+            except OffRoadError:  # no road or lane to measure against
+                return False
+
+        return within
 
     def _clearance(self, c: Any) -> Callable[[Any, Entity], bool]:
         """``RelativeClearanceCondition``: the lanes ``from``..``to`` (relative to the
@@ -1400,7 +1469,8 @@ class _Reader:
             (self.integer(r, "from", 0), self.integer(r, "to", 0))
             for r in c.findall("RelativeLaneRange")
         ]
-        refs = [self._entity_ref(r, "entityRef") for r in c.findall("EntityRef")]
+        # an absent entity leaves the lanes clear (it does not make the condition fail)
+        refs = [self._entity_ref(r, "entityRef", record=False) for r in c.findall("EntityRef")]
         back, ahead = self.num(c, "distanceBackward"), self.num(c, "distanceForward")
         free_space = self.flag(c, "freeSpace")
         opposite = self.flag(c, "oppositeLanes")
@@ -1408,6 +1478,7 @@ class _Reader:
         def clear(runner: Any, e: Entity) -> bool:
             w = runner.world
             others = [w.entities[n] for n in refs] if refs else list(w.entities.values())
+            others = [o for o in others if o.present]
             return C.lanes_clear(w, e, others, ranges, back, ahead, free_space, opposite)
 
         return clear

@@ -15,6 +15,7 @@ from collections.abc import Callable
 from typing import Any
 
 from aldm_gym.errors import InputError, ScenarioError
+from aldm_gym.scenario.actions import place
 from aldm_gym.scenario.reader import Scenario
 from aldm_gym.scenario.world import Entity, ScenarioVehicle, World
 
@@ -74,6 +75,8 @@ class ScenarioRunner:
         self.activated_at: float | None = None
         """Simulation time of the ``ActivateControllerAction`` [s]."""
         self.on_activate: Callable[[Entity], None] | None = None
+        self.traffic: Any = None
+        """The road whose vehicles the entities' are (set by :meth:`populate`)."""
 
     @property
     def active(self) -> bool:
@@ -100,6 +103,7 @@ class ScenarioRunner:
         """
         import numpy as np
 
+        self.traffic = traffic
         for entity in self.world.entities.values():
             if entity.is_ego:
                 v = make_ego(traffic, np.zeros(2), 0.0, 0.0)
@@ -116,7 +120,10 @@ class ScenarioRunner:
                 raise
             except InputError as exc:  # a value that puts an entity outside the world
                 raise ScenarioError(f"{action.where}: {exc}") from None
-        missing = [e.name for e in self.world.entities.values() if not e.placed]
+        for entity in self.world.entities.values():
+            if not entity.placed and entity.name in self.scenario.added:
+                entity.present = False  # absent until its AddEntityAction (as esmini)
+        missing = [e.name for e in self.world.entities.values() if e.present and not e.placed]
         if missing:
             raise ScenarioError(
                 f"{self.scenario.path.name}: Init places no position for {missing} "
@@ -125,6 +132,9 @@ class ScenarioRunner:
         ego = self.ego.vehicle
         traffic.vehicles.append(ego)  # the ego first, as the env expects
         for entity in self.world.entities.values():
+            if not entity.present:  # deleted in Init: not on the road until added
+                entity.vehicle.collidable = False
+                continue
             if entity.lane is not None and entity.trajectory is None:
                 # the pose again with the speed Init gave after placing it
                 self.world.place(entity, entity.lane, entity.u, entity.t, entity.heading_offset)
@@ -168,6 +178,7 @@ class ScenarioRunner:
             self.ego.traveled += self.ego.velocity * dt
             if self.domains == {"lateral"}:
                 self.ego.speed = speed  # the script's (the vehicle's has the env's push)
+        self._come_and_go(dt)
         world.settle()
         # the clock counts steps at the simulation frequency: 12 / 10 is 1.2 exactly,
         # where 12 * 0.1 (or a sum of 0.1 s) is 1.2000000000000002
@@ -180,6 +191,28 @@ class ScenarioRunner:
             world.script_speed(self.ego, dt)  # the next step's speed is the script's
         world.prepare(dt)
         world.ego_due()
+
+    def on_road(self, entity: Entity) -> bool:
+        """Whether the entity's vehicle is on the road (not deleted, or added back)."""
+        return self.traffic is not None and any(v is entity.vehicle for v in self.traffic.vehicles)
+
+    def _come_and_go(self, dt: float) -> None:
+        """The vehicles of entities a ``DeleteEntityAction`` took out leave the road;
+        those an ``AddEntityAction`` put back are placed and move on by ``dt`` [s]."""
+        vehicles = self.traffic.vehicles
+        world = self.world
+        for entity in world.entities.values():
+            v = entity.vehicle
+            if not entity.present and not entity.leaving:
+                if any(x is v for x in vehicles):
+                    vehicles.remove(v)
+            elif entity.arrival is not None:
+                where, entity.arrival = entity.arrival, None
+                v.collidable = True
+                place(world, entity, where)
+                world.advance(entity, dt)
+                v.on_state_update()
+                vehicles.append(v)
 
     def control(self, lateral: bool, longitudinal: bool) -> None:
         """``ActivateControllerAction``: the function under test drives the ego in the

@@ -454,7 +454,6 @@ def check_single_children(root: Any, source: str) -> None:
                 continue
             if kid in seen:
                 raise ScenarioError(
-                    f"{source}:{child.sourceline} <{tag}>: a second <{kid}>; the schema "
-                    "allows one"
+                    f"{source}:{child.sourceline} <{tag}>: a second <{kid}>; the schema allows one"
                 )
             seen.add(kid)

@@ -149,6 +149,15 @@ class Entity:
     """The lateral motion that moved the entity in its last step (it may have ended
     there and left ``lateral``)."""
     placed: bool = False
+    present: bool = True
+    """It is in the scenario: not deleted by a ``DeleteEntityAction`` (or added
+    back). No condition on an absent entity holds; its vehicle is not on the road
+    (from the step after the deletion), so it does not move, collide or show."""
+    leaving: bool = False
+    """A ``DeleteEntityAction`` took it out: its vehicle leaves at its next step."""
+    arrival: Any = None
+    """Where an ``AddEntityAction`` puts its vehicle at the next step (a resolved
+    position)."""
 
     @property
     def current_speed(self) -> float:
@@ -420,7 +429,12 @@ class World:
         """Move a scripted entity by ``dt`` [s]: its longitudinal and lateral motions
         (or its trajectory) set speed and offset, then it drives ``speed · dt`` along
         its lane, on into the lane's successor at the lane's end."""
-        if not entity.scripted or not entity.placed:
+        if entity.leaving:  # deleted in the last step: gone from this one on
+            entity.leaving, entity.present = False, False
+            if entity.vehicle is not None:
+                entity.vehicle.collidable = False
+            return
+        if not entity.scripted or not entity.placed or not entity.present:
             return
         if entity.teleport is not None:
             where, entity.teleport = entity.teleport, None
@@ -486,7 +500,7 @@ class World:
         """After a step of ``dt`` [s], at the new time: what the state conditions need
         (standing still, acceleration, at the road's end, off road) for every entity."""
         for e in self.entities.values():
-            if e.vehicle is None:
+            if e.vehicle is None or not e.present:
                 continue
             speed = e.current_speed
             if e.last_speed is not None and dt > 0:
@@ -516,6 +530,8 @@ class World:
         """Before a step of ``dt`` [s]: the distance actions with dynamics measure their
         gaps where every entity is now."""
         for entity in self.entities.values():
+            if not entity.present:
+                continue
             motion = entity.longitudinal
             own = "longitudinal" not in entity.controlled  # the storyboard's speed
             if own and hasattr(motion, "prepare") and not getattr(motion, "rigid", False):
@@ -553,7 +569,7 @@ class World:
         for entity in self.entities.values():
             motion = entity.longitudinal
             own = "longitudinal" not in entity.controlled  # the storyboard's speed
-            if own and entity.placed and getattr(motion, "rigid", False):
+            if own and entity.placed and entity.present and getattr(motion, "rigid", False):
                 motion.settle(self)
 
     def follow_lateral(self, entity: Entity, dt: float) -> None:

@@ -534,6 +534,101 @@ def reach_headway_and_route(folder: Path) -> Path:
     )  # fmt: skip
 
 
+def entities_deleted_and_added(folder: Path) -> Path:
+    """``EntityAction``: the target is deleted at 2 s and added back at 5 s on
+    another lane (at the speed it had); a third car that ``Init`` deletes and does
+    not place is added 40 m ahead of the ego at 3 s, given a speed in the same step;
+    an event on the target's speed waits while it is gone and starts once it is back."""
+    entities = xosc.Entities()
+    for name in ("Ego", "Target", "Late"):
+        entities.add_scenario_object(name, car())
+    init = xosc.Init()
+    init.add_init_action("Ego", xosc.TeleportAction(xosc.LanePosition(50.0, 0, -2, 0)))
+    init.add_init_action("Ego", step_speed(20.0))
+    init.add_init_action(
+        "Target", xosc.TeleportAction(xosc.RelativeLanePosition(lane_id=1, entity="Ego", ds=60.0))
+    )
+    init.add_init_action("Target", step_speed(20.0))
+    init.add_global_action(xosc.DeleteEntityAction("Late"))
+    board = xosc.StoryBoard(
+        init,
+        xosc.ValueTrigger(
+            "stop", 0, xosc.ConditionEdge.rising,
+            xosc.SimulationTimeCondition(9.0, xosc.Rule.greaterThan), "stop",
+        ),
+    )  # fmt: skip
+    target = xosc.Maneuver("target")
+    target.add_event(_event("delete", xosc.DeleteEntityAction("Target"), at_time(2.0)))
+    back = xosc.AddEntityAction("Target", xosc.LanePosition(250.0, 0, -3, 0))
+    target.add_event(_event("add_back", back, at_time(5.0), xosc.Priority.parallel))
+    late = xosc.Maneuver("late")
+    ahead = xosc.RelativeLanePosition(lane_id=-1, entity="Ego", ds=40.0)
+    arrive = xosc.AddEntityAction("Late", ahead)
+    late.add_event(_event("arrive", arrive, at_time(3.0)))
+    late.add_event(_event("late_speed", step_speed(15.0), at_time(3.0), xosc.Priority.parallel))
+    waiting = xosc.ConditionGroup()
+    waiting.add_condition(at_time(4.0))
+    waiting.add_condition(
+        _entity_trigger("target_fast", xosc.SpeedCondition(10.0, xosc.Rule.greaterThan), "Target")
+    )
+    ego = xosc.Maneuver("ego")
+    ego.add_event(_event("on_target_speed", step_speed(25.0), waiting))
+    board.add_maneuver(target, "Target")
+    board.add_maneuver(late, "Late")
+    board.add_maneuver(ego, "Ego")
+    scenario = xosc.Scenario(
+        "entities", "aldm-gym tests", xosc.ParameterDeclarations(), entities, board,
+        xosc.RoadNetwork(str(straight_road(folder))), xosc.Catalog(),
+    )  # fmt: skip
+    path = folder / "entities.xosc"
+    scenario.write_xml(str(path))
+    return path
+
+
+def angle_conditions(folder: Path) -> Path:
+    """``AngleCondition`` (1.3) on an arc of R 250 m: the target speeds up when its
+    world heading (no coordinate system given) is within 0.02 rad of 0.3; the ego
+    changes lanes at 4 s, in the arc, and slows down when its heading leaves the road's direction
+    (road coordinates, falling edge) and again when it is 0.03 rad right of its lane's
+    direction (lane coordinates)."""
+
+    def heading(angle: float, tolerance: float, system: object) -> object:
+        return xosc.AngleCondition(angle, tolerance, xosc.AngleType.heading, system)
+
+    def trig(name: str, condition: object, entity: str, edge: object = None) -> object:
+        return xosc.EntityTrigger(name, 0, edge or xosc.ConditionEdge.none, condition, entity)
+
+    dyn = xosc.TransitionDynamics(xosc.DynamicsShapes.sinusoidal, xosc.DynamicsDimension.time, 3.0)
+    turning = trig("turning", heading(0.3, 0.02, xosc.CoordinateSystem.world), "Target")
+    leaves = trig(
+        "leaves", heading(0.0, 0.005, xosc.CoordinateSystem.road), "Ego", xosc.ConditionEdge.falling
+    )
+    askew = trig("askew", heading(-0.03, 0.01, xosc.CoordinateSystem.lane), "Ego")
+    path = write(
+        folder,
+        [
+            ("Target", [_event("world", step_speed(25.0), turning)]),
+            (
+                "Ego",
+                [
+                    _event("change", xosc.RelativeLaneChangeAction(-1, "Ego", dyn), at_time(4.0)),
+                    _event("road", step_speed(18.0), leaves, xosc.Priority.parallel),
+                    _event("lane", step_speed(16.0), askew, xosc.Priority.parallel),
+                ],
+            ),
+        ],
+        road=_curved_road(folder),
+        ego_s=20.0,
+        lane_id=-1,
+        target=(0, 30.0, 20.0),
+        stop=12.0,
+        name="angles.xosc",
+    )
+    # the world's is the standard's default coordinate system: leave it out
+    path.write_text(path.read_text().replace(' coordinateSystem="world"', ""))
+    return path
+
+
 CORPUS: dict[str, Callable[[Path], Path]] = {
     f.__name__: f
     for f in (
@@ -557,6 +652,8 @@ CORPUS: dict[str, Callable[[Path], Path]] = {
         trajectory_and_route_positions,
         speed_shapes_and_priorities,
         reach_headway_and_route,
+        entities_deleted_and_added,
+        angle_conditions,
     )
 }
 """The corpus by name."""

@@ -1,0 +1,223 @@
+"""Entities deleted and added at run time (``EntityAction``) and angle conditions,
+played in the env: the road, the conditions and the errors; the agreement with esmini
+is tests/scenario/test_esmini.py's (corpus ``entities_deleted_and_added``,
+``angle_conditions``)."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scenariogeneration import xosc
+
+from aldm_gym.errors import ScenarioError
+from aldm_gym.scenario import conditions as C
+from tests.scenario._build import STEP, at_time, play, step_speed, write
+from tests.scenario.corpus import CORPUS, _curved_road, _event
+
+
+def _road_vehicles(env: object) -> int:
+    return len(env.road.vehicles)  # type: ignore[attr-defined]
+
+
+def test_a_deleted_entity_leaves_the_road_and_comes_back_where_it_is_added(
+    tmp_path: Path,
+) -> None:
+    import gymnasium as gym
+
+    import aldm_gym  # noqa: F401
+
+    path = CORPUS["entities_deleted_and_added"](tmp_path)
+    cfg = {"scenario": {"xosc": str(path)}, "policy_frequency": 10, "simulation_frequency": 10}
+    env = gym.make("ALDMHighway-v0", config=cfg).unwrapped
+    env.reset(seed=0)
+    runner = env.scenario
+    world = runner.world
+    late, target = world.entities["Late"], world.entities["Target"]
+    # Init deletes Late, which it does not place: only the ego and the target drive
+    assert not late.present and _road_vehicles(env) == 2
+    seen: dict[float, tuple[bool, bool, int]] = {}
+    positions: dict[float, np.ndarray] = {}
+    while world.time < 8.0 - 1e-9:
+        env.step(1)
+        t = round(world.time, 1)
+        seen[t] = (target.present, runner.on_road(target), _road_vehicles(env))
+        positions[t] = target.reference_point().copy()
+    # deleted at 2.1 s: out for the conditions at once, off the road from the next step
+    assert seen[2.0] == (True, True, 2)
+    assert seen[2.1] == (False, True, 2)
+    assert seen[2.2] == (False, False, 1)  # Late arrives at 3.2 s
+    assert seen[3.2][2] == 2
+    # added back at 5.1 s: in at once, on the road at 250 m on lane -3 at the next step
+    assert seen[5.1][:2] == (True, False)
+    assert seen[5.2] == (True, True, 3)
+    c = world.coordinates(target)
+    assert c.lane_id == -3 and c.s > 250.0
+    # it moved on from 250 m at the speed it had (20 m/s) in the step that placed it
+    assert world.coordinates(target).s == pytest.approx(250.0 + 20.0 * (8.0 - 5.1), abs=1e-6)
+    # the ego's event on the target's speed waited while the target was gone
+    assert runner.storyboard.starts("event")["on_target_speed"] == [pytest.approx(5.1)]
+    env.close()
+
+
+def _patched(folder: Path, action: str) -> Path:
+    """A scenario whose target's event at 1 s is ``action`` (XML of a GlobalAction)."""
+    path = write(folder, [("Target", [_event("e", step_speed(5.0), at_time(1.0))])])
+    text = path.read_text()
+    start = text.index("<PrivateAction>", text.index('<Event name="e"'))
+    end = text.index("</PrivateAction>", start) + len("</PrivateAction>")
+    path.write_text(text[:start] + action + text[end:])
+    return path
+
+
+def test_deleting_the_function_under_test_is_an_error_naming_the_action(tmp_path: Path) -> None:
+    path = _patched(
+        tmp_path, '<GlobalAction><EntityAction entityRef="Ego"><DeleteEntityAction/>'
+        "</EntityAction></GlobalAction>"
+    )  # fmt: skip
+    with pytest.raises(ScenarioError, match=r"scenario\.xosc:\d+ <GlobalAction>.*deletes 'Ego'"):
+        play(path, seconds=2.0)
+
+
+def test_an_entity_init_does_not_place_is_still_an_error_unless_it_is_added(
+    tmp_path: Path,
+) -> None:
+    path = write(tmp_path, [("Ego", [_event("e", step_speed(20.0), at_time(5.0))])], target=None)
+    text = path.read_text().replace(
+        "</Entities>",
+        '<ScenarioObject name="Late"><CatalogReference catalogName="x" entryName="y"/>'
+        "</ScenarioObject></Entities>",
+    )
+    # a vehicle the Init does not place: the car of the target, renamed
+    ego = text[text.index('<ScenarioObject name="Ego">') : text.index("</ScenarioObject>") + 17]
+    text = text.replace(
+        '<ScenarioObject name="Late"><CatalogReference catalogName="x" entryName="y"/>'
+        "</ScenarioObject>",
+        ego.replace('name="Ego"', 'name="Late"'),
+    )
+    path.write_text(text)
+    with pytest.raises(ScenarioError, match=r"Init places no position for \['Late'\]"):
+        play(path, seconds=0.5)
+    added = text.replace(
+        "<Story ",
+        '<Story name="arrive"><Act name="a"><ManeuverGroup name="g" maximumExecutionCount="1">'
+        '<Actors selectTriggeringEntities="false"/><Maneuver name="m"><Event name="in" '
+        'priority="override"><Action name="add"><GlobalAction><EntityAction entityRef="Late">'
+        '<AddEntityAction><Position><LanePosition roadId="0" laneId="-1" s="120" offset="0"/>'
+        "</Position></AddEntityAction></EntityAction></GlobalAction></Action><StartTrigger>"
+        '<ConditionGroup><Condition name="t" delay="0" conditionEdge="none"><ByValueCondition>'
+        '<SimulationTimeCondition value="1" rule="greaterThan"/></ByValueCondition></Condition>'
+        "</ConditionGroup></StartTrigger></Event></Maneuver></ManeuverGroup><StartTrigger>"
+        '<ConditionGroup><Condition name="go" delay="0" conditionEdge="none"><ByValueCondition>'
+        '<SimulationTimeCondition value="0" rule="greaterOrEqual"/></ByValueCondition>'
+        "</Condition></ConditionGroup></StartTrigger></Act></Story><Story ",
+        1,
+    )
+    path.write_text(added)
+    env, records = play(path, seconds=2.0)
+    late = env.scenario.world.entities["Late"]
+    assert late.present and env.scenario.on_road(late)
+    c = env.scenario.world.coordinates(late)
+    assert c.lane_id == -1 and c.s == pytest.approx(120.0)  # no speed: it stands there
+    assert not records[0]["active"]
+
+
+def test_angles_in_world_road_and_lane_coordinates(tmp_path: Path) -> None:
+    from highway_env.road.road import Road
+
+    from aldm_gym.roads.map_road import OpenDriveRoad
+    from aldm_gym.scenario.reader import read_scenario
+    from aldm_gym.scenario.runner import ScenarioRunner
+    from aldm_gym.scenario.world import ScenarioVehicle
+
+    path = write(
+        tmp_path,
+        [],
+        road=_curved_road(tmp_path),
+        ego_s=300.0,  # in the arc of R 250 m, 200 m in: the road turned 0.8 rad left
+        lane_id=-1,
+        target=(0, 0.0, 20.0),
+    )
+    scenario = read_scenario(path)
+    road = OpenDriveRoad.from_file(str(scenario.map_path), marking_model="editor")
+    runner = ScenarioRunner(scenario, road, "Ego")
+    traffic = Road(network=road.network, vehicles=[])
+    runner.populate(traffic, lambda tr, pos, h, v: ScenarioVehicle(tr, pos, h, v), STEP)
+    world, ego = runner.world, runner.world.entities["Ego"]
+    assert C.angle(world, ego, "heading", "world") == pytest.approx(0.8, abs=1e-4)
+    assert C.angle(world, ego, "heading", "road") == pytest.approx(0.0, abs=1e-4)
+    assert C.angle(world, ego, "heading", "lane") == pytest.approx(0.0, abs=1e-4)
+    assert C.angle(world, ego, "pitch", "world") == 0.0
+    ego.vehicle.heading -= 0.1  # turned 0.1 rad to the left (highway-env's y is down)
+    assert C.angle(world, ego, "heading", "road") == pytest.approx(0.1, abs=1e-4)
+    target = world.entities["Target"]
+    assert C.relative_angle(world, ego, target, "heading", "entity") == pytest.approx(0.1, abs=1e-4)
+    assert C.angle_within(math.pi - 0.01, -math.pi + 0.01, 0.03)  # across the wrap
+    assert not C.angle_within(0.5, 0.3, 0.1)
+
+
+def test_a_relative_angle_condition_fires_when_the_lane_change_turns_the_actor(
+    tmp_path: Path,
+) -> None:
+    dyn = xosc.TransitionDynamics(xosc.DynamicsShapes.sinusoidal, xosc.DynamicsDimension.time, 3.0)
+    turned = xosc.EntityTrigger(
+        "turned",
+        0,
+        xosc.ConditionEdge.none,
+        xosc.RelativeAngleCondition(
+            0.03, 0.01, xosc.AngleType.heading, "Ego", xosc.CoordinateSystem.entity
+        ),
+        "Target",
+    )
+    path = write(
+        tmp_path,
+        [
+            (
+                "Target",
+                [
+                    _event("change", xosc.RelativeLaneChangeAction(1, "Target", dyn), at_time(1.0)),
+                    _event("slow", step_speed(10.0), turned, xosc.Priority.parallel),
+                ],
+            )
+        ],
+        lane_id=-2,
+        target=(0, 30.0, 20.0),
+        stop=6.0,
+    )
+    env, _ = play(path, seconds=6.0)
+    starts = env.scenario.storyboard.starts("event")
+    # the target turns left (towards lane -1) relative to the ego within 0.3 s
+    assert starts["change"] == [pytest.approx(1.1)]
+    assert 1.2 <= starts["slow"][0] <= 1.6
+
+
+def test_a_vehicle_keeps_its_osi_id_while_another_is_away(tmp_path: Path) -> None:
+    import gymnasium as gym
+
+    import aldm_gym  # noqa: F401
+    from aldm_gym.osi.messages import VEHICLE_ID
+    from aldm_gym.osi.trace import read_messages
+
+    path = CORPUS["entities_deleted_and_added"](tmp_path)
+    out = tmp_path / "run.mcap"
+    cfg = {
+        "scenario": {"xosc": str(path)},
+        "policy_frequency": 10,
+        "simulation_frequency": 10,
+        "osi": {"trace": str(out)},
+    }
+    env = gym.make("ALDMHighway-v0", config=cfg).unwrapped
+    env.reset(seed=0)
+    for _ in range(60):
+        env.step(1)
+    env.close()
+    views = [m for _, m in read_messages(out, "SensorView")]
+    ids = [sorted(o.id.value for o in v.global_ground_truth.moving_object) for v in views]
+    # ego 0 and target 1 at the start; the target gone from 2.2 s; Late (2) from 3.2 s;
+    # the target back with its own id from 5.2 s
+    assert ids[0] == [VEHICLE_ID, VEHICLE_ID + 1]
+    assert ids[25] == [VEHICLE_ID]
+    assert ids[40] == [VEHICLE_ID, VEHICLE_ID + 2]
+    assert ids[55] == [VEHICLE_ID, VEHICLE_ID + 1, VEHICLE_ID + 2]
