@@ -117,9 +117,15 @@ ELEMENTS: dict[str, tuple[str, str]] = {
         "Controller",
     ),
     **_each(
+        "played",
+        "a selection of scenario objects (by name, by type, or other selections), as "
+        "actors, triggering entities and `Init`'s actors",
+        "EntitySelection Members",
+    ),
+    **_each(
         "refused",
-        "entities defined elsewhere or by selection are not played yet",
-        "ExternalObjectReference EntitySelection Members ScenarioObjectTemplate",
+        "entities defined in another tool or by a template are not played",
+        "ExternalObjectReference ScenarioObjectTemplate",
     ),
     **_each(
         "refused",
@@ -149,8 +155,8 @@ ELEMENTS: dict[str, tuple[str, str]] = {
     ),
     **_each(
         "played",
-        "a `CollisionCondition` with any entity of a type (in an `EntitySelection` it is "
-        "refused with the selection)",
+        "a `CollisionCondition` with any entity of a type, or the members of an "
+        "`EntitySelection` of a type",
         "ByType",
     ),
     **_each(

@@ -299,6 +299,7 @@ class _Reader:
         self.ignored_network: dict[str, str] = {}
         self.added: set[str] = set()
         """The entities an ``AddEntityAction`` names (shared with scoped readers)."""
+        self._selections: dict[str, list[str]] | None = None
         self.refs: list[str] = []
         """Every entity name read so far (a condition's names are those read while
         reading it), shared with the scoped readers."""
@@ -469,7 +470,10 @@ class _Reader:
         """The ``Entities``' scenario objects."""
         out = []
         entities = self.child(self.root, "Entities")
-        for obj in self.kids(entities, ("ScenarioObject",)):
+        self.selections()  # checked here, expanded where they are named
+        for obj in self.kids(entities, ("ScenarioObject", "EntitySelection")):
+            if obj.tag == "EntitySelection":
+                continue
             name = self.attr(obj, "name")
             kids = [k for k in obj if isinstance(k.tag, str) and k.tag != "ObjectController"]
             allowed = ("CatalogReference", "Vehicle", "Pedestrian", "MiscObject")
@@ -620,11 +624,90 @@ class _Reader:
             self.attr(p, "entityRef"), self.num(p, "dx", 0.0), self.num(p, "dy", 0.0), orient, where
         )
 
+    def selections(self) -> dict[str, list[str]]:
+        """The ``EntitySelection``s: name -> the scenario objects they select (a member
+        that is a selection contributes its members; ``ByType`` every object of the
+        type), each once, in document order.
+
+        :raises ScenarioError: a selection named like an object or another selection,
+            a member that names nothing, a selection that contains itself.
+        """
+        if self._selections is not None:
+            return self._selections
+        objects = {self.attr(o, "name"): o for o in self.root.findall("Entities/ScenarioObject")}
+        raw: dict[str, Any] = {}
+        for sel in self.root.findall("Entities/EntitySelection"):
+            name = self.attr(sel, "name")
+            if name in objects or name in raw:
+                raise self.error(sel, f"the name {name!r} is taken by another entity")
+            raw[name] = sel
+        kinds = {"vehicle": "Vehicle", "pedestrian": "Pedestrian", "miscellaneous": "MiscObject"}
+
+        def kind_of(obj: Any) -> str:
+            body = next(k for k in obj if isinstance(k.tag, str) and k.tag != "ObjectController")
+            if body.tag == "CatalogReference":
+                element, _ = self.from_catalog(body)
+                return str(element.tag)
+            return str(body.tag)
+
+        out: dict[str, list[str]] = {}
+
+        def expand(name: str, chain: tuple[str, ...]) -> list[str]:
+            if name in out:
+                return out[name]
+            sel = raw[name]
+            members = self.child(sel, "Members")
+            self.kids(members, ("EntityRef", "ByType"))
+            picked: list[str] = []
+            for m in members:
+                if not isinstance(m.tag, str):
+                    continue
+                if m.tag == "ByType":
+                    wanted = self.choice(m, "objectType", (*kinds, "external"))
+                    if wanted == "external":
+                        raise self.error(m, "external objects are not played")
+                    picked += [n for n, o in objects.items() if kind_of(o) == kinds[wanted]]
+                    continue
+                ref = self.attr(m, "entityRef")
+                if ref in chain:
+                    raise self.error(m, f"the selection {ref!r} contains itself")
+                if ref in raw:
+                    picked += expand(ref, (*chain, ref))
+                elif ref in objects:
+                    picked.append(ref)
+                else:
+                    raise self.error(
+                        m, f"entityRef={ref!r} names no scenario object or selection; the "
+                        f"scenario has {list(objects)}"
+                    )  # fmt: skip
+            out[name] = list(dict.fromkeys(picked))
+            return out[name]
+
+        for name in raw:
+            expand(name, (name,))
+        self._selections = out
+        return out
+
+    def _entity_refs(self, el: Any, attr: str) -> list[str]:
+        """The scenario objects an attribute names: one object, or the members of an
+        ``EntitySelection`` (where the standard lets a selection stand for its
+        members: actors, triggering entities, ``Init``'s private actions)."""
+        name = self.attr(el, attr)
+        selected = self.selections().get(name)
+        if selected is None:
+            return [self._entity_ref(el, attr)]
+        self.refs.extend(selected)
+        return list(selected)
+
     def _entity_ref(self, el: Any, attr: str, record: bool = True) -> str:
         """The name of a scenario object in attribute ``attr`` (noted in :attr:`refs`
         with ``record``)."""
         name = self.attr(el, attr)
         known = [e.get("name") for e in self.root.findall("Entities/ScenarioObject")]
+        if name in self.selections():
+            raise self.error(
+                el, f"{attr}={name!r} is an EntitySelection; one scenario object is needed here"
+            )
         if name not in known:
             raise self.error(
                 el, f"{attr}={name!r} names no scenario object; the scenario has {known}"
@@ -1192,9 +1275,10 @@ class _Reader:
             if el.tag != "Private":
                 out.append(self.other(el)(None))
                 continue
-            actor = self._rt(self._entity_ref(el, "entityRef"))
-            for pa in self.kids(el, ("PrivateAction",)):
-                out.append(self.private(pa)(actor))
+            for name in self._entity_refs(el, "entityRef"):
+                actor = self._rt(name)
+                for pa in self.kids(el, ("PrivateAction",)):
+                    out.append(self.private(pa)(actor))
         return out
 
     def storyboard(self) -> Storyboard:
@@ -1237,7 +1321,11 @@ class _Reader:
         self.kids(actors_el, ("EntityRef",))
         if self.flag(actors_el, "selectTriggeringEntities", False):
             raise self.error(actors_el, "selectTriggeringEntities='true' is not supported")
-        actors = [self._entity_ref(r, "entityRef") for r in actors_el.findall("EntityRef")]
+        actors = list(
+            dict.fromkeys(
+                n for r in actors_el.findall("EntityRef") for n in self._entity_refs(r, "entityRef")
+            )
+        )
         if el.find("CatalogReference") is not None:
             raise self.error(
                 el.find("CatalogReference"), "maneuvers from catalogs are not supported"
@@ -1354,7 +1442,11 @@ class _Reader:
         te = self.child(body, "TriggeringEntities")
         self.kids(te, ("EntityRef",))
         mode = self.choice(te, "triggeringEntitiesRule", ("any", "all"))
-        triggering = [self._entity_ref(r, "entityRef") for r in te.findall("EntityRef")]
+        triggering = list(
+            dict.fromkeys(
+                n for r in te.findall("EntityRef") for n in self._entity_refs(r, "entityRef")
+            )
+        )
         if not triggering:
             raise self.error(te, "no <EntityRef>")
         c = self.one(

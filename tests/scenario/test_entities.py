@@ -14,7 +14,7 @@ from scenariogeneration import xosc
 
 from aldm_gym.errors import ScenarioError
 from aldm_gym.scenario import conditions as C
-from tests.scenario._build import STEP, at_time, play, step_speed, write
+from tests.scenario._build import STEP, at_time, car, play, step_speed, straight_road, write
 from tests.scenario.corpus import CORPUS, _curved_road, _event
 
 
@@ -221,3 +221,127 @@ def test_a_vehicle_keeps_its_osi_id_while_another_is_away(tmp_path: Path) -> Non
     assert ids[25] == [VEHICLE_ID]
     assert ids[40] == [VEHICLE_ID, VEHICLE_ID + 2]
     assert ids[55] == [VEHICLE_ID, VEHICLE_ID + 1, VEHICLE_ID + 2]
+
+
+def _selections(folder: Path) -> Path:
+    """``EntitySelection``s: the two other cars (by name) slow down together at 1 s;
+    the ego changes lanes when all vehicles (by type) drive slower than 20.5 m/s; a
+    selection of a selection and the ego is the actor of a speed change at 6 s."""
+    entities = xosc.Entities()
+    for name in ("Ego", "Left", "Right"):
+        entities.add_scenario_object(name, car())
+    init = xosc.Init()
+    init.add_init_action("Ego", xosc.TeleportAction(xosc.LanePosition(50.0, 0, -2, 0)))
+    init.add_init_action("Left", xosc.TeleportAction(xosc.LanePosition(90.0, 0, -1, 0)))
+    init.add_init_action("Right", xosc.TeleportAction(xosc.LanePosition(70.0, 0, -3, 0)))
+    for name, v in (("Ego", 20.0), ("Left", 22.0), ("Right", 21.0)):
+        init.add_init_action(name, step_speed(v))
+    board = xosc.StoryBoard(
+        init,
+        xosc.ValueTrigger(
+            "stop", 0, xosc.ConditionEdge.rising,
+            xosc.SimulationTimeCondition(9.0, xosc.Rule.greaterThan), "stop",
+        ),
+    )  # fmt: skip
+    dyn = xosc.TransitionDynamics(xosc.DynamicsShapes.linear, xosc.DynamicsDimension.rate, 2.0)
+    slow = xosc.Maneuver("slow")
+    slow.add_event(_event("slow_down", xosc.AbsoluteSpeedAction(15.0, dyn), at_time(1.0)))
+    board.add_maneuver(slow, "others")
+    all_slow = xosc.EntityTrigger(
+        "all_slow", 0, xosc.ConditionEdge.none,
+        xosc.SpeedCondition(20.5, xosc.Rule.lessThan), "vehicles",
+        xosc.TriggeringEntitiesRule.all,
+    )  # fmt: skip
+    lane = xosc.TransitionDynamics(xosc.DynamicsShapes.sinusoidal, xosc.DynamicsDimension.time, 2.0)
+    ego = xosc.Maneuver("ego")
+    ego.add_event(_event("change", xosc.RelativeLaneChangeAction(1, "Ego", lane), all_slow))
+    board.add_maneuver(ego, "Ego")
+    together = xosc.Maneuver("together")
+    together.add_event(_event("speed_up", xosc.AbsoluteSpeedAction(25.0, dyn), at_time(6.0)))
+    board.add_maneuver(together, "everyone")
+    scenario = xosc.Scenario(
+        "selections", "aldm-gym tests", xosc.ParameterDeclarations(), entities, board,
+        xosc.RoadNetwork(str(straight_road(folder))), xosc.Catalog(),
+    )  # fmt: skip
+    path = folder / "selections.xosc"
+    scenario.write_xml(str(path))
+    text = path.read_text().replace(
+        "</Entities>",
+        '<EntitySelection name="others"><Members><EntityRef entityRef="Left"/>'
+        '<EntityRef entityRef="Right"/></Members></EntitySelection>'
+        '<EntitySelection name="vehicles"><Members><ByType objectType="vehicle"/></Members>'
+        "</EntitySelection>"
+        '<EntitySelection name="everyone"><Members><EntityRef entityRef="others"/>'
+        '<EntityRef entityRef="Ego"/></Members></EntitySelection></Entities>',
+    )
+    path.write_text(text)
+    return path
+
+
+def test_a_selection_plays_as_its_members_spelled_out(tmp_path: Path) -> None:
+    """esmini 3.6 reads ``EntitySelection`` but finds no entity by its name, so the
+    selection is checked against the same file with the members named one by one."""
+    from aldm_gym.scenario.esmini import player_trace
+
+    path = _selections(tmp_path)
+    text = path.read_text()
+    spelled = tmp_path / "spelled.xosc"
+
+    def refs(*names: str) -> str:
+        return "".join(f'<EntityRef entityRef="{n}"/>' for n in names)
+
+    spelled.write_text(
+        text.replace('<EntityRef entityRef="others"/>\n', refs("Left", "Right") + "\n")
+        .replace('<EntityRef entityRef="vehicles"/>', refs("Ego", "Left", "Right"))
+        .replace('<EntityRef entityRef="everyone"/>', refs("Left", "Right", "Ego"))
+    )
+    assert 'entityRef="others"/>\n' not in spelled.read_text()
+    ours, theirs = player_trace(path), player_trace(spelled)
+    assert set(ours.poses) == {"Ego", "Left", "Right"}
+    for name in ours.poses:
+        np.testing.assert_array_equal(ours.poses[name], theirs.poses[name])
+    assert ours.starts == theirs.starts
+    # the two others slow down together, the ego changes lanes once all are slow
+    assert ours.starts["slow_down"] == [pytest.approx(1.1)]
+    assert len(ours.starts["change"]) == 1 and ours.starts["change"][0] > 1.1
+    assert ours.starts["speed_up"] == [pytest.approx(6.1)]
+    end = ours.poses["Ego"][-1]
+    assert end[3] > 20.0 and ours.poses["Left"][-1][3] > 15.0
+
+
+@pytest.mark.parametrize(
+    ("members", "message"),
+    [
+        ('<EntityRef entityRef="nobody"/>', "entityRef='nobody' names no scenario object"),
+        ('<EntityRef entityRef="loop"/>', "the selection 'loop' contains itself"),
+        ('<ByType objectType="external"/>', "external objects are not played"),
+    ],
+)
+def test_a_bad_selection_is_named(tmp_path: Path, members: str, message: str) -> None:
+    from aldm_gym.scenario import read_scenario
+
+    path = write(tmp_path, [])
+    text = path.read_text().replace(
+        "</Entities>",
+        f'<EntitySelection name="loop"><Members>{members}</Members></EntitySelection></Entities>',
+    )
+    path.write_text(text)
+    with pytest.raises(ScenarioError, match=rf"scenario\.xosc:\d+ <\w+>: {message}"):
+        read_scenario(path)
+
+
+def test_a_selection_where_one_entity_is_needed_is_an_error(tmp_path: Path) -> None:
+    from aldm_gym.scenario import read_scenario
+
+    path = write(tmp_path, [])
+    text = path.read_text().replace(
+        "</Entities>",
+        '<EntitySelection name="both"><Members><EntityRef entityRef="Ego"/>'
+        '<EntityRef entityRef="Target"/></Members></EntitySelection></Entities>',
+    )
+    text = text.replace(
+        '<RelativeLanePosition entityRef="Ego"', '<RelativeLanePosition entityRef="both"'
+    )
+    path.write_text(text)
+    with pytest.raises(ScenarioError, match="'both' is an EntitySelection; one scenario object"):
+        read_scenario(path)
