@@ -59,6 +59,35 @@ def at_time(t: float, name: str = "t", edge: Any = None, delay: float = 0.0) -> 
     )
 
 
+def cars_and_board(
+    names: Sequence[str], init: xosc.Init, stop: float
+) -> tuple[xosc.Entities, xosc.StoryBoard]:
+    """Cars called ``names`` and a storyboard of ``init`` that stops at ``stop`` [s],
+    for scenarios that :func:`write` does not cover (more than two cars)."""
+    entities = xosc.Entities()
+    for name in names:
+        entities.add_scenario_object(name, car())
+    board = xosc.StoryBoard(
+        init,
+        xosc.ValueTrigger(
+            "stop", 0, xosc.ConditionEdge.rising,
+            xosc.SimulationTimeCondition(stop, xosc.Rule.greaterThan), "stop",
+        ),
+    )  # fmt: skip
+    return entities, board
+
+
+def save(folder: Path, name: str, entities: xosc.Entities, board: xosc.StoryBoard) -> Path:
+    """Write ``entities`` and ``board`` on the straight road as ``folder/name``."""
+    scenario = xosc.Scenario(
+        name, "aldm-gym tests", xosc.ParameterDeclarations(), entities, board,
+        xosc.RoadNetwork(str(straight_road(folder))), xosc.Catalog(),
+    )  # fmt: skip
+    path = folder / name
+    scenario.write_xml(str(path))
+    return path
+
+
 def write(
     folder: Path,
     events: Sequence[tuple[str, Sequence[xosc.Event]]] = (),

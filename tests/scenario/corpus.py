@@ -12,7 +12,15 @@ from pathlib import Path
 
 from scenariogeneration import xodr, xosc
 
-from tests.scenario._build import at_time, car, step_speed, straight_road, write
+from tests.scenario._build import (
+    at_time,
+    car,
+    cars_and_board,
+    save,
+    step_speed,
+    straight_road,
+    write,
+)
 
 
 def _event(name: str, action: object, trigger: object, priority: object = None) -> xosc.Event:
@@ -539,9 +547,6 @@ def entities_deleted_and_added(folder: Path) -> Path:
     another lane (at the speed it had); a third car that ``Init`` deletes and does
     not place is added 40 m ahead of the ego at 3 s, given a speed in the same step;
     an event on the target's speed waits while it is gone and starts once it is back."""
-    entities = xosc.Entities()
-    for name in ("Ego", "Target", "Late"):
-        entities.add_scenario_object(name, car())
     init = xosc.Init()
     init.add_init_action("Ego", xosc.TeleportAction(xosc.LanePosition(50.0, 0, -2, 0)))
     init.add_init_action("Ego", step_speed(20.0))
@@ -550,13 +555,7 @@ def entities_deleted_and_added(folder: Path) -> Path:
     )
     init.add_init_action("Target", step_speed(20.0))
     init.add_global_action(xosc.DeleteEntityAction("Late"))
-    board = xosc.StoryBoard(
-        init,
-        xosc.ValueTrigger(
-            "stop", 0, xosc.ConditionEdge.rising,
-            xosc.SimulationTimeCondition(9.0, xosc.Rule.greaterThan), "stop",
-        ),
-    )  # fmt: skip
+    entities, board = cars_and_board(("Ego", "Target", "Late"), init, 9.0)
     target = xosc.Maneuver("target")
     target.add_event(_event("delete", xosc.DeleteEntityAction("Target"), at_time(2.0)))
     back = xosc.AddEntityAction("Target", xosc.LanePosition(250.0, 0, -3, 0))
@@ -576,21 +575,15 @@ def entities_deleted_and_added(folder: Path) -> Path:
     board.add_maneuver(target, "Target")
     board.add_maneuver(late, "Late")
     board.add_maneuver(ego, "Ego")
-    scenario = xosc.Scenario(
-        "entities", "aldm-gym tests", xosc.ParameterDeclarations(), entities, board,
-        xosc.RoadNetwork(str(straight_road(folder))), xosc.Catalog(),
-    )  # fmt: skip
-    path = folder / "entities.xosc"
-    scenario.write_xml(str(path))
-    return path
+    return save(folder, "entities.xosc", entities, board)
 
 
 def angle_conditions(folder: Path) -> Path:
     """``AngleCondition`` (1.3) on an arc of R 250 m: the target speeds up when its
     world heading (no coordinate system given) is within 0.02 rad of 0.3; the ego
-    changes lanes at 4 s, in the arc, and slows down when its heading leaves the road's direction
-    (road coordinates, falling edge) and again when it is 0.03 rad right of its lane's
-    direction (lane coordinates)."""
+    changes lanes at 4 s, in the arc, and slows down when its heading leaves the road's
+    direction (road coordinates, falling edge) and again when it is 0.03 rad right of
+    its lane's direction (lane coordinates)."""
 
     def heading(angle: float, tolerance: float, system: object) -> object:
         return xosc.AngleCondition(angle, tolerance, xosc.AngleType.heading, system)

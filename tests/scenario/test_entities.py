@@ -14,7 +14,7 @@ from scenariogeneration import xosc
 
 from aldm_gym.errors import ScenarioError
 from aldm_gym.scenario import conditions as C
-from tests.scenario._build import STEP, at_time, car, play, step_speed, straight_road, write
+from tests.scenario._build import STEP, at_time, cars_and_board, play, save, step_speed, write
 from tests.scenario.corpus import CORPUS, _curved_road, _event
 
 
@@ -227,22 +227,13 @@ def _selections(folder: Path) -> Path:
     """``EntitySelection``s: the two other cars (by name) slow down together at 1 s;
     the ego changes lanes when all vehicles (by type) drive slower than 20.5 m/s; a
     selection of a selection and the ego is the actor of a speed change at 6 s."""
-    entities = xosc.Entities()
-    for name in ("Ego", "Left", "Right"):
-        entities.add_scenario_object(name, car())
     init = xosc.Init()
     init.add_init_action("Ego", xosc.TeleportAction(xosc.LanePosition(50.0, 0, -2, 0)))
     init.add_init_action("Left", xosc.TeleportAction(xosc.LanePosition(90.0, 0, -1, 0)))
     init.add_init_action("Right", xosc.TeleportAction(xosc.LanePosition(70.0, 0, -3, 0)))
     for name, v in (("Ego", 20.0), ("Left", 22.0), ("Right", 21.0)):
         init.add_init_action(name, step_speed(v))
-    board = xosc.StoryBoard(
-        init,
-        xosc.ValueTrigger(
-            "stop", 0, xosc.ConditionEdge.rising,
-            xosc.SimulationTimeCondition(9.0, xosc.Rule.greaterThan), "stop",
-        ),
-    )  # fmt: skip
+    entities, board = cars_and_board(("Ego", "Left", "Right"), init, 9.0)
     dyn = xosc.TransitionDynamics(xosc.DynamicsShapes.linear, xosc.DynamicsDimension.rate, 2.0)
     slow = xosc.Maneuver("slow")
     slow.add_event(_event("slow_down", xosc.AbsoluteSpeedAction(15.0, dyn), at_time(1.0)))
@@ -259,12 +250,7 @@ def _selections(folder: Path) -> Path:
     together = xosc.Maneuver("together")
     together.add_event(_event("speed_up", xosc.AbsoluteSpeedAction(25.0, dyn), at_time(6.0)))
     board.add_maneuver(together, "everyone")
-    scenario = xosc.Scenario(
-        "selections", "aldm-gym tests", xosc.ParameterDeclarations(), entities, board,
-        xosc.RoadNetwork(str(straight_road(folder))), xosc.Catalog(),
-    )  # fmt: skip
-    path = folder / "selections.xosc"
-    scenario.write_xml(str(path))
+    path = save(folder, "selections.xosc", entities, board)
     text = path.read_text().replace(
         "</Entities>",
         '<EntitySelection name="others"><Members><EntityRef entityRef="Left"/>'
