@@ -50,7 +50,7 @@ from aldm_gym.scenario.positions import (
     WorldPos,
     lane_step,
 )
-from aldm_gym.scenario.schema import check_single_children
+from aldm_gym.scenario.schema import check_structure
 from aldm_gym.scenario.storyboard import (
     STATES,
     TRANSITIONS,
@@ -199,7 +199,7 @@ def read_scenario(path: str | Path, parameters: Mapping[str, Any] | None = None)
         raise ScenarioError(
             f"{path.name}:{root.sourceline}: the root is <{root.tag}>, not <OpenSCENARIO>"
         )
-    check_single_children(root, path.name)
+    check_structure(root, path.name)
     header = root.find("FileHeader")
     if header is None:
         raise ScenarioError(f"{path.name}: no <FileHeader>")
@@ -433,7 +433,7 @@ class _Reader:
                     raise self.error(directory, f"the catalog folder {folder} does not exist")
                 for file in sorted(folder.glob("*.xosc")):
                     croot = parse_xml(file).getroot()
-                    check_single_children(croot, file.name)
+                    check_structure(croot, file.name)
                     for catalog in croot.findall("Catalog"):
                         entries = found.setdefault(catalog.get("name", ""), {})
                         for entry in catalog:
