@@ -103,6 +103,18 @@ def shape_value(shape: str, x: float) -> float:
     return 0.5 * (1.0 - math.cos(math.pi * x))
 
 
+def shape_slope(shape: str, x: float) -> float:
+    """The derivative of :func:`shape_value` at ``x`` (0 outside [0, 1) and for a
+    step)."""
+    if shape == "step" or not 0.0 <= x < 1.0:
+        return 0.0
+    if shape == "linear":
+        return 1.0
+    if shape == "cubic":
+        return 6.0 * x * (1.0 - x)
+    return 0.5 * math.pi * math.sin(math.pi * x)
+
+
 @dataclass(frozen=True)
 class Dynamics:
     """Transition dynamics: ``shape``, ``dimension`` (``time``, ``distance``, ``rate``)
@@ -1061,7 +1073,7 @@ class LaneOffset(Instance):
         self.t0 = entity.t
         self.t1 = float(self.target(world, entity)) * rec.direction
         change = abs(self.t1 - self.t0)
-        self.elapsed = 0.0
+        self.elapsed, self.x = 0.0, 0.0
         if self.max_acc is None or self.shape == "step" or change == 0.0:
             self.T = 0.0
         elif self.max_acc <= 0.0:
@@ -1079,6 +1091,7 @@ class LaneOffset(Instance):
         step began (a step late, as esmini plays it: the first step keeps the offset),
         the target at the first step that begins after the duration."""
         if self.elapsed >= self.T - _TIME_EPS:
+            self.x = 1.0
             if self.continuous:
                 self.t1 = float(self.target(world, entity)) * self.direction
             else:
@@ -1086,7 +1099,20 @@ class LaneOffset(Instance):
             return self.t1
         x = self.elapsed / self.T
         self.elapsed += dt
+        self.x = x
         return self.t0 + (self.t1 - self.t0) * shape_value(self.shape, x)
+
+    x: float = 1.0
+    """The shape's parameter of the last step (where the offset it set lies)."""
+
+    def heading_rate(self) -> float:
+        """The lateral speed [m/s] (driver's left) that turns the entity's heading: the
+        shape's rate where the last step's offset lies on it, which is the offset's
+        motion in the next step (esmini turns the heading with the shape while the
+        offset follows it a step late; 0 once the offset is reached)."""
+        if self.T <= 0.0:
+            return 0.0
+        return (self.t1 - self.t0) / self.T * shape_slope(self.shape, self.x)
 
 
 # ---------------------------------------------------------------------- trajectory

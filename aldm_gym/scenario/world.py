@@ -468,7 +468,7 @@ class World:
         jumped = False
         if entity.lateral is not None:
             entity.t = float(entity.lateral.offset_after(self, entity, dt))
-            lateral_speed = (entity.t - t_before) / dt if dt > 0 else 0.0
+            lateral_speed = _heading_speed(entity.last_lateral, entity.t - t_before, dt)
             # a step-shaped (or rigid) lateral change is a jump, not a motion: it takes
             # no travel and turns no heading (as esmini)
             jumped = bool(getattr(entity.last_lateral, "jumps", False))
@@ -512,10 +512,18 @@ class World:
                 e.still_since = None
             try:
                 c = self.coordinates(e)
+                # off road: the reference point lies outside its nearest driving lane
+                # (beyond the road's outer edge; between lanes it is always inside one)
+                pos = self.road.lane_position(e.reference_point())
+                off = abs(pos.offset) > 0.5 * pos.width
             except OffRoadError:
+                c, off = None, True
+            if off:
                 e.off_road_since = self.time if e.off_road_since is None else e.off_road_since
+            else:
+                e.off_road_since = None
+            if c is None:
                 continue
-            e.off_road_since = None
             # the lane it moves by (scripted: its own, which it may drive beside)
             lane, u = (e.lane, e.u) if e.scripted and e.lane is not None else (c.lane, c.u)
             at_end = self.road.successor(lane) is None and (
@@ -588,7 +596,7 @@ class World:
             entity.t = float(entity.lateral.offset_after(self, entity, dt))
         key, u = self._along_chain(entity, entity.lane, max(u, 0.0), halt=False)
         entity.lane, entity.u = key, u
-        lateral_speed = (entity.t - t_before) / dt if dt > 0 else 0.0
+        lateral_speed = _heading_speed(entity.last_lateral, entity.t - t_before, dt)
         along = bool(getattr(entity.last_lateral, "speed_along_heading", False))
         self._update_pose(entity, lateral_speed, along)
         vehicle.speed = entity.speed
@@ -618,6 +626,16 @@ class World:
         lane = self._lane(key)
         u, lateral = lane.local_coordinates(entity.reference_point())
         entity.lane, entity.u, entity.t = key, float(u), -float(lateral)
+
+
+def _heading_speed(motion: Any, moved: float, dt: float) -> float:
+    """The lateral speed [m/s] that turns the heading in a step of ``dt`` [s] in which
+    the lateral ``motion`` moved the entity by ``moved`` [m]: the motion's own
+    ``heading_rate`` where it has one (a lane offset), else the speed of the move."""
+    rate = getattr(motion, "heading_rate", None)
+    if rate is not None:
+        return float(rate())
+    return moved / dt if dt > 0 else 0.0
 
 
 def wrap_angle(angle: float) -> float:

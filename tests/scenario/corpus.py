@@ -622,6 +622,35 @@ def angle_conditions(folder: Path) -> Path:
     return path
 
 
+def road_end_off_road_and_relative_world(folder: Path) -> Path:
+    """A third car is teleported 60 m ahead of and 3.5 m right of the ego
+    (``RelativeWorldPosition``) and pushed off the road by a lane offset; the ego
+    slows down once it has been off road for 0.5 s (``OffroadCondition``); the target,
+    40 m before the road's end, stops there and the ego speeds up once it has been at
+    the end for 1 s (``EndOfRoadCondition``)."""
+    init = xosc.Init()
+    init.add_init_action("Ego", xosc.TeleportAction(xosc.LanePosition(1850.0, 0, -2, 0)))
+    init.add_init_action("Ego", step_speed(10.0))
+    init.add_init_action("Target", xosc.TeleportAction(xosc.LanePosition(1960.0, 0, -1, 0)))
+    init.add_init_action("Target", step_speed(20.0))
+    init.add_init_action("Side", xosc.TeleportAction(xosc.LanePosition(1800.0, 0, -3, 0)))
+    init.add_init_action("Side", step_speed(10.0))
+    entities, board = cars_and_board(("Ego", "Target", "Side"), init, 8.0)
+    side = xosc.Maneuver("side")
+    beside = xosc.TeleportAction(xosc.RelativeWorldPosition("Ego", 60.0, -3.5, 0.0))
+    side.add_event(_event("beside", beside, at_time(0.5)))
+    push = xosc.AbsoluteLaneOffsetAction(-3.0, xosc.DynamicsShapes.linear, 1.0)
+    side.add_event(_event("push", push, at_time(1.0), xosc.Priority.parallel))
+    board.add_maneuver(side, "Side")
+    ego = xosc.Maneuver("ego")
+    off = _entity_trigger("off", xosc.OffroadCondition(0.5), "Side")
+    ego.add_event(_event("slow", step_speed(8.0), off))
+    at_end = _entity_trigger("at_end", xosc.EndOfRoadCondition(1.0), "Target")
+    ego.add_event(_event("fast", step_speed(14.0), at_end, xosc.Priority.parallel))
+    board.add_maneuver(ego, "Ego")
+    return save(folder, "road_end.xosc", entities, board)
+
+
 CORPUS: dict[str, Callable[[Path], Path]] = {
     f.__name__: f
     for f in (
@@ -647,6 +676,7 @@ CORPUS: dict[str, Callable[[Path], Path]] = {
         reach_headway_and_route,
         entities_deleted_and_added,
         angle_conditions,
+        road_end_off_road_and_relative_world,
     )
 }
 """The corpus by name."""
