@@ -12,7 +12,6 @@ LAYERS = (
     "errors",
     "xmlfile",
     "types",
-    "_compat",
     "_numba",
     "config",
     "roads",
@@ -72,13 +71,6 @@ def _graph() -> dict[str, set[str]]:
     return graph
 
 
-def _deprecated(module: str, known: dict[str, Path]) -> bool:
-    """An old module name kept for compatibility (its docstring starts "Deprecated"):
-    it re-exports the new modules, wherever they live."""
-    doc = ast.get_docstring(ast.parse(known[module].read_text())) or ""
-    return doc.startswith("Deprecated")
-
-
 def _layer(module: str) -> int:
     parts = module.split(".")
     return -1 if len(parts) == 1 else LAYERS.index(parts[1])
@@ -89,16 +81,11 @@ def test_every_module_belongs_to_a_layer() -> None:
 
 
 def test_modules_import_only_from_earlier_layers() -> None:
-    graph, known = _graph(), _modules()
+    graph = _graph()
     upward = sorted(
-        (a, b)
-        for a, deps in graph.items()
-        if not _deprecated(a, known)
-        for b in deps
-        if _layer(b) > _layer(a) >= 0
+        (a, b) for a, deps in graph.items() for b in deps if _layer(b) > _layer(a) >= 0
     )
     assert upward == []
-    assert _deprecated("aldm_gym.agents.training", known)  # the exemption is narrow
 
 
 def test_no_import_cycles() -> None:

@@ -9,8 +9,7 @@ Modules, one job each:
 * :mod:`~aldm_gym.agents.figures`: figures (validation history, lateral offsets).
 
 Training PPO policies, and evaluating them against these controllers, is
-:mod:`aldm_gym.training`; ``training``, ``rllib``, ``checkpoints``, ``callbacks``,
-``sb3`` and ``model_evaluation`` here are deprecated aliases of its modules.
+:mod:`aldm_gym.training`.
 """
 
 from __future__ import annotations

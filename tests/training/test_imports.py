@@ -1,5 +1,4 @@
-"""How the training package is imported: light, without cycles or private names, and
-the deprecated ``aldm_gym.agents`` paths still work with a warning."""
+"""How the training package is imported: light, without cycles or private names."""
 
 from __future__ import annotations
 
@@ -8,14 +7,8 @@ import subprocess
 import sys
 from pathlib import Path
 
-import pytest
-
 ROOT = Path(__file__).resolve().parents[2]
 PACKAGE = ROOT / "aldm_gym" / "training"
-
-OLD_PATHS = ("training", "rllib", "checkpoints", "callbacks", "sb3", "model_evaluation")
-"""The deprecated modules of ``aldm_gym.agents``."""
-
 
 def _module_name(path: Path) -> str:
     parts = path.relative_to(ROOT).with_suffix("").parts
@@ -73,58 +66,3 @@ def test_no_private_name_is_imported_from_another_module() -> None:
         if module.startswith("aldm_gym") and name.startswith("_") and not name.endswith("__")
     ]
     assert private == []
-
-
-def test_nothing_imports_the_deprecated_paths() -> None:
-    old = {f"aldm_gym.agents.{name}" for name in OLD_PATHS}
-    users = [
-        f"{path.relative_to(ROOT)}: {module}"
-        for folder in ("aldm_gym", "benchmarks", "scripts", "tests")
-        for path in (ROOT / folder).rglob("*.py")
-        if path.parent != ROOT / "aldm_gym" / "agents" and path != Path(__file__)
-        for module, _ in _imports(path)
-        if module in old
-    ]
-    assert users == []
-
-
-def test_the_deprecated_paths_warn_where_they_are_imported() -> None:
-    pytest.importorskip("stable_baselines3")  # aldm_gym.agents.callbacks imports it
-    code = "\n".join(
-        [
-            "import warnings",
-            "warnings.simplefilter('always')",
-            "with warnings.catch_warnings(record=True) as caught:",
-            *(f"    import aldm_gym.agents.{name}" for name in OLD_PATHS),
-            "for w in caught:",
-            "    if w.category is DeprecationWarning and 'aldm_gym.agents' in str(w.message):",
-            "        print(w.filename, str(w.message).split(' is ')[0])",
-        ]
-    )
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
-    assert out.stdout.splitlines() == [f"<string> aldm_gym.agents.{name}" for name in OLD_PATHS]
-
-
-def test_the_deprecated_paths_keep_their_public_names() -> None:
-    pytest.importorskip("stable_baselines3")
-    import warnings
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", DeprecationWarning)
-        import aldm_gym.agents.training as old
-        from aldm_gym.agents.checkpoints import OutputLocked, load_policy, output_lock
-        from aldm_gym.agents.rllib import MODEL_DIR, ClusterError, train_rllib
-        from aldm_gym.agents.training import PPOParams, signals_as_interrupt, train
-    from aldm_gym.errors import ClusterError as Cluster
-    from aldm_gym.errors import OutputLocked as Locked
-    from aldm_gym.training.lock import output_lock as lock
-    from aldm_gym.training.models import load_policy as load
-    from aldm_gym.training.rllib.backend import train_rllib as rllib
-    from aldm_gym.training.sb3.backend import train as sb3
-    from aldm_gym.training.settings import PPOParams as Params
-
-    assert (OutputLocked, ClusterError, output_lock, load_policy) == (Locked, Cluster, lock, load)
-    assert (train, train_rllib, PPOParams, MODEL_DIR) == (sb3, rllib, Params, "rllib_model")
-    assert old._linear(2.0, 0.5) == 1.0  # models pickled their schedule under this name
-    with signals_as_interrupt():
-        pass

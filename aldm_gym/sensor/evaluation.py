@@ -1,5 +1,0 @@
-"""Deprecated name of :mod:`aldm_gym.sensor.open_loop`."""
-
-from aldm_gym._compat import moved
-
-moved(__name__, "aldm_gym.sensor.open_loop")
