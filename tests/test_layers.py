@@ -82,9 +82,7 @@ def test_every_module_belongs_to_a_layer() -> None:
 
 def test_modules_import_only_from_earlier_layers() -> None:
     graph = _graph()
-    upward = sorted(
-        (a, b) for a, deps in graph.items() for b in deps if _layer(b) > _layer(a) >= 0
-    )
+    upward = sorted((a, b) for a, deps in graph.items() for b in deps if _layer(b) > _layer(a) >= 0)
     assert upward == []
 
 

@@ -960,24 +960,38 @@ class LaneChange(Instance):
         return self.t0 + (self.t1 - self.t0) * shape_value(self.dynamics.shape, x)
 
 
+LATERAL_DONE = 0.01
+"""A ``LateralDistanceAction`` that is not continuous ends within this of its
+distance [m] (as esmini)."""
+
+
 class LateralDistance(Instance):
     """``LateralDistanceAction``: the actor keeps ``distance`` [m] across the road from
     the referenced entity (between the boxes with ``freespace``, taken as along the
     road, else the reference points), on its left or right (``any``: the side it is
-    on when the action starts),
-    measured along the road's ``t``. Without ``DynamicConstraints`` the actor is put
-    there at every step; with them a critically damped spring moves it there within
-    the lateral acceleration, deceleration and speed limits (a speed limit alone:
-    straight towards it at most that fast). Not ``continuous``: it
-    ends when the distance is reached (within 0.1 m)."""
+    on when the action starts), measured along the road's ``t``.
+
+    As esmini plays it: the first step after the start only measures. Then, without
+    ``DynamicConstraints`` (or with none of ``maxAcceleration``, ``maxDeceleration``,
+    ``maxSpeed``) the actor is put at the distance at every step, on top of its travel,
+    and turned towards where it moved; with
+    ``maxAcceleration`` a critically damped spring (stiffness 0.4 × it) drives a
+    lateral speed, its acceleration within ``maxAcceleration`` and changing at most
+    ``maxAccelerationRate`` per second, the speed within ``maxSpeed`` and the
+    actor's speed; with only ``maxSpeed`` (or ``maxDeceleration``) the actor moves
+    towards the distance at that lateral speed (at most its own speed) and arrives in
+    the step it would pass it. A moving actor keeps its speed along its heading: the
+    lateral speed takes its share. Not ``continuous``: it ends once the distance is
+    within :data:`LATERAL_DONE` at the start of a step (the step still moves it), or
+    when the lateral speed alone arrives."""
 
     slot = "lateral"
     domains = ("lateral",)
 
     @property
-    def jumps(self) -> bool:
-        """Whether the actor is put at the distance (no dynamics): a jump."""
-        return self.limits is None
+    def speed_along_heading(self) -> bool:
+        """A moving actor's lateral speed takes its share of its speed (as esmini)."""
+        return self.limits is not None
 
     def __init__(
         self,
@@ -988,9 +1002,11 @@ class LateralDistance(Instance):
         freespace: bool,
         left: bool | None,
         continuous: bool,
-        limits: tuple[float, float, float] | None,
+        limits: tuple[float, float, float, float] | None,
     ) -> None:
-        """``left``: the actor is on the referenced entity's left (None: any)."""
+        """``left``: the actor is on the referenced entity's left (None: any);
+        ``limits``: ``(maxAcceleration, maxDeceleration, maxSpeed,
+        maxAccelerationRate)``, inf where not given (None: put there at once)."""
         super().__init__(entity, where)
         self.ref, self.distance, self.freespace = ref, distance, freespace
         self.left, self.continuous, self.limits = left, continuous, limits
@@ -1002,6 +1018,8 @@ class LateralDistance(Instance):
         if self.left is None:
             self.left = world.road_t(entity) >= world.road_t(world.entities[self.ref])
         self.lateral_speed = 0.0
+        self.acceleration = 0.0
+        self.begun = False
         _override(entity, "lateral", self)
 
     def _target(self, world: World, entity: Entity) -> float:
@@ -1017,24 +1035,33 @@ class LateralDistance(Instance):
 
     def offset_after(self, world: World, entity: Entity, dt: float) -> float:
         """The offset [m] (driver's left) after ``dt`` [s]."""
+        if not self.begun:  # the first step measures only (as esmini)
+            self.begun = True
+            return entity.t
         target = self._target(world, entity)
+        error = target - entity.t
+        if not self.continuous and abs(error) < LATERAL_DONE:
+            self._complete()  # the step still moves it
         if self.limits is None or dt <= 0:
-            new = target
-        elif math.isinf(self.limits[0]) and math.isinf(self.limits[1]):
-            # a lateral speed limit alone: towards the target at most that fast
-            reach = self.limits[2] * dt
-            new = entity.t + min(max(target - entity.t, -reach), reach)
-        else:
-            max_acc, max_dec, max_speed = self.limits
-            k = SPRING * min(max_acc, max_dec)
-            error = target - entity.t
-            accel = k * error - 2.0 * math.sqrt(k) * self.lateral_speed
-            accel = min(max(accel, -max_dec), max_acc)
-            self.lateral_speed = min(max(self.lateral_speed + accel * dt, -max_speed), max_speed)
-            new = entity.t + self.lateral_speed * dt
-        if not self.continuous and abs(target - new) < 0.1:
-            self._complete()
-        return new
+            return target
+        max_acc, _, max_speed, max_rate = self.limits
+        top = max(min(max_speed, abs(entity.speed)) - 1e-6, 0.0)
+        if math.isfinite(max_acc):
+            k = SPRING * max_acc
+            wanted = k * error - 2.0 * math.sqrt(k) * self.lateral_speed
+            change = max_rate * dt
+            acc = self.acceleration + min(max(wanted - self.acceleration, -change), change)
+            self.acceleration = min(max(acc, -max_acc), max_acc)
+            speed = self.lateral_speed + self.acceleration * dt
+            self.lateral_speed = min(max(speed, -top), top)
+        else:  # a speed limit alone: at that speed, arriving in the step it would pass
+            speed = math.copysign(top, error) if error != 0.0 else top
+            if (error - speed * dt >= 0.0) != (error >= 0.0):
+                speed = error / dt
+                if not self.continuous:
+                    self._complete()
+            self.lateral_speed = speed
+        return entity.t + self.lateral_speed * dt
 
 
 class LaneOffset(Instance):

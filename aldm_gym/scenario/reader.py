@@ -1085,10 +1085,15 @@ class _Reader:
             "any",
         )
         dc = body.find("DynamicConstraints")
-        limits = self.constraints(dc, rates=False)
-        if limits is None and dc is not None:  # a lateral speed limit alone
-            speed = self.num(dc, "maxSpeed", math.inf)
-            limits = (math.inf, math.inf, speed) if math.isfinite(speed) else None
+        limits = None
+        if dc is not None:
+            names = ("maxAcceleration", "maxDeceleration", "maxSpeed", "maxAccelerationRate")
+            values = tuple(self.num(dc, name, math.inf) for name in names)
+            for name, value in zip(names, values, strict=True):
+                if not value > 0.0:
+                    raise self.error(dc, f"{name} must be > 0, got {value:g}")
+            if any(math.isfinite(v) for v in values[:3]):
+                limits = values
         left = {"leftToReferencedEntity": True, "rightToReferencedEntity": False}.get(side)
         return lambda actor: A.LateralDistance(
             actor, where, ref, distance, freespace, left, continuous, limits

@@ -651,6 +651,55 @@ def road_end_off_road_and_relative_world(folder: Path) -> Path:
     return save(folder, "road_end.xosc", entities, board)
 
 
+def lateral_distances(folder: Path) -> Path:
+    """``LateralDistanceAction`` in road coordinates beside an ego that shifts in its
+    lane: the target 1 m left of it between the boxes, put there at every step
+    (continuous); a third car 4 m right of it (reference points) with a spring of
+    3 m/s² and 1.5 m/s, ending once there; a fourth car 3.5 m left of the target at
+    1 m/s alone (continuous)."""
+    init = xosc.Init()
+    for name, lane, s, v in (
+        ("Ego", -2, 50.0, 20.0), ("Target", -1, 60.0, 20.0),
+        ("Side", -3, 70.0, 20.0), ("Far", -1, 40.0, 20.0),
+    ):  # fmt: skip
+        init.add_init_action(name, xosc.TeleportAction(xosc.LanePosition(s, 0, lane, 0)))
+        init.add_init_action(name, step_speed(v))
+    entities, board = cars_and_board(("Ego", "Target", "Side", "Far"), init, 10.0)
+    left = xosc.LateralDisplacement.leftToReferencedEntity
+    right = xosc.LateralDisplacement.rightToReferencedEntity
+
+    def keep(ref: str, d: float, free: bool, side: object, cont: bool, **dc: float) -> object:
+        return xosc.LateralDistanceAction(
+            ref, d, freespace=free, continuous=cont, displacement=side,
+            coordinate_system=xosc.CoordinateSystem.road, **dc,
+        )  # fmt: skip
+
+    events = [
+        ("Target", _event("rigid", keep("Ego", 1.0, True, left, True), at_time(1.0))),
+        (
+            "Side",
+            _event(
+                "spring",
+                keep("Ego", 4.0, False, right, False, max_acceleration=3.0, max_speed=1.5),
+                at_time(1.0),
+            ),
+        ),
+        (
+            "Far",
+            _event("speed", keep("Target", 3.5, False, left, True, max_speed=1.0), at_time(2.0)),
+        ),
+    ]
+    for name, ev in events:
+        man = xosc.Maneuver(f"m_{name}")
+        man.add_event(ev)
+        board.add_maneuver(man, name)
+    shift = xosc.Maneuver("shift")
+    offset = xosc.AbsoluteLaneOffsetAction(-0.6, xosc.DynamicsShapes.sinusoidal, 0.5)
+    shift.add_event(_event("shift", offset, at_time(4.0)))
+    board.add_maneuver(shift, "Ego")
+    return save(folder, "lateral_distances.xosc", entities, board)
+
+
 CORPUS: dict[str, Callable[[Path], Path]] = {
     f.__name__: f
     for f in (
@@ -677,6 +726,7 @@ CORPUS: dict[str, Callable[[Path], Path]] = {
         entities_deleted_and_added,
         angle_conditions,
         road_end_off_road_and_relative_world,
+        lateral_distances,
     )
 }
 """The corpus by name."""

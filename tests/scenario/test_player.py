@@ -286,8 +286,8 @@ def test_lateral_distance_holds_the_gap_beside_the_ego(
     path = write(tmp_path, [("Target", [ev])], target=(1, 10.0, 20.0), stop=14.0)
     _, rec = play(path, 14.0)
     offsets = [r["Target"][2] for r in rec]
-    if limits is None:  # put there at the next step, and kept
-        assert at(rec, 1.1)["Target"][2] == 0.0 and at(rec, 1.2)["Target"][2] == 0.5
+    if limits is None:  # measured in the next step, put there in the one after, and kept
+        assert at(rec, 1.2)["Target"][2] == 0.0 and at(rec, 1.3)["Target"][2] == 0.5
         assert rec[-1]["Target"][2] == pytest.approx(0.5)
     else:  # moved there within the lateral speed limit
         steps = np.abs(np.diff(offsets)) / 0.1
