@@ -145,6 +145,9 @@ class Entity:
     """A position to put the entity at before its next step (a storyboard teleport)."""
     ended: bool = False
     """It drove to the end of its road: it stays there until placed elsewhere."""
+    ended_steps: int = 0
+    """Steps since it drove to the end of its road: its speed reads 0 from the second
+    on (esmini keeps reporting the speed it arrived with for two steps)."""
     last_lateral: Any = None
     """The lateral motion that moved the entity in its last step (it may have ended
     there and left ``lateral``)."""
@@ -443,8 +446,10 @@ class World:
             else:
                 self.place_world(entity, where.point, where.heading)
             return  # the step that teleports does not move it on (as esmini)
-        if entity.ended:
-            entity.speed = 0.0  # at the end of its road it stays until placed elsewhere
+        if entity.ended:  # at the end of its road it stays until placed elsewhere
+            entity.ended_steps += 1
+            if entity.ended_steps >= 2:
+                entity.speed = 0.0
             return
         if entity.trajectory is not None:
             entity.trajectory.advance(self, entity, dt)
@@ -557,7 +562,7 @@ class World:
             nxt = road.successor(key)
             if nxt is None:
                 if halt:  # the lane chain ends: the entity stops at its end
-                    entity.speed, entity.ended = 0.0, True
+                    entity.ended, entity.ended_steps = True, 0
                 return key, length
             u -= length
             key, length = nxt, road.lane_length(nxt)
@@ -565,7 +570,7 @@ class World:
             prev = road.predecessor(key)
             if prev is None:
                 if halt:
-                    entity.speed, entity.ended = 0.0, True
+                    entity.ended, entity.ended_steps = True, 0
                 return key, 0.0
             key = prev
             u += road.lane_length(key)
