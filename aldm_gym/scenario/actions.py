@@ -455,9 +455,13 @@ class SpeedProfile(Instance):
     its ``time`` [s] from the speed the previous one reached (longer where that would
     need more than the limits), or without a time as fast as the limits allow (the
     ``DynamicConstraints``, capped by the entity's ``Performance``; none: at once).
-    With ``entityRef`` each speed is relative to that
-    entity's speed when the entry begins. ``followingMode`` ``follow`` is played as
-    ``position``."""
+    With ``entityRef`` each speed is relative to that entity's speed when the entry
+    begins.
+
+    ``followingMode="follow"`` with both jerk limits (``maxAccelerationRate``,
+    ``maxDecelerationRate``) is esmini's jerk-limited profile (:class:`JerkProfile`,
+    planned when the action starts); without them it is the linear one, as in esmini
+    (whose jerk is then 1e10)."""
 
     slot = "longitudinal"
     domains = ("longitudinal",)
@@ -469,21 +473,59 @@ class SpeedProfile(Instance):
         entries: list[tuple[float, float | None]],
         ref: str | None,
         limits: tuple[float, float],
+        jerks: tuple[float, float] | None = None,
     ) -> None:
         """``entries``: (speed [m/s], time [s] or None); ``limits``: (acceleration,
-        deceleration) [m/s²]."""
+        deceleration) [m/s²]; ``jerks``: (rising, falling) [m/s³] for ``follow`` (None:
+        linear)."""
         super().__init__(entity, where)
         self.entries = entries
         self.ref = ref
         self.limits = limits
+        self.jerks = jerks
+        self.plan: JerkProfile | None = None
 
     def start(self, runner: Any) -> None:
-        """Begin the first entry."""
+        """Begin the first entry (``follow``: plan the whole profile)."""
         entity = self._scripted(runner)
         self.order = next(_STARTS)
         self.index = -1
-        self._next(runner.world, entity)
+        self.plan = None
+        if self.jerks is not None:
+            self.plan = self._jerk_plan(runner.world, entity)
+        if self.plan is None:
+            self._next(runner.world, entity)
+        self.elapsed = 0.0
         _override(entity, "longitudinal", self)
+
+    def _jerk_plan(self, world: World, entity: Entity) -> JerkProfile | None:
+        """The jerk-limited plan from where the entity is (None where esmini's planner
+        finds no solution: the linear profile plays)."""
+        assert self.jerks is not None
+        offset = world.entities[self.ref].current_speed if self.ref is not None else 0.0
+        acc, dec = (
+            min(self.limits[0], entity.acceleration_limit(True)),
+            min(self.limits[1], entity.acceleration_limit(False)),
+        )
+        vertices = [(0.0, entity.speed)]
+        t = 0.0
+        for k, (speed, time) in enumerate(self.entries):
+            target = speed + offset
+            if k == 0 and time is not None and time <= _TIME_EPS:
+                continue  # esmini's follow mode starts from the entity's own speed
+            if time is None:
+                change = target - vertices[-1][1]
+                if abs(change) < 1e-6:
+                    continue
+                limit = acc if change > 0 else dec
+                time = abs(change) / limit if math.isfinite(limit) else 0.0
+            if time <= _TIME_EPS:
+                return None
+            t += time
+            vertices.append((t, target))
+        if len(vertices) < 2:
+            return None
+        return JerkProfile.plan(vertices, entity.acceleration, self.jerks, (acc, dec))
 
     def _next(self, world: World, entity: Entity) -> None:
         """Begin the next entry from the speed the entity has."""
@@ -504,6 +546,11 @@ class SpeedProfile(Instance):
     def speed_after(self, world: World, entity: Entity, dt: float) -> float:
         """The speed [m/s] after ``dt`` [s]."""
         self.elapsed += dt
+        if self.plan is not None:
+            if self.elapsed >= self.plan.end - _TIME_EPS:
+                self._complete()
+                return self.plan.final
+            return self.plan.speed(self.elapsed)
         while self.index < len(self.entries) and self.elapsed >= self.T - _TIME_EPS:
             left = self.elapsed - self.T
             entity.speed = self.v1
@@ -514,6 +561,167 @@ class SpeedProfile(Instance):
             self._complete()
             return entity.speed
         return self.v0 + (self.v1 - self.v0) * self.elapsed / self.T
+
+
+@dataclass(frozen=True)
+class JerkProfile:
+    """A jerk-limited speed profile: segments ``(t0 [s], v0 [m/s], a0 [m/s²], j
+    [m/s³])``, each ``v(t) = v0 + a0·(t − t0) + j·(t − t0)²/2`` from its ``t0`` to the
+    next one's, and after the last its speed (esmini's ``follow`` mode of
+    ``SpeedProfileAction``).
+
+    :meth:`plan` builds it through the vertices ``(t, v)`` of the entries (time from
+    the action's start): between two vertices, jerk up (or down) to a peak
+    acceleration, hold it, and jerk back so as to arrive on time (stretched where the
+    peak would pass the acceleration limits, or where the time is too short for the
+    jerks); through more, a jerk first onto the first line's slope, then at every
+    corner a jerk centred on it, from one line's slope to the next (the corner is cut
+    by ``Δk²/(8 j)``), the last line flat.
+    """
+
+    segments: tuple[tuple[float, float, float, float], ...]
+
+    @property
+    def end(self) -> float:
+        """When the last segment begins: the profile's final speed holds from then [s]."""
+        return self.segments[-1][0]
+
+    @property
+    def final(self) -> float:
+        """The final speed [m/s]."""
+        return self.segments[-1][1]
+
+    def speed(self, t: float) -> float:
+        """The speed [m/s] at ``t`` [s] from the action's start."""
+        seg = self.segments[0]
+        for candidate in self.segments[1:]:
+            if t > candidate[0] - 1e-6:
+                seg = candidate
+            else:
+                break
+        t0, v0, a0, j = seg
+        dt = t - t0
+        return v0 + a0 * dt + 0.5 * j * dt * dt
+
+    @classmethod
+    def plan(
+        cls,
+        vertices: list[tuple[float, float]],
+        acceleration: float,
+        jerks: tuple[float, float],
+        limits: tuple[float, float],
+    ) -> JerkProfile | None:
+        """The profile through ``vertices`` from the current ``acceleration`` [m/s²]
+        with ``jerks`` (rising, falling) [m/s³] > 0 within ``limits`` (acceleration,
+        deceleration) [m/s²]; None where it cannot be planned (the linear profile
+        plays)."""
+        if len(vertices) == 2:
+            return cls._two(vertices[0], vertices[1], acceleration, jerks, limits)
+        return cls._through(vertices, acceleration, jerks)
+
+    @classmethod
+    def _two(
+        cls,
+        start: tuple[float, float],
+        end: tuple[float, float],
+        a_c: float,
+        jerks: tuple[float, float],
+        limits: tuple[float, float],
+    ) -> JerkProfile | None:
+        (t0, v0), (t3, v3) = start, end
+        rise, fall = jerks
+        span = t3 - t0
+        if span <= 1e-9:
+            return None
+        slope = (v3 - v0) / span
+        j0 = -fall if slope < a_c else rise
+        j1 = rise if slope < 0 else -fall
+        if j0 == j1:
+            return None  # the acceleration already passes the mean slope: linear
+        phi = (
+            j0
+            * j1
+            * (
+                2 * v0 * (j1 - j0)
+                + a_c * a_c
+                + 2 * a_c * j1 * span
+                + j0 * j1 * span * span
+                + 2 * v3 * (j0 - j1)
+            )
+        )
+        if phi >= 0.0:  # a held acceleration between the jerks: on time
+            t1 = (-math.sqrt(phi) - j0 * (a_c + j1 * t3) + j0 * j0 * t0) / (j0 * (j0 - j1))
+        else:  # no time to hold it: the two jerks meet, later than the entry's time
+            root = j1 * (j1 - j0) * (2 * j0 * (v3 - v0) + a_c * a_c)
+            if root < 0.0:
+                return None
+            t1 = (math.sqrt(root) + (j0 - j1) * (j0 * t0 - a_c)) / (j0 * (j0 - j1))
+        if t1 < t0 - 1e-9:
+            return None
+        peak = a_c + j0 * (t1 - t0)
+        v1 = v0 + a_c * (t1 - t0) + 0.5 * j0 * (t1 - t0) ** 2
+        acc, dec = limits
+        if -dec <= peak <= acc:
+            if phi >= 0.0:
+                t2 = t3 + peak / j1
+                v2 = v1 + peak * (t2 - t1)
+            else:
+                t2, v2 = t1, v1
+                t3 = t2 - peak / j1
+            segs = [(t0, v0, a_c, j0)]
+            if t2 > t1:
+                segs.append((t1, v1, peak, 0.0))
+            segs += [(t2, v2, peak, j1), (t3, v3, 0.0, 0.0)]
+            return cls(tuple(segs))
+        peak = acc if peak > acc else -dec  # held at the limit: longer
+        t1 = t0 + (peak - a_c) / j0
+        v1 = v0 + a_c * (t1 - t0) + 0.5 * j0 * (t1 - t0) ** 2
+        t3 = t1 + (v3 - v1) / peak - peak / (2 * j1)
+        t2 = t3 + peak / j1
+        v2 = v3 + peak * peak / (2 * j1)
+        if not t0 <= t1 <= t2 <= t3:
+            return None
+        return cls(((t0, v0, a_c, j0), (t1, v1, peak, 0.0), (t2, v2, peak, j1), (t3, v3, 0.0, 0.0)))
+
+    @classmethod
+    def _through(
+        cls, vertices: list[tuple[float, float]], a_c: float, jerks: tuple[float, float]
+    ) -> JerkProfile | None:
+        rise, fall = jerks
+        # the nominal lines v = k·t + m through consecutive vertices; the last is flat
+        lines = []
+        for (ta, va), (tb, vb) in itertools.pairwise(vertices):
+            k = (vb - va) / (tb - ta)
+            lines.append((k, va - k * ta))
+        lines.append((0.0, vertices[-1][1]))
+        t0, v0 = vertices[0]
+        k0 = lines[0][0]
+        segs: list[tuple[float, float, float, float]] = []
+        if abs(k0) > 1e-6:  # onto the first line's slope
+            j = -fall if k0 < a_c else rise
+            tau = (k0 - a_c) / j
+            segs.append((t0, v0, a_c, j))
+            t_on = t0 + tau
+            v_on = v0 + a_c * tau + 0.5 * j * tau * tau
+            segs.append((t_on, v_on, k0, 0.0))
+            k_a, m_a = k0, v_on - k0 * t_on  # parallel to the first line, lagging it
+        else:
+            segs.append((t0, v0, k0, 0.0))
+            k_a, m_a = k0, v0 - k0 * t0
+        for k_b, m_b in lines[1:]:
+            if abs(k_b - k_a) < 1e-6:
+                continue
+            j = -fall if k_b < k_a else rise
+            tau = (k_b - k_a) / j
+            cross = (m_b - m_a) / (k_a - k_b)
+            t1, t3 = cross - 0.5 * tau, cross + 0.5 * tau
+            if t1 < segs[-1][0] - 1e-9:
+                return None  # the corner does not fit before the last one ends
+            v1 = k_a * t1 + m_a
+            v3 = v1 + k_a * tau + 0.5 * j * tau * tau
+            segs += [(t1, v1, k_a, j), (t3, v3, k_b, 0.0)]
+            k_a, m_a = k_b, v3 - k_b * t3
+        return cls(tuple(segs))
 
 
 class _Measured(Instance):

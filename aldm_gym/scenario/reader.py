@@ -982,14 +982,21 @@ class _Reader:
         where = self.where(body)
         self.kids(body, ("DynamicConstraints", "SpeedProfileEntry"))
         ref = self._entity_ref(body, "entityRef") if body.get("entityRef") is not None else None
-        self.choice(body, "followingMode", ("position", "follow"))
+        mode = self.choice(body, "followingMode", ("position", "follow"))
         dc = body.find("DynamicConstraints")
         acc = dec = math.inf
+        jerks = None
         if dc is not None:
             acc = self.num(dc, "maxAcceleration", math.inf)
             dec = self.num(dc, "maxDeceleration", math.inf)
             if not (acc > 0 and dec > 0):
                 raise self.error(dc, "maxAcceleration and maxDeceleration must be > 0")
+            rise = self.num(dc, "maxAccelerationRate", math.inf)
+            fall = self.num(dc, "maxDecelerationRate", math.inf)
+            if not (rise > 0 and fall > 0):
+                raise self.error(dc, "maxAccelerationRate and maxDecelerationRate must be > 0")
+            if mode == "follow" and math.isfinite(rise) and math.isfinite(fall):
+                jerks = (rise, fall)
         entries = []
         for e in body.findall("SpeedProfileEntry"):
             time = self.num(e, "time", None)
@@ -998,7 +1005,7 @@ class _Reader:
             entries.append((self.num(e, "speed"), time))
         if not entries:
             raise self.error(body, "no <SpeedProfileEntry>")
-        return lambda actor: A.SpeedProfile(actor, where, entries, ref, (acc, dec))
+        return lambda actor: A.SpeedProfile(actor, where, entries, ref, (acc, dec), jerks)
 
     def _lateral(self, body: Any) -> Callable[[Entity | None], A.Instance]:
         where = self.where(body)

@@ -700,6 +700,42 @@ def lateral_distances(folder: Path) -> Path:
     return save(folder, "lateral_distances.xosc", entities, board)
 
 
+def jerk_limited_speed_profiles(folder: Path) -> Path:
+    """``SpeedProfileAction`` with ``followingMode="follow"`` and jerk limits, as esmini
+    plans it: the target from 20 to 12 m/s in 4 s (on time, a held deceleration); the
+    ego to 30 m/s in 2 s (too short for the jerks and past the acceleration limit:
+    later); a third car through three timed speeds (the corners cut by the jerks) and
+    an untimed one."""
+    init = xosc.Init()
+    for name, lane, s, v in (("Ego", -2, 50.0, 20.0), ("Target", -1, 80.0, 20.0),
+                             ("Third", -3, 30.0, 15.0)):  # fmt: skip
+        init.add_init_action(name, xosc.TeleportAction(xosc.LanePosition(s, 0, lane, 0)))
+        init.add_init_action(name, step_speed(v))
+    entities, board = cars_and_board(("Ego", "Target", "Third"), init, 16.0)
+
+    def follow(speeds: list[float], times: list[float | None], *dc: float) -> object:
+        return xosc.SpeedProfileAction(
+            speeds, xosc.FollowingMode.follow, times=times,  # type: ignore[arg-type]
+            dynamics_constraint=xosc.DynamicsConstraints(*dc),
+        )  # fmt: skip
+
+    plans = [
+        ("Target", follow([12.0], [4.0], 5.0, 4.0, 50.0, 2.0, 3.0)),
+        ("Ego", follow([30.0], [2.0], 3.0, 6.0, 50.0, 1.5, 2.0)),
+        (
+            "Third",
+            follow([25.0, 18.0, 22.0, 10.0], [3.0, 3.0, 2.0, None], 4.0, 3.0, 50.0, 4.0, 3.0),
+        ),
+    ]
+    for name, profile in plans:
+        man = xosc.Maneuver(f"m_{name}")
+        man.add_event(_event(f"profile_{name}", profile, at_time(1.0)))
+        board.add_maneuver(man, name)
+    path = save(folder, "jerk_profiles.xosc", entities, board)
+    path.write_text(path.read_text().replace(' time="None"', ""))  # the last has no time
+    return path
+
+
 CORPUS: dict[str, Callable[[Path], Path]] = {
     f.__name__: f
     for f in (
@@ -727,6 +763,7 @@ CORPUS: dict[str, Callable[[Path], Path]] = {
         angle_conditions,
         road_end_off_road_and_relative_world,
         lateral_distances,
+        jerk_limited_speed_profiles,
     )
 }
 """The corpus by name."""
