@@ -85,6 +85,9 @@ class RunResult:
     time_s: float = 0.0
     finished: bool = False
     error: str = ""
+    judged: bool = True
+    """False where the function under test never drove the ego (``error`` says so):
+    the run says nothing of the function."""
 
     def row(self) -> dict[str, Any]:
         """A flat dict for a CSV (parameters as ``NAME=VALUE;...``)."""
@@ -175,6 +178,7 @@ class Judge:
         if r.collision_before:
             r.error = "a collision before the function was activated (the scenario's own)"
         elif not self.activated:
+            r.judged = False
             r.error = (
                 "the function under test never drove the ego (no ActivateControllerAction "
                 "handed it over before the run ended): not judged"

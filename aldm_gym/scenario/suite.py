@@ -5,9 +5,10 @@ A suite is a parameter-variation file (its concrete runs, minus those that break
 folder of them, or a folder of concrete scenarios (each played with its default
 parameters); every run is played for every detector and marking model. ``max_runs``
 keeps a subset of a file's runs that covers as many parameter values as it can
-(:func:`_subset`); the summary's ``runs`` column says how many were played, ``errors``
-how many could not be (a scenario error, or a collision before the function was
-activated), and the pass rate is over the played ones.
+(:func:`_subset`); the summary's ``runs`` column says how many were played and
+judged, ``not_judged`` how many the function under test never drove in, ``errors`` how
+many could not be played (a scenario error, or a collision before the function was
+activated), and the pass rate is over the judged ones.
 """
 
 from __future__ import annotations
@@ -184,6 +185,7 @@ def summarise(results: Sequence[RunResult]) -> list[dict[str, Any]]:
     for (scenario, det, mm), rs in groups.items():
         failing = [r for r in rs if not r.passed and not r.error]
         played = [r for r in rs if not r.error]
+        not_judged = sum(not r.judged for r in rs)
         rows.append(
             {
                 "scenario": scenario,
@@ -194,7 +196,8 @@ def summarise(results: Sequence[RunResult]) -> list[dict[str, Any]]:
                 "collisions": sum(r.collision for r in rs),
                 "departure_runs": sum(r.departures > 0 for r in rs),
                 "gap_failures": sum(not r.time_gap for r in rs),
-                "errors": len(rs) - len(played),
+                "not_judged": not_judged,
+                "errors": len(rs) - len(played) - not_judged,
                 "min_ttc_s": min(r.min_ttc_s for r in rs),
                 "min_time_gap_s": min(r.min_time_gap_s for r in rs),
                 "failing": " | ".join(
@@ -210,7 +213,7 @@ def format_table(rows: Sequence[dict[str, Any]]) -> str:
     """The summary as a console table."""
     head = (
         f"{'scenario':<44} {'detector':<12} {'model':<8} {'runs':>5} {'pass':>6} "
-        f"{'coll':>5} {'dep':>5} {'gap':>5} {'minTTC':>7} {'minGap':>7}"
+        f"{'coll':>5} {'dep':>5} {'gap':>5} {'minTTC':>7} {'minGap':>7} {'n/j':>4} {'err':>4}"
     )
     lines = [head, "-" * len(head)]
     for r in rows:
@@ -218,12 +221,14 @@ def format_table(rows: Sequence[dict[str, Any]]) -> str:
         lines.append(
             f"{name[:44]:<44} {r['detector']:<12} {r['marking_model']:<8} {r['runs']:>5} "
             f"{100 * r['pass_rate']:>5.0f}% {r['collisions']:>5} {r['departure_runs']:>5} "
-            f"{r['gap_failures']:>5} {_num(r['min_ttc_s']):>7} {_num(r['min_time_gap_s']):>7}"
+            f"{r['gap_failures']:>5} {_num(r['min_ttc_s']):>7} {_num(r['min_time_gap_s']):>7} "
+            f"{r['not_judged']:>4} {r['errors']:>4}"
         )
     lines.append(
         "pass: share of runs meeting every criterion; coll: runs with a collision; dep: "
         "runs with a lane departure; gap: runs whose time gap stayed short > 3 s; min "
-        "TTC / min gap [s] over all runs"
+        "TTC / min gap [s] over all runs; n/j: runs the function never drove in (not "
+        "judged); err: runs that could not be played (not in the pass rate)"
     )
     return "\n".join(lines)
 

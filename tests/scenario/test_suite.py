@@ -34,7 +34,21 @@ def test_a_run_that_cannot_be_played_is_an_error_row(tmp_path: Path) -> None:
     results = play_suite(plan_suite(path, ["aldm"], ["per_dash"]), processes=1, progress=False)
     assert "not on the map" in results[0].error and not results[0].passed
     row = summarise(results)[0]
-    assert row["errors"] == 1 and row["runs"] == 0
+    assert row["errors"] == 1 and row["runs"] == 0 and row["not_judged"] == 0
+
+
+def test_a_run_the_function_never_drove_in_has_its_own_column(tmp_path: Path) -> None:
+    never = write(tmp_path, name="never.xosc", stop=2.0)  # no activation
+    write(tmp_path, name="driven.xosc", stop=2.0, activate_at=0.0)
+    write(tmp_path, name="off.xosc", ego_s=5000.0)
+    results = play_suite(plan_suite(tmp_path, ["aldm"], ["per_dash"]), processes=1, progress=False)
+    rows = {r["scenario"]: r for r in summarise(results)}
+    assert (rows[never.name]["not_judged"], rows[never.name]["errors"]) == (1, 0)
+    assert rows[never.name]["runs"] == 0
+    assert (rows["off.xosc"]["not_judged"], rows["off.xosc"]["errors"]) == (0, 1)
+    assert (rows["driven.xosc"]["runs"], rows["driven.xosc"]["pass_rate"]) == (1, 1.0)
+    table = format_table(list(rows.values()))
+    assert "n/j" in table and "never" in table
 
 
 def test_on_a_ray_cluster(tmp_path: Path) -> None:
