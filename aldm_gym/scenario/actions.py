@@ -359,6 +359,56 @@ class EntityChange(Instance):
             entity.arrival = where
 
 
+class TrailerLink(Instance):
+    """``ConnectTrailerAction`` / ``DisconnectTrailerAction`` on the tractor: the
+    trailer is towed from the next step on (its coupler at the tractor's hitch, its
+    own motions ended), or goes on by itself along its lane at the speed it has (both
+    as esmini). Connecting a tractor that tows one already, or a trailer towed by
+    another, is an error; disconnecting a tractor that tows nothing changes nothing
+    (esmini skips it). A vehicle the function under test drives does not tow."""
+
+    def __init__(self, entity: Entity | None, where: str, trailer: str | None) -> None:
+        """``trailer``: the one to connect (None: disconnect)."""
+        super().__init__(entity, where)
+        self.trailer = trailer
+
+    def start(self, runner: Any) -> None:
+        """Connect or disconnect."""
+        tractor = self.entity
+        if tractor is None:
+            raise ScenarioError(f"{self.where}: a trailer action needs an actor")
+        self.done = True
+        if self.trailer is None:
+            if tractor.trailer is not None:
+                tractor.trailer.tractor = None
+                tractor.trailer = None
+            return
+        trailer = runner.world.entities[self.trailer]
+        if tractor.trailer is trailer:
+            return
+        problem = ""
+        if tractor.controlled or trailer.controlled:
+            problem = "the function under test drives it: its vehicle does not tow"
+        elif tractor.hitch is None:
+            problem = f"{tractor.name!r} has no <TrailerHitch>"
+        elif trailer.coupler is None:
+            problem = f"{trailer.name!r} has no <TrailerCoupler>"
+        elif tractor.trailer is not None:
+            problem = f"{tractor.name!r} tows {tractor.trailer.name!r} already"
+        elif trailer.tractor is not None:
+            problem = f"{trailer.name!r} is towed by {trailer.tractor.name!r} already"
+        elif trailer is tractor or tractor in trailer.chain():
+            problem = f"{tractor.name!r} would tow itself through its trailers"
+        if problem:
+            raise ScenarioError(f"{self.where}: {problem}")
+        for slot in ("longitudinal", "lateral", "trajectory"):
+            motion = getattr(trailer, slot)
+            if motion is not None:
+                motion.stop()
+                setattr(trailer, slot, None)
+        tractor.trailer, trailer.tractor = trailer, tractor
+
+
 def place(world: World, entity: Entity, where: Where) -> None:
     """Put ``entity`` at a resolved position."""
     if where.lane is not None:

@@ -237,8 +237,11 @@ def time_to_point(world: World, source: Entity, point: np.ndarray, freespace: bo
 
 
 def boxes_overlap(a: Entity, b: Entity) -> bool:
-    """Whether two entities' bounding boxes overlap (``CollisionCondition``)."""
-    return a is not b and _overlap(a.corners(), b.corners())
+    """Whether two entities' bounding boxes overlap (``CollisionCondition``; a
+    tractor and the trailer it tows do not collide)."""
+    if a is b or a.trailer is b or b.trailer is a:
+        return False
+    return _overlap(a.corners(), b.corners())
 
 
 def stood_still(world: World, entity: Entity, duration: float) -> bool:

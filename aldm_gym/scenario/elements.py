@@ -128,8 +128,9 @@ ELEMENTS: dict[str, tuple[str, str]] = {
         "ExternalObjectReference ScenarioObjectTemplate",
     ),
     **_each(
-        "refused",
-        "trailers are not played",
+        "played",
+        "trailers: towed from the start or connected and disconnected at run time, the "
+        "coupler following the hitch (not on the function under test's vehicle)",
         "Trailer TrailerHitch TrailerCoupler TrailerRef TrailerAction ConnectTrailerAction "
         "DisconnectTrailerAction",
     ),

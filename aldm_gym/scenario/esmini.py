@@ -276,6 +276,9 @@ def esmini_trace(
             tail = (done.stdout + done.stderr).strip().splitlines()[-3:]
             raise ScenarioError(f"{Path(xosc).name}: esmini failed ({done.returncode}): {tail}")
         times, poses = _read_esmini_csv(csv_path)
+        for theirs, ours in _inline_trailers(Path(xosc)).items():
+            if theirs in poses:
+                poses[ours] = poses.pop(theirs)
         starts: dict[str, list[float]] = {}
         stop = None
         for line in log_path.read_text(errors="replace").splitlines():
@@ -286,6 +289,25 @@ def esmini_trace(
             if m:
                 stop = float(m.group(1))
     return Trace(times=times, poses=poses, starts=starts, stop=stop)
+
+
+def _inline_trailers(xosc: Path) -> dict[str, str]:
+    """esmini's names of the trailers defined inside their tractors (the tractor's name
+    and a ``+``, one more for each trailer down a chain) -> the names the file gives
+    them."""
+    from aldm_gym.xmlfile import parse_xml
+
+    out: dict[str, str] = {}
+
+    def walk(obj: Any, theirs: str) -> None:
+        inner = obj.find("Vehicle/Trailer/Trailer")
+        if inner is not None and inner.get("name"):
+            out[theirs + "+"] = inner.get("name")
+            walk(inner, theirs + "+")
+
+    for obj in parse_xml(xosc).getroot().findall("Entities/ScenarioObject"):
+        walk(obj, obj.get("name", ""))
+    return out
 
 
 def _read_esmini_csv(path: Path) -> tuple[np.ndarray, dict[str, np.ndarray]]:

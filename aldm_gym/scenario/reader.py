@@ -17,6 +17,7 @@ skipped action. The supported set: docs/scenarios.md.
 from __future__ import annotations
 
 import copy
+import dataclasses
 import math
 import warnings
 from collections.abc import Callable, Mapping
@@ -116,6 +117,12 @@ class EntitySpec:
     max_deceleration: float
     controlled: bool
     where: str
+    hitch: float | None = None
+    """``TrailerHitch dx``: the hitch [m] ahead of the reference point (None: none)."""
+    coupler: float | None = None
+    """``TrailerCoupler dx``: the coupler [m] ahead of the reference point."""
+    trailer: str | None = None
+    """The trailer it tows from the start (``Trailer``), by name."""
 
     def entity(self, is_ego: bool) -> Entity:
         """A fresh runtime :class:`~aldm_gym.scenario.world.Entity`."""
@@ -128,6 +135,8 @@ class EntitySpec:
             max_acceleration=self.max_acceleration,
             max_deceleration=self.max_deceleration,
             is_ego=is_ego,
+            hitch=self.hitch,
+            coupler=self.coupler,
         )
 
 
@@ -300,6 +309,7 @@ class _Reader:
         self.added: set[str] = set()
         """The entities an ``AddEntityAction`` names (shared with scoped readers)."""
         self._selections: dict[str, list[str]] | None = None
+        self._names: list[str] | None = None
         self.refs: list[str] = []
         """Every entity name read so far (a condition's names are those read while
         reading it), shared with the scoped readers."""
@@ -474,30 +484,81 @@ class _Reader:
         for obj in self.kids(entities, ("ScenarioObject", "EntitySelection")):
             if obj.tag == "EntitySelection":
                 continue
-            name = self.attr(obj, "name")
-            kids = [k for k in obj if isinstance(k.tag, str) and k.tag != "ObjectController"]
-            allowed = ("CatalogReference", "Vehicle", "Pedestrian", "MiscObject")
-            if len(kids) != 1:
-                raise self.error(
-                    obj, f"expects one of {list(allowed)}, has {[k.tag for k in kids]}"
-                )
-            body = kids[0]
-            if body.tag not in allowed:
-                raise self.unsupported(body, allowed)
-            reader: _Reader = self
-            if body.tag == "CatalogReference":
-                body, reader = self.from_catalog(body)
-            if body.tag not in ("Vehicle", "Pedestrian", "MiscObject"):
-                raise self.unsupported(body, ("Vehicle", "Pedestrian", "MiscObject"))
-            out.append(
-                reader._entity(
-                    name, body, obj.find("ObjectController") is not None, self.where(obj)
-                )
-            )
+            out += self._scenario_object(obj)
         names = [e.name for e in out]
         if len(set(names)) != len(names):
             raise self.error(entities, f"scenario object names repeat: {names}")
+        self._check_trailers(out)
         return out
+
+    def _object_names(self) -> list[str]:
+        """The scenario objects' names, the trailers defined inside vehicles too."""
+        if self._names is None:
+            self._names = [s.name for s in self.entities()]
+        return self._names
+
+    def _scenario_object(self, obj: Any) -> list[EntitySpec]:
+        """A ``ScenarioObject``'s spec, then those of the trailers defined inside it."""
+        name = self.attr(obj, "name")
+        kids = [k for k in obj if isinstance(k.tag, str) and k.tag != "ObjectController"]
+        allowed = ("CatalogReference", "Vehicle", "Pedestrian", "MiscObject")
+        if len(kids) != 1:
+            raise self.error(obj, f"expects one of {list(allowed)}, has {[k.tag for k in kids]}")
+        body = kids[0]
+        if body.tag not in allowed:
+            raise self.unsupported(body, allowed)
+        reader: _Reader = self
+        if body.tag == "CatalogReference":
+            body, reader = self.from_catalog(body)
+        if body.tag not in ("Vehicle", "Pedestrian", "MiscObject"):
+            raise self.unsupported(body, ("Vehicle", "Pedestrian", "MiscObject"))
+        spec = reader._entity(name, body, obj.find("ObjectController") is not None, self.where(obj))
+        out = [spec]
+        towed = body.find("Trailer") if body.tag == "Vehicle" else None
+        if towed is not None:
+            inner = reader.one(towed, ("Trailer", "TrailerRef"))
+            if inner.tag == "TrailerRef":
+                trailer = reader.attr(inner, "entityRef")
+            else:  # a trailer defined here: a scenario object of its own
+                out += reader._scenario_object(inner)
+                trailer = out[1].name
+            out[0] = dataclasses.replace(spec, trailer=trailer)
+        return out
+
+    def _check_trailers(self, specs: list[EntitySpec]) -> None:
+        """Every trailer named exists and has a coupler, its tractor a hitch; none is
+        towed twice, none tows itself through a chain."""
+        by_name = {s.name: s for s in specs}
+        towed_by: dict[str, str] = {}
+        for s in specs:
+            if s.trailer is None:
+                continue
+            where = s.where
+            trailer = by_name.get(s.trailer)
+            if trailer is None:
+                raise ScenarioError(
+                    f"{where}: its trailer {s.trailer!r} names no scenario object; the "
+                    f"scenario has {list(by_name)}"
+                )
+            if s.hitch is None:
+                raise ScenarioError(f"{where}: {s.name!r} tows a trailer but has no <TrailerHitch>")
+            if trailer.coupler is None:
+                raise ScenarioError(
+                    f"{where}: the trailer {trailer.name!r} has no <TrailerCoupler>"
+                )
+            if s.trailer in towed_by:
+                raise ScenarioError(
+                    f"{where}: the trailer {s.trailer!r} is towed by {towed_by[s.trailer]!r} "
+                    "already"
+                )
+            towed_by[s.trailer] = s.name
+        for s in specs:  # no chain returns to where it began
+            seen, name = {s.name}, s.trailer
+            while name is not None:
+                if name in seen:
+                    raise ScenarioError(f"{s.where}: {s.name!r} tows itself through its trailers")
+                seen.add(name)
+                name = by_name[name].trailer
 
     def _entity(self, name: str, body: Any, controlled: bool, where: str) -> EntitySpec:
         kind = {"Vehicle": "vehicle", "Pedestrian": "pedestrian", "MiscObject": "miscObject"}[
@@ -543,7 +604,32 @@ class _Reader:
                 )
         else:
             limits = (math.inf, math.inf, math.inf)
-        return EntitySpec(name, kind, category, box, *limits, controlled=controlled, where=where)
+        hitch = coupler = None
+        if kind == "vehicle":
+            found = [self._offset(body, tag) for tag in ("TrailerHitch", "TrailerCoupler")]
+            hitch, coupler = found
+        return EntitySpec(
+            name,
+            kind,
+            category,
+            box,
+            *limits,
+            controlled=controlled,
+            where=where,
+            hitch=hitch,
+            coupler=coupler,
+        )
+
+    def _offset(self, body: Any, tag: str) -> float | None:
+        """``dx`` [m] of a vehicle's ``TrailerHitch`` or ``TrailerCoupler`` (None
+        without one), within :data:`MAX_SIZE` of the reference point."""
+        el = body.find(tag)
+        if el is None:
+            return None
+        dx = self.num(el, "dx")
+        if abs(dx) > MAX_SIZE:
+            raise self.error(el, f"dx must lie within {MAX_SIZE:g} m of the reference point")
+        return dx
 
     # ------------------------------------------------------------ positions
     def position(self, el: Any) -> Position:
@@ -703,7 +789,7 @@ class _Reader:
         """The name of a scenario object in attribute ``attr`` (noted in :attr:`refs`
         with ``record``)."""
         name = self.attr(el, attr)
-        known = [e.get("name") for e in self.root.findall("Entities/ScenarioObject")]
+        known = self._object_names()
         if name in self.selections():
             raise self.error(
                 el, f"{attr}={name!r} is an EntitySelection; one scenario object is needed here"
@@ -735,9 +821,16 @@ class _Reader:
                 "VisibilityAction",
                 "AppearanceAction",
                 "SynchronizeAction",
+                "TrailerAction",
             ),
         )
         where = self.where(body)
+        if body.tag == "TrailerAction":
+            link = self.one(body, ("ConnectTrailerAction", "DisconnectTrailerAction"))
+            if link.tag == "DisconnectTrailerAction":
+                return lambda actor: A.TrailerLink(actor, where, None)
+            trailer = self._entity_ref(link, "trailerRef")
+            return lambda actor: A.TrailerLink(actor, where, trailer)
         if body.tag in _NO_MEANING:
             self.ignore(body, _NO_MEANING[body.tag])
             return lambda actor: A.Ignored(actor, where)

@@ -120,6 +120,7 @@ class ScenarioRunner:
                 raise
             except InputError as exc:  # a value that puts an entity outside the world
                 raise ScenarioError(f"{action.where}: {exc}") from None
+        self._couple()
         for entity in self.world.entities.values():
             if not entity.placed and entity.name in self.scenario.added:
                 entity.present = False  # absent until its AddEntityAction (as esmini)
@@ -179,6 +180,7 @@ class ScenarioRunner:
             if self.domains == {"lateral"}:
                 self.ego.speed = speed  # the script's (the vehicle's has the env's push)
         self._come_and_go(dt)
+        world.tow()
         world.settle()
         # the clock counts steps at the simulation frequency: 12 / 10 is 1.2 exactly,
         # where 12 * 0.1 (or a sum of 0.1 s) is 1.2000000000000002
@@ -191,6 +193,33 @@ class ScenarioRunner:
             world.script_speed(self.ego, dt)  # the next step's speed is the script's
         world.prepare(dt)
         world.ego_due()
+
+    def _couple(self) -> None:
+        """The trailers the vehicles tow from the start (``Trailer``), in line behind
+        their tractors once ``Init`` has placed these."""
+        entities = self.world.entities
+        for spec in self.scenario.entities:
+            if spec.trailer is None:
+                continue
+            tractor, trailer = entities[spec.name], entities[spec.trailer]
+            tractor.trailer, trailer.tractor = trailer, tractor
+        if self.active:
+            self._check_not_towing()
+        heads = [e for e in entities.values() if e.trailer is not None and e.tractor is None]
+        if any(not e.placed for e in heads):
+            return  # the missing position is named next
+        self.world.tow(straight=True)
+
+    def _check_not_towing(self) -> None:
+        """Raise where the function under test's vehicle tows or is towed (not played)."""
+        ego = self.ego
+        if ego.trailer is not None or ego.tractor is not None:
+            raise ScenarioError(
+                f"{self.scenario.path.name} at {self.world.time:g} s: the function under "
+                f"test takes {ego.name!r}, which "
+                + ("tows a trailer" if ego.trailer is not None else "is towed")
+                + ": a function's vehicle with a trailer is not played"
+            )
 
     def on_road(self, entity: Entity) -> bool:
         """Whether the entity's vehicle is on the road (not deleted, or added back)."""
@@ -225,6 +254,8 @@ class ScenarioRunner:
         if wanted == self.domains:
             return
         ego = self.ego
+        if wanted:
+            self._check_not_towing()
         before = self.domains
         if before:
             self.world.sync(ego)

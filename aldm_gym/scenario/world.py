@@ -85,6 +85,15 @@ class ScenarioVehicle(Vehicle):
         """No action of its own: the scenario moves it."""
         self.action = {"steering": 0.0, "acceleration": 0.0}
 
+    def handle_collisions(self, other: Any, dt: float = 0) -> None:
+        """highway-env's collision check, but for a tractor and the trailer it tows
+        (their boxes meet at the hitch)."""
+        mine, theirs = self.entity, getattr(other, "entity", None)
+        if mine is not None and theirs is not None:
+            if mine.trailer is theirs or mine.tractor is theirs:
+                return
+        super().handle_collisions(other, dt)
+
     def step(self, dt: float) -> None:
         """Advance the script by ``dt`` [s]; then highway-env's lane bookkeeping."""
         if self.entity is not None and self.entity.world is not None:
@@ -161,6 +170,22 @@ class Entity:
     arrival: Any = None
     """Where an ``AddEntityAction`` puts its vehicle at the next step (a resolved
     position)."""
+    hitch: float | None = None
+    """Its trailer hitch [m] ahead of its reference point (None: it tows nothing)."""
+    coupler: float | None = None
+    """Its trailer coupler [m] ahead of its reference point (None: it is no trailer)."""
+    trailer: Entity | None = None
+    """The trailer it tows now."""
+    tractor: Entity | None = None
+    """The vehicle that tows it now."""
+
+    def chain(self) -> list[Entity]:
+        """The trailers it tows, nearest first."""
+        out, t = [], self.trailer
+        while t is not None and t not in out:
+            out.append(t)
+            t = t.trailer
+        return out
 
     @property
     def current_speed(self) -> float:
@@ -439,6 +464,8 @@ class World:
             return
         if not entity.scripted or not entity.placed or not entity.present:
             return
+        if entity.tractor is not None:
+            return  # towed: moved by its tractor (tow)
         if entity.teleport is not None:
             where, entity.teleport = entity.teleport, None
             if where.lane is not None:
@@ -575,6 +602,33 @@ class World:
             key = prev
             u += road.lane_length(key)
         return key, u
+
+    def tow(self, straight: bool = False) -> None:
+        """Move every towed trailer after its tractor (tractors first along a chain):
+        its coupler to the tractor's hitch, its reference point along the line from
+        where it was to the hitch (a trailer follows its hitch as a tractrix, as
+        esmini moves it); ``straight``: in line behind the tractor (a connection in
+        ``Init``). It moves at its tractor's speed."""
+        for head in self.entities.values():
+            if head.trailer is None or head.tractor is not None:
+                continue
+            tractor = head
+            for trailer in head.chain():
+                assert tractor.hitch is not None and trailer.coupler is not None
+                hitch = tractor.reference_point() + tractor.hitch * tractor.forward()
+                direction = tractor.forward()
+                if not straight and trailer.placed:
+                    pull = hitch - trailer.reference_point()
+                    norm = float(np.hypot(*pull))
+                    if norm > 1e-9:
+                        direction = pull / norm
+                heading = math.atan2(float(direction[1]), float(direction[0]))
+                trailer.speed = tractor.current_speed
+                self.place_world(trailer, hitch - trailer.coupler * direction, heading)
+                if trailer.vehicle is not None:
+                    trailer.vehicle.speed = trailer.speed
+                    trailer.vehicle.on_state_update()
+                tractor = trailer
 
     def settle(self) -> None:
         """After every entity moved in a step: the rigid distance actions place their

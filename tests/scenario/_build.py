@@ -59,6 +59,15 @@ def at_time(t: float, name: str = "t", edge: Any = None, delay: float = 0.0) -> 
     )
 
 
+def placed(rows: Sequence[tuple[str, int, float, float]]) -> xosc.Init:
+    """An ``Init`` that puts each ``(name, lane id, s [m], speed [m/s])`` on road 0."""
+    init = xosc.Init()
+    for name, lane, s, v in rows:
+        init.add_init_action(name, xosc.TeleportAction(xosc.LanePosition(s, 0, lane, 0)))
+        init.add_init_action(name, step_speed(v))
+    return init
+
+
 def cars_and_board(
     names: Sequence[str], init: xosc.Init, stop: float
 ) -> tuple[xosc.Entities, xosc.StoryBoard]:

@@ -16,6 +16,7 @@ from tests.scenario._build import (
     at_time,
     car,
     cars_and_board,
+    placed,
     save,
     step_speed,
     straight_road,
@@ -657,13 +658,10 @@ def lateral_distances(folder: Path) -> Path:
     (continuous); a third car 4 m right of it (reference points) with a spring of
     3 m/s² and 1.5 m/s, ending once there; a fourth car 3.5 m left of the target at
     1 m/s alone (continuous)."""
-    init = xosc.Init()
-    for name, lane, s, v in (
+    init = placed((
         ("Ego", -2, 50.0, 20.0), ("Target", -1, 60.0, 20.0),
         ("Side", -3, 70.0, 20.0), ("Far", -1, 40.0, 20.0),
-    ):  # fmt: skip
-        init.add_init_action(name, xosc.TeleportAction(xosc.LanePosition(s, 0, lane, 0)))
-        init.add_init_action(name, step_speed(v))
+    ))  # fmt: skip
     entities, board = cars_and_board(("Ego", "Target", "Side", "Far"), init, 10.0)
     left = xosc.LateralDisplacement.leftToReferencedEntity
     right = xosc.LateralDisplacement.rightToReferencedEntity
@@ -706,11 +704,8 @@ def jerk_limited_speed_profiles(folder: Path) -> Path:
     ego to 30 m/s in 2 s (too short for the jerks and past the acceleration limit:
     later); a third car through three timed speeds (the corners cut by the jerks) and
     an untimed one."""
-    init = xosc.Init()
-    for name, lane, s, v in (("Ego", -2, 50.0, 20.0), ("Target", -1, 80.0, 20.0),
-                             ("Third", -3, 30.0, 15.0)):  # fmt: skip
-        init.add_init_action(name, xosc.TeleportAction(xosc.LanePosition(s, 0, lane, 0)))
-        init.add_init_action(name, step_speed(v))
+    init = placed((("Ego", -2, 50.0, 20.0), ("Target", -1, 80.0, 20.0),
+                             ("Third", -3, 30.0, 15.0)))  # fmt: skip
     entities, board = cars_and_board(("Ego", "Target", "Third"), init, 16.0)
 
     def follow(speeds: list[float], times: list[float | None], *dc: float) -> object:
@@ -733,6 +728,67 @@ def jerk_limited_speed_profiles(folder: Path) -> Path:
         board.add_maneuver(man, name)
     path = save(folder, "jerk_profiles.xosc", entities, board)
     path.write_text(path.read_text().replace(' time="None"', ""))  # the last has no time
+    return path
+
+
+def _truck(trailer: object = None) -> xosc.Vehicle:
+    """A 7 m tractor with its hitch (a fifth wheel) 0.5 m ahead of its rear axle: a
+    trailer coupled to it overlaps its box."""
+    bb = xosc.BoundingBox(2.5, 7.0, 3.0, 2.5, 0.0, 1.5)
+    front, rear = xosc.Axle(0.5, 0.8, 2.3, 5.0, 0.5), xosc.Axle(0.0, 0.8, 2.3, 0.0, 0.5)
+    return xosc.Vehicle(
+        "truck", xosc.VehicleCategory.truck, bb, front, rear, 40, 3, 6,
+        trailer_hitch=xosc.HitchCoupler(0.5), trailer=trailer,
+    )  # fmt: skip
+
+
+def _trailer(name: str) -> xosc.Vehicle:
+    """A 10 m trailer with its coupler 8 m ahead of its axle."""
+    bb = xosc.BoundingBox(2.5, 10.0, 3.0, 3.0, 0.0, 1.5)
+    front, rear = xosc.Axle(0.0, 0.8, 2.3, 8.0, 0.5), xosc.Axle(0.0, 0.8, 2.3, 0.0, 0.5)
+    return xosc.Vehicle(
+        name, xosc.VehicleCategory.trailer, bb, front, rear, 40, 3, 6,
+        trailer_coupler=xosc.HitchCoupler(8.0),
+    )  # fmt: skip
+
+
+def trailers(folder: Path) -> Path:
+    """Trailers on an arc of R 250 m: a truck towing a trailer defined inside it
+    changes lanes in the arc; another connects a trailer driving on the next lane at
+    1 s (it swings in behind it) and disconnects it at 6 s (it goes on by itself)."""
+    entities = xosc.Entities()
+    entities.add_scenario_object("Ego", car())
+    entities.add_scenario_object("Loose", _trailer("loose"))
+    inline = xosc.ScenarioObject("Towed", _trailer("towed"))
+    entities.add_scenario_object("Truck", _truck(inline))
+    entities.add_scenario_object("Hauler", _truck())
+    init = placed((
+        ("Ego", -1, 20.0, 15.0), ("Truck", -2, 60.0, 15.0),
+        ("Hauler", -3, 120.0, 15.0), ("Loose", -2, 95.0, 12.0),
+    ))  # fmt: skip
+    board = xosc.StoryBoard(
+        init,
+        xosc.ValueTrigger(
+            "stop", 0, xosc.ConditionEdge.rising,
+            xosc.SimulationTimeCondition(12.0, xosc.Rule.greaterThan), "stop",
+        ),
+    )  # fmt: skip
+    dyn = xosc.TransitionDynamics(xosc.DynamicsShapes.sinusoidal, xosc.DynamicsDimension.time, 4.0)
+    truck = xosc.Maneuver("truck")
+    truck.add_event(_event("change", xosc.AbsoluteLaneChangeAction(-1, dyn), at_time(4.0)))
+    board.add_maneuver(truck, "Truck")
+    hauler = xosc.Maneuver("hauler")
+    hauler.add_event(_event("connect", xosc.ConnectTrailerAction("Loose"), at_time(1.0)))
+    hauler.add_event(
+        _event("disconnect", xosc.DisconnectTrailerAction(), at_time(6.0), xosc.Priority.parallel)
+    )
+    board.add_maneuver(hauler, "Hauler")
+    scenario = xosc.Scenario(
+        "trailers", "aldm-gym tests", xosc.ParameterDeclarations(), entities, board,
+        xosc.RoadNetwork(str(_curved_road(folder))), xosc.Catalog(),
+    )  # fmt: skip
+    path = folder / "trailers.xosc"
+    scenario.write_xml(str(path))
     return path
 
 
@@ -764,6 +820,7 @@ CORPUS: dict[str, Callable[[Path], Path]] = {
         road_end_off_road_and_relative_world,
         lateral_distances,
         jerk_limited_speed_profiles,
+        trailers,
     )
 }
 """The corpus by name."""

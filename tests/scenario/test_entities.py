@@ -6,6 +6,7 @@ is tests/scenario/test_esmini.py's (corpus ``entities_deleted_and_added``,
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -14,7 +15,17 @@ from scenariogeneration import xosc
 
 from aldm_gym.errors import ScenarioError
 from aldm_gym.scenario import conditions as C
-from tests.scenario._build import STEP, at_time, cars_and_board, play, save, step_speed, write
+from tests.scenario._build import (
+    STEP,
+    at,
+    at_time,
+    cars_and_board,
+    placed,
+    play,
+    save,
+    step_speed,
+    write,
+)
 from tests.scenario.corpus import CORPUS, _curved_road, _event
 
 
@@ -227,12 +238,7 @@ def _selections(folder: Path) -> Path:
     """``EntitySelection``s: the two other cars (by name) slow down together at 1 s;
     the ego changes lanes when all vehicles (by type) drive slower than 20.5 m/s; a
     selection of a selection and the ego is the actor of a speed change at 6 s."""
-    init = xosc.Init()
-    init.add_init_action("Ego", xosc.TeleportAction(xosc.LanePosition(50.0, 0, -2, 0)))
-    init.add_init_action("Left", xosc.TeleportAction(xosc.LanePosition(90.0, 0, -1, 0)))
-    init.add_init_action("Right", xosc.TeleportAction(xosc.LanePosition(70.0, 0, -3, 0)))
-    for name, v in (("Ego", 20.0), ("Left", 22.0), ("Right", 21.0)):
-        init.add_init_action(name, step_speed(v))
+    init = placed([("Ego", -2, 50.0, 20.0), ("Left", -1, 90.0, 22.0), ("Right", -3, 70.0, 21.0)])
     entities, board = cars_and_board(("Ego", "Left", "Right"), init, 9.0)
     dyn = xosc.TransitionDynamics(xosc.DynamicsShapes.linear, xosc.DynamicsDimension.rate, 2.0)
     slow = xosc.Maneuver("slow")
@@ -331,3 +337,64 @@ def test_a_selection_where_one_entity_is_needed_is_an_error(tmp_path: Path) -> N
     path.write_text(text)
     with pytest.raises(ScenarioError, match="'both' is an EntitySelection; one scenario object"):
         read_scenario(path)
+
+
+def test_a_towed_trailer_follows_its_hitch_and_does_not_collide_with_its_tractor(
+    tmp_path: Path,
+) -> None:
+    path = CORPUS["trailers"](tmp_path)
+    env, records = play(path, seconds=12.0)
+    world = env.scenario.world
+    truck, towed = world.entities["Truck"], world.entities["Towed"]
+    assert truck.trailer is towed and towed.tractor is truck
+    hitch = truck.reference_point() + truck.hitch * truck.forward()
+    coupler = towed.reference_point() + towed.coupler * towed.forward()
+    assert np.hypot(*(hitch - coupler)) < 1e-9  # the coupler sits on the hitch
+    # the trailer's box overlaps the tractor's (a fifth wheel): no collision for the
+    # road nor for a CollisionCondition
+    assert C.box_distance(truck, towed) == 0.0
+    assert not C.boxes_overlap(truck, towed)
+    assert not truck.vehicle.crashed and not towed.vehicle.crashed
+    # the disconnected trailer goes on by itself along its lane at the hauler's speed
+    loose, hauler = world.entities["Loose"], world.entities["Hauler"]
+    assert loose.tractor is None and hauler.trailer is None
+    assert at(records, 12.0)["Loose"][3] == pytest.approx(15.0)
+    assert at(records, 11.0)["Loose"][1] < at(records, 12.0)["Loose"][1]
+
+
+def _with_trailer(folder: Path, change: Callable[[str], str]) -> Path:
+    path = CORPUS["trailers"](folder)
+    path.write_text(change(path.read_text()))
+    return path
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        (lambda t: t.replace('<TrailerCoupler dx="8.0"/>', "", 1), "has no <TrailerCoupler>"),
+        (lambda t: t.replace('<TrailerHitch dx="0.5"/>', "", 1), "has no <TrailerHitch>"),
+        (
+            lambda t: t.replace('trailerRef="Loose"', 'trailerRef="Towed"'),
+            "'Towed' is towed by 'Truck' already",
+        ),
+    ],
+)
+def test_a_trailer_that_cannot_be_towed_is_named(
+    tmp_path: Path, change: Callable[[str], str], message: str
+) -> None:
+    from aldm_gym.scenario import read_scenario
+
+    path = _with_trailer(tmp_path, change)
+    with pytest.raises(ScenarioError, match=message):
+        read_scenario(path)
+        play(path, seconds=2.0)
+
+
+def test_the_function_under_test_does_not_tow(tmp_path: Path) -> None:
+    activate = (
+        '<Private entityRef="Truck"><PrivateAction><ActivateControllerAction '
+        'lateral="true" longitudinal="true"/></PrivateAction></Private></Actions>'
+    )
+    path = _with_trailer(tmp_path, lambda t: t.replace("</Actions>", activate, 1))
+    with pytest.raises(ScenarioError, match="takes 'Truck', which tows a trailer"):
+        play(path, seconds=2.0, scenario={"xosc": str(path), "ego": "Truck"})

@@ -403,11 +403,12 @@ def test_unsupported_action_names_file_line_and_element(tmp_path: Path) -> None:
     path = _patched(
         tmp_path,
         "<TeleportAction>",
-        "<TrailerAction><DisconnectTrailerAction/></TrailerAction></PrivateAction><PrivateAction><TeleportAction>",
+        "<RoutingAction><RandomRouteAction/></RoutingAction></PrivateAction><PrivateAction>"
+        "<TeleportAction>",
     )
-    line = _line_of(path, "TrailerAction")
+    line = _line_of(path, "RoutingAction")
     with pytest.raises(
-        ScenarioError, match=rf"scenario\.xosc:{line} <TrailerAction>.*not supported"
+        ScenarioError, match=rf"scenario\.xosc:{line} <RandomRouteAction>.*not supported"
     ):
         read_scenario(path)
 
