@@ -1278,6 +1278,7 @@ class LateralDistance(Instance):
         self.lateral_speed = 0.0
         self.acceleration = 0.0
         self.begun = False
+        self.ref_before: np.ndarray | None = None
         _override(entity, "lateral", self)
 
     def _target(self, world: World, entity: Entity) -> float:
@@ -1306,7 +1307,16 @@ class LateralDistance(Instance):
         top = max(min(max_speed, abs(entity.speed)) - 1e-6, 0.0)
         if math.isfinite(max_acc):
             k = SPRING * max_acc
-            wanted = k * error - 2.0 * math.sqrt(k) * self.lateral_speed
+            # damped relative to the reference's lateral speed: its last step's move
+            # across its own heading (esmini's)
+            ref = world.entities[self.ref]
+            point = ref.reference_point()
+            ref_lateral = 0.0
+            if self.ref_before is not None and dt > 0:
+                ref_lateral = float((point - self.ref_before) @ ref.left()) / dt
+            self.ref_before = point.copy()
+            damping = 2.0 * math.sqrt(k) * (self.lateral_speed - ref_lateral)
+            wanted = k * error - damping
             change = max_rate * dt
             acc = self.acceleration + min(max(wanted - self.acceleration, -change), change)
             self.acceleration = min(max(acc, -max_acc), max_acc)

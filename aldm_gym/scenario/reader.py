@@ -516,9 +516,11 @@ class _Reader:
         out = [spec]
         towed = body.find("Trailer") if body.tag == "Vehicle" else None
         if towed is not None:
-            inner = reader.one(towed, ("Trailer", "TrailerRef"))
-            if inner.tag == "TrailerRef":
-                trailer = reader.attr(inner, "entityRef")
+            # esmini's own catalogs write <EntityRef> for <TrailerRef>, and leave its
+            # entityRef empty for "no trailer"
+            inner = reader.one(towed, ("Trailer", "TrailerRef", "EntityRef"))
+            if inner.tag != "Trailer":
+                trailer = reader.attr(inner, "entityRef") or None
             else:  # a trailer defined here: a scenario object of its own
                 out += reader._scenario_object(inner)
                 trailer = out[1].name

@@ -398,3 +398,22 @@ def test_the_function_under_test_does_not_tow(tmp_path: Path) -> None:
     path = _with_trailer(tmp_path, lambda t: t.replace("</Actions>", activate, 1))
     with pytest.raises(ScenarioError, match="takes 'Truck', which tows a trailer"):
         play(path, seconds=2.0, scenario={"xosc": str(path), "ego": "Truck"})
+
+
+@pytest.mark.parametrize(("ref", "towed"), [("", False), ("Loose", True)])
+def test_esmini_catalogs_name_a_trailer_by_entity_ref(
+    tmp_path: Path, ref: str, towed: bool
+) -> None:
+    """esmini's own vehicle catalog writes ``<Trailer><EntityRef .../></Trailer>`` (for
+    ``TrailerRef``), with an empty name for none."""
+    from aldm_gym.scenario import read_scenario
+
+    path = CORPUS["trailers"](tmp_path)
+    text = path.read_text()
+    hauler = text.index('<ScenarioObject name="Hauler">')
+    hitch = text.index('<TrailerHitch dx="0.5"/>', hauler) + len('<TrailerHitch dx="0.5"/>')
+    text = text[:hitch] + f'<Trailer><EntityRef entityRef="{ref}"/></Trailer>' + text[hitch:]
+    text = text.replace('<ConnectTrailerAction trailerRef="Loose"/>', "<DisconnectTrailerAction/>")
+    path.write_text(text)
+    spec = read_scenario(path).entity("Hauler")
+    assert spec.trailer == ("Loose" if towed else None)
