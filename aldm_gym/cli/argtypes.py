@@ -164,6 +164,40 @@ def key_value(text: str) -> tuple[str, Any]:
     return key, parsed
 
 
+def add_env_argument(parser: argparse.ArgumentParser, note: str) -> None:
+    """Declare ``--env KEY=VALUE`` (repeatable): any ``ALDMHighway-v0`` setting."""
+    parser.add_argument(
+        "--env",
+        type=key_value,
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="any other ALDMHighway-v0 setting, repeatable; a section's as SECTION.KEY, e.g. "
+        "detector_params.tracking=model observation.line_confidence=true "
+        f"sensor.preset=camera (docs/env.md; {note})",
+    )
+
+
+def nested_pairs(pairs: list[tuple[str, Any]], flag: str = "--env") -> dict[str, Any]:
+    """``KEY=VALUE`` pairs with dotted keys as a nested config (``a.b=v`` ->
+    ``{"a": {"b": v}}``); :class:`BadArgument` naming ``flag`` where a key gives a
+    value to a section or a section to a value. The keys themselves are checked where
+    the config is used."""
+    out: dict[str, Any] = {}
+    for key, value in pairs:
+        *sections, name = key.split(".")
+        node = out
+        for part in sections:
+            child = node.setdefault(part, {})
+            if not isinstance(child, dict):
+                raise BadArgument(flag, f"{key}: {part} was given a value, not a section")
+            node = child
+        if isinstance(node.get(name), dict):
+            raise BadArgument(flag, f"{key}: {name} is a section; give SECTION.KEY=VALUE")
+        node[name] = value
+    return out
+
+
 def check_parent(path: Path) -> None:
     """The nearest existing ancestor of ``path`` is a writable folder (else
     ``argparse.ArgumentTypeError``)."""

@@ -21,10 +21,12 @@ from typing import Any
 
 from aldm_gym.cli.argtypes import (
     BadArgument,
+    add_env_argument,
     existing_file,
     image_file,
     key_value,
     make_output_dir,
+    nested_pairs,
     output_dir,
     positive_int,
     ray_address,
@@ -36,6 +38,29 @@ DETECTOR_CHOICES = ("naive", "aldm", "ground_truth")
 
 MARKING_CHOICES = ("per_dash", "editor")
 """Marking models a suite compares."""
+
+SCENARIO_OWNS = (
+    "road",
+    "traffic",
+    "lanes_count",
+    "vehicles_count",
+    "vehicles_density",
+    "initial_lane_id",
+    "initial_speed",
+    "ego_spacing",
+    "other_vehicles_type",
+    "controlled_vehicles",
+)
+"""Env settings the scenario decides (its map, its entities as the traffic): given
+with ``--env`` they give way to it, with one note."""
+
+OWN_FLAGS = {
+    "scenario": "the scenario file",
+    "detector": "--detector (suite: --detectors)",
+    "marking_model": "--marking-model (suite: --marking-models)",
+    "osi": "--osi (scenario run)",
+}
+"""Env settings the scenario commands set with their own arguments."""
 
 
 def _names(allowed: tuple[str, ...]) -> Any:
@@ -65,6 +90,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         metavar="NAME=VALUE",
         help="a value for one of its parameters (repeatable)",
     )
+    add_env_argument(run, "for the run; the scenario's map and traffic take precedence")
     run.add_argument("--detector", choices=DETECTOR_CHOICES, default="aldm")
     run.add_argument("--marking-model", choices=MARKING_CHOICES, default="per_dash")
     run.add_argument("--video", type=gif_file, help="an animated GIF of the run (e.g. run.gif)")
@@ -97,10 +123,39 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         help="run on the Ray cluster there ('auto' or host:port; needs the [ray] extra); "
         "--jobs does not apply",
     )
+    add_env_argument(suite, "for every run; the scenario's map and traffic take precedence")
     suite.add_argument("--out", type=output_dir, default=Path("scenario_results"))
     suite.add_argument("--no-progress", action="store_true", help="no progress bar")
     suite.set_defaults(func=run_suite)
     return parser
+
+
+def scenario_env(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+    """``--env`` pairs as the env settings of a scenario run, checked as the env checks
+    them (:class:`BadArgument` naming the key and the allowed ones). Settings the
+    command has arguments for are refused; those the scenario decides (its map and
+    traffic, :data:`SCENARIO_OWNS`) are dropped with one note on stderr."""
+    import sys
+
+    from aldm_gym.envs.config import default_config, merge_config
+    from aldm_gym.errors import ConfigError
+
+    overrides = nested_pairs(pairs)
+    for key in overrides:
+        if key in OWN_FLAGS:
+            raise BadArgument("--env", f"{key} is set by {OWN_FLAGS[key]}, not --env")
+    dropped = [key for key in overrides if key in SCENARIO_OWNS]
+    try:
+        merge_config(default_config(), overrides)
+    except ConfigError as exc:
+        raise BadArgument("--env", str(exc)) from None
+    if dropped:
+        print(
+            f"note: the scenario's own map and traffic take precedence over --env "
+            f"{', '.join(sorted(dropped))} (ignored)",
+            file=sys.stderr,
+        )
+    return {k: v for k, v in overrides.items() if k not in dropped}
 
 
 def gif_file(text: str) -> Path:
@@ -122,13 +177,16 @@ def run_one(args: argparse.Namespace) -> int:
     from aldm_gym.scenario.criteria import run_scenario
 
     frames: list[Any] | None = [] if args.video is not None else None
+    config = scenario_env(args.env)
+    if args.osi is not None:
+        config["osi"] = {"trace": str(args.osi)}
     try:
         result = run_scenario(
             args.file,
             dict(args.param),
             detector=args.detector,
             marking_model=args.marking_model,
-            config={"osi": {"trace": str(args.osi)}} if args.osi is not None else None,
+            config=config,
             frames=frames,
         )
     except MissingOSIDependencies as exc:
@@ -197,8 +255,11 @@ def run_suite(args: argparse.Namespace) -> int:
     from aldm_gym.errors import InputError
     from aldm_gym.scenario.suite import plan_suite, play_suite, summarise, write_outputs
 
+    config = scenario_env(args.env)
     try:
-        jobs = plan_suite(args.path, args.detectors, args.marking_models, args.max_runs)
+        jobs = plan_suite(
+            args.path, args.detectors, args.marking_models, args.max_runs, config=config
+        )
     except (InputError, FileNotFoundError) as exc:
         raise _scenario_error("DIR_OR_VARIATION", exc) from None
     if args.address is not None:

@@ -32,11 +32,12 @@ from typing import Any
 
 from aldm_gym.cli.argtypes import (
     BadArgument,
+    add_env_argument,
     config_setting,
     fraction,
     int_in,
-    key_value,
     make_output_dir,
+    nested_pairs,
     non_negative_float,
     non_negative_int,
     output_dir,
@@ -316,18 +317,7 @@ def _backend(args: argparse.Namespace, meta: dict[str, Any] | None) -> str:
 def _env_overrides(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
     """``--env`` pairs as a nested config (``a.b=v`` -> ``{"a": {"b": v}}``), checked
     against the env's rules (:class:`BadArgument` naming the key and the allowed ones)."""
-    overrides: dict[str, Any] = {}
-    for key, value in pairs:
-        *sections, name = key.split(".")
-        node = overrides
-        for part in sections:
-            child = node.setdefault(part, {})
-            if not isinstance(child, dict):
-                raise BadArgument("--env", f"{key}: {part} was given a value, not a section")
-            node = child
-        if isinstance(node.get(name), dict):
-            raise BadArgument("--env", f"{key}: {name} is a section; give SECTION.KEY=VALUE")
-        node[name] = value
+    overrides = nested_pairs(pairs)
     for name in NAMED_ENV_KEYS:
         if name in overrides:
             raise BadArgument("--env", f"{name} has its own flag: {_flag(_ENV_FLAGS[name])}")
@@ -359,20 +349,6 @@ def check_pretrain_arguments(args: argparse.Namespace) -> None:
     """Refuse ``--pretrain-epochs`` without ``--pretrain-episodes`` (:class:`BadArgument`)."""
     if args.pretrain_epochs is not None and args.pretrain_episodes is None:
         raise BadArgument("--pretrain-epochs", "needs --pretrain-episodes")
-
-
-def add_env_argument(parser: argparse.ArgumentParser, note: str) -> None:
-    """Declare ``--env KEY=VALUE`` (repeatable): any ``ALDMHighway-v0`` setting."""
-    parser.add_argument(
-        "--env",
-        type=key_value,
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help="any other ALDMHighway-v0 setting, repeatable; a section's as SECTION.KEY, e.g. "
-        "detector_params.tracking=model observation.line_confidence=true "
-        f"sensor.preset=camera (docs/env.md; {note})",
-    )
 
 
 def env_settings(

@@ -23,6 +23,7 @@ from tqdm import tqdm
 
 from aldm_gym.cli.argtypes import (
     BadArgument,
+    add_env_argument,
     int_in,
     make_output_dir,
     output_dir,
@@ -30,7 +31,6 @@ from aldm_gym.cli.argtypes import (
     seed,
 )
 from aldm_gym.cli.train import (
-    add_env_argument,
     add_pretrain_arguments,
     check_pretrain_arguments,
     env_settings,

@@ -14,6 +14,7 @@ activated), and the pass rate is over the judged ones.
 from __future__ import annotations
 
 import csv
+import json
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -29,12 +30,14 @@ __all__ = ["Job", "format_table", "plan_suite", "play_suite", "summarise", "writ
 
 @dataclass(frozen=True)
 class Job:
-    """One run to play: a scenario file, its parameters, a detector and a marking model."""
+    """One run to play: a scenario file, its parameters, a detector and a marking
+    model, and the other env settings (``config``, as JSON)."""
 
     xosc: str
     parameters: tuple[tuple[str, str], ...]
     detector: str
     marking_model: str
+    config: str = "{}"
 
 
 def _is_variation(path: Path) -> bool:
@@ -91,8 +94,11 @@ def plan_suite(
     detectors: Sequence[str],
     marking_models: Sequence[str],
     max_runs: int | None = None,
+    config: dict[str, Any] | None = None,
 ) -> list[Job]:
-    """The jobs of a suite (see the module docstring).
+    """The jobs of a suite (see the module docstring); ``config``: more env settings
+    for every run (merged last, as :func:`~aldm_gym.scenario.criteria.run_scenario`
+    merges them).
 
     :raises ScenarioError: a file that cannot be read; :class:`FileNotFoundError`:
         ``path`` does not exist.
@@ -118,8 +124,9 @@ def plan_suite(
         concrete.extend((scenario, dict(r.parameters)) for r in _subset(kept, max_runs))
     if not concrete:
         raise ScenarioError(f"{path}: no concrete scenario (.xosc) found")
+    settings = json.dumps(config or {}, sort_keys=True)
     return [
-        Job(str(file), tuple(sorted(params.items())), det, mm)
+        Job(str(file), tuple(sorted(params.items())), det, mm, settings)
         for file, params in concrete
         for det in detectors
         for mm in marking_models
@@ -128,7 +135,13 @@ def plan_suite(
 
 def _play(job: Job) -> RunResult:
     try:
-        return run_scenario(job.xosc, dict(job.parameters), job.detector, job.marking_model)
+        return run_scenario(
+            job.xosc,
+            dict(job.parameters),
+            job.detector,
+            job.marking_model,
+            config=json.loads(job.config),
+        )
     except AldmGymError as exc:  # a bad file, parameter set or map: a row, not a crash
         return RunResult(
             scenario=Path(job.xosc).name,

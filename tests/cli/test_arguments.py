@@ -94,6 +94,16 @@ CASES = [
     (["scenario", "suite", "DIR", "--detectors", "naive,bogus"], "--detectors", "comma-separated"),
     (["scenario", "suite", "MISSING"], "DIR_OR_VARIATION", "does not exist"),
     (["scenario", "suite", "DIR", "--address", "nowhere"], "--address", "host:port"),
+    (["scenario", "run", "MAP", "--env", "sensor.prest=camera"], "--env", "'preset'"),
+    (["scenario", "run", "MAP", "--env", "detector=naive"], "--env", "set by --detector"),
+    (["scenario", "run", "MAP", "--env", "osi.trace=a.mcap"], "--env", "set by --osi"),
+    (["scenario", "suite", "DIR", "--env", "scenario.ego=A"], "--env", "set by the scenario file"),
+    (["scenario", "suite", "DIR", "--env", "duration=-1"], "--env", "duration must be > 0"),
+    (
+        ["scenario", "suite", "DIR", "--env", "sensor=1", "--env", "sensor.preset=camera"],
+        "--env",
+        "not a section",
+    ),
     # plot
     (["plot", "--out", "DIR"], "--out", "is a folder"),
     (["plot", "--out", "FILE"], "--out", "unknown image type"),

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+import json
 from pathlib import Path
 
 import pytest
@@ -66,3 +68,28 @@ def test_on_a_ray_cluster(tmp_path: Path) -> None:
         ray.shutdown()
     assert [r.detector for r in results] == ["aldm", "ground_truth"]
     assert all(r.finished and r.passed for r in results)
+
+
+def test_env_settings_reach_every_run_and_the_scenario_keeps_its_map(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from aldm_gym.cli import main
+    from aldm_gym.scenario.suite import _play
+
+    path = write(tmp_path, stop=2.0, activate_at=0.0)
+    config = {"sensor": {"preset": "camera"}, "detector_params": {"tracking": "model"}}
+    jobs = plan_suite(path, ["aldm"], ["per_dash"], config=config)
+    assert json.loads(jobs[0].config) == config
+    result = _play(jobs[0])
+    assert result.finished and not result.error
+    # the settings reach the env: a value it refuses is that run's error
+    bad = dataclasses.replace(jobs[0], config=json.dumps({"sensor": {"preset": "fog"}}))
+    assert "preset" in _play(bad).error
+    # from the command line: the scenario's own map wins, with one note
+    code = main(
+        ["scenario", "run", str(path), "--env", "road.xodr=motorway",
+         "--env", "sensor.preset=camera", "--detector", "ground_truth"]
+    )  # fmt: skip
+    out = capsys.readouterr()
+    assert code == 0, out.out + out.err
+    assert out.err.count("take precedence over --env road (ignored)") == 1
