@@ -19,8 +19,10 @@ from typing import Any
 
 from aldm_gym.cli.argtypes import (
     BadArgument,
+    add_env_argument,
     make_output_dir,
     model_path,
+    nested_pairs,
     output_dir,
     positive_int,
     seed,
@@ -84,14 +86,37 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     parser.add_argument(
         "--quick", action="store_true", help=f"{QUICK_EPISODES} episodes per policy"
     )
+    add_env_argument(parser, "over the training's; its observation and action stay as trained")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.set_defaults(func=run)
     return parser
 
 
+def _env(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+    """``--env`` pairs as env settings, checked (:class:`BadArgument` naming the key);
+    the detector and marking model have their own flags, the policy's observation and
+    action stay as trained."""
+    from aldm_gym.envs.config import default_config, merge_config
+    from aldm_gym.errors import ConfigError
+
+    overrides = nested_pairs(pairs)
+    for key, flag in (("detector", "--detector"), ("marking_model", "--marking-model")):
+        if key in overrides:
+            raise BadArgument("--env", f"{key} has its own flag: {flag}")
+    for key in ("observation", "action"):
+        if key in overrides:
+            raise BadArgument("--env", f"{key}: the policy was trained on it; it stays as trained")
+    try:
+        merge_config(default_config(), overrides)
+    except ConfigError as exc:
+        raise BadArgument("--env", str(exc)) from None
+    return overrides
+
+
 def run(args: argparse.Namespace) -> int:
     """``aldm-gym evaluate``."""
     episodes = args.episodes or (QUICK_EPISODES if args.quick else EPISODES)
+    overrides = _env(args.env)
     try:
         model, picked = model_to_evaluate(args.model)
     except CheckpointError as exc:  # an output folder without a trained model
@@ -114,6 +139,7 @@ def run(args: argparse.Namespace) -> int:
                 detector=args.detector,
                 marking_model=args.marking_model,
                 progress=not args.no_progress,
+                env_overrides=overrides,
             )
     except MissingRLDependencies as exc:
         raise SystemExit(f"aldm-gym evaluate: {exc}") from None

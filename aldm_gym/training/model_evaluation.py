@@ -23,10 +23,12 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 from aldm_gym import ENV_ID
+from aldm_gym.envs.config import default_config, merge_config, merged_config
 from aldm_gym.errors import ConfigError, InputError
 from aldm_gym.training.models import load_policy
 from aldm_gym.training.settings import NAMED_ENV_KEYS, dotted_settings, env_config
@@ -63,6 +65,7 @@ def evaluate(
     detector: str | None = None,
     marking_model: str | None = None,
     progress: bool = True,
+    env_overrides: Mapping[str, Any] | None = None,
 ) -> tuple[list[dict[str, Any]], dict[str, Any]]:
     """Evaluate a model against IDLE and the rule-based LCA on the same seeds.
 
@@ -71,6 +74,9 @@ def evaluate(
     :param episodes: episodes per policy (seeds ``seed .. seed + episodes - 1``).
     :param detector, marking_model: override the training env's (None: as trained);
         another detector than trained drops the trained one's ``detector_params``.
+    :param env_overrides: more env settings over the training's (merged as the env merges a
+        config, e.g. ``{"sensor": {"preset": "camera"}}``); the policy's observation
+        and action (``observation``, ``action``) stay as trained.
     :return: rows (``idle``, ``rule_based``, ``model``) with the
         :func:`~aldm_gym.agents.episodes.summarize` metrics and ``policy``; and the
         evaluation's env config, model metadata (``algorithm``: ``"PPO"`` or
@@ -79,6 +85,8 @@ def evaluate(
     :raises FileNotFoundError, CheckpointError: see
         :func:`~aldm_gym.training.models.load_policy`.
     :raises MissingRLDependencies: stable-baselines3 / torch missing.
+    :raises ConfigError: ``env_overrides`` sets the observation or action, or a bad
+        setting.
     """
     import gymnasium as gym
     from tqdm import tqdm
@@ -94,6 +102,14 @@ def evaluate(
             config.pop("detector_params", None)  # the trained detector's own parameters
     if marking_model is not None:
         config["marking_model"] = env_config(marking_model=marking_model)["marking_model"]
+    if env_overrides:
+        fixed = sorted(set(env_overrides) & {"observation", "action"})
+        if fixed:
+            raise ConfigError(
+                f"{', '.join(fixed)}: the policy was trained on them; they stay as trained"
+            )
+        config = merged_config(config, env_overrides)
+        merge_config(default_config(), config)  # checked before any episode
     env = gym.make(ENV_ID, config=config)
     seeds = range(seed, seed + episodes)
     rows = []

@@ -289,6 +289,15 @@ def test_env_settings_given_with_env_are_trained_saved_evaluated_and_kept(
     _, info = evaluate(out / "model.zip", episodes=1, detector="naive", progress=False)
     assert "detector_params" not in info["env_config"]
     assert info["env_config"]["observation"] == {"line_confidence": True}
+    # more env settings over the training's; the observation stays as trained
+    camera = {"sensor": {"preset": "camera"}}
+    _, info = evaluate(out / "model.zip", episodes=1, progress=False, env_overrides=camera)
+    assert info["env_config"]["sensor"] == {"preset": "camera"}
+    assert info["env_config"]["detector_params"] == {"tracking": "model"}
+    argv = ["evaluate", "--model", str(out), "--env", "observation.line_confidence=false"]
+    assert "observation: the policy was trained on it" in usage_error(argv, capsys)
+    argv = ["evaluate", "--model", str(out), "--env", "sensor.prest=camera"]
+    assert "'preset'" in usage_error(argv, capsys)
 
     argv = ["train", "--resume", "--out", str(out), "--env", "detector_params.tracking=true"]
     line = usage_error(argv, capsys)
