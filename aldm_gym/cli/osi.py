@@ -16,6 +16,7 @@ from aldm_gym.cli.argtypes import (
     BadArgument,
     existing_file,
     key_value,
+    nested_pairs,
     positive_int,
     trace_file,
 )
@@ -46,6 +47,15 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         "(LineSensorConfig; the mount applies to a GroundTruth input, which has none)",
     )
     det.add_argument(
+        "--env",
+        type=key_value,
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="an env setting of the sensor or the detector, repeatable: sensor.KEY (as "
+        "--sensor KEY) or detector_params.KEY, e.g. detector_params.tracking=model",
+    )
+    det.add_argument(
         "--type",
         choices=("SensorView", "GroundTruth"),
         help="the input's message type (default: an MCAP's SensorView channel, else its "
@@ -63,6 +73,29 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     return parser
 
 
+def _sensor_and_detector(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+    """``--env`` pairs of ``osi detect``: the ``sensor`` and ``detector_params``
+    sections only (:class:`BadArgument` naming another key, or a bad value of these)."""
+    from aldm_gym.envs.config import default_config, merge_config
+    from aldm_gym.errors import ConfigError
+
+    env = nested_pairs(pairs)
+    for key in env:
+        if key in ("detector", "marking_model"):
+            raise BadArgument("--env", f"{key} has its own flag: --{key.replace('_', '-')}")
+        if key not in ("sensor", "detector_params"):
+            raise BadArgument(
+                "--env",
+                f"{key}: osi detect takes the sensor's and the detector's settings only "
+                "(sensor.KEY, detector_params.KEY)",
+            )
+    try:
+        merge_config(default_config(), env)
+    except ConfigError as exc:
+        raise BadArgument("--env", str(exc)) from None
+    return env
+
+
 def run_detect(args: argparse.Namespace) -> int:
     """``aldm-gym osi detect``."""
     from tqdm import tqdm
@@ -72,24 +105,36 @@ def run_detect(args: argparse.Namespace) -> int:
 
     if args.tracking and args.detector != "aldm":
         raise BadArgument("--tracking", "tracking is the ALDM's: use it with --detector aldm")
-    if args.tracking and args.jobs > 1:
-        raise BadArgument("--jobs", "the tracking ALDM carries lanes between frames: one job")
-    params = {"tracking": True} if args.tracking else None
     from aldm_gym.config import build_config
     from aldm_gym.errors import ConfigError
     from aldm_gym.sensor.line_sensor import LineSensorConfig
 
+    env = _sensor_and_detector(args.env)
+    sensor_pairs = dict(args.sensor)
+    for key, value in env.get("sensor", {}).items():
+        if key in sensor_pairs:
+            raise BadArgument("--env", f"sensor.{key}: so does --sensor {key}=...; give one")
+        sensor_pairs[key] = value
+    params = dict(env.get("detector_params", {}))
+    if args.tracking:
+        if "tracking" in params:
+            raise BadArgument("--env", "detector_params.tracking: so does --tracking; give one")
+        params["tracking"] = True
+    if params and args.detector != "aldm":
+        raise BadArgument("--env", "detector_params are the ALDM's: use --detector aldm")
+    if params.get("tracking") and args.jobs > 1:
+        raise BadArgument("--jobs", "the tracking ALDM carries lanes between frames: one job")
     try:
-        sensor = build_config(LineSensorConfig, dict(args.sensor), where="sensor")
+        sensor = build_config(LineSensorConfig, sensor_pairs, where="sensor")
     except ConfigError as exc:
-        raise BadArgument("--sensor", str(exc)) from None
+        raise BadArgument("--sensor" if not env.get("sensor") else "--env", str(exc)) from None
     try:
         with tqdm(desc="frames", unit="frame", disable=True if args.no_progress else None) as bar:
             summary = detect_trace(
                 args.input,
                 args.out,
                 detector=args.detector,
-                detector_params=params,
+                detector_params=params or None,
                 marking_model=args.marking_model,
                 sensor=sensor,
                 message_type=args.type,

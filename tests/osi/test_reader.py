@@ -397,6 +397,17 @@ def test_cli_detect(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert "--sensor" in err and "bogus" in err
     args = ["osi", "detect", str(src), "--out", str(out), "--no-progress"]
     assert main([*args, "--sensor", "preset=camera", "--sensor", "mount_x=2.0"]) == 0
+    # --env: the sensor's and the detector's settings, as the env takes them
+    env = ["--env", "sensor.preset=camera", "--env", "detector_params.tracking=model"]
+    assert main([*args, *env]) == 0
+    for extra, words in (
+        (["--env", "road.xodr=motorway"], "sensor's and the detector's settings only"),
+        (["--env", "detector_params.trackin=model"], "'tracking'"),
+        (["--env", "sensor.preset=camera", "--sensor", "preset=camera"], "give one"),
+        (["--env", "detector_params.tracking=model", "--jobs", "2"], "--jobs"),
+        (["--env", "detector=naive"], "has its own flag: --detector"),
+    ):
+        assert words in usage_error([*args, *extra], capsys)
     src.write_bytes(src.read_bytes()[:-5])
     err = usage_error(["osi", "detect", str(src), "--out", str(out), "--no-progress"], capsys)
     assert "c_gt.osi frame 2" in err
