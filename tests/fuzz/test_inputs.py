@@ -113,6 +113,8 @@ def _scenario_seeds(folder: Path, slow: bool) -> list[Path]:
         corpus.synchronize,
         corpus.distance_with_dynamic_constraints,
         corpus.ttc_in_road_coordinates_and_collision,
+        corpus.entities_deleted_and_added,
+        corpus.trailers,
     ]
     if slow:
         makers = [getattr(corpus, name) for name in corpus.CORPUS]
