@@ -208,7 +208,13 @@ class ScenarioRunner:
         heads = [e for e in entities.values() if e.trailer is not None and e.tractor is None]
         if any(not e.placed for e in heads):
             return  # the missing position is named next
-        self.world.tow(straight=True)
+        try:
+            self.world.tow(straight=True)
+        except InputError as exc:  # a trailer behind its tractor is off the map
+            raise ScenarioError(
+                f"{self.scenario.path.name}: a trailer in line behind "
+                f"{[e.name for e in heads]}: {exc}"
+            ) from None
 
     def _check_not_towing(self) -> None:
         """Raise where the function under test's vehicle tows or is towed (not played)."""
