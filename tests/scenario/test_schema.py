@@ -90,11 +90,8 @@ def test_the_table_is_the_schemas() -> None:
     assert derived == SINGLE_CHILDREN
 
 
-@pytest.mark.parametrize(
-    ("parent", "child"),
-    [("Event", "StartTrigger"), ("BoundingBox", "Dimensions"), ("TeleportAction", "Position")],
-)
-def test_a_repeated_single_child_is_refused(tmp_path: Path, parent: str, child: str) -> None:
+def _one_event(tmp_path: Path) -> Path:
+    """A scenario whose target slows down to 10 m/s at 1 s."""
     from scenariogeneration import xosc
 
     from tests.scenario._build import at_time, step_speed
@@ -102,7 +99,15 @@ def test_a_repeated_single_child_is_refused(tmp_path: Path, parent: str, child: 
     ev = xosc.Event("slower", xosc.Priority.override)
     ev.add_action("slower_action", step_speed(10.0))
     ev.add_trigger(at_time(1.0))
-    path = write(tmp_path, [("Target", [ev])])
+    return write(tmp_path, [("Target", [ev])])
+
+
+@pytest.mark.parametrize(
+    ("parent", "child"),
+    [("Event", "StartTrigger"), ("BoundingBox", "Dimensions"), ("TeleportAction", "Position")],
+)
+def test_a_repeated_single_child_is_refused(tmp_path: Path, parent: str, child: str) -> None:
+    path = _one_event(tmp_path)
     tree = etree.parse(str(path))
     node = tree.getroot().iter(parent).__next__().find(child)
     node.addnext(etree.fromstring(etree.tostring(node)))
@@ -137,17 +142,6 @@ def test_an_unknown_element_is_refused_where_the_player_reads_in_part(
         rf"inside <{parent}> \(did you mean <SpeedActionDynamics>\?\)",
     ):
         read_scenario(path)
-
-
-def _one_event(tmp_path: Path) -> Path:
-    from scenariogeneration import xosc
-
-    from tests.scenario._build import at_time, step_speed
-
-    ev = xosc.Event("slower", xosc.Priority.override)
-    ev.add_action("slower_action", step_speed(10.0))
-    ev.add_trigger(at_time(1.0))
-    return write(tmp_path, [("Target", [ev])])
 
 
 @pytest.mark.parametrize(
