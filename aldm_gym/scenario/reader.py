@@ -492,9 +492,13 @@ class _Reader:
         return out
 
     def _object_names(self) -> list[str]:
-        """The scenario objects' names, the trailers defined inside vehicles too."""
+        """The scenario objects' names, the trailers defined inside vehicles too (the
+        runtime entities' where the storyboard is built, read once otherwise)."""
         if self._names is None:
-            self._names = [s.name for s in self.entities()]
+            if self.runtime is not None:
+                self._names = list(self.runtime)
+            else:
+                self._names = [s.name for s in self.entities()]
         return self._names
 
     def _scenario_object(self, obj: Any) -> list[EntitySpec]:

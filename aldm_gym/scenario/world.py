@@ -291,7 +291,13 @@ class World:
 
         :raises OffRoadError: the entity is on no driving lane.
         """
+        return self._locate(entity)[0]
+
+    def _locate(self, entity: Entity) -> tuple[RoadCoordinates, Any]:
+        """:meth:`coordinates`, and the map's nearest-lane look-up of the reference
+        point where it was made (None where the entity is inside its own lane)."""
         road = self.road
+        pos = None
         inside = (
             entity.scripted
             and entity.lane is not None
@@ -305,7 +311,7 @@ class World:
             u = pos.s - road.chain_start(key)
         rec = road.lane_record(key)
         s = road.reference_s(key, u)
-        return RoadCoordinates(
+        coordinates = RoadCoordinates(
             road_id=rec.road_id,
             lane_id=int(rec.lane_id),
             s=s,
@@ -314,6 +320,7 @@ class World:
             u=u,
             direction=int(rec.direction),
         )
+        return coordinates, pos
 
     def road_t(self, entity: Entity) -> float:
         """The road's ``t`` [m] of the entity's reference point: its distance left of
@@ -543,10 +550,11 @@ class World:
             else:
                 e.still_since = None
             try:
-                c = self.coordinates(e)
+                c, pos = self._locate(e)
                 # off road: the reference point lies outside its nearest driving lane
                 # (beyond the road's outer edge; between lanes it is always inside one)
-                pos = self.road.lane_position(e.reference_point())
+                if pos is None:
+                    pos = self.road.lane_position(e.reference_point())
                 off = abs(pos.offset) > 0.5 * pos.width
             except OffRoadError:
                 c, off = None, True
