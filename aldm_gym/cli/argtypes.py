@@ -198,6 +198,18 @@ def nested_pairs(pairs: list[tuple[str, Any]], flag: str = "--env") -> dict[str,
     return out
 
 
+def check_env(overrides: dict[str, Any], flag: str = "--env") -> None:
+    """Env settings (:func:`nested_pairs`) checked as the env checks them:
+    :class:`BadArgument` naming ``flag``, the key and the allowed ones."""
+    from aldm_gym.envs.config import default_config, merge_config
+    from aldm_gym.errors import ConfigError
+
+    try:
+        merge_config(default_config(), overrides)
+    except ConfigError as exc:
+        raise BadArgument(flag, str(exc)) from None
+
+
 def check_parent(path: Path) -> None:
     """The nearest existing ancestor of ``path`` is a writable folder (else
     ``argparse.ArgumentTypeError``)."""

@@ -20,6 +20,7 @@ from typing import Any
 from aldm_gym.cli.argtypes import (
     BadArgument,
     add_env_argument,
+    check_env,
     make_output_dir,
     model_path,
     nested_pairs,
@@ -96,9 +97,6 @@ def _env(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
     """``--env`` pairs as env settings, checked (:class:`BadArgument` naming the key);
     the detector and marking model have their own flags, the policy's observation and
     action stay as trained."""
-    from aldm_gym.envs.config import default_config, merge_config
-    from aldm_gym.errors import ConfigError
-
     overrides = nested_pairs(pairs)
     for key, flag in (("detector", "--detector"), ("marking_model", "--marking-model")):
         if key in overrides:
@@ -106,10 +104,7 @@ def _env(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
     for key in ("observation", "action"):
         if key in overrides:
             raise BadArgument("--env", f"{key}: the policy was trained on it; it stays as trained")
-    try:
-        merge_config(default_config(), overrides)
-    except ConfigError as exc:
-        raise BadArgument("--env", str(exc)) from None
+    check_env(overrides)
     return overrides
 
 

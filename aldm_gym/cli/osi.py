@@ -14,6 +14,7 @@ from typing import Any
 
 from aldm_gym.cli.argtypes import (
     BadArgument,
+    check_env,
     existing_file,
     key_value,
     nested_pairs,
@@ -76,9 +77,6 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
 def _sensor_and_detector(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
     """``--env`` pairs of ``osi detect``: the ``sensor`` and ``detector_params``
     sections only (:class:`BadArgument` naming another key, or a bad value of these)."""
-    from aldm_gym.envs.config import default_config, merge_config
-    from aldm_gym.errors import ConfigError
-
     env = nested_pairs(pairs)
     for key in env:
         if key in ("detector", "marking_model"):
@@ -89,10 +87,7 @@ def _sensor_and_detector(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
                 f"{key}: osi detect takes the sensor's and the detector's settings only "
                 "(sensor.KEY, detector_params.KEY)",
             )
-    try:
-        merge_config(default_config(), env)
-    except ConfigError as exc:
-        raise BadArgument("--env", str(exc)) from None
+    check_env(env)
     return env
 
 

@@ -22,6 +22,7 @@ from typing import Any
 from aldm_gym.cli.argtypes import (
     BadArgument,
     add_env_argument,
+    check_env,
     existing_file,
     image_file,
     key_value,
@@ -137,18 +138,12 @@ def scenario_env(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
     traffic, :data:`SCENARIO_OWNS`) are dropped with one note on stderr."""
     import sys
 
-    from aldm_gym.envs.config import default_config, merge_config
-    from aldm_gym.errors import ConfigError
-
     overrides = nested_pairs(pairs)
     for key in overrides:
         if key in OWN_FLAGS:
             raise BadArgument("--env", f"{key} is set by {OWN_FLAGS[key]}, not --env")
     dropped = [key for key in overrides if key in SCENARIO_OWNS]
-    try:
-        merge_config(default_config(), overrides)
-    except ConfigError as exc:
-        raise BadArgument("--env", str(exc)) from None
+    check_env(overrides)
     if dropped:
         print(
             f"note: the scenario's own map and traffic take precedence over --env "
