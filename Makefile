@@ -42,7 +42,7 @@ demo: $(VENV)/.stamp-base $(VENV)/.stamp-kernels
 
 ## Test suite (lint, then pytest on both cores).
 test: $(VENV)/.stamp-dev $(VENV)/.stamp-kernels
-	$(BIN)/ruff check aldm_gym tests benchmarks scripts
+	$(BIN)/ruff check aldm_gym tests benchmarks scripts examples
 	MPLBACKEND=Agg SDL_VIDEODRIVER=dummy $(BIN)/python -m pytest -n 2 -q
 
 ## The suite again on numpy's and OpenBLAS's AVX2 paths. On an AVX-512 CPU numpy's
@@ -91,8 +91,8 @@ bench: $(VENV)/.stamp-dev
 	$(BIN)/python -m benchmarks
 
 lint: $(VENV)/.stamp-dev
-	$(BIN)/ruff check aldm_gym tests benchmarks scripts
-	$(BIN)/ruff format --check aldm_gym tests benchmarks scripts
+	$(BIN)/ruff check aldm_gym tests benchmarks scripts examples
+	$(BIN)/ruff format --check aldm_gym tests benchmarks scripts examples
 
 clean:
 	rm -rf $(VENV) $(RAY_VENV) out .pytest_cache .ruff_cache

@@ -38,7 +38,7 @@ def main(argv: list[str] | None = None) -> None:
     if folder is None:
         print("the OSC-ALKS suite is not here: set OSC_ALKS_DIR to a clone of it")
         return
-    from aldm_gym.scenario.suite import plan_suite, play_suite
+    from aldm_gym.harness.suite import plan_suite, play_suite
 
     jobs = plan_suite(folder, ["aldm"], ["per_dash"], args.max_runs)
     start = time.perf_counter()

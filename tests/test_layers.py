@@ -1,6 +1,7 @@
 """The package's shape: modules import only from the layers before them (road →
-sensor → osi → scenario → envs → agents → training → cli), and no modules import each
-other in a cycle (function-level imports included; ``TYPE_CHECKING`` ones are typing only)."""
+sensor → osi → scenario → envs → agents → training → function → harness → cli), and no
+modules import each other in a cycle (function-level imports included; ``TYPE_CHECKING``
+ones are typing only)."""
 
 from __future__ import annotations
 
@@ -21,6 +22,8 @@ LAYERS = (
     "envs",
     "agents",
     "training",
+    "function",
+    "harness",
     "cli",
     "warmup",
     "__main__",

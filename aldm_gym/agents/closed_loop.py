@@ -11,7 +11,7 @@ episode's lateral-offset trace of each (for
 from __future__ import annotations
 
 import os
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import Any
 
 import gymnasium as gym
@@ -19,6 +19,7 @@ import gymnasium as gym
 from aldm_gym import ENV_ID
 from aldm_gym.agents.episodes import run_episodes, summarize
 from aldm_gym.agents.policies import IdlePolicy, RuleBasedLCA
+from aldm_gym.envs.config import merged_config
 from aldm_gym.errors import ConfigError
 from aldm_gym.roads.highway import MARKING_MODELS
 from aldm_gym.sensor.aldm import MODES as ALDM_MODES
@@ -67,6 +68,14 @@ Trace = list[tuple[float, float]]
 """``(distance driven so far [m], signed lateral offset [m])`` per policy step."""
 
 
+def _idle(_env: Any) -> IdlePolicy:
+    return IdlePolicy()
+
+
+def _rule_based(_env: Any) -> RuleBasedLCA:
+    return RuleBasedLCA()
+
+
 def compare_closed_loop(
     seeds: Sequence[int],
     *,
@@ -78,6 +87,8 @@ def compare_closed_loop(
     xodr: str | os.PathLike[str] | None = None,
     aldm_mode: str = "robust",
     progress: Callable[[int], None] | None = None,
+    env: Mapping[str, Any] | None = None,
+    policies: Sequence[Callable[[Any], Any]] | None = None,
 ) -> tuple[list[dict[str, Any]], dict[tuple[str, str], Trace]]:
     """IDLE (LKA only) and the rule-based LCA on the same seeded episodes, per detector.
 
@@ -93,9 +104,12 @@ def compare_closed_loop(
     :param xodr: drive on this OpenDRIVE map (the env's ``road.xodr``) instead of the
         generated roads (``min_radius`` must then be None).
     :param progress: called with 1 after each episode.
+    :param env: more env settings, merged last (e.g. ``{"acc": {"time_gap": 2.0}}``).
+    :param policies: what drives instead of IDLE and the rule-based LCA: per policy a
+        factory ``f(env) -> policy`` (a function under test needs the env it drives).
     :return: rows with the keys of :data:`CLOSED_LOOP_COLUMNS` (the
-        :func:`~aldm_gym.agents.episodes.summarize` metrics of both policies'
-        episodes together), and the first IDLE episode's trace per
+        :func:`~aldm_gym.agents.episodes.summarize` metrics of all policies'
+        episodes together), and the first policy's first episode's trace per
         ``(marking model, detector)``.
     """
     if xodr is not None and min_radius is not None:
@@ -106,6 +120,7 @@ def compare_closed_loop(
     unknown = [d for d in detectors if d not in DETECTOR_VARIANTS]
     if unknown:
         raise ConfigError(f"unknown detector(s) {unknown}; allowed: {list(DETECTOR_VARIANTS)}")
+    factories = list(policies) if policies is not None else [_idle, _rule_based]
     rows: list[dict[str, Any]] = []
     traces: dict[tuple[str, str], Trace] = {}
     for model in marking_models:
@@ -125,20 +140,23 @@ def compare_closed_loop(
                 config["road"] = {"min_radius": min_radius}
             if xodr is not None:
                 config["road"] = {"xodr": os.fspath(xodr)}
-            env = gym.make(ENV_ID, config=config)
+            if env is not None:
+                config = merged_config(config, env)
+            made = gym.make(ENV_ID, config=config)
+            played: list[list[Any]] = []
             try:
-                idle = run_episodes(env, IdlePolicy(), seeds, progress=progress)
-                lca = run_episodes(env, RuleBasedLCA(), seeds, progress=progress)
+                for factory in factories:
+                    played.append(run_episodes(made, factory(made), seeds, progress=progress))
             finally:
-                env.close()
+                made.close()
             row = {
                 "marking_model": model,
                 "detector": det,
                 "mode": mode,
-                **summarize(idle + lca),
+                **summarize([e for episodes in played for e in episodes]),
             }
             rows.append({c: row[c] for c in CLOSED_LOOP_COLUMNS})
-            traces[(model, det)] = idle[0].trace
+            traces[(model, det)] = played[0][0].trace
     return rows, traces
 
 

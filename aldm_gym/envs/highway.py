@@ -18,6 +18,7 @@ See :class:`ALDMHighwayEnv`'s docstring (spaces, reward, episode end) and ``docs
 from __future__ import annotations
 
 import contextlib
+import math
 from collections.abc import Mapping
 from typing import Any
 
@@ -51,7 +52,7 @@ from aldm_gym.envs.scene import (
     make_scene,
 )
 from aldm_gym.envs.vehicle import SensorVehicle
-from aldm_gym.errors import ConfigError
+from aldm_gym.errors import ConfigError, InputError
 from aldm_gym.roads.position import LanePosition
 from aldm_gym.roads.protocol import Road
 from aldm_gym.scenario.runner import ScenarioRunner
@@ -536,6 +537,46 @@ class ALDMHighwayEnv(AbstractEnv):
         :raises InputError: with ``ContinuousAction``.
         """
         return self.action_type.action_mask()
+
+    def request(
+        self,
+        steering: float | None = None,
+        curvature: float | None = None,
+        acceleration: float | None = None,
+    ) -> None:
+        """A function under test's requests, held from the next :meth:`step` until the
+        next call (:mod:`aldm_gym.function`). What is not requested stays with the
+        built-in function: the LKA steers without a steering or curvature, the ACC/AEB
+        sets the speed without an acceleration. Under meta actions only.
+
+        :param steering: steering angle [rad], ISO (> 0 turns left); clipped to
+            ``lka.max_steering``.
+        :param curvature: or the path curvature [1/m] (> 0 left), steered as the LKA
+            steers an arc: ``atan(curvature · wheelbase)``.
+        :param acceleration: longitudinal acceleration [m/s²]; clipped to
+            ``action.max_acceleration`` and ``acc.aeb_deceleration``; it never reverses
+            the car.
+        :raises InputError: a value that is not a finite number, both steering and
+            curvature, or ``ContinuousAction`` (its action is the request already).
+        """
+        if self.action_type.continuous:
+            raise InputError("request() is for meta actions; ContinuousAction's action is one")
+        values = {"steering": steering, "curvature": curvature, "acceleration": acceleration}
+        for name, value in values.items():
+            ok = value is None or (
+                isinstance(value, int | float | np.floating | np.integer)
+                and not isinstance(value, bool)
+                and math.isfinite(float(value))
+            )
+            if not ok:
+                raise InputError(f"request: {name} must be a finite number or None, got {value!r}")
+        if steering is not None and curvature is not None:
+            raise InputError("request: give steering or curvature, not both")
+        if curvature is not None:
+            steering = math.atan(float(curvature) * self.lka.wheelbase)
+        ego = self.vehicle
+        ego.requested_steering = None if steering is None else float(steering)
+        ego.requested_acceleration = None if acceleration is None else float(acceleration)
 
     def close(self) -> None:
         """Close the viewer and finish the OSI trace (``osi.trace``)."""

@@ -95,6 +95,10 @@ class SensorVehicle(FastBicycleStep, BatchedLaneUpdate, Vehicle):
         self.lane_change_side = 0  # +1/-1: the target is still the adjacent lane on that side
         self.acc_command: float | None = None  # ACC/AEB [m/s²] (set by the env), None: v0's
         self.acc_braking_limit = max_acceleration  # braking the ACC/AEB command may reach
+        self.requested_steering: float | None = None
+        """A function under test's steering [rad] (ISO), None: the built-in LKA's."""
+        self.requested_acceleration: float | None = None
+        """A function under test's acceleration [m/s²], None: the built-in ACC/AEB's."""
 
     # ------------------------------------------------------------------ actions
     def set_meta_action(self, action: int) -> None:
@@ -185,10 +189,17 @@ class SensorVehicle(FastBicycleStep, BatchedLaneUpdate, Vehicle):
         else:
             path = self._lateral_path()
             self.planned_path = path
-            steer = self.lka.steering(path, self.speed)
-            # No path: hold the last steering (a curve continues), like a driver briefly blind.
-            steer_iso = self.steering_iso if steer is None else steer
-            if self.acc_command is None:
+            if self.requested_steering is not None:  # a function under test's lateral domain
+                steer_iso = self.requested_steering
+            else:
+                steer = self.lka.steering(path, self.speed)
+                # No path: hold the last steering (a curve continues), like a driver
+                # briefly blind.
+                steer_iso = self.steering_iso if steer is None else steer
+            if self.requested_acceleration is not None:
+                # a function under test's longitudinal domain; it never reverses the car
+                accel = max(self.requested_acceleration, -max(self.speed, 0.0) * self.sim_frequency)
+            elif self.acc_command is None:
                 accel = self.lka.speed_gain * (self.target_speed - self.speed)
             else:
                 # ACC/AEB (aldm_gym.envs.longitudinal), computed by the env on the same
@@ -198,7 +209,9 @@ class SensorVehicle(FastBicycleStep, BatchedLaneUpdate, Vehicle):
         max_steering = float(self.lka.max_steering)
         max_acceleration = float(self.max_acceleration)
         max_braking = max_acceleration
-        if self.acc_command is not None and not self.continuous:
+        if not self.continuous and (
+            self.acc_command is not None or self.requested_acceleration is not None
+        ):
             max_braking = max(max_acceleration, float(self.acc_braking_limit))
         steer_iso = float(clip_scalar(float(steer_iso), -max_steering, max_steering))
         accel = float(clip_scalar(float(accel), -max_braking, max_acceleration))

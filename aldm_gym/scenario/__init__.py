@@ -16,7 +16,7 @@ Modules:
   :mod:`~aldm_gym.scenario.positions`: what the elements do.
 - :mod:`~aldm_gym.scenario.world`: the entities on the map and how scripted ones move.
 - :mod:`~aldm_gym.scenario.runner`: one run on the env's road.
-- :mod:`~aldm_gym.scenario.criteria`: UN R157 pass criteria of a run.
+- :mod:`~aldm_gym.harness.criteria`: UN R157 pass criteria of a run.
 """
 
 from aldm_gym.scenario.reader import Scenario, read_scenario

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -58,6 +58,26 @@ EVAL_COLUMNS = (
 :func:`~aldm_gym.agents.episodes.summarize`)."""
 
 
+PolicyFactory = Callable[[Any], Any]
+"""Makes a policy for the env it will drive (a function under test needs the env)."""
+
+
+def _idle(_env: Any) -> Any:
+    from aldm_gym.agents.policies import IdlePolicy
+
+    return IdlePolicy()
+
+
+def _rule_based(_env: Any) -> Any:
+    from aldm_gym.agents.policies import RuleBasedLCA
+
+    return RuleBasedLCA()
+
+
+RULE_BASED: tuple[tuple[str, PolicyFactory], ...] = (("idle", _idle), ("rule_based", _rule_based))
+"""The rule-based policies every evaluation plays beside the one evaluated."""
+
+
 def evaluate(
     model_path: Path,
     episodes: int = 30,
@@ -88,12 +108,6 @@ def evaluate(
     :raises ConfigError: ``env_overrides`` sets the observation or action, or a bad
         setting.
     """
-    import gymnasium as gym
-    from tqdm import tqdm
-
-    from aldm_gym.agents.episodes import run_episodes, summarize
-    from aldm_gym.agents.policies import IdlePolicy, RuleBasedLCA
-
     policy, meta = load_policy(model_path)
     config = dict(meta["env_config"])
     if detector is not None:
@@ -110,22 +124,13 @@ def evaluate(
             )
         config = merged_config(config, env_overrides)
         merge_config(default_config(), config)  # checked before any episode
-    env = gym.make(ENV_ID, config=config)
-    seeds = range(seed, seed + episodes)
-    rows = []
-    per_episode: dict[str, dict[str, list[Any]]] = {}
-    policies = (("idle", IdlePolicy()), ("rule_based", RuleBasedLCA()), ("model", policy))
-    try:
-        with tqdm(total=3 * episodes, desc="evaluate", unit="ep", disable=not progress) as bar:
-            for name, pol in policies:
-                played = run_episodes(env, pol, seeds, bar.update)
-                rows.append({"policy": name, **summarize(played)})
-                per_episode[name] = {
-                    "mean_speed": [_mean(e.speeds) for e in played],
-                    "collided": [bool(e.collided) for e in played],
-                }
-    finally:
-        env.close()
+    rows, per_episode = play_policies(
+        config,
+        (*RULE_BASED, ("model", lambda _env: policy)),
+        episodes=episodes,
+        seed=seed,
+        progress=progress,
+    )
     info = {
         "env_config": config,
         "trained_on": meta["env_config"],
@@ -135,6 +140,46 @@ def evaluate(
         "per_episode": per_episode,
     }
     return rows, info
+
+
+def play_policies(
+    config: Mapping[str, Any],
+    policies: Sequence[tuple[str, PolicyFactory]],
+    *,
+    episodes: int,
+    seed: int,
+    progress: bool = True,
+) -> tuple[list[dict[str, Any]], dict[str, dict[str, list[Any]]]]:
+    """Every policy on the same seeds ``seed .. seed + episodes - 1`` of one env.
+
+    :param config: the env's settings.
+    :param policies: ``(name, factory)`` pairs; ``factory(env)`` makes the policy.
+    :return: one row per policy (``policy`` and the
+        :func:`~aldm_gym.agents.episodes.summarize` metrics), and per policy each
+        episode's mean speed [m/s] and whether it collided (``per_episode``).
+    """
+    import gymnasium as gym
+    from tqdm import tqdm
+
+    from aldm_gym.agents.episodes import run_episodes, summarize
+
+    env = gym.make(ENV_ID, config=dict(config))
+    seeds = range(seed, seed + episodes)
+    rows = []
+    per_episode: dict[str, dict[str, list[Any]]] = {}
+    total = len(policies) * episodes
+    try:
+        with tqdm(total=total, desc="evaluate", unit="ep", disable=not progress) as bar:
+            for name, factory in policies:
+                played = run_episodes(env, factory(env), seeds, bar.update)
+                rows.append({"policy": name, **summarize(played)})
+                per_episode[name] = {
+                    "mean_speed": [_mean(e.speeds) for e in played],
+                    "collided": [bool(e.collided) for e in played],
+                }
+    finally:
+        env.close()
+    return rows, per_episode
 
 
 def _mean(values: list[float]) -> float:
@@ -190,7 +235,7 @@ def verdict(info: dict[str, Any], baseline: str = "idle") -> str:
     if baseline not in BASELINES:
         raise ConfigError(f"unknown baseline {baseline!r}; allowed: {sorted(BASELINES)}")
     name = BASELINES[baseline]
-    model, base = info["per_episode"]["model"], info["per_episode"][baseline]
+    model, base = info["per_episode"][_evaluated(info)], info["per_episode"][baseline]
     n = len(model["mean_speed"])
     dv, lo, hi = paired_difference(model["mean_speed"], base["mean_speed"])
     p = collision_test(model["collided"], base["collided"])
@@ -219,26 +264,37 @@ def verdict(info: dict[str, Any], baseline: str = "idle") -> str:
     return f"{pace} {safety}: {speed}; {crashes}"
 
 
-def summary_line(rows: list[dict[str, Any]], info: dict[str, Any]) -> str:
-    """The model against IDLE and the rule-based LCA: a :func:`verdict` against each,
-    with its uncertainty, and the summary figures.
+def _evaluated(info: dict[str, Any]) -> str:
+    """The evaluated policy's row: ``model``, or ``function`` (a function under test)."""
+    return "function" if "function" in info else "model"
 
-    :param rows, info: what :func:`evaluate` returns.
+
+def summary_line(rows: list[dict[str, Any]], info: dict[str, Any]) -> str:
+    """The model (or function under test) against IDLE and the rule-based LCA: a
+    :func:`verdict` against each, with its uncertainty, and the summary figures.
+
+    :param rows, info: what :func:`evaluate` returns (or ``aldm-gym evaluate
+        --function``'s rows, with ``info["function"]`` its SPEC).
     """
     by = {r["policy"]: r for r in rows}
-    m, idle, rule = by["model"], by["idle"], by["rule_based"]
-    trained = info["trained_on"]
+    m, idle, rule = by[_evaluated(info)], by["idle"], by["rule_based"]
     cfg = info["env_config"]
     extra = ", ".join(
         f"{k}={json.dumps(v)}"
         for k, v in dotted_settings(cfg)
         if k.split(".", 1)[0] not in NAMED_ENV_KEYS
     )
+    where = f"{cfg['detector']}/{cfg['marking_model']}{f' with {extra}' if extra else ''}"
+    if "function" in info:
+        head = f"function {info['function']} (on {where}, {m['episodes']} episodes)"
+    else:
+        trained = info["trained_on"]
+        head = (
+            f"model ({info['timesteps']} steps, trained on {trained['detector']}/"
+            f"{trained['marking_model']}, evaluated on {where}, {m['episodes']} episodes)"
+        )
     return (
-        f"model ({info['timesteps']} steps, trained on {trained['detector']}/"
-        f"{trained['marking_model']}, evaluated on {cfg['detector']}/{cfg['marking_model']}"
-        f"{f' with {extra}' if extra else ''}, "
-        f"{m['episodes']} episodes) {verdict(info)}; it "
+        f"{head} {verdict(info)}; it "
         f"{verdict(info, 'rule_based')}. Success {m['success_rate']:.0%} "
         f"(IDLE {idle['success_rate']:.0%}, rule-based {rule['success_rate']:.0%}), "
         f"mean speed {m['mean_speed']:.1f} m/s (IDLE {idle['mean_speed']:.1f}, rule-based "

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from aldm_gym.scenario.criteria import run_scenario
+from aldm_gym.harness.criteria import run_scenario
 
 
 def _suite() -> Path | None:

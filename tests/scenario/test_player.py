@@ -326,7 +326,7 @@ def test_a_run_the_function_never_drove_is_not_judged(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     from aldm_gym.cli import main
-    from aldm_gym.scenario.criteria import run_scenario
+    from aldm_gym.harness.criteria import run_scenario
 
     path = write(tmp_path, activate_at=None, stop=3.0)
     result = run_scenario(path, detector="ground_truth")
@@ -790,8 +790,8 @@ def _two_way(folder: Path) -> Path:
 
 
 def test_subset_covers_every_value_it_can() -> None:
+    from aldm_gym.harness.suite import _subset
     from aldm_gym.scenario.parameters import ConcreteRun
-    from aldm_gym.scenario.suite import _subset
 
     runs = [
         ConcreteRun(i, {"a": str(a), "b": str(b), "c": str(c)})

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from aldm_gym.scenario.suite import format_table, plan_suite, play_suite, summarise, write_outputs
+from aldm_gym.harness.suite import format_table, plan_suite, play_suite, summarise, write_outputs
 from tests.scenario._build import write
 
 
@@ -74,7 +74,7 @@ def test_env_settings_reach_every_run_and_the_scenario_keeps_its_map(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     from aldm_gym.cli import main
-    from aldm_gym.scenario.suite import _play
+    from aldm_gym.harness.suite import _play
 
     path = write(tmp_path, stop=2.0, activate_at=0.0)
     config = {"sensor": {"preset": "camera"}, "detector_params": {"tracking": "model"}}

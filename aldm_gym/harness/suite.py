@@ -22,7 +22,8 @@ from pathlib import Path
 from typing import Any
 
 from aldm_gym.errors import AldmGymError, ScenarioError
-from aldm_gym.scenario.criteria import RunResult, run_scenario
+from aldm_gym.function import Function, load_function
+from aldm_gym.harness.criteria import RunResult, run_scenario
 from aldm_gym.xmlfile import parse_xml
 
 __all__ = ["Job", "format_table", "plan_suite", "play_suite", "summarise", "write_outputs"]
@@ -31,13 +32,15 @@ __all__ = ["Job", "format_table", "plan_suite", "play_suite", "summarise", "writ
 @dataclass(frozen=True)
 class Job:
     """One run to play: a scenario file, its parameters, a detector and a marking
-    model, and the other env settings (``config``, as JSON)."""
+    model, the other env settings (``config``, as JSON) and the function under test
+    (a ``--function`` SPEC)."""
 
     xosc: str
     parameters: tuple[tuple[str, str], ...]
     detector: str
     marking_model: str
     config: str = "{}"
+    function: str = "builtin"
 
 
 def _is_variation(path: Path) -> bool:
@@ -95,10 +98,12 @@ def plan_suite(
     marking_models: Sequence[str],
     max_runs: int | None = None,
     config: dict[str, Any] | None = None,
+    function: str = "builtin",
 ) -> list[Job]:
     """The jobs of a suite (see the module docstring); ``config``: more env settings
-    for every run (merged last, as :func:`~aldm_gym.scenario.criteria.run_scenario`
-    merges them).
+    for every run (merged last, as :func:`~aldm_gym.harness.criteria.run_scenario`
+    merges them); ``function``: the function under test's SPEC
+    (:func:`~aldm_gym.function.load_function`).
 
     :raises ScenarioError: a file that cannot be read; :class:`FileNotFoundError`:
         ``path`` does not exist.
@@ -126,28 +131,43 @@ def plan_suite(
         raise ScenarioError(f"{path}: no concrete scenario (.xosc) found")
     settings = json.dumps(config or {}, sort_keys=True)
     return [
-        Job(str(file), tuple(sorted(params.items())), det, mm, settings)
+        Job(str(file), tuple(sorted(params.items())), det, mm, settings, function)
         for file, params in concrete
         for det in detectors
         for mm in marking_models
     ]
 
 
+_FUNCTIONS: dict[str, Function] = {}
+"""The functions under test this process has loaded, by SPEC (a model or an FMU is
+loaded once per worker, and reset before each run)."""
+
+
+def _function(spec: str) -> Function:
+    if spec not in _FUNCTIONS:
+        _FUNCTIONS[spec] = load_function(spec)
+    return _FUNCTIONS[spec]
+
+
 def _play(job: Job) -> RunResult:
     try:
-        return run_scenario(
+        result = run_scenario(
             job.xosc,
             dict(job.parameters),
             job.detector,
             job.marking_model,
             config=json.loads(job.config),
+            function=_function(job.function),
         )
+        result.function = job.function
+        return result
     except AldmGymError as exc:  # a bad file, parameter set or map: a row, not a crash
         return RunResult(
             scenario=Path(job.xosc).name,
             detector=job.detector,
             marking_model=job.marking_model,
             parameters=dict(job.parameters),
+            function=job.function,
             error=str(exc),
         )
 

@@ -43,6 +43,7 @@ from typing import Any
 import numpy as np
 
 from aldm_gym.errors import OffRoadError
+from aldm_gym.function import Function, FunctionDriver, env_for, load_function
 from aldm_gym.scenario.world import Entity
 
 __all__ = ["GAP_RESTORE_TIME", "Judge", "RunResult", "min_time_gap", "run_scenario"]
@@ -72,6 +73,8 @@ class RunResult:
     detector: str
     marking_model: str
     parameters: dict[str, Any] = field(default_factory=dict)
+    function: str = "builtin"
+    """The function under test (its ``--function`` SPEC)."""
     passed: bool = False
     no_collision: bool = True
     in_lane: bool = True
@@ -195,8 +198,9 @@ def run_scenario(
     config: Mapping[str, Any] | None = None,
     seed: int = 0,
     frames: list[Any] | None = None,
+    function: Function | str = "builtin",
 ) -> RunResult:
-    """Play one concrete scenario with the IDLE function and judge it.
+    """Play one concrete scenario with a function under test and judge it.
 
     :param xosc: the scenario file.
     :param parameters: values for its parameter declarations.
@@ -205,12 +209,18 @@ def run_scenario(
     :param config: more env settings (merged last).
     :param seed: the env's seed (the sensor's noise, if any).
     :param frames: if a list, the rendered frames are appended (``rgb_array``).
+    :param function: a :class:`~aldm_gym.function.Function`, or a ``--function`` SPEC
+        (:func:`~aldm_gym.function.load_function`; closed after the run).
     :raises ScenarioError: the scenario cannot be played (before the run starts).
+    :raises ConfigError: ``config`` sets what the function needs otherwise (the
+        observation a policy was trained on).
     """
     import gymnasium as gym
 
     import aldm_gym  # noqa: F401  (registers the env)
 
+    owned = isinstance(function, str)
+    fn = load_function(function) if isinstance(function, str) else function
     params = dict(parameters or {})
     cfg: dict[str, Any] = {
         "scenario": {"xosc": str(xosc), "parameters": params},
@@ -220,23 +230,27 @@ def run_scenario(
         "simulation_frequency": 10,
     }
     cfg.update(dict(config or {}))
+    cfg = env_for(fn, cfg, given=set(config or {}))
     name = Path(xosc).name
     result = RunResult(
         scenario=name,
         detector=detector,
         marking_model=marking_model,
         parameters=params,
+        function=function if isinstance(function, str) else type(function).__name__,
         collision_required="unavoidable" not in name,
     )
-    env: Any = gym.make(
-        "ALDMHighway-v0", config=cfg, render_mode="rgb_array" if frames is not None else None
-    ).unwrapped
+    env: Any = None
     try:
-        _, info = env.reset(seed=seed)
+        env = gym.make(
+            "ALDMHighway-v0", config=cfg, render_mode="rgb_array" if frames is not None else None
+        ).unwrapped
+        driver = FunctionDriver(env, fn)
+        _, info = driver.reset(seed=seed)
         judge = Judge(result)
         dt = 1.0 / float(env.settings.simulation_frequency)
         while True:
-            _, _, terminated, truncated, info = env.step(1)  # IDLE
+            _, _, terminated, truncated, info = driver.step()
             judge.observe(env.scenario, info, dt)
             if frames is not None:
                 frames.append(env.render())
@@ -244,4 +258,8 @@ def run_scenario(
                 break
         return judge.verdict()
     finally:
-        env.close()
+        if env is not None:
+            env.close()
+        close = getattr(fn, "close", None)
+        if owned and callable(close):
+            close()
