@@ -87,6 +87,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         sub = group.choices[getattr(args, group.dest)]
     if extra:
         sub.error(f"unrecognized arguments: {' '.join(extra)}")
+    if getattr(args, "env_file", None):  # --config: its settings, then --env's over them
+        args.env = [*args.env_file, *args.env]
     try:
         return int(args.func(args))
     except BadArgument as exc:

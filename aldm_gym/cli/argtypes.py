@@ -164,8 +164,53 @@ def key_value(text: str) -> tuple[str, Any]:
     return key, parsed
 
 
+MAX_CONFIG_BYTES = 1 << 20
+"""The largest ``--config`` file read [bytes]: an env's settings are a few kB."""
+
+
+def config_file(text: str) -> list[tuple[str, Any]]:
+    """``--config FILE``: an env settings tree in YAML or JSON (as ``gym.make``'s
+    ``config``), checked as the env checks it; returned as the ``--env`` pairs it
+    stands for (``SECTION.KEY``), so that ``--env`` given beside it wins."""
+    import json
+
+    import yaml
+
+    from aldm_gym.training.settings import dotted_settings
+
+    path = existing_file(text)
+    if path.stat().st_size > MAX_CONFIG_BYTES:
+        raise argparse.ArgumentTypeError(
+            f"{path} is {path.stat().st_size} bytes; an env config is at most {MAX_CONFIG_BYTES}"
+        )
+    raw = path.read_bytes()
+    try:
+        if path.suffix.lower() == ".json":
+            tree = json.loads(raw)
+        else:  # YAML (a superset of JSON)
+            tree = yaml.safe_load(raw)
+    except (ValueError, yaml.YAMLError) as exc:
+        raise argparse.ArgumentTypeError(
+            f"{path}: not {'JSON' if path.suffix.lower() == '.json' else 'YAML'}: "
+            + " ".join(str(exc).split())
+        ) from None
+    if tree is None:
+        tree = {}
+    if not isinstance(tree, dict):
+        raise argparse.ArgumentTypeError(
+            f"{path}: an env config is a mapping of settings, got {type(tree).__name__}"
+        )
+    try:
+        check_env(tree, "--config")
+    except BadArgument as exc:
+        raise argparse.ArgumentTypeError(f"{path}: {str(exc).partition(': ')[2]}") from None
+    return list(dotted_settings(tree))
+
+
 def add_env_argument(parser: argparse.ArgumentParser, note: str) -> None:
-    """Declare ``--env KEY=VALUE`` (repeatable): any ``ALDMHighway-v0`` setting."""
+    """Declare ``--env KEY=VALUE`` (repeatable): any ``ALDMHighway-v0`` setting; and
+    ``--config FILE``: many at once, from a YAML or JSON file (``--env`` wins).
+    :func:`aldm_gym.cli.main` puts the file's settings before the ``--env`` pairs."""
     parser.add_argument(
         "--env",
         type=key_value,
@@ -176,6 +221,34 @@ def add_env_argument(parser: argparse.ArgumentParser, note: str) -> None:
         "detector_params.tracking=model observation.line_confidence=true "
         f"sensor.preset=camera (docs/env.md; {note})",
     )
+    parser.add_argument(
+        "--config",
+        dest="env_file",
+        type=config_file,
+        default=None,
+        metavar="FILE",
+        help="env settings from a YAML or JSON file (the settings tree gym.make takes); "
+        "--env given beside it wins",
+    )
+
+
+def add_function_argument(parser: argparse.ArgumentParser) -> None:
+    """Declare ``--function SPEC`` (:func:`aldm_gym.function.load_function`)."""
+    from aldm_gym.function.spec import SPEC_HELP
+
+    parser.add_argument("--function", default="builtin", metavar="SPEC", help=SPEC_HELP)
+
+
+def function_spec(args: argparse.Namespace) -> Any:
+    """The ``--function`` loaded (:class:`BadArgument` naming it when it cannot be)."""
+    from aldm_gym.errors import AldmGymError
+    from aldm_gym.function import load_function
+
+    try:
+        return load_function(args.function)
+    except AldmGymError as exc:
+        message = str(exc).removeprefix(f"--function {args.function}: ")
+        raise BadArgument("--function", message) from None
 
 
 def nested_pairs(pairs: list[tuple[str, Any]], flag: str = "--env") -> dict[str, Any]:

@@ -33,10 +33,14 @@ import numpy as np
 
 from aldm_gym.cli.argtypes import (
     BadArgument,
+    add_env_argument,
+    check_env,
     finite_float,
     fraction,
+    function_spec,
     key_value,
     make_output_dir,
+    nested_pairs,
     non_negative_float,
     output_dir,
     positive_int,
@@ -45,6 +49,8 @@ from aldm_gym.cli.argtypes import (
 )
 from aldm_gym.cli.report import format_table, write_csv
 from aldm_gym.config import defaults, rules
+from aldm_gym.errors import ConfigError
+from aldm_gym.function.spec import SPEC_HELP
 from aldm_gym.roads.highway import MIN_RADIUS_BY_SPEED, RoadConfig
 from aldm_gym.roads.opendrive.parse import SHIPPED_MAPS
 
@@ -128,6 +134,18 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     )
     parser.add_argument(
         "--no-closed-loop", action="store_true", help="only the frame-level comparison"
+    )
+    add_env_argument(
+        parser,
+        "closed loop; the sensor, detector, road and trucks have their own flags: "
+        + ", ".join(sorted(set(COMPARE_FLAGS.values()))),
+    )
+    parser.add_argument(
+        "--function",
+        default="builtin",
+        metavar="SPEC",
+        help="the closed loop's function under test (builtin: IDLE and the rule-based "
+        "LCA, each on every seed); " + SPEC_HELP.partition(": ")[2],
     )
     parser.add_argument(
         "--scenes",
@@ -231,6 +249,30 @@ def _describe(settings: dict[str, Any]) -> str:
     return ", ".join(f"{k} {v}" for k, v in settings.items())
 
 
+COMPARE_FLAGS = {
+    "detector": "the rows",
+    "detector_params": "the rows",
+    "marking_model": "the rows",
+    "sensor": "--sensor/--sensor-preset",
+    "road.xodr": "--xodr",
+    "road.min_radius": "--min-radius",
+    "traffic.truck_share": "--trucks",
+}
+"""``--env`` keys ``compare`` sets itself, and what sets them."""
+
+
+def compare_env(args: argparse.Namespace) -> dict[str, Any]:
+    """``--env`` (and ``--config``) of the closed loop, checked; :class:`BadArgument`
+    for a key the command sets itself (:data:`COMPARE_FLAGS`)."""
+    overrides = nested_pairs(args.env)
+    for key, _ in args.env:
+        for own, flag in COMPARE_FLAGS.items():
+            if key == own or key.startswith(own + "."):
+                raise BadArgument("--env", f"{key} is set by {flag}, not --env")
+    check_env(overrides)
+    return overrides
+
+
 MIN_RADIUS = MIN_RADIUS_BY_SPEED[110]
 """Default smallest curve radius of the generated roads [m]."""
 
@@ -255,6 +297,8 @@ def check_applicable(args: argparse.Namespace) -> None:
             ("--episodes", args.episodes is not None),
             ("--trucks", args.trucks is not None),
             ("--tracking", args.tracking),
+            ("--env", bool(args.env)),
+            ("--function", args.function != "builtin"),
         ):
             if given:
                 raise BadArgument(flag, "applies to the closed loop, not with --no-closed-loop")
@@ -275,6 +319,8 @@ def run(args: argparse.Namespace) -> int:
     if args.trucks is None:
         args.trucks = 0.0
     args.sensor_settings = sensor_settings(args)
+    args.env_settings = compare_env(args)
+    args.function_object = None if args.function == "builtin" else function_spec(args)
     if args.xodr is not None:
         from aldm_gym.roads import OpenDriveRoad
 
@@ -425,6 +471,7 @@ def _compare_closed_loop(args: argparse.Namespace, out: Path) -> list[Path]:
 
     from aldm_gym.agents.closed_loop import CLOSED_LOOP_COLUMNS, compare_closed_loop
     from aldm_gym.agents.figures import plot_offsets
+    from aldm_gym.function import FunctionPolicy, env_for
     from aldm_gym.roads import MARKING_MODELS
     from aldm_gym.sensor.detectors import DETECTORS
 
@@ -436,8 +483,17 @@ def _compare_closed_loop(args: argparse.Namespace, out: Path) -> list[Path]:
         at = detectors.index("aldm") + 1
         detectors[at:at] = ["aldm_tracking", "aldm_filter"]
     traffic = {"truck_share": args.trucks} if args.trucks else None
+    function = args.function_object
+    env = dict(args.env_settings)
+    policies = None
+    if function is not None:
+        try:
+            env = env_for(function, env, given=set(env))
+        except ConfigError as exc:
+            raise BadArgument("--env", str(exc)) from None
+        policies = [lambda made: FunctionPolicy(made, function)]
     t0 = time.perf_counter()
-    total = len(MARKING_MODELS) * len(detectors) * 2 * n_ep
+    total = len(MARKING_MODELS) * len(detectors) * (2 if policies is None else 1) * n_ep
     with tqdm(total=total, desc="episodes", unit="ep", disable=_no_bar(args)) as bar:
         rows, traces = compare_closed_loop(
             seeds,
@@ -448,12 +504,16 @@ def _compare_closed_loop(args: argparse.Namespace, out: Path) -> list[Path]:
             xodr=args.xodr,
             aldm_mode=args.mode or "robust",
             progress=bar.update,
+            env=env or None,
+            policies=policies,
         )
     write_csv(out / "compare.csv", rows, CLOSED_LOOP_COLUMNS)
-    print("Closed loop (LKA with IDLE and the rule-based LCA, same seeds):")
+    who = "LKA with IDLE and the rule-based LCA" if policies is None else args.function
+    print(f"Closed loop ({who}, same seeds):")
     print(format_table(rows, list(CONSOLE_COLUMNS), CONSOLE_COLUMNS))
     print(
-        f"{n_ep} seeds × 2 policies per row, {time.perf_counter() - t0:.1f} s. dep/km: a "
+        f"{n_ep} seeds × {2 if policies is None else 1} policies per row, "
+        f"{time.perf_counter() - t0:.1f} s. dep/km: a "
         "wheel over a marking without a lane change, per km; rms/max offset from the lane "
         "centre [m] without lane changes; both ok: share of steps with both ego lines "
         "correct; preview [m]; success: episodes without collision or departure; target "

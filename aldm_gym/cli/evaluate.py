@@ -1,12 +1,17 @@
-"""``aldm-gym evaluate``: a trained policy against IDLE and the rule-based LCA.
+"""``aldm-gym evaluate``: a trained policy or a function under test against IDLE and
+the rule-based LCA.
 
 ``--model`` is an SB3 ``.zip``, an RLlib checkpoint folder (``--backend rllib``), or a
 training's output folder: from that it takes the best validation's model, else the
 final model (:func:`~aldm_gym.training.models.model_to_evaluate`), and says which.
-Both backends' models play the same seeds through the same code.
+Both backends' models play the same seeds through the same code. ``--function SPEC``
+evaluates any function under test instead (:func:`aldm_gym.function.load_function`;
+a model given there is evaluated as with ``--model``), on the env's default settings
+with ``--env``/``--config`` over them.
 
 Writes ``evaluate_<model>_<detector>_<marking model>.json`` next to the model (or to
-``--out``) and prints the table and a one-line verdict
+``--out``; a function's ``evaluate_function_<name>_...`` into ``--out``, default
+``evaluate_results``) and prints the table and a one-line verdict
 (:mod:`aldm_gym.training.model_evaluation`).
 """
 
@@ -15,12 +20,14 @@ from __future__ import annotations
 import argparse
 import json
 import time
+from pathlib import Path
 from typing import Any
 
 from aldm_gym.cli.argtypes import (
     BadArgument,
     add_env_argument,
     check_env,
+    function_spec,
     make_output_dir,
     model_path,
     nested_pairs,
@@ -31,6 +38,8 @@ from aldm_gym.cli.argtypes import (
 from aldm_gym.cli.console import console
 from aldm_gym.cli.report import format_table
 from aldm_gym.errors import CheckpointError, MissingRLDependencies
+from aldm_gym.function.builtin import PolicyFunction
+from aldm_gym.function.spec import SPEC_HELP
 from aldm_gym.roads.highway import MARKING_MODELS
 from aldm_gym.sensor.detectors import DETECTORS
 from aldm_gym.training.model_evaluation import (
@@ -58,7 +67,6 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     parser.add_argument(
         "--model",
         type=model_path,
-        required=True,
         help="a training's output folder (its best model, else its final one), a model "
         ".zip or checkpoint (SB3), or a checkpoint folder (RLlib: rllib_model, "
         "checkpoints/rllib_<steps>)",
@@ -88,6 +96,12 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         "--quick", action="store_true", help=f"{QUICK_EPISODES} episodes per policy"
     )
     add_env_argument(parser, "over the training's; its observation and action stay as trained")
+    parser.add_argument(
+        "--function",
+        default=None,
+        metavar="SPEC",
+        help="evaluate a function under test instead of --model: " + SPEC_HELP,
+    )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.set_defaults(func=run)
     return parser
@@ -111,6 +125,13 @@ def _env(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
 def run(args: argparse.Namespace) -> int:
     """``aldm-gym evaluate``."""
     episodes = args.episodes or (QUICK_EPISODES if args.quick else EPISODES)
+    if (args.model is None) == (args.function is None):
+        raise BadArgument("--model", "give --model or --function (one of them)")
+    if args.function is not None:
+        function = function_spec(args)
+        if not isinstance(function, PolicyFunction) or args.function.lower().endswith(".fmu"):
+            return _run_function(args, function, episodes)
+        args.model = model_path(args.function)  # a trained model: evaluated as --model
     overrides = _env(args.env)
     try:
         model, picked = model_to_evaluate(args.model)
@@ -145,6 +166,58 @@ def run(args: argparse.Namespace) -> int:
     name = model.name if model.is_dir() else model.stem
     path = out / f"evaluate_{name}_{cfg['detector']}_{cfg['marking_model']}.json"
     path.write_text(json.dumps({"rows": rows, **info}, indent=2) + "\n")
+    print(f"wrote {path} ({time.perf_counter() - t0:.0f} s)")
+    print(format_table(rows, EVAL_COLUMNS))
+    print(summary_line(rows, info))
+    return 0
+
+
+def _run_function(args: argparse.Namespace, function: Any, episodes: int) -> int:
+    """``evaluate --function``: the function against IDLE and the rule-based LCA on
+    the env's default settings (``--detector``, ``--marking-model``, ``--env`` over
+    them)."""
+    from aldm_gym.envs.config import default_config, merged_config
+    from aldm_gym.errors import ConfigError
+    from aldm_gym.function import FunctionPolicy, env_for
+    from aldm_gym.training.model_evaluation import RULE_BASED, play_policies
+
+    overrides = nested_pairs(args.env)
+    check_env(overrides)
+    for key, value in (("detector", args.detector), ("marking_model", args.marking_model)):
+        if value is not None:
+            overrides[key] = value
+    try:
+        config = env_for(function, merged_config({}, overrides), given=set(overrides))
+        merged_config(default_config(), config)
+        check_env(config)
+    except ConfigError as exc:
+        raise BadArgument("--env", str(exc)) from None
+    t0 = time.perf_counter()
+    try:
+        with console():
+            rows, per_episode = play_policies(
+                config,
+                (*RULE_BASED, ("function", lambda env: FunctionPolicy(env, function))),
+                episodes=episodes,
+                seed=args.seed,
+                progress=not args.no_progress,
+            )
+    finally:
+        close = getattr(function, "close", None)
+        if callable(close):
+            close()
+    full = merged_config(default_config(), config)
+    info = {
+        "function": args.function,
+        "env_config": {"detector": full["detector"], "marking_model": full["marking_model"]}
+        | config,
+        "seeds": [args.seed, args.seed + episodes - 1],
+        "per_episode": per_episode,
+    }
+    out = make_output_dir(args.out or Path("evaluate_results"))
+    name = Path(args.function.replace(":", "_")).name
+    path = out / f"evaluate_function_{name}_{full['detector']}_{full['marking_model']}.json"
+    path.write_text(json.dumps({"rows": rows, **info}, indent=2, default=str) + "\n")
     print(f"wrote {path} ({time.perf_counter() - t0:.0f} s)")
     print(format_table(rows, EVAL_COLUMNS))
     print(summary_line(rows, info))

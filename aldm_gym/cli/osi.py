@@ -10,11 +10,13 @@ host vehicle, runs the detector, and writes one ``SensorData`` per frame
 from __future__ import annotations
 
 import argparse
+import sys
 from typing import Any
 
 from aldm_gym.cli.argtypes import (
     BadArgument,
     check_env,
+    config_file,
     existing_file,
     key_value,
     nested_pairs,
@@ -57,6 +59,15 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         "--sensor KEY) or detector_params.KEY, e.g. detector_params.tracking=model",
     )
     det.add_argument(
+        "--config",
+        dest="osi_config",
+        type=config_file,
+        default=None,
+        metavar="FILE",
+        help="an env settings file (YAML or JSON); its sensor and detector_params sections "
+        "apply, the rest is the env's (--env wins)",
+    )
+    det.add_argument(
         "--type",
         choices=("SensorView", "GroundTruth"),
         help="the input's message type (default: an MCAP's SensorView channel, else its "
@@ -81,7 +92,7 @@ def _sensor_and_detector(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
     for key in env:
         if key in ("detector", "marking_model"):
             raise BadArgument("--env", f"{key} has its own flag: --{key.replace('_', '-')}")
-        if key not in ("sensor", "detector_params"):
+        if key not in OSI_SECTIONS:
             raise BadArgument(
                 "--env",
                 f"{key}: osi detect takes the sensor's and the detector's settings only "
@@ -89,6 +100,10 @@ def _sensor_and_detector(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
             )
     check_env(env)
     return env
+
+
+OSI_SECTIONS = ("sensor", "detector_params")
+"""The env settings ``osi detect`` takes (``--env``, ``--config``)."""
 
 
 def run_detect(args: argparse.Namespace) -> int:
@@ -104,7 +119,17 @@ def run_detect(args: argparse.Namespace) -> int:
     from aldm_gym.errors import ConfigError
     from aldm_gym.sensor.line_sensor import LineSensorConfig
 
-    env = _sensor_and_detector(args.env)
+    pairs = list(args.env)
+    if args.osi_config:
+        kept = [p for p in args.osi_config if p[0].split(".")[0] in OSI_SECTIONS]
+        if len(kept) < len(args.osi_config):
+            print(
+                f"note: osi detect takes the {' and '.join(OSI_SECTIONS)} sections of "
+                "--config only; the rest is the env's",
+                file=sys.stderr,
+            )
+        pairs = [*kept, *pairs]
+    env = _sensor_and_detector(pairs)
     sensor_pairs = dict(args.sensor)
     for key, value in env.get("sensor", {}).items():
         if key in sensor_pairs:

@@ -9,7 +9,7 @@ in parallel processes; it writes ``scenario_runs.csv``, a console table per scen
 detector × marking model (runs, pass rate, collisions, departures, min TTC, min time
 gap, failing parameter sets) and ``scenario_pass_rates.png``; with ``--address`` the
 runs go to a Ray cluster. Criteria:
-:mod:`aldm_gym.scenario.criteria`; docs/scenarios.md.
+:mod:`aldm_gym.harness.criteria`; docs/scenarios.md.
 """
 
 from __future__ import annotations
@@ -22,8 +22,10 @@ from typing import Any
 from aldm_gym.cli.argtypes import (
     BadArgument,
     add_env_argument,
+    add_function_argument,
     check_env,
     existing_file,
+    function_spec,
     image_file,
     key_value,
     make_output_dir,
@@ -92,6 +94,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         help="a value for one of its parameters (repeatable)",
     )
     add_env_argument(run, "for the run; the scenario's map and traffic take precedence")
+    add_function_argument(run)
     run.add_argument("--detector", choices=DETECTOR_CHOICES, default="aldm")
     run.add_argument("--marking-model", choices=MARKING_CHOICES, default="per_dash")
     run.add_argument("--video", type=gif_file, help="an animated GIF of the run (e.g. run.gif)")
@@ -125,6 +128,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         "--jobs does not apply",
     )
     add_env_argument(suite, "for every run; the scenario's map and traffic take precedence")
+    add_function_argument(suite)
     suite.add_argument("--out", type=output_dir, default=Path("scenario_results"))
     suite.add_argument("--no-progress", action="store_true", help="no progress bar")
     suite.set_defaults(func=run_suite)
@@ -168,13 +172,14 @@ def _scenario_error(argument: str, exc: Exception) -> BadArgument:
 
 def run_one(args: argparse.Namespace) -> int:
     """``aldm-gym scenario run``."""
-    from aldm_gym.errors import AldmGymError, MissingOSIDependencies
-    from aldm_gym.scenario.criteria import run_scenario
+    from aldm_gym.errors import AldmGymError, ConfigError, MissingOSIDependencies
+    from aldm_gym.harness.criteria import run_scenario
 
     frames: list[Any] | None = [] if args.video is not None else None
     config = scenario_env(args.env)
     if args.osi is not None:
         config["osi"] = {"trace": str(args.osi)}
+    function = function_spec(args)
     try:
         result = run_scenario(
             args.file,
@@ -183,17 +188,27 @@ def run_one(args: argparse.Namespace) -> int:
             marking_model=args.marking_model,
             config=config,
             frames=frames,
+            function=function,
         )
     except MissingOSIDependencies as exc:
         raise _scenario_error("--osi", exc) from None
+    except ConfigError as exc:  # --env sets what the function needs otherwise
+        raise _scenario_error("--env", exc) from None
     except AldmGymError as exc:  # the file, its map, a --param, a position off the map
         raise _scenario_error("FILE.xosc", exc) from None
+    finally:
+        close = getattr(function, "close", None)
+        if callable(close):
+            close()
+    what = f"{args.detector}, {args.marking_model}" + (
+        "" if args.function == "builtin" else f", function {args.function}"
+    )
     if result.error:
-        print(f"{result.scenario} ({args.detector}, {args.marking_model}): NOT JUDGED")
+        print(f"{result.scenario} ({what}): NOT JUDGED")
         print(f"  {result.error}")
         return 1
     verdict = "PASS" if result.passed else "FAIL"
-    print(f"{result.scenario} ({args.detector}, {args.marking_model}): {verdict}")
+    print(f"{result.scenario} ({what}): {verdict}")
     for name, ok, detail in (
         (
             "no_collision (R157 5.1.1)",
@@ -248,12 +263,21 @@ def _fmt(x: float) -> str:
 def run_suite(args: argparse.Namespace) -> int:
     """``aldm-gym scenario suite``."""
     from aldm_gym.errors import InputError
-    from aldm_gym.scenario.suite import plan_suite, play_suite, summarise, write_outputs
+    from aldm_gym.harness.suite import plan_suite, play_suite, summarise, write_outputs
 
     config = scenario_env(args.env)
+    function = function_spec(args)  # loads here once, so a bad SPEC stops the suite at once
+    close = getattr(function, "close", None)
+    if callable(close):
+        close()
     try:
         jobs = plan_suite(
-            args.path, args.detectors, args.marking_models, args.max_runs, config=config
+            args.path,
+            args.detectors,
+            args.marking_models,
+            args.max_runs,
+            config=config,
+            function=args.function,
         )
     except (InputError, FileNotFoundError) as exc:
         raise _scenario_error("DIR_OR_VARIATION", exc) from None
@@ -265,7 +289,7 @@ def run_suite(args: argparse.Namespace) -> int:
     )
     rows = summarise(results)
     write_outputs(results, rows, out)
-    from aldm_gym.scenario.suite import format_table
+    from aldm_gym.harness.suite import format_table
 
     print(format_table(rows))
     print(
