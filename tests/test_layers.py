@@ -40,8 +40,14 @@ def _modules() -> dict[str, Path]:
     return out
 
 
+ENV_MODULE = "aldm_gym.envs.highway"
+"""Where the registry string ``ALDMHighway-v0`` leads: ``gym.make`` of it imports the env."""
+
+
 class _Imports(ast.NodeVisitor):
-    """The aldm_gym modules a module imports, anywhere but under ``if TYPE_CHECKING``."""
+    """The aldm_gym modules a module imports, anywhere but under ``if TYPE_CHECKING``;
+    a ``gym.make`` of the env's registry id (``"ALDMHighway-v0"`` or ``ENV_ID``)
+    counts as an import of the env, which the registry string would hide."""
 
     def __init__(self, known: dict[str, Path]) -> None:
         self.known = known
@@ -52,6 +58,17 @@ class _Imports(ast.NodeVisitor):
             for child in node.orelse:
                 self.visit(child)
             return
+        self.generic_visit(node)
+
+    def visit_Call(self, node: ast.Call) -> None:
+        func = node.func
+        name = func.attr if isinstance(func, ast.Attribute) else getattr(func, "id", "")
+        if name == "make" and node.args:
+            first = node.args[0]
+            if (isinstance(first, ast.Constant) and first.value == "ALDMHighway-v0") or (
+                isinstance(first, ast.Name) and first.id == "ENV_ID"
+            ):
+                self.found.add(ENV_MODULE)
         self.generic_visit(node)
 
     def visit_Import(self, node: ast.Import) -> None:
@@ -72,6 +89,12 @@ def _graph() -> dict[str, set[str]]:
         visitor.visit(ast.parse(path.read_text(), str(path)))
         graph[name] = {m for m in visitor.found if m in known and m != name}
     return graph
+
+
+def _imports(source: str, known: dict[str, Path]) -> set[str]:
+    visitor = _Imports(known)
+    visitor.visit(ast.parse(source))
+    return visitor.found
 
 
 def _layer(module: str) -> int:
@@ -119,3 +142,19 @@ def test_no_import_cycles() -> None:
         if v not in index:
             visit(v)
     assert cycles == []
+
+
+def test_a_registry_string_is_an_edge_to_the_env() -> None:
+    """``gym.make("ALDMHighway-v0")`` in the scenario player would be an upward edge
+    (scenario sits below envs): the graph sees it, as it sees an import."""
+    known = _modules()
+    source = (
+        "import gymnasium as gym\n"
+        "from aldm_gym import ENV_ID\n"
+        "def play():\n"
+        "    return gym.make('ALDMHighway-v0'), gym.make(ENV_ID, config={})\n"
+    )
+    found = _imports(source, known)
+    assert ENV_MODULE in found
+    assert _layer(ENV_MODULE) > _layer("aldm_gym.scenario.runner")
+    assert ENV_MODULE not in _imports("gym.make('CartPole-v1')\n", known)
