@@ -182,7 +182,6 @@ class FMUFunction:
         else:
             from fmpy.fmi3 import FMU3Slave
 
-            kwargs["instantiationToken"] = kwargs.pop("guid")
             self._fmu = FMU3Slave(**kwargs)
             self._fmu.instantiate()
 

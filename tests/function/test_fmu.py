@@ -151,3 +151,29 @@ def test_a_broken_fmu_is_a_clear_error(tmp_path: Path, content: Any) -> None:
         FMUFunction(path)
     with pytest.raises(InputError, match="no FMU at"):
         FMUFunction(tmp_path / "missing.fmu")
+
+
+def test_an_fmi3_fmu_brakes_and_asks_for_a_lane_change(tmp_path: Path) -> None:
+    pythonfmu3 = pytest.importorskip("pythonfmu3")
+    path = Path(pythonfmu3.FmuBuilder.build_FMU(SOURCE.with_name("fmu3_brake.py"), dest=tmp_path))
+    function = FMUFunction(path)
+    env = gym.make(
+        "ALDMHighway-v0", config={"policy_frequency": 10, "duration": 5, "initial_lane_id": 2}
+    )
+    try:
+        assert function.fmi_version == "3.0"
+        assert function.domains == frozenset({"longitudinal"})
+        driver = FunctionDriver(env, function)
+        for _ in range(2):  # fmi3Reset between the episodes
+            driver.reset(seed=0)
+            speeds, changes = [], []
+            for _ in range(30):
+                _, _, _, _, info = driver.step()
+                speeds.append(info["speed"])
+                changes.append(info["lane_change"])
+            # the request of the step at 1 s starts the change at the next one
+            assert changes[:10] == [0] * 10 and changes[10] == 1
+            assert speeds[-1] < speeds[0] - 2.0  # braking towards 15 m/s
+    finally:
+        function.close()
+        env.close()
