@@ -38,7 +38,9 @@ class OsiLaneSensor:
     :param marking_model: ``"per_dash"`` or ``"editor"`` (:class:`ViewReader`).
     :param sensor: the line sensor's settings.
     :param source: a name for error messages (the trace file).
-    :raises ConfigError: an unknown detector, or ``ground_truth``.
+    :param seed: seed of a noisy sensor's draws (per frame: :class:`ViewReader`).
+    :raises ConfigError: an unknown detector, ``ground_truth``, or a seed that is not an
+        integer >= 0.
     """
 
     def __init__(
@@ -48,14 +50,17 @@ class OsiLaneSensor:
         marking_model: str = "per_dash",
         sensor: LineSensorConfig | Mapping[str, Any] | None = None,
         source: str = "<message>",
+        seed: int = 0,
     ) -> None:
+        if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+            raise ConfigError(f"seed must be an integer >= 0, got {seed!r}")
         if detector == "ground_truth":
             raise ConfigError(
                 "detector 'ground_truth' needs the road's lanes, which an OSI trace does not "
                 f"give the line sensor; allowed: {list(TRACE_DETECTORS)}"
             )
         self.detector: Detector = make_detector(detector, detector_params)
-        self.reader = ViewReader(sensor, marking_model, source)
+        self.reader = ViewReader(sensor, marking_model, source, seed=seed)
         self.frame: SensorFrame | None = None
         """The line sensor's frame of the last message."""
         self.detection: LaneDetection | None = None
@@ -169,6 +174,7 @@ def detect_trace(
     topic: str | None = None,
     jobs: int = 1,
     progress: Callable[[int], Any] | None = None,
+    seed: int = 0,
 ) -> DetectSummary:
     """Run the line sensor and a detector over a trace: one ``SensorData`` per frame.
 
@@ -179,6 +185,8 @@ def detect_trace(
         state between frames can take more than one (not the tracking ALDM).
     :param progress: called with the number of frames done (a progress bar's
         ``update``): after each frame, or with ``jobs > 1`` when a process ends.
+    :param seed: seed of a noisy sensor's draws; frame ``i`` draws from
+        ``[seed, i]``, so any ``jobs`` gives the same trace.
     :raises TraceError: naming the file and frame of a message that cannot be used.
     :raises ConfigError: ``jobs > 1`` with the tracking ALDM, or ``jobs < 1``.
     """
@@ -189,7 +197,9 @@ def detect_trace(
             "the tracking ALDM carries its lanes from frame to frame: it runs in one "
             "process (jobs=1)"
         )
-    model = OsiLaneSensor(detector, detector_params, marking_model, sensor, source=str(path))
+    model = OsiLaneSensor(
+        detector, detector_params, marking_model, sensor, source=str(path), seed=seed
+    )
     found = dict.fromkeys(LINE_NAMES, 0)
     n = 0
     with TraceWriter(out, ("SensorData",), description=f"aldm-gym {detector}") as writer:
@@ -212,6 +222,7 @@ def detect_trace(
                 "sensor": model.reader.config,
                 "message_type": message_type,
                 "topic": topic,
+                "seed": seed,
             }
             # fork: the workers start with the compiled kernels already loaded
             ctx = mp.get_context("fork" if "fork" in mp.get_all_start_methods() else "spawn")

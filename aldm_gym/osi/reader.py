@@ -157,7 +157,9 @@ class ViewReader:
     :param marking_model: ``"per_dash"`` (each painted stretch a line object) or
         ``"editor"`` (each boundary one object).
     :param source: the file name, for error messages.
-    :param seed: seed of the sensor's noise, if it has any.
+    :param seed: seed of the sensor's noise and dropout, if it has any: frame ``index``
+        draws from ``default_rng([seed, index])``, so a trace gives the same frames
+        however its frames are dealt out to processes.
     """
 
     def __init__(
@@ -165,7 +167,7 @@ class ViewReader:
         sensor: LineSensorConfig | Mapping[str, Any] | None = None,
         marking_model: str = "per_dash",
         source: str = "<message>",
-        seed: int | None = None,
+        seed: int = 0,
     ) -> None:
         if marking_model not in MARKING_MODELS:
             raise InputError(
@@ -330,7 +332,10 @@ class ViewReader:
             raise _fail(where, f"the lane boundaries: {exc}") from None
         self._time = t
         self.road, self.host = road, host
-        return self._sensor(host.mount, where).measure(road, host.pose, t)
+        sensor = self._sensor(host.mount, where)
+        if self.config.noisy:
+            sensor.seed([self.seed, index])
+        return sensor.measure(road, host.pose, t)
 
     @property
     def sensor(self) -> LineSensor:

@@ -420,3 +420,25 @@ def test_boundaries_without_ids_are_read() -> None:
         lb.ClearField("id")
     frame = ViewReader().frame(gt, 0)
     assert len(frame.line_type) > 0 and len(frame.all_points) > 0
+
+
+def test_a_noisy_sensor_gives_the_same_trace_every_time_and_with_any_jobs(
+    env_trace, tmp_path: Path
+) -> None:
+    """The camera preset draws noise per frame from (seed, frame): the same trace on
+    every run, with one process or two, and another with another seed."""
+    from tests.osi.test_roundtrip import _all
+
+    path = env_trace[0]
+
+    def run(name: str, **kwargs) -> list[bytes]:
+        out = tmp_path / name
+        detect_trace(path, out, sensor={"preset": "camera"}, **kwargs)
+        return [m.SerializeToString() for _, m in _all(out, "SensorData")]
+
+    first = run("a.mcap")
+    assert run("b.mcap") == first
+    assert run("c.mcap", jobs=2) == first
+    assert run("d.mcap", seed=1) != first
+    with pytest.raises(ConfigError, match="seed must be an integer >= 0"):
+        OsiLaneSensor(seed=-1)
