@@ -128,6 +128,10 @@ class MissingOSIDependencies(AldmGymError, ImportError):
     """osi-python or asam-osi-utilities is not installed (the ``[osi]`` extra)."""
 
 
+class MissingFMIDependencies(AldmGymError, ImportError):
+    """fmpy or pythonfmu is not installed (the ``[fmi]`` extra)."""
+
+
 class AldmGymWarning(UserWarning):
     """Base of the warnings aldm-gym issues."""
 

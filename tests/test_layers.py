@@ -14,6 +14,7 @@ LAYERS = (
     "xmlfile",
     "types",
     "_numba",
+    "fmi",
     "config",
     "roads",
     "sensor",

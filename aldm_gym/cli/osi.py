@@ -16,11 +16,13 @@ from typing import Any
 from aldm_gym.cli.argtypes import (
     BadArgument,
     check_env,
+    check_parent,
     config_file,
     existing_file,
     key_value,
     nested_pairs,
     positive_int,
+    seed,
     trace_file,
 )
 
@@ -29,7 +31,7 @@ MARKING_CHOICES = ("per_dash", "editor")
 
 
 def add_parser(subparsers: Any) -> argparse.ArgumentParser:
-    """Declare ``aldm-gym osi`` with ``detect``."""
+    """Declare ``aldm-gym osi`` with ``detect`` and ``fmu``."""
     parser = subparsers.add_parser("osi", help="ASAM OSI traces: lane detection behind a simulator")
     sub = parser.add_subparsers(dest="osi_command", required=True, metavar="ACTION")
     det = sub.add_parser("detect", help="SensorView/GroundTruth trace in, SensorData trace out")
@@ -68,6 +70,12 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         "apply, the rest is the env's (--env wins)",
     )
     det.add_argument(
+        "--seed",
+        type=seed,
+        default=0,
+        help="seed of a noisy sensor's draws (per frame: any --jobs gives the same trace)",
+    )
+    det.add_argument(
         "--type",
         choices=("SensorView", "GroundTruth"),
         help="the input's message type (default: an MCAP's SensorView channel, else its "
@@ -82,7 +90,58 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     )
     det.add_argument("--no-progress", action="store_true", help="no progress bar")
     det.set_defaults(func=run_detect)
+    fmu = sub.add_parser(
+        "fmu", help="write the line sensor and a detector as an OSMP sensor-model FMU"
+    )
+    fmu.add_argument("out", type=fmu_file, metavar="OUT.fmu", help="the FMU to write")
+    fmu.add_argument("--detector", choices=("aldm", "naive"), default="aldm")
+    fmu.add_argument(
+        "--tracking",
+        choices=("none", "points", "model"),
+        default="none",
+        help="the single-frame detector, the tracking ALDM, or the lane-model filter",
+    )
+    fmu.add_argument("--marking-model", choices=MARKING_CHOICES, default="per_dash")
+    fmu.add_argument(
+        "--sensor",
+        type=key_value,
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="a line-sensor setting, repeatable (LineSensorConfig), e.g. preset=camera",
+    )
+    fmu.add_argument(
+        "--env",
+        type=key_value,
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="sensor.KEY or detector_params.KEY, repeatable (the FMU's start values; its "
+        "parameters can change them)",
+    )
+    fmu.add_argument(
+        "--config",
+        dest="osi_config",
+        type=config_file,
+        default=None,
+        metavar="FILE",
+        help="an env settings file; its sensor and detector_params sections apply",
+    )
+    fmu.set_defaults(func=run_fmu)
     return parser
+
+
+def fmu_file(text: str) -> Any:
+    """An ``.fmu`` to write, in a writable place."""
+    from pathlib import Path
+
+    path = Path(text)
+    if path.suffix.lower() != ".fmu":
+        raise argparse.ArgumentTypeError(f"{path}: give a .fmu file name")
+    if path.is_dir():
+        raise argparse.ArgumentTypeError(f"{path} is a folder")
+    check_parent(path)
+    return path
 
 
 def _sensor_and_detector(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
@@ -106,15 +165,12 @@ OSI_SECTIONS = ("sensor", "detector_params")
 """The env settings ``osi detect`` takes (``--env``, ``--config``)."""
 
 
-def run_detect(args: argparse.Namespace) -> int:
-    """``aldm-gym osi detect``."""
-    from tqdm import tqdm
-
-    from aldm_gym.errors import MissingOSIDependencies, TraceError
-    from aldm_gym.osi import detect_trace
-
-    if args.tracking and args.detector != "aldm":
-        raise BadArgument("--tracking", "tracking is the ALDM's: use it with --detector aldm")
+def _settings(
+    args: argparse.Namespace, tracking: dict[str, Any], flag: str
+) -> tuple[Any, dict[str, Any], dict[str, Any]]:
+    """The line sensor's config (and the settings it was built from) and the
+    detector's params of ``osi detect``/``osi fmu`` from ``--sensor``, ``--env``,
+    ``--config`` and the tracking flag ``flag``."""
     from aldm_gym.config import build_config
     from aldm_gym.errors import ConfigError
     from aldm_gym.sensor.line_sensor import LineSensorConfig
@@ -124,8 +180,8 @@ def run_detect(args: argparse.Namespace) -> int:
         kept = [p for p in args.osi_config if p[0].split(".")[0] in OSI_SECTIONS]
         if len(kept) < len(args.osi_config):
             print(
-                f"note: osi detect takes the {' and '.join(OSI_SECTIONS)} sections of "
-                "--config only; the rest is the env's",
+                f"note: osi {args.osi_command} takes the {' and '.join(OSI_SECTIONS)} "
+                "sections of --config only; the rest is the env's",
                 file=sys.stderr,
             )
         pairs = [*kept, *pairs]
@@ -136,18 +192,32 @@ def run_detect(args: argparse.Namespace) -> int:
             raise BadArgument("--env", f"sensor.{key}: so does --sensor {key}=...; give one")
         sensor_pairs[key] = value
     params = dict(env.get("detector_params", {}))
-    if args.tracking:
+    if tracking:
         if "tracking" in params:
-            raise BadArgument("--env", "detector_params.tracking: so does --tracking; give one")
-        params["tracking"] = True
+            raise BadArgument("--env", f"detector_params.tracking: so does {flag}; give one")
+        params.update(tracking)
     if params and args.detector != "aldm":
         raise BadArgument("--env", "detector_params are the ALDM's: use --detector aldm")
-    if params.get("tracking") and args.jobs > 1:
-        raise BadArgument("--jobs", "the tracking ALDM carries lanes between frames: one job")
     try:
         sensor = build_config(LineSensorConfig, sensor_pairs, where="sensor")
     except ConfigError as exc:
         raise BadArgument("--sensor" if not env.get("sensor") else "--env", str(exc)) from None
+    return sensor, sensor_pairs, params
+
+
+def run_detect(args: argparse.Namespace) -> int:
+    """``aldm-gym osi detect``."""
+    from tqdm import tqdm
+
+    from aldm_gym.errors import MissingOSIDependencies, TraceError
+    from aldm_gym.osi import detect_trace
+
+    if args.tracking and args.detector != "aldm":
+        raise BadArgument("--tracking", "tracking is the ALDM's: use it with --detector aldm")
+    tracking = {"tracking": True} if args.tracking else {}
+    sensor, _, params = _settings(args, tracking, "--tracking")
+    if params.get("tracking") and args.jobs > 1:
+        raise BadArgument("--jobs", "the tracking ALDM carries lanes between frames: one job")
     try:
         with tqdm(desc="frames", unit="frame", disable=True if args.no_progress else None) as bar:
             summary = detect_trace(
@@ -161,6 +231,7 @@ def run_detect(args: argparse.Namespace) -> int:
                 topic=args.topic,
                 jobs=args.jobs,
                 progress=bar.update,
+                seed=args.seed,
             )
     except MissingOSIDependencies as exc:
         raise BadArgument("IN", str(exc)) from None
@@ -168,4 +239,35 @@ def run_detect(args: argparse.Namespace) -> int:
         raise BadArgument("IN", str(exc)) from None
     found = ", ".join(f"{k} {100 * v:.0f} %" for k, v in summary.found.items())
     print(f"{summary.frames} frames -> {summary.out}; lines found: {found}")
+    return 0
+
+
+def run_fmu(args: argparse.Namespace) -> int:
+    """``aldm-gym osi fmu``."""
+    from aldm_gym.errors import ConfigError, MissingFMIDependencies, MissingOSIDependencies
+    from aldm_gym.osi.osmp import OSMP_VERSION, build_sensor_fmu, detector_params_for
+
+    if args.tracking != "none" and args.detector != "aldm":
+        raise BadArgument("--tracking", "tracking is the ALDM's: use it with --detector aldm")
+    tracking = detector_params_for(args.tracking)
+    _, sensor, params = _settings(args, tracking, "--tracking")
+    params.pop("tracking", None)  # the FMU's own parameter
+    try:
+        path = build_sensor_fmu(
+            args.out,
+            detector=args.detector,
+            tracking=args.tracking,
+            marking_model=args.marking_model,
+            sensor=sensor,
+            detector_params=params,
+        )
+    except (MissingFMIDependencies, MissingOSIDependencies) as exc:
+        raise BadArgument("OUT", str(exc)) from None
+    except ConfigError as exc:
+        raise BadArgument("--env", str(exc)) from None
+    print(
+        f"wrote {path}: an OSMP {OSMP_VERSION} sensor-model FMU (FMI 2.0 co-simulation), "
+        f"{args.detector}, tracking {args.tracking}, {args.marking_model}; it runs in a "
+        "Python with aldm-gym[osi,fmi] installed (docs/osi.md)"
+    )
     return 0

@@ -56,6 +56,7 @@ from typing import Any
 import numpy as np
 
 from aldm_gym.errors import InputError
+from aldm_gym.fmi import free_instance
 from aldm_gym.function.interface import LINE_ROLES, FunctionInput, FunctionOutput
 
 __all__ = ["INPUTS", "OUTPUTS", "FMUFunction"]
@@ -211,7 +212,7 @@ class FMUFunction:
             try:
                 self._fmu.terminate()
             finally:
-                self._fmu.freeInstance()
+                free_instance(self._fmu)
                 self._fmu = None
         if self._unzipped is not None:
             shutil.rmtree(self._unzipped, ignore_errors=True)
