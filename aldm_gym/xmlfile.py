@@ -18,6 +18,7 @@ Every failure is one error of the kind the caller names (a
 from __future__ import annotations
 
 import os
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -25,7 +26,7 @@ from lxml import etree
 
 from aldm_gym.errors import AldmGymError, ScenarioError
 
-__all__ = ["MAX_BYTES", "parse_xml", "where"]
+__all__ = ["MAX_BYTES", "ElementReader", "children", "parse_xml", "where"]
 
 MAX_BYTES = 256 * 1024 * 1024
 """The largest XML file read [bytes] (a large OpenDRIVE map is tens of MB)."""
@@ -83,3 +84,70 @@ def parse_xml(
     if root is not None and top.tag != root:
         raise error(f"{name}:{top.sourceline}: the root is <{top.tag}>, not <{root}>")
     return tree
+
+
+def children(element: Any) -> Iterator[Any]:
+    """An element's child elements, without comments and processing instructions."""
+    return (child for child in element if isinstance(child.tag, str))
+
+
+class ElementReader:
+    """Reads the elements of one file with errors in one format (:func:`where`):
+    ``file:line <Tag>: message``, of the kind the file's reader names.
+
+    :param path: the file (its name goes into every message).
+    :param error: the exception class of every failure (:class:`ScenarioError` for a
+        scenario, :class:`~aldm_gym.errors.MapError` for a map).
+    """
+
+    def __init__(
+        self, path: str | os.PathLike[str], error: type[AldmGymError] = ScenarioError
+    ) -> None:
+        self.path = path
+        self.error_type = error
+
+    def where(self, el: Any, attr: str | None = None) -> str:
+        """``file:line <Tag>`` (and ``attr``) of an element."""
+        return where(self.path, el, attr)
+
+    def error(self, el: Any, message: str, attr: str | None = None) -> AldmGymError:
+        """The error naming the element (and ``attr``)."""
+        return self.error_type(f"{self.where(el, attr)}: {message}")
+
+    def unexpected(self, el: Any, allowed: Sequence[str]) -> AldmGymError:
+        """The error of an element its parent does not take, listing what it takes."""
+        parent = el.getparent()
+        inside = f" inside <{parent.tag}>" if parent is not None else ""
+        listed = ", ".join(f"<{a}>" for a in allowed) or "nothing"
+        return self.error(el, f"unknown element{inside}; allowed there: {listed}")
+
+    def required(self, el: Any, name: str) -> str:
+        """An attribute that must be there, as written."""
+        value = el.get(name)
+        if value is None:
+            raise self.error(el, f"missing attribute {name!r}")
+        return str(value)
+
+    def one(self, el: Any, allowed: Sequence[str]) -> Any:
+        """The single child element, one of ``allowed``."""
+        found = None
+        for child in children(el):
+            if child.tag not in allowed:
+                raise self.unexpected(child, allowed)
+            if found is not None:
+                raise self.error(child, f"<{el.tag}> holds one of {', '.join(allowed)}, not two")
+            found = child
+        if found is None:
+            raise self.error(el, f"needs one child: {' or '.join(f'<{a}>' for a in allowed)}")
+        return found
+
+    def many(self, el: Any, tag: str) -> list[Any]:
+        """The child elements, all ``tag``, at least one."""
+        out = []
+        for child in children(el):
+            if child.tag != tag:
+                raise self.unexpected(child, [tag])
+            out.append(child)
+        if not out:
+            raise self.error(el, f"needs at least one <{tag}>")
+        return out

@@ -81,3 +81,25 @@ def test_every_failure_is_one_error_naming_file_and_line(
 def test_a_missing_file_is_named(tmp_path: Path) -> None:
     with pytest.raises(ScenarioError, match=r"nope\.xosc: no such file"):
         parse_xml(tmp_path / "nope.xosc")
+
+
+def test_one_element_reader_format_for_every_file_kind(tmp_path: Path) -> None:
+    """Scenarios, variation files and maps name a place the same way:
+    ``file:line <Tag>: message``, with the reader's error type."""
+    from aldm_gym.xmlfile import ElementReader, children
+
+    path = tmp_path / "f.xml"
+    path.write_text("<A>\n<!-- c -->\n<B x='1'/>\n<C/>\n</A>")
+    root = parse_xml(path).getroot()
+    assert [c.tag for c in children(root)] == ["B", "C"]
+    reader = ElementReader(path)
+    b, c = list(children(root))
+    assert str(reader.error(b, "bad", "x")) == "f.xml:3 <B> x: bad"
+    assert reader.required(b, "x") == "1"
+    with pytest.raises(ScenarioError, match=r"^f\.xml:4 <C>: missing attribute 'y'$"):
+        reader.required(c, "y")
+    with pytest.raises(ScenarioError, match=r"f\.xml:3 <B>: unknown element inside <A>"):
+        reader.many(root, "C")
+    with pytest.raises(ScenarioError, match="holds one of B, C, not two"):
+        reader.one(root, ["B", "C"])
+    assert isinstance(ElementReader(path, MapError).error(b, "m"), MapError)

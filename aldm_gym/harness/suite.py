@@ -108,7 +108,8 @@ def plan_suite(
     :raises ScenarioError: a file that cannot be read; :class:`FileNotFoundError`:
         ``path`` does not exist.
     """
-    from aldm_gym.scenario.parameters import declarations_from_xml, expand_variation, filter_runs
+    from aldm_gym.scenario.declarations import declarations_from_xml
+    from aldm_gym.scenario.distributions import expand_variation, filter_runs
 
     path = Path(path)
     if not path.exists():

@@ -8,15 +8,18 @@ detector (docs/scenarios.md).
 
 Modules:
 
-- :mod:`~aldm_gym.scenario.parameters`: parameters, ``${...}`` expressions,
-  constraints and parameter-variation files.
+- :mod:`~aldm_gym.scenario.expressions`, :mod:`~aldm_gym.scenario.declarations`,
+  :mod:`~aldm_gym.scenario.distributions`: ``${...}`` expressions, parameter
+  declarations with their constraints, and parameter-variation files.
 - :mod:`~aldm_gym.scenario.reader`: the file into entities, ``Init`` and storyboard.
 - :mod:`~aldm_gym.scenario.storyboard`: the element life cycle and triggers.
 - :mod:`~aldm_gym.scenario.conditions`, :mod:`~aldm_gym.scenario.actions`,
   :mod:`~aldm_gym.scenario.positions`: what the elements do.
 - :mod:`~aldm_gym.scenario.world`: the entities on the map and how scripted ones move.
 - :mod:`~aldm_gym.scenario.runner`: one run on the env's road.
-- :mod:`~aldm_gym.harness.criteria`: UN R157 pass criteria of a run.
+
+The UN R157 criteria and suites of runs are the harness above the env
+(:mod:`aldm_gym.harness`).
 """
 
 from aldm_gym.scenario.reader import Scenario, read_scenario

@@ -191,7 +191,8 @@ def _resolve_expressions(source: Path, root: Any, overrides: Mapping[str, Any]) 
     decimals (C++ ``std::to_string``): 60 / 3.6 becomes 16.666667, and a scenario that
     triggers at the very distance its numbers reach breaks the tie by that rounding.
     The copy gives both players the same doubles."""
-    from aldm_gym.scenario.parameters import bind, declarations_from_xml, format_value, resolve
+    from aldm_gym.scenario.declarations import bind, declarations_from_xml
+    from aldm_gym.scenario.expressions import format_value, resolve
 
     top = root.find("ParameterDeclarations")
     values = bind(declarations_from_xml(top), dict(overrides), source.name)

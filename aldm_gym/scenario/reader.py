@@ -2,7 +2,7 @@
 
 The file is read with lxml, which keeps every element's line, so an error names the
 file, the line and the element (``cut_in.xosc:57 <SpeedAction>``). Parameters are
-bound once per run (:mod:`aldm_gym.scenario.parameters`: the declarations, the
+bound once per run (:mod:`aldm_gym.scenario.declarations`: the declarations, the
 overrides given, ``${...}`` expressions) and every attribute is resolved as it is
 read. The map is the ``RoadNetwork/LogicFile``; vehicles, pedestrians and misc objects
 come inline or from the catalogs of ``CatalogLocations`` (with their own parameter
@@ -29,14 +29,8 @@ from aldm_gym.errors import OffRoadError, ScenarioError, ScenarioWarning
 from aldm_gym.scenario import actions as A
 from aldm_gym.scenario import conditions as C
 from aldm_gym.scenario import shapes as S
-from aldm_gym.scenario.parameters import (
-    ParamValue,
-    bind,
-    declarations_from_xml,
-    format_value,
-    resolve,
-    resolve_number,
-)
+from aldm_gym.scenario.declarations import bind, declarations_from_xml
+from aldm_gym.scenario.expressions import ParamValue, format_value, resolve, resolve_number
 from aldm_gym.scenario.positions import (
     LanePos,
     Orientation,
@@ -66,7 +60,7 @@ from aldm_gym.scenario.storyboard import (
     Trigger,
 )
 from aldm_gym.scenario.world import BoundingBox, Entity
-from aldm_gym.xmlfile import parse_xml, where
+from aldm_gym.xmlfile import ElementReader, parse_xml
 
 __all__ = ["EntitySpec", "Scenario", "read_scenario"]
 
@@ -231,7 +225,7 @@ def read_scenario(path: str | Path, parameters: Mapping[str, Any] | None = None)
             )
         raise ScenarioError(f"{path.name}: no <Storyboard>")
     declarations = declarations_from_xml(root.find("ParameterDeclarations"))
-    from aldm_gym.scenario.parameters import violations
+    from aldm_gym.scenario.declarations import violations
 
     _Reader(path, {}, root, None).kids(
         root,
@@ -286,8 +280,10 @@ def read_scenario(path: str | Path, parameters: Mapping[str, Any] | None = None)
     return scenario
 
 
-class _Reader:
+class _Reader(ElementReader):
     """Reads elements of one file with one set of parameter values."""
+
+    path: Path
 
     def __init__(
         self,
@@ -296,7 +292,7 @@ class _Reader:
         root: Any,
         entities: Mapping[str, Entity] | None,
     ) -> None:
-        self.path = path
+        super().__init__(path, ScenarioError)
         self.params = params
         self.root = root
         self.runtime = entities
@@ -315,14 +311,6 @@ class _Reader:
         reading it), shared with the scoped readers."""
 
     # ------------------------------------------------------------ attributes
-    def where(self, el: Any, attr: str | None = None) -> str:
-        """``file:line <Tag>`` (and ``attr``) of an element."""
-        return where(self.path, el, attr)
-
-    def error(self, el: Any, message: str) -> ScenarioError:
-        """A :class:`ScenarioError` naming the element."""
-        return ScenarioError(f"{self.where(el)}: {message}")
-
     def attr(self, el: Any, name: str, default: Any = _MISSING) -> str:
         """An attribute, parameters resolved, as text."""
         raw = el.get(name)

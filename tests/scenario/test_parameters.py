@@ -14,20 +14,20 @@ from hypothesis import strategies as st
 from lxml import etree
 
 from aldm_gym.errors import InputError, ScenarioError
-from aldm_gym.scenario.parameters import (
-    ConcreteRun,
+from aldm_gym.scenario.declarations import (
     ParameterDeclaration,
-    ParamValue,
     ValueConstraint,
     bind,
     declarations_from_xml,
+    violations,
+)
+from aldm_gym.scenario.distributions import ConcreteRun, expand_variation, filter_runs
+from aldm_gym.scenario.expressions import (
+    ParamValue,
     evaluate,
-    expand_variation,
-    filter_runs,
     format_value,
     resolve,
     resolve_number,
-    violations,
 )
 
 ALKS_DIR = Path("/work/shared/osc-alks/logical_scenarios")
@@ -339,7 +339,10 @@ def test_declarations_from_xml_reads_types_groups_and_lines() -> None:
 @pytest.mark.parametrize(
     ("xml", "parts"),
     [
-        ('<ParameterDeclaration name="a" parameterType="double"/>', ["line 2", "'value'"]),
+        (
+            '<ParameterDeclaration name="a" parameterType="double"/>',
+            [":2 <ParameterDeclaration>", "'value'"],
+        ),
         ('<ParameterDeclaration name="a" parameterType="float" value="1"/>', ["'float'"]),
         ('<ParameterDeclaration name="a b" parameterType="double" value="1"/>', ["'a b'"]),
         ('<Parameter name="a" parameterType="double" value="1"/>', ["<Parameter>", "unknown"]),
@@ -653,7 +656,7 @@ def _stochastic(inner: str, attributes: str = 'numberOfTestRuns="2"') -> str:
     [
         (
             "<Deterministic><Bogus/></Deterministic>",
-            ["v.xosc, <Bogus> at line 6", "unknown element"],
+            ["v.xosc:6 <Bogus>", "unknown element"],
         ),
         (
             '<Deterministic/><Stochastic numberOfTestRuns="1"/>',
@@ -661,7 +664,7 @@ def _stochastic(inner: str, attributes: str = 'numberOfTestRuns="2"') -> str:
         ),
         (
             "<Deterministic><ParameterValueSet/></Deterministic>",
-            ["<ParameterValueSet> at line 6", "DeterministicMultiParameterDistribution"],
+            [":6 <ParameterValueSet>", "DeterministicMultiParameterDistribution"],
         ),
         (
             f"<Deterministic>{_single(_range('0', '0', '1'))}</Deterministic>",
@@ -702,7 +705,7 @@ def _stochastic(inner: str, attributes: str = 'numberOfTestRuns="2"') -> str:
                 '<NormalDistribution expectedValue="0" variance="1">'
                 '<Range lowerLimit="50" upperLimit="51"/></NormalDistribution>'
             ),
-            ["<NormalDistribution> at line 6", "draws fell outside the Range [50.0, 51.0]"],
+            [":6 <NormalDistribution>", "draws fell outside the Range [50.0, 51.0]"],
         ),
     ],
 )
@@ -712,7 +715,7 @@ def test_variation_errors_name_file_element_and_line(
     path = _variation(tmp_path, body)
     with pytest.raises(InputError) as info:
         expand_variation(path)
-    assert str(info.value).startswith(str(path))
+    assert str(info.value).startswith(f"{path.name}:")
     for part in parts:
         assert part in str(info.value)
 
@@ -726,7 +729,7 @@ def test_variation_file_errors(tmp_path: Path) -> None:
         expand_variation(broken)
     scenario = tmp_path / "scenario.xosc"
     scenario.write_text("<OpenSCENARIO><FileHeader/><ParameterDeclarations/></OpenSCENARIO>")
-    with pytest.raises(InputError, match="<ParameterDeclarations> at line 1: unknown element"):
+    with pytest.raises(InputError, match=":1 <ParameterDeclarations>: unknown element"):
         expand_variation(scenario)
 
 

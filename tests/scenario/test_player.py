@@ -791,7 +791,7 @@ def _two_way(folder: Path) -> Path:
 
 def test_subset_covers_every_value_it_can() -> None:
     from aldm_gym.harness.suite import _subset
-    from aldm_gym.scenario.parameters import ConcreteRun
+    from aldm_gym.scenario.distributions import ConcreteRun
 
     runs = [
         ConcreteRun(i, {"a": str(a), "b": str(b), "c": str(c)})

@@ -24,7 +24,7 @@ from lxml import etree
 
 from aldm_gym.errors import MapError, MapNotFoundError
 from aldm_gym.roads.position import MAX_COORDINATE
-from aldm_gym.xmlfile import parse_xml
+from aldm_gym.xmlfile import ElementReader, parse_xml
 
 GEOMETRY_KINDS = ("line", "arc", "spiral", "poly3", "paramPoly3")
 """Plan-view geometry element names this reader evaluates."""
@@ -428,25 +428,24 @@ _READ = {
 }
 
 
-class _Reader:
-    """Reads attributes with errors that name the file, road and element."""
+class _Reader(ElementReader):
+    """Reads attributes with errors that name the file, element, line and road."""
 
     def __init__(self, path: str) -> None:
-        self.path = path
+        super().__init__(path, MapError)
         self.road = ""
         self.skipped: Counter[str] = Counter()
 
-    def fail(self, el: etree._Element, message: str) -> MapError:
-        where = f"{self.path}"
-        if self.road:
-            where += f", road {self.road!r}"
-        return MapError(f"{where}, <{el.tag}> at line {el.sourceline}: {message}")
+    def where(self, el: etree._Element, attr: str | None = None) -> str:
+        """``file:line <Tag>`` (and ``attr``), with the road being read."""
+        base = super().where(el, attr)
+        return f"{base} (road {self.road!r})" if self.road else base
 
     def text(self, el: etree._Element, name: str, default: str | None = None) -> str:
         value = el.get(name)
         if value is None:
             if default is None:
-                raise self.fail(el, f"missing attribute {name!r}")
+                raise self.error(el, f"missing attribute {name!r}")
             return default
         return value.strip()
 
@@ -458,14 +457,14 @@ class _Reader:
         raw = el.get(name)
         if raw is None:
             if default is None:
-                raise self.fail(el, f"missing attribute {name!r}")
+                raise self.error(el, f"missing attribute {name!r}")
             return default
         try:
             value = float(raw)
         except ValueError:
-            raise self.fail(el, f"attribute {name}={raw!r} is not a number") from None
+            raise self.error(el, f"attribute {name}={raw!r} is not a number") from None
         if not math.isfinite(value):
-            raise self.fail(el, f"attribute {name}={raw!r} is not finite")
+            raise self.error(el, f"attribute {name}={raw!r} is not finite")
         return value
 
     def opt_num(self, el: etree._Element, name: str) -> float | None:
@@ -474,15 +473,15 @@ class _Reader:
     def length(self, el: etree._Element, name: str, default: float | None = None) -> float:
         value = self.num(el, name, default)
         if value < 0.0:
-            raise self.fail(el, f"attribute {name}={value!r} is negative")
+            raise self.error(el, f"attribute {name}={value!r} is negative")
         if value > MAX_LENGTH:
-            raise self.fail(el, f"attribute {name}={value!r} is more than {MAX_LENGTH:g} m")
+            raise self.error(el, f"attribute {name}={value!r} is more than {MAX_LENGTH:g} m")
         return value
 
     def coordinate(self, el: etree._Element, name: str) -> float:
         value = self.num(el, name)
         if abs(value) > MAX_COORDINATE:
-            raise self.fail(
+            raise self.error(
                 el, f"attribute {name}={value!r} is more than {MAX_COORDINATE:g} m from the origin"
             )
         return value
@@ -492,7 +491,7 @@ class _Reader:
         try:
             return int(float(raw)) if float(raw).is_integer() else int(raw)
         except ValueError:
-            raise self.fail(el, f"attribute {name}={raw!r} is not an integer") from None
+            raise self.error(el, f"attribute {name}={raw!r} is not an integer") from None
 
     def children(self, el: etree._Element, parent: str) -> list[etree._Element]:
         """Element children; unread ones (and comments) are counted as skipped."""
@@ -523,7 +522,7 @@ def _geometry(r: _Reader, el: etree._Element) -> Geometry:
     kinds = [c for c in el if isinstance(c.tag, str)]
     if len(kinds) != 1:
         names = [c.tag for c in kinds]
-        raise r.fail(el, f"expected exactly one of {GEOMETRY_KINDS}, found {names}")
+        raise r.error(el, f"expected exactly one of {GEOMETRY_KINDS}, found {names}")
     k = kinds[0]
     shape: Shape
     if k.tag == "line":
@@ -537,14 +536,14 @@ def _geometry(r: _Reader, el: etree._Element) -> Geometry:
     elif k.tag == "paramPoly3":
         p_range = r.text(k, "pRange", "normalized")
         if p_range not in ("arcLength", "normalized"):
-            raise r.fail(k, f"pRange={p_range!r} is not 'arcLength' or 'normalized'")
+            raise r.error(k, f"pRange={p_range!r} is not 'arcLength' or 'normalized'")
         shape = ParamPoly3(
             tuple(r.num(k, n) for n in ("aU", "bU", "cU", "dU")),  # type: ignore[arg-type]
             tuple(r.num(k, n) for n in ("aV", "bV", "cV", "dV")),  # type: ignore[arg-type]
             p_range,
         )
     else:
-        raise r.fail(k, f"unknown geometry type (expected one of {GEOMETRY_KINDS})")
+        raise r.error(k, f"unknown geometry type (expected one of {GEOMETRY_KINDS})")
     return Geometry(
         s=r.length(el, "s"),
         x=r.coordinate(el, "x"),
@@ -558,7 +557,7 @@ def _geometry(r: _Reader, el: etree._Element) -> Geometry:
 def _road_mark(r: _Reader, el: etree._Element) -> RoadMark:
     kind = r.text(el, "type")
     if kind not in ROAD_MARK_TYPES:
-        raise r.fail(el, f"unknown roadMark type {kind!r} (expected one of {ROAD_MARK_TYPES})")
+        raise r.error(el, f"unknown roadMark type {kind!r} (expected one of {ROAD_MARK_TYPES})")
     type_name, type_width, lines = "", None, []
     for t in r.children(el, "roadMark"):  # only <type>
         type_name = r.text(t, "name", "")
@@ -583,13 +582,13 @@ def _road_mark(r: _Reader, el: etree._Element) -> RoadMark:
     color = r.text(el, "color", "standard")
     for item, c in [(el, color)] + [(el, ln.color) for ln in lines]:
         if c is not None and c not in ROAD_MARK_COLOURS:
-            raise r.fail(item, f"unknown colour {c!r} (expected one of {ROAD_MARK_COLOURS})")
+            raise r.error(item, f"unknown colour {c!r} (expected one of {ROAD_MARK_COLOURS})")
     if kind == "custom" and not lines:
         r.skipped["roadMark type 'custom' without <type>/<line> (no paint)"] += 1
     width = r.opt_num(el, "width")
     height = r.opt_num(el, "height")
     if width is not None and width < 0.0:
-        raise r.fail(el, f"attribute width={width!r} is negative")
+        raise r.error(el, f"attribute width={width!r} is negative")
     return RoadMark(
         s_offset=r.length(el, "sOffset"),
         type=kind,
@@ -630,7 +629,7 @@ def _lane(r: _Reader, el: etree._Element) -> Lane:
         else:
             marks.append(_road_mark(r, child))
     if lane_id == 0 and (widths or borders):
-        raise r.fail(el, "the centre lane (id 0) must not have width or border records")
+        raise r.error(el, "the centre lane (id 0) must not have width or border records")
     level = r.text(el, "level", "false").lower() in ("true", "1")
     return Lane(
         id=lane_id,
@@ -657,17 +656,17 @@ def _lane_section(r: _Reader, el: etree._Element) -> LaneSection:
             lane = _lane(r, child)
             expected = {"left": lane.id > 0, "center": lane.id == 0, "right": lane.id < 0}
             if not expected[side.tag]:
-                raise r.fail(child, f"lane id {lane.id} in <{side.tag}>")
+                raise r.error(child, f"lane id {lane.id} in <{side.tag}>")
             lanes.append(lane)
     ids = [lane.id for lane in lanes]
     if len(set(ids)) != len(ids):
-        raise r.fail(el, f"duplicate lane ids {sorted(ids)}")
+        raise r.error(el, f"duplicate lane ids {sorted(ids)}")
     if 0 not in ids:
-        raise r.fail(el, "no centre lane (id 0)")
+        raise r.error(el, "no centre lane (id 0)")
     for side in (1, -1):
         n = sum(1 for i in ids if i * side > 0)
         if sorted(abs(i) for i in ids if i * side > 0) != list(range(1, n + 1)):
-            raise r.fail(el, f"lane ids {sorted(ids)} are not consecutive from the centre")
+            raise r.error(el, f"lane ids {sorted(ids)} are not consecutive from the centre")
     single = r.text(el, "singleSide", "false").lower() in ("true", "1")
     if single:
         r.skipped["laneSection@singleSide (read as a full section)"] += 1
@@ -681,10 +680,10 @@ def _lane_section(r: _Reader, el: etree._Element) -> LaneSection:
 def _road_link(r: _Reader, el: etree._Element) -> RoadLink:
     element_type = r.text(el, "elementType", "road")
     if element_type not in ("road", "junction"):
-        raise r.fail(el, f"elementType={element_type!r} is not 'road' or 'junction'")
+        raise r.error(el, f"elementType={element_type!r} is not 'road' or 'junction'")
     contact = r.opt_text(el, "contactPoint")
     if element_type == "road" and contact not in ("start", "end"):
-        raise r.fail(el, f"contactPoint={contact!r} is not 'start' or 'end'")
+        raise r.error(el, f"contactPoint={contact!r} is not 'start' or 'end'")
     return RoadLink(element_type, r.text(el, "elementId"), contact)
 
 
@@ -694,7 +693,7 @@ def _road(r: _Reader, el: etree._Element) -> Road:
     r.road = road_id
     rule = r.text(el, "rule", "RHT")
     if rule not in ("RHT", "LHT"):
-        raise r.fail(el, f"rule={rule!r} is not 'RHT' or 'LHT'")
+        raise r.error(el, f"rule={rule!r} is not 'RHT' or 'LHT'")
     pred = succ = None
     geometries: list[Geometry] = []
     offsets: list[Cubic] = []
@@ -720,9 +719,9 @@ def _road(r: _Reader, el: etree._Element) -> Road:
                 else:
                     sections.append(_lane_section(r, item))
     if not geometries:
-        raise r.fail(el, "no <planView/geometry>")
+        raise r.error(el, "no <planView/geometry>")
     if not sections:
-        raise r.fail(el, "no <lanes/laneSection>")
+        raise r.error(el, "no <lanes/laneSection>")
     road = Road(
         id=road_id,
         name=r.text(el, "name", ""),
@@ -749,11 +748,11 @@ def _junction(r: _Reader, el: etree._Element) -> Junction:
         )
         contact = r.text(c, "contactPoint")
         if contact not in ("start", "end"):
-            raise r.fail(c, f"contactPoint={contact!r} is not 'start' or 'end'")
+            raise r.error(c, f"contactPoint={contact!r} is not 'start' or 'end'")
         # A direct junction (OpenDRIVE 1.7) names the continuing road linkedRoad.
         name = "connectingRoad" if c.get("connectingRoad") is not None else "linkedRoad"
         if c.get(name) is None:
-            raise r.fail(c, "missing attribute 'connectingRoad' (or 'linkedRoad')")
+            raise r.error(c, "missing attribute 'connectingRoad' (or 'linkedRoad')")
         connections.append(
             Connection(
                 id=r.text(c, "id"),
@@ -786,7 +785,7 @@ def parse_file(path: str | os.PathLike[str], *, warn: bool = True) -> OpenDriveF
     root = parse_xml(name, error=MapError).getroot()
     r = _Reader(name)
     if root.tag != "OpenDRIVE":
-        raise r.fail(root, "the root element is not <OpenDRIVE>")
+        raise r.error(root, "the root element is not <OpenDRIVE>")
     header = Header(1, 0, "")
     roads: list[Road] = []
     junctions: list[Junction] = []

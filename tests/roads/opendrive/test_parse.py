@@ -61,17 +61,17 @@ def test_malformed_xml_names_file_and_line(tmp_path: Path) -> None:
 def test_geometry_without_type_names_road(tmp_path: Path) -> None:
     road = road_xml("7", geometry_xml("", 100.0), 100.0, section_xml(right=lane_xml(-1)))
     path = write_xodr(tmp_path / "notype.xodr", road)
-    with pytest.raises(ValueError, match=r"notype\.xodr, road '7', <geometry> at line \d+"):
+    with pytest.raises(ValueError, match=r"notype\.xodr:\d+ <geometry> \(road '7'\)"):
         parse_file(path)
 
 
 @pytest.mark.parametrize(
     ("geometry", "message"),
     [
-        ('<arc curvature="abc"/>', r"road '3', <arc> .*curvature='abc' is not a number"),
-        ('<arc curvature="nan"/>', r"road '3', <arc> .*not finite"),
-        ("<clothoid/>", r"road '3', <clothoid> .*unknown geometry type"),
-        ("<arc/>", r"road '3', <arc> .*missing attribute 'curvature'"),
+        ('<arc curvature="abc"/>', r"<arc> \(road '3'\): .*curvature='abc' is not a number"),
+        ('<arc curvature="nan"/>', r"<arc> \(road '3'\): .*not finite"),
+        ("<clothoid/>", r"<clothoid> \(road '3'\): .*unknown geometry type"),
+        ("<arc/>", r"<arc> \(road '3'\): .*missing attribute 'curvature'"),
     ],
 )
 def test_bad_geometry_records(tmp_path: Path, geometry: str, message: str) -> None:
@@ -82,11 +82,11 @@ def test_bad_geometry_records(tmp_path: Path, geometry: str, message: str) -> No
 
 def test_negative_length_and_bad_width(tmp_path: Path) -> None:
     road = road_xml("4", geometry_xml("<line/>", -1.0), 100.0, section_xml(right=lane_xml(-1)))
-    with pytest.raises(ValueError, match=r"road '4', <geometry> .*length=-1.0 is negative"):
+    with pytest.raises(ValueError, match=r"<geometry> \(road '4'\): .*length=-1.0 is negative"):
         parse_file(write_xodr(tmp_path / "neg.xodr", road))
     bad = lane_xml(-1, width='<width sOffset="0" a="3.x" b="0" c="0" d="0"/>')
     road = road_xml("5", geometry_xml("<line/>", 100.0), 100.0, section_xml(right=bad))
-    with pytest.raises(ValueError, match=r"road '5', <width> .*a='3.x' is not a number"):
+    with pytest.raises(ValueError, match=r"<width> \(road '5'\): .*a='3.x' is not a number"):
         parse_file(write_xodr(tmp_path / "width.xodr", road))
 
 
@@ -200,7 +200,10 @@ def test_numbers_that_would_size_an_array_or_leave_the_world(tmp_path: Path) -> 
         return road_xml("6", geometry, 100.0, section_xml(right=lane_xml(-1, width=width)))
 
     cases = [
-        (plain(geometry_xml("<line/>", 1e308)), r"road '6', <geometry> .*length=1e\+308 is more"),
+        (
+            plain(geometry_xml("<line/>", 1e308)),
+            r"<geometry> \(road '6'\): .*length=1e\+308 is more",
+        ),
         (plain(geometry_xml("<line/>", 100.0, x=1e300)), r"<geometry> .*x=1e\+300 is more than"),
         # 3.5 m - 1e-3 ds^3 is below zero from ds = 15.2 m
         (
