@@ -87,12 +87,19 @@ def _input_known(name: str) -> bool:
     return name in INPUTS
 
 
-def _unknown(kind: str, name: str, allowed: tuple[str, ...], path: Path) -> InputError:
+def _listing(md: Any) -> str:
+    """What an FMU declares: its inputs and outputs by name."""
+    has = {c: [v.name for v in md.modelVariables if v.causality == c] for c in ("input", "output")}
+    return f"the FMU has inputs {has['input'] or 'none'} and outputs {has['output'] or 'none'}"
+
+
+def _unknown(kind: str, name: str, allowed: tuple[str, ...], path: Path, md: Any) -> InputError:
     near = difflib.get_close_matches(name, allowed, n=1)
     hint = f" (did you mean {near[0]!r}?)" if near else ""
     return InputError(
         f"{path.name}: {kind} {name!r} is not in aldm-gym's convention{hint}; "
-        f"{kind}s: {', '.join(allowed)} (docs/api.md, 'Functions in an FMU')"
+        f"{kind}s: {', '.join(allowed)} (docs/api.md, 'Functions in an FMU'); "
+        f"{_listing(md)}"
     )
 
 
@@ -129,15 +136,16 @@ class FMUFunction:
         for v in md.modelVariables:
             if v.causality == "input":
                 if not _input_known(v.name):
-                    raise _unknown("input", v.name, INPUTS, self.path)
+                    raise _unknown("input", v.name, INPUTS, self.path, md)
                 self.inputs[v.name] = v
             elif v.causality == "output":
                 if v.name not in OUTPUTS:
-                    raise _unknown("output", v.name, OUTPUTS, self.path)
+                    raise _unknown("output", v.name, OUTPUTS, self.path, md)
                 self.outputs[v.name] = v
         if not self.outputs:
             raise InputError(
-                f"{self.path.name} has no output; it needs one of {', '.join(OUTPUTS)}"
+                f"{self.path.name} has no output of the convention; it needs one of "
+                f"{', '.join(OUTPUTS)}; {_listing(md)}"
             )
         if "steering" in self.outputs and "curvature" in self.outputs:
             raise InputError(f"{self.path.name} outputs steering and curvature; give one")
