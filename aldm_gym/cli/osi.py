@@ -251,12 +251,17 @@ def run_fmu(args: argparse.Namespace) -> int:
         raise BadArgument("--tracking", "tracking is the ALDM's: use it with --detector aldm")
     tracking = detector_params_for(args.tracking)
     _, sensor, params = _settings(args, tracking, "--tracking")
-    params.pop("tracking", None)  # the FMU's own parameter
+    # the FMU's own parameter: from --tracking, or from --env/--config's
+    # detector_params.tracking (True: the tracking ALDM, "model": the filter)
+    given = params.pop("tracking", None)
+    mode = args.tracking
+    if mode == "none" and given is not None:
+        mode = "model" if given == "model" else "points" if given is True else "none"
     try:
         path = build_sensor_fmu(
             args.out,
             detector=args.detector,
-            tracking=args.tracking,
+            tracking=mode,
             marking_model=args.marking_model,
             sensor=sensor,
             detector_params=params,
@@ -267,7 +272,7 @@ def run_fmu(args: argparse.Namespace) -> int:
         raise BadArgument("--env", str(exc)) from None
     print(
         f"wrote {path}: an OSMP {OSMP_VERSION} sensor-model FMU (FMI 2.0 co-simulation), "
-        f"{args.detector}, tracking {args.tracking}, {args.marking_model}; it runs in a "
+        f"{args.detector}, tracking {mode}, {args.marking_model}; it runs in a "
         "Python with aldm-gym[osi,fmi] installed (docs/osi.md)"
     )
     return 0

@@ -1,9 +1,11 @@
-"""Fuzzing the files users give the command line: scenarios, maps, OSI traces.
+"""Fuzzing the files users give the command line: scenarios, maps, OSI traces, env
+settings files.
 
 Hypothesis draws mutations (:mod:`tests.fuzz.mutate`) of seed files the tests already
 write (small scenarios, the player's corpus, the shipped maps, a trace the env
 records; the OSC-ALKS suite too under ``-m slow``); the mutants are then played through
-``aldm-gym scenario run``, ``aldm-gym plot --xodr`` and ``aldm-gym osi detect`` in a
+``aldm-gym scenario run``, ``aldm-gym plot --xodr``, ``aldm-gym osi detect`` and
+``aldm-gym osi fmu --config`` in a
 child process with a memory cap and a time limit per case (:mod:`tests.fuzz.harness`).
 Every outcome must be a refusal naming the file (exit 2) or a run that plays to an end
 with finite numbers; anything else fails the test with the mutation that caused it.
@@ -315,10 +317,57 @@ def _trace_cases(folder: Path, slow: bool) -> list[dict[str, Any]]:
     return cases
 
 
+# ---------------------------------------------------------------------------- configs
+CONFIG_SEED = """\
+# an env settings file, as --config takes it
+detector: aldm
+marking_model: per_dash
+sensor:
+  preset: camera
+  lateral_noise: 0.02
+detector_params:
+  tracking: model
+acc:
+  time_gap: 1.8
+observation:
+  line_confidence: true
+policy_frequency: 10
+"""
+
+
+def _config_cases(folder: Path, slow: bool) -> list[dict[str, Any]]:
+    """Byte mutants of a YAML and a JSON env settings file, given to ``osi fmu
+    --config`` (which reads the whole file and uses its sensor and detector sections)."""
+    pytest.importorskip("pythonfmu")
+    import json
+
+    import yaml
+
+    seeds = {".yaml": CONFIG_SEED, ".json": json.dumps(yaml.safe_load(CONFIG_SEED), indent=1)}
+    mutants = folder / "mutants"
+    mutants.mkdir()
+    cases: list[dict[str, Any]] = []
+    for suffix, text in seeds.items():
+        drawn = _draw(20 * _scale(slow), bytes_mutation(), f"config-{suffix}-{slow}")
+        for k, mutation in enumerate(drawn):
+            path = mutants / f"config_{k}{suffix}"
+            path.write_bytes(apply_bytes(text.encode(), mutation))
+            out = folder / f"fmu_{k}.fmu"
+            cases.append(
+                {
+                    "label": f"{path.name} {describe(mutation)}",
+                    "argv": ["osi", "fmu", str(out), "--config", str(path)],
+                    "names": [path.name],
+                }
+            )
+    return cases
+
+
 KINDS: dict[str, Callable[[Path, bool], list[dict[str, Any]]]] = {
     "scenario": _scenario_cases,
     "map": _map_cases,
     "trace": _trace_cases,
+    "config": _config_cases,
 }
 """The files fuzzed, each with the cases of its mutants."""
 

@@ -177,3 +177,19 @@ def test_an_output_stays_valid_until_the_second_step_after_it(trace: Path) -> No
     assert model._previous is not None  # the first output, still held
     assert ctypes.addressof(model._previous) == unpack_pointer(lo, hi)
     assert ctypes.string_at(unpack_pointer(lo, hi), size) == first
+
+
+def test_the_command_takes_tracking_from_env_or_config(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    config = tmp_path / "c.yaml"
+    config.write_text("detector_params:\n  tracking: model\nacc:\n  time_gap: 2.0\n")
+    out = tmp_path / "from_config.fmu"
+    assert main(["osi", "fmu", str(out), "--config", str(config)]) == 0
+    captured = capsys.readouterr()
+    assert "tracking model" in captured.out
+    assert "sections of --config only" in captured.err  # acc is not the FMU's
+    assert 'start="model"' in zipfile.ZipFile(out).read("modelDescription.xml").decode()
+    out = tmp_path / "from_env.fmu"
+    assert main(["osi", "fmu", str(out), "--env", "detector_params.tracking=true"]) == 0
+    assert "tracking points" in capsys.readouterr().out
