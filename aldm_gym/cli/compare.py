@@ -25,6 +25,7 @@ sets the closed loop's share of trucks.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import time
 from pathlib import Path
 from typing import Any
@@ -494,7 +495,11 @@ def _compare_closed_loop(args: argparse.Namespace, out: Path) -> list[Path]:
         policies = [lambda made: FunctionPolicy(made, function)]
     t0 = time.perf_counter()
     total = len(MARKING_MODELS) * len(detectors) * (2 if policies is None else 1) * n_ep
-    with tqdm(total=total, desc="episodes", unit="ep", disable=_no_bar(args)) as bar:
+    close = getattr(function, "close", None)
+    with (
+        tqdm(total=total, desc="episodes", unit="ep", disable=_no_bar(args)) as bar,
+        contextlib.closing(function) if callable(close) else contextlib.nullcontext(),
+    ):
         rows, traces = compare_closed_loop(
             seeds,
             detectors=detectors,

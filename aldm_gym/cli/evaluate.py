@@ -129,9 +129,9 @@ def run(args: argparse.Namespace) -> int:
         raise BadArgument("--model", "give --model or --function (one of them)")
     if args.function is not None:
         function = function_spec(args)
-        if not isinstance(function, PolicyFunction) or args.function.lower().endswith(".fmu"):
+        if not (isinstance(function, PolicyFunction) and Path(args.function).exists()):
             return _run_function(args, function, episodes)
-        args.model = model_path(args.function)  # a trained model: evaluated as --model
+        args.model = Path(args.function)  # a trained model: evaluated as --model
     overrides = _env(args.env)
     try:
         model, picked = model_to_evaluate(args.model)
@@ -186,22 +186,29 @@ def _run_function(args: argparse.Namespace, function: Any, episodes: int) -> int
     for key, value in (("detector", args.detector), ("marking_model", args.marking_model)):
         if value is not None:
             overrides[key] = value
+    base = merged_config({}, overrides)
     try:
-        config = env_for(function, merged_config({}, overrides), given=set(overrides))
-        merged_config(default_config(), config)
+        config = env_for(function, base, given=set(overrides))
         check_env(config)
     except ConfigError as exc:
         raise BadArgument("--env", str(exc)) from None
     t0 = time.perf_counter()
     try:
         with console():
+            # the rule-based policies on the settings as given (their rate included),
+            # the function on what it needs (env_for): the same seeds for both
             rows, per_episode = play_policies(
+                base, RULE_BASED, episodes=episodes, seed=args.seed, progress=not args.no_progress
+            )
+            more, per = play_policies(
                 config,
-                (*RULE_BASED, ("function", lambda env: FunctionPolicy(env, function))),
+                (("function", lambda env: FunctionPolicy(env, function)),),
                 episodes=episodes,
                 seed=args.seed,
                 progress=not args.no_progress,
             )
+            rows += more
+            per_episode.update(per)
     finally:
         close = getattr(function, "close", None)
         if callable(close):
@@ -209,8 +216,8 @@ def _run_function(args: argparse.Namespace, function: Any, episodes: int) -> int
     full = merged_config(default_config(), config)
     info = {
         "function": args.function,
-        "env_config": {"detector": full["detector"], "marking_model": full["marking_model"]}
-        | config,
+        "env_config": {"detector": full["detector"], "marking_model": full["marking_model"]} | base,
+        "function_env_config": config,
         "seeds": [args.seed, args.seed + episodes - 1],
         "per_episode": per_episode,
     }

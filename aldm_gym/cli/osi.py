@@ -256,7 +256,13 @@ def run_fmu(args: argparse.Namespace) -> int:
     given = params.pop("tracking", None)
     mode = args.tracking
     if mode == "none" and given is not None:
-        mode = "model" if given == "model" else "points" if given is True else "none"
+        modes = {True: "points", False: "none", "model": "model"}
+        if isinstance(given, bool | str) and given in modes:
+            mode = modes[given]
+        else:
+            raise BadArgument(
+                "--env", f"detector_params.tracking must be true, false or 'model', got {given!r}"
+            )
     try:
         path = build_sensor_fmu(
             args.out,

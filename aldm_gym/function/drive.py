@@ -9,13 +9,14 @@ or set-speed step to the env's meta action, and steps the env.
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 
 from aldm_gym.envs.actions import MetaAction
-from aldm_gym.errors import InputError
+from aldm_gym.errors import AldmGymWarning, InputError
 from aldm_gym.function.interface import (
     DOMAINS,
     LINE_ROLES,
@@ -52,7 +53,11 @@ def check_function(function: Any) -> Function:
             f"{', '.join(missing)} (aldm_gym.function.Function: domains, reset(), step())"
         )
     domains = function.domains
-    if isinstance(domains, str) or not set(domains) <= DOMAINS:
+    try:
+        ok = not isinstance(domains, str) and set(domains) <= DOMAINS
+    except TypeError:  # not a collection
+        ok = False
+    if not ok:
         raise InputError(
             f"{type(function).__name__}.domains must be a set of {sorted(DOMAINS)}, got {domains!r}"
         )
@@ -62,8 +67,7 @@ def check_function(function: Any) -> Function:
 def env_for(function: Function, config: Mapping[str, Any], given: Any = ()) -> dict[str, Any]:
     """``config`` with the env settings ``function`` needs.
 
-    * Its ``env_config`` (a policy's trained observation, an FMU's step size as
-      ``policy_frequency``) is merged in.
+    * Its ``env_config`` (e.g. the observation a policy was trained on) is merged in.
     * A function that takes a domain is stepped at every simulation step: its
       ``policy_frequency`` is the ``simulation_frequency`` unless it or ``config``
       says otherwise.
@@ -158,9 +162,14 @@ class FunctionDriver:
     :param env: the env (meta actions: ``action.type="DiscreteMetaAction"``).
     :param function: a :class:`Function`.
 
+    A function that takes a domain is stepped once per env step: at the default
+    ``policy_frequency`` of 1 Hz it would steer blind for a second, so the driver warns;
+    :func:`env_for` gives the settings that step it at every simulation step.
+
     Example::
 
-        driver = FunctionDriver(gym.make("ALDMHighway-v0"), MyLKA())
+        env = gym.make("ALDMHighway-v0", config=env_for(MyLKA(), {}))
+        driver = FunctionDriver(env, MyLKA())
         obs, info = driver.reset(seed=0)
         while True:
             obs, reward, terminated, truncated, info = driver.step()
@@ -175,6 +184,16 @@ class FunctionDriver:
         self.env = env
         self.function = check_function(function)
         self._policy = FunctionPolicy(env, function)
+        settings = env.unwrapped.settings
+        if function.domains and settings.policy_frequency < settings.simulation_frequency:
+            warnings.warn(
+                f"{type(function).__name__} takes the {' and '.join(sorted(function.domains))} "
+                f"domain but is stepped at policy_frequency={settings.policy_frequency} Hz "
+                f"while the simulation runs at {settings.simulation_frequency} Hz; "
+                "config=env_for(function, config) steps it at every simulation step",
+                AldmGymWarning,
+                stacklevel=2,
+            )
         self.observation: Any = None
         self.info: dict[str, Any] = {}
 

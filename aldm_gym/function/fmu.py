@@ -41,8 +41,9 @@ output                                      unit    meaning
 The domains follow from the outputs: ``steering`` or ``curvature`` take the lateral
 domain, ``acceleration`` the longitudinal one. Real, integer and Boolean variables are
 all accepted (integers and Booleans are rounded on the way in). The FMU is stepped
-once per env step: inputs set, ``doStep`` over the step, outputs read as the requests
-for the next step.
+once per env step: inputs set, ``doStep`` over the env step (``1 / policy_frequency``,
+whatever the FMU's default experiment says), outputs read as the requests for the
+next step.
 """
 
 from __future__ import annotations
@@ -157,15 +158,6 @@ class FMUFunction:
         self.domains = frozenset(
             d for d, on in (("lateral", lateral), ("longitudinal", longitudinal)) if on
         )
-        self.env_config: dict[str, Any] = {}
-        """The env settings the FMU needs: its default experiment's step size as the
-        ``policy_frequency`` (when it is a whole number of Hz)."""
-        experiment = md.defaultExperiment
-        step = getattr(experiment, "stepSize", None) if experiment is not None else None
-        if step:
-            hz = 1.0 / float(step)
-            if abs(hz - round(hz)) < 1e-6 and round(hz) >= 1:
-                self.env_config["policy_frequency"] = round(hz)
         self.instance_name = instance_name
         self._unzipped: str | None = None
         self._fmu: Any = None

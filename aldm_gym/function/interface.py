@@ -120,7 +120,8 @@ class EgoState:
 class PerceivedObject:
     """One object the ACC's object sensor reports (sensor frame).
 
-    :ivar id: stable while the object is seen.
+    :ivar id: the object's row in the traffic at this step (the same from step to step
+        while no vehicle enters or leaves the road).
     :ivar x: longitudinal position of its centre [m].
     :ivar y: lateral position of its centre [m], > 0 left.
     :ivar vx: longitudinal speed relative to the ego [m/s] (< 0: closing in).
@@ -199,8 +200,9 @@ def check_output(output: Any, domains: frozenset[str], source: str = "the functi
     :param domains: the domains the function takes; a request in another one is an
         error, not silently dropped.
     :raises InputError: not a :class:`FunctionOutput`, a value that is not finite, both
-        steering and curvature, a lane change or speed step outside -1..1, or a request
-        outside ``domains``.
+        steering and curvature, a lane change or speed step outside -1..1, a lane change
+        asked of the built-in beside the function's own steering, or a request outside
+        ``domains``.
     """
     if not isinstance(output, FunctionOutput):
         raise InputError(
@@ -217,6 +219,11 @@ def check_output(output: Any, domains: frozenset[str], source: str = "the functi
         integer = isinstance(value, int | np.integer) and not isinstance(value, bool)
         if not integer or value not in (-1, 0, 1):
             raise InputError(f"{source}'s {name} must be -1, 0 or 1, got {value!r}")
+    if output.lane_change and (output.steering is not None or output.curvature is not None):
+        raise InputError(
+            f"{source} steers and asks the built-in lane change for a lane: a function "
+            "that steers changes lanes itself"
+        )
     taken = sorted(domains) or "none"
     if (output.steering is not None or output.curvature is not None) and "lateral" not in domains:
         raise InputError(f"{source} steers but does not take the lateral domain (takes {taken})")

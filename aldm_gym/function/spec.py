@@ -46,12 +46,21 @@ def _import(module: str, attr: str, spec: str) -> Any:
             raise InputError(f"--function {spec}: cannot import {path}")
         mod = importlib.util.module_from_spec(loader)
         sys.modules[name] = mod
-        loader.loader.exec_module(mod)
+        try:
+            loader.loader.exec_module(mod)
+        except Exception as exc:  # the user's file: report it, not a traceback of ours
+            raise InputError(
+                f"--function {spec}: importing {path} raised {type(exc).__name__}: {exc}"
+            ) from None
     else:
         try:
             mod = importlib.import_module(module)
         except ImportError as exc:
             raise InputError(f"--function {spec}: cannot import {module}: {exc}") from None
+        except Exception as exc:  # the user's module failed while importing
+            raise InputError(
+                f"--function {spec}: importing {module} raised {type(exc).__name__}: {exc}"
+            ) from None
     obj: Any = mod
     for part in attr.split("."):
         if not hasattr(obj, part):
@@ -95,7 +104,13 @@ def load_function(spec: str) -> Function:
         raise InputError(f"--function {text!r}: no such file, and not module:attr; {SPEC_HELP}")
     obj = _import(module, attr, text)
     if isinstance(obj, type):
-        obj = obj()
+        try:
+            obj = obj()
+        except Exception as exc:  # a class that needs arguments, or fails to build
+            raise InputError(
+                f"--function {text}: {attr}() raised {type(exc).__name__}: {exc} (a class "
+                "named by --function is made without arguments; name an instance instead)"
+            ) from None
     elif not hasattr(obj, "step") and callable(obj):
         obj = CallableFunction(obj)
     return check_function(obj)

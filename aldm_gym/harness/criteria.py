@@ -1,8 +1,9 @@
 """UN R157 (ALKS) pass criteria of a scenario run, judged on ground truth.
 
-:func:`run_scenario` plays one concrete scenario in ``ALDMHighway-v0`` (the function
-under test: LKA on the detected lanes, ACC and AEB, IDLE meta action) and a
-:class:`Judge` watches every policy step after the ego's controller is active. The
+:func:`run_scenario` plays one concrete scenario in ``ALDMHighway-v0`` with a function
+under test (:mod:`aldm_gym.function`; by default the env's own: LKA on the detected
+lanes, ACC and AEB, no lane change) and a :class:`Judge` watches every policy step
+after the ego's controller is active. The
 criteria, each with the regulation's paragraph (UN R157, ECE/TRANS/WP.29/2020/81):
 
 ``no_collision`` (5.1.1)

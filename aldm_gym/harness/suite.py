@@ -140,13 +140,22 @@ def plan_suite(
 
 
 _FUNCTIONS: dict[str, Function] = {}
-"""The functions under test this process has loaded, by SPEC (a model or an FMU is
-loaded once per worker, and reset before each run)."""
+"""The functions under test this process has loaded, by SPEC: a trained model is
+loaded once per worker and reset before each run."""
 
 
-def _function(spec: str) -> Function:
+def _function(spec: str) -> Function | str:
+    """The loaded function of ``spec``, kept for the worker's next runs; or ``spec``
+    itself for a function with resources to free (an FMU), which
+    :func:`~aldm_gym.harness.criteria.run_scenario` loads and closes per run (a worker
+    ends without a chance to close what it keeps)."""
     if spec not in _FUNCTIONS:
-        _FUNCTIONS[spec] = load_function(spec)
+        function = load_function(spec)
+        close = getattr(function, "close", None)
+        if callable(close):
+            close()
+            return spec
+        _FUNCTIONS[spec] = function
     return _FUNCTIONS[spec]
 
 

@@ -1,7 +1,8 @@
 """A function under test as an FMU's Python source: pythonfmu packages it (FMI 2.0
-co-simulation) in the tests. Pure pursuit on the perceived ego lane's centre and a
-time-gap ACC on the nearest object slot in it, from the inputs of aldm-gym's FMU
-convention (docs/api.md) only."""
+co-simulation) in the tests. Pure pursuit on the perceived ego lane's centre (its
+curvature through a first-order lag, state that a reset must clear) and a time-gap
+ACC on the nearest object slot in it, from the inputs of aldm-gym's FMU convention
+(docs/api.md) only."""
 
 from pythonfmu import Fmi2Causality, Fmi2Initial, Fmi2Slave, Real
 
@@ -61,7 +62,8 @@ class LaneCentering(Fmi2Slave):
         x = max(12.0, v)
         y = self._centre(x)
         if y is not None:
-            self.curvature = 2.0 * y / (x * x + y * y)
+            # a first-order lag on the curvature: state that only fmi2Reset clears
+            self.curvature += 0.5 * (2.0 * y / (x * x + y * y) - self.curvature)
         accel = 0.5 * (16.7 - v)
         for i in range(SLOTS):
             if self.values[f"object[{i}].valid"] < 0.5:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import warnings
 from typing import Any
 
 import gymnasium as gym
@@ -12,6 +13,7 @@ import pytest
 import aldm_gym  # noqa: F401  (registers the env)
 from aldm_gym.errors import InputError
 from aldm_gym.function import (
+    DOMAINS,
     BuiltinFunction,
     CallableFunction,
     FunctionDriver,
@@ -66,6 +68,7 @@ def test_cubic_recovers_a_cubic_and_missing_lines_are_empty() -> None:
         (FunctionOutput(speed_step=True), frozenset(), "-1, 0 or 1"),
         (FunctionOutput(steering=0.1), frozenset({"longitudinal"}), "lateral domain"),
         (FunctionOutput(acceleration=1.0), frozenset({"lateral"}), "longitudinal"),
+        (FunctionOutput(steering=0.0, lane_change=1), DOMAINS, "changes lanes itself"),
     ],
 )
 def test_bad_outputs_are_named(output: Any, domains: frozenset[str], match: str) -> None:
@@ -247,3 +250,21 @@ def test_the_same_seed_gives_the_same_run_with_a_function() -> None:
         finally:
             env.close()
     assert runs[0] == runs[1]
+
+
+def test_a_function_stepped_slower_than_the_simulation_is_warned_about() -> None:
+    from aldm_gym.errors import AldmGymWarning
+
+    lka = Constant(FunctionOutput(curvature=0.0), frozenset({"lateral"}))
+    with pytest.warns(AldmGymWarning, match="policy_frequency=1 Hz.*env_for"):
+        FunctionDriver(gym.make("ALDMHighway-v0"), lka)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        FunctionDriver(gym.make("ALDMHighway-v0", config=env_for(lka, {})), lka)
+        FunctionDriver(gym.make("ALDMHighway-v0"), BuiltinFunction())  # takes no domain
+
+
+def test_domains_that_are_not_a_set_are_refused() -> None:
+    for domains in (None, 3, "lateral"):
+        with pytest.raises(InputError, match="domains must be a set"):
+            FunctionDriver(_env(), Constant(FunctionOutput(), domains))  # type: ignore[arg-type]

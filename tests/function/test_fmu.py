@@ -12,7 +12,7 @@ import pytest
 
 import aldm_gym  # noqa: F401  (registers the env)
 from aldm_gym.errors import InputError
-from aldm_gym.function import FunctionDriver, FunctionInput, load_function
+from aldm_gym.function import FunctionDriver, FunctionInput, env_for, load_function
 from aldm_gym.function.fmu import FMUFunction
 
 pytest.importorskip("fmpy")
@@ -78,15 +78,15 @@ def test_the_fmu_passes_fmpy_validation_and_declares_both_domains(fmu: Path) -> 
 
 
 def test_the_fmu_keeps_its_lane_and_resets_between_episodes(fmu: Path) -> None:
-    env = gym.make("ALDMHighway-v0", config={"duration": 6, "vehicles_count": 6})
     function = load_function(str(fmu))
+    env = gym.make("ALDMHighway-v0", config=env_for(function, {"duration": 6, "vehicles_count": 6}))
     try:
         driver = FunctionDriver(env, function)
         traces = []
         for _ in range(2):
             driver.reset(seed=3)
             trace = []
-            for _ in range(40):
+            for _ in range(60):
                 _, _, term, trunc, info = driver.step()
                 trace.append((info["speed"], info["lateral_offset"]))
                 if term or trunc:

@@ -56,3 +56,21 @@ NOT_A_FUNCTION = object()
 def test_mistakes_are_named(spec: str, match: str) -> None:
     with pytest.raises(InputError, match=match):
         load_function(spec)
+
+
+class NeedsArguments:
+    """A class that cannot be made without arguments."""
+
+    domains = frozenset()
+
+    def __init__(self, gain: float) -> None:
+        self.gain = gain
+
+
+def test_a_user_module_that_fails_is_named_not_a_traceback(tmp_path: Path) -> None:
+    broken = tmp_path / "broken.py"
+    broken.write_text("raise RuntimeError('no licence')\n")
+    with pytest.raises(InputError, match=r"importing .*broken\.py raised RuntimeError: no licence"):
+        load_function(f"{broken}:Thing")
+    with pytest.raises(InputError, match=r"NeedsArguments\(\) raised TypeError.*without arguments"):
+        load_function("tests.function.test_spec:NeedsArguments")

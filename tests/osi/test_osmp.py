@@ -193,3 +193,15 @@ def test_the_command_takes_tracking_from_env_or_config(
     out = tmp_path / "from_env.fmu"
     assert main(["osi", "fmu", str(out), "--env", "detector_params.tracking=true"]) == 0
     assert "tracking points" in capsys.readouterr().out
+
+
+def test_a_bad_tracking_value_is_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from tests._cli import usage_error
+
+    line = usage_error(
+        ["osi", "fmu", str(tmp_path / "x.fmu"), "--env", "detector_params.tracking=kalman"],
+        capsys,
+    )
+    assert "tracking must be one of [False, True, 'model']" in line
