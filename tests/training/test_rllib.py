@@ -213,9 +213,23 @@ def test_sigterm_finishes_the_iteration_and_saves_it(rllib: object, tmp_path: Pa
     argv += ["--timesteps", "100000", "--n-steps", "64", "--duration", "10"]
     argv += ["--checkpoint-freq", "100000", "--out", str(out), "--no-progress"]
     proc = subprocess.Popen(argv, stderr=subprocess.PIPE, text=True)
+
+    first: list[int] = []
+
+    def iterated() -> bool:
+        """An iteration's scalars are in the events file: it grew past the version
+        record it starts with (the backend flushes after every iteration)."""
+        events = list((out / "tb").rglob("events.out.tfevents.*"))
+        if not events:
+            return False
+        size = events[0].stat().st_size
+        if not first:
+            first.append(size)
+        return size > first[0]
+
     try:
         end = time.monotonic() + 300
-        while not list((out / "tb").rglob("events.out.tfevents.*")):  # training has begun
+        while not iterated():  # training is under way: the signal comes mid-iteration
             assert proc.poll() is None and time.monotonic() < end, proc.stderr.read()[-2000:]
             time.sleep(0.2)
         proc.send_signal(signal.SIGTERM)

@@ -230,6 +230,7 @@ class RLlibBackend(Backend[CheckpointRef]):
                 bar.set_postfix(result_postfix(result), refresh=True)
                 for tag, value in tb_scalars(result).items():
                     self.writer.add_scalar(tag, value, self.steps)
+                self.writer.flush()  # tensorboard (and a watcher) sees each iteration
                 if self.steps - self.last_saved >= self.meta["checkpoint_freq"]:
                     self.save_checkpoint()
 
