@@ -232,11 +232,19 @@ def add_env_argument(parser: argparse.ArgumentParser, note: str) -> None:
     )
 
 
+FUNCTION_HELP = (
+    "the function under test: builtin (the env's own; builtin:rule_based with lane changes), "
+    "a .fmu, a training output folder or model (SB3 .zip, RLlib checkpoint), or "
+    "module:attr / file.py:attr naming a class or callable with aldm_gym.function's "
+    "interface"
+)
+"""The ``--function`` help text (here, not in :mod:`aldm_gym.function`: building the
+parser must not import the env)."""
+
+
 def add_function_argument(parser: argparse.ArgumentParser) -> None:
     """Declare ``--function SPEC`` (:func:`aldm_gym.function.load_function`)."""
-    from aldm_gym.function.spec import SPEC_HELP
-
-    parser.add_argument("--function", default="builtin", metavar="SPEC", help=SPEC_HELP)
+    parser.add_argument("--function", default="builtin", metavar="SPEC", help=FUNCTION_HELP)
 
 
 def function_spec(args: argparse.Namespace) -> Any:

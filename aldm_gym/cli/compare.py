@@ -25,7 +25,6 @@ sets the closed loop's share of trucks.
 from __future__ import annotations
 
 import argparse
-import contextlib
 import time
 from pathlib import Path
 from typing import Any
@@ -33,6 +32,7 @@ from typing import Any
 import numpy as np
 
 from aldm_gym.cli.argtypes import (
+    FUNCTION_HELP,
     BadArgument,
     add_env_argument,
     check_env,
@@ -51,7 +51,6 @@ from aldm_gym.cli.argtypes import (
 from aldm_gym.cli.report import format_table, write_csv
 from aldm_gym.config import defaults, rules
 from aldm_gym.errors import ConfigError
-from aldm_gym.function.spec import SPEC_HELP
 from aldm_gym.roads.highway import MIN_RADIUS_BY_SPEED, RoadConfig
 from aldm_gym.roads.opendrive.parse import SHIPPED_MAPS
 
@@ -146,7 +145,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         default="builtin",
         metavar="SPEC",
         help="the closed loop's function under test (builtin: IDLE and the rule-based "
-        "LCA, each on every seed); " + SPEC_HELP.partition(": ")[2],
+        "LCA, each on every seed); " + FUNCTION_HELP.partition(": ")[2],
     )
     parser.add_argument(
         "--scenes",
@@ -472,7 +471,7 @@ def _compare_closed_loop(args: argparse.Namespace, out: Path) -> list[Path]:
 
     from aldm_gym.agents.closed_loop import CLOSED_LOOP_COLUMNS, compare_closed_loop
     from aldm_gym.agents.figures import plot_offsets
-    from aldm_gym.function import FunctionPolicy, env_for
+    from aldm_gym.function import FunctionPolicy, close_function, env_for
     from aldm_gym.roads import MARKING_MODELS
     from aldm_gym.sensor.detectors import DETECTORS
 
@@ -495,23 +494,22 @@ def _compare_closed_loop(args: argparse.Namespace, out: Path) -> list[Path]:
         policies = [lambda made: FunctionPolicy(made, function)]
     t0 = time.perf_counter()
     total = len(MARKING_MODELS) * len(detectors) * (2 if policies is None else 1) * n_ep
-    close = getattr(function, "close", None)
-    with (
-        tqdm(total=total, desc="episodes", unit="ep", disable=_no_bar(args)) as bar,
-        contextlib.closing(function) if callable(close) else contextlib.nullcontext(),
-    ):
-        rows, traces = compare_closed_loop(
-            seeds,
-            detectors=detectors,
-            sensor=settings,
-            traffic=traffic,
-            min_radius=None if args.xodr else args.min_radius,
-            xodr=args.xodr,
-            aldm_mode=args.mode or "robust",
-            progress=bar.update,
-            env=env or None,
-            policies=policies,
-        )
+    try:
+        with tqdm(total=total, desc="episodes", unit="ep", disable=_no_bar(args)) as bar:
+            rows, traces = compare_closed_loop(
+                seeds,
+                detectors=detectors,
+                sensor=settings,
+                traffic=traffic,
+                min_radius=None if args.xodr else args.min_radius,
+                xodr=args.xodr,
+                aldm_mode=args.mode or "robust",
+                progress=bar.update,
+                env=env or None,
+                policies=policies,
+            )
+    finally:
+        close_function(function)
     write_csv(out / "compare.csv", rows, CLOSED_LOOP_COLUMNS)
     who = "LKA with IDLE and the rule-based LCA" if policies is None else args.function
     print(f"Closed loop ({who}, same seeds):")

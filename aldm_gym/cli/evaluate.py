@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import Any
 
 from aldm_gym.cli.argtypes import (
+    FUNCTION_HELP,
     BadArgument,
     add_env_argument,
     check_env,
@@ -38,8 +39,6 @@ from aldm_gym.cli.argtypes import (
 from aldm_gym.cli.console import console
 from aldm_gym.cli.report import format_table
 from aldm_gym.errors import CheckpointError, MissingRLDependencies
-from aldm_gym.function.builtin import PolicyFunction
-from aldm_gym.function.spec import SPEC_HELP
 from aldm_gym.roads.highway import MARKING_MODELS
 from aldm_gym.sensor.detectors import DETECTORS
 from aldm_gym.training.model_evaluation import (
@@ -100,7 +99,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         "--function",
         default=None,
         metavar="SPEC",
-        help="evaluate a function under test instead of --model: " + SPEC_HELP,
+        help="evaluate a function under test instead of --model: " + FUNCTION_HELP,
     )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.set_defaults(func=run)
@@ -128,6 +127,8 @@ def run(args: argparse.Namespace) -> int:
     if (args.model is None) == (args.function is None):
         raise BadArgument("--model", "give --model or --function (one of them)")
     if args.function is not None:
+        from aldm_gym.function.builtin import PolicyFunction
+
         function = function_spec(args)
         if not (isinstance(function, PolicyFunction) and Path(args.function).exists()):
             return _run_function(args, function, episodes)
@@ -165,11 +166,16 @@ def run(args: argparse.Namespace) -> int:
     cfg = info["env_config"]
     name = model.name if model.is_dir() else model.stem
     path = out / f"evaluate_{name}_{cfg['detector']}_{cfg['marking_model']}.json"
-    path.write_text(json.dumps({"rows": rows, **info}, indent=2) + "\n")
+    _report(path, rows, info, t0)
+    return 0
+
+
+def _report(path: Path, rows: list[dict[str, Any]], info: dict[str, Any], t0: float) -> None:
+    """Write the evaluation's JSON, then print the table and the verdict."""
+    path.write_text(json.dumps({"rows": rows, **info}, indent=2, default=str) + "\n")
     print(f"wrote {path} ({time.perf_counter() - t0:.0f} s)")
     print(format_table(rows, EVAL_COLUMNS))
     print(summary_line(rows, info))
-    return 0
 
 
 def _run_function(args: argparse.Namespace, function: Any, episodes: int) -> int:
@@ -178,7 +184,7 @@ def _run_function(args: argparse.Namespace, function: Any, episodes: int) -> int
     them)."""
     from aldm_gym.envs.config import default_config, merged_config
     from aldm_gym.errors import ConfigError
-    from aldm_gym.function import FunctionPolicy, env_for
+    from aldm_gym.function import FunctionPolicy, close_function, env_for
     from aldm_gym.training.model_evaluation import RULE_BASED, play_policies
 
     overrides = nested_pairs(args.env)
@@ -210,9 +216,7 @@ def _run_function(args: argparse.Namespace, function: Any, episodes: int) -> int
             rows += more
             per_episode.update(per)
     finally:
-        close = getattr(function, "close", None)
-        if callable(close):
-            close()
+        close_function(function)
     full = merged_config(default_config(), config)
     info = {
         "function": args.function,
@@ -224,8 +228,5 @@ def _run_function(args: argparse.Namespace, function: Any, episodes: int) -> int
     out = make_output_dir(args.out or Path("evaluate_results"))
     name = Path(args.function.replace(":", "_")).name
     path = out / f"evaluate_function_{name}_{full['detector']}_{full['marking_model']}.json"
-    path.write_text(json.dumps({"rows": rows, **info}, indent=2, default=str) + "\n")
-    print(f"wrote {path} ({time.perf_counter() - t0:.0f} s)")
-    print(format_table(rows, EVAL_COLUMNS))
-    print(summary_line(rows, info))
+    _report(path, rows, info, t0)
     return 0

@@ -197,9 +197,9 @@ def run_one(args: argparse.Namespace) -> int:
     except AldmGymError as exc:  # the file, its map, a --param, a position off the map
         raise _scenario_error("FILE.xosc", exc) from None
     finally:
-        close = getattr(function, "close", None)
-        if callable(close):
-            close()
+        from aldm_gym.function import close_function
+
+        close_function(function)
     what = f"{args.detector}, {args.marking_model}" + (
         "" if args.function == "builtin" else f", function {args.function}"
     )
@@ -266,10 +266,9 @@ def run_suite(args: argparse.Namespace) -> int:
     from aldm_gym.harness.suite import plan_suite, play_suite, summarise, write_outputs
 
     config = scenario_env(args.env)
-    function = function_spec(args)  # loads here once, so a bad SPEC stops the suite at once
-    close = getattr(function, "close", None)
-    if callable(close):
-        close()
+    from aldm_gym.function import close_function
+
+    close_function(function_spec(args))  # loaded once here: a bad SPEC stops the suite now
     try:
         jobs = plan_suite(
             args.path,

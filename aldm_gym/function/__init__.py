@@ -6,7 +6,13 @@ See :mod:`aldm_gym.function.interface` for what a function receives and returns,
 """
 
 from aldm_gym.function.builtin import BuiltinFunction, CallableFunction, PolicyFunction
-from aldm_gym.function.drive import FunctionDriver, FunctionPolicy, env_for, function_input
+from aldm_gym.function.drive import (
+    FunctionDriver,
+    FunctionPolicy,
+    close_function,
+    env_for,
+    function_input,
+)
 from aldm_gym.function.interface import (
     DOMAINS,
     LINE_ROLES,
@@ -33,6 +39,7 @@ __all__ = [
     "PerceivedLine",
     "PerceivedObject",
     "PolicyFunction",
+    "close_function",
     "env_for",
     "function_input",
     "load_function",

@@ -33,6 +33,7 @@ __all__ = [
     "FunctionDriver",
     "FunctionPolicy",
     "check_function",
+    "close_function",
     "env_for",
     "function_input",
     "meta_action",
@@ -62,6 +63,16 @@ def check_function(function: Any) -> Function:
             f"{type(function).__name__}.domains must be a set of {sorted(DOMAINS)}, got {domains!r}"
         )
     return function  # type: ignore[no-any-return]
+
+
+def close_function(function: Any) -> bool:
+    """Call a function's ``close()`` (an FMU's: its instance and files), if it has one;
+    whether it had one."""
+    close = getattr(function, "close", None)
+    if callable(close):
+        close()
+        return True
+    return False
 
 
 def env_for(function: Function, config: Mapping[str, Any], given: Any = ()) -> dict[str, Any]:
@@ -181,9 +192,9 @@ class FunctionDriver:
     """
 
     def __init__(self, env: Any, function: Function) -> None:
+        self._policy = FunctionPolicy(env, function)  # checks the env and the function
         self.env = env
-        self.function = check_function(function)
-        self._policy = FunctionPolicy(env, function)
+        self.function = function
         settings = env.unwrapped.settings
         if function.domains and settings.policy_frequency < settings.simulation_frequency:
             warnings.warn(

@@ -50,14 +50,13 @@ from __future__ import annotations
 
 import difflib
 import re
-import shutil
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from aldm_gym.errors import InputError
-from aldm_gym.fmi import free_instance
+from aldm_gym.fmi import Instance, import_fmpy
 from aldm_gym.function.interface import LINE_ROLES, FunctionInput, FunctionOutput
 
 __all__ = ["INPUTS", "OUTPUTS", "FMUFunction"]
@@ -109,16 +108,14 @@ class FMUFunction:
 
     :param path: the ``.fmu``.
     :param instance_name: the FMU instance's name.
+    :raises MissingFMIDependencies: fmpy missing (the ``[fmi]`` extra).
     :raises InputError: not a readable FMU, no co-simulation interface, an input or
         output outside the convention (named, with the nearest allowed name), or no
         output at all.
     """
 
     def __init__(self, path: str | Path, instance_name: str = "function") -> None:
-        try:
-            import fmpy
-        except ImportError as exc:  # pragma: no cover - fmpy is a dependency of [fmi]
-            raise InputError("an FMU needs fmpy: pip install 'aldm-gym[fmi]'") from exc
+        fmpy = import_fmpy()
         self.path = Path(path)
         if not self.path.is_file():
             raise InputError(f"no FMU at {self.path}")
@@ -159,64 +156,27 @@ class FMUFunction:
             d for d, on in (("lateral", lateral), ("longitudinal", longitudinal)) if on
         )
         self.instance_name = instance_name
-        self._unzipped: str | None = None
+        self._instance: Instance | None = None
         self._fmu: Any = None
         self._time = 0.0
 
     # ------------------------------------------------------------------ lifecycle
-    def _instantiate(self) -> None:
-        from fmpy import extract
-
-        md = self.model_description
-        self._unzipped = extract(str(self.path))
-        kwargs = {
-            "guid": md.guid,
-            "unzipDirectory": self._unzipped,
-            "modelIdentifier": md.coSimulation.modelIdentifier,
-            "instanceName": self.instance_name,
-        }
-        if self.fmi_version == "2.0":
-            from fmpy.fmi2 import FMU2Slave
-
-            self._fmu = FMU2Slave(**kwargs)
-            self._fmu.instantiate()
-        else:
-            from fmpy.fmi3 import FMU3Slave
-
-            self._fmu = FMU3Slave(**kwargs)
-            self._fmu.instantiate()
-
-    def _initialize(self) -> None:
-        fmu = self._fmu
-        if self.fmi_version == "2.0":
-            fmu.setupExperiment(startTime=0.0)
-            fmu.enterInitializationMode()
-            fmu.exitInitializationMode()
-        else:
-            fmu.enterInitializationMode(startTime=0.0)
-            fmu.exitInitializationMode()
-        self._time = 0.0
-
     def reset(self) -> None:
         """A fresh start at time 0 (``fmi2Reset`` / ``fmi3Reset`` after the first
         episode)."""
-        if self._fmu is None:
-            self._instantiate()
+        if self._instance is None:
+            self._instance = Instance(self.path, self.model_description, self.instance_name)
         else:
-            self._fmu.reset()
-        self._initialize()
+            self._instance.reset()
+        self._fmu = self._instance.fmu
+        self._time = 0.0
 
     def close(self) -> None:
         """Terminate and free the instance; remove the extracted files."""
-        if self._fmu is not None:
-            try:
-                self._fmu.terminate()
-            finally:
-                free_instance(self._fmu)
-                self._fmu = None
-        if self._unzipped is not None:
-            shutil.rmtree(self._unzipped, ignore_errors=True)
-            self._unzipped = None
+        if self._instance is not None:
+            self._instance.close()
+            self._instance = None
+            self._fmu = None
 
     def __del__(self) -> None:
         try:

@@ -24,15 +24,13 @@ from aldm_gym.function.builtin import LANE_CHANGE_MODES, BuiltinFunction, Callab
 from aldm_gym.function.drive import check_function
 from aldm_gym.function.interface import Function
 
-__all__ = ["SPEC_HELP", "load_function"]
+__all__ = ["SPEC_KINDS", "load_function"]
 
-SPEC_HELP = (
-    "the function under test: builtin (the env's own; builtin:rule_based with lane changes), "
-    "a .fmu, a training output folder or model (SB3 .zip, RLlib checkpoint), or "
-    "module:attr / file.py:attr naming a class or callable with aldm_gym.function's "
-    "interface"
+SPEC_KINDS = (
+    "builtin, builtin:rule_based, a .fmu, a training output folder or model (SB3 .zip, "
+    "RLlib checkpoint), or module:attr / file.py:attr"
 )
-"""The ``--function`` help text."""
+"""The kinds of SPEC, for messages."""
 
 
 def _import(module: str, attr: str, spec: str) -> Any:
@@ -101,7 +99,9 @@ def load_function(spec: str) -> Function:
             raise InputError(f"--function {text}: {exc}") from None
     module, sep, attr = text.rpartition(":")
     if not sep or not module or not attr:
-        raise InputError(f"--function {text!r}: no such file, and not module:attr; {SPEC_HELP}")
+        raise InputError(
+            f"--function {text!r}: no such file, and not module:attr; a SPEC is {SPEC_KINDS}"
+        )
     obj = _import(module, attr, text)
     if isinstance(obj, type):
         try:

@@ -44,7 +44,7 @@ from typing import Any
 import numpy as np
 
 from aldm_gym.errors import OffRoadError
-from aldm_gym.function import Function, FunctionDriver, env_for, load_function
+from aldm_gym.function import Function, FunctionDriver, close_function, env_for, load_function
 from aldm_gym.scenario.world import Entity
 
 __all__ = ["GAP_RESTORE_TIME", "Judge", "RunResult", "min_time_gap", "run_scenario"]
@@ -261,6 +261,5 @@ def run_scenario(
     finally:
         if env is not None:
             env.close()
-        close = getattr(fn, "close", None)
-        if owned and callable(close):
-            close()
+        if owned:
+            close_function(fn)

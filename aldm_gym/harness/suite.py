@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from aldm_gym.errors import AldmGymError, ScenarioError
-from aldm_gym.function import Function, load_function
+from aldm_gym.function import Function, close_function, load_function
 from aldm_gym.harness.criteria import RunResult, run_scenario
 from aldm_gym.xmlfile import parse_xml
 
@@ -151,9 +151,7 @@ def _function(spec: str) -> Function | str:
     ends without a chance to close what it keeps)."""
     if spec not in _FUNCTIONS:
         function = load_function(spec)
-        close = getattr(function, "close", None)
-        if callable(close):
-            close()
+        if close_function(function):
             return spec
         _FUNCTIONS[spec] = function
     return _FUNCTIONS[spec]

@@ -30,7 +30,7 @@ from pathlib import Path
 from typing import Any
 
 from aldm_gym.errors import ConfigError, TraceError
-from aldm_gym.fmi import free_instance
+from aldm_gym.fmi import Instance, import_fmpy
 
 __all__ = [
     "OSMP_VERSION",
@@ -319,47 +319,26 @@ class OSMPHost:
         parameters: Mapping[str, str | int] | None = None,
         step_size: float = 0.1,
     ) -> None:
-        try:
-            from fmpy import extract, read_model_description
-            from fmpy.fmi2 import FMU2Slave
-        except ImportError:
-            from aldm_gym.errors import MissingFMIDependencies
-
-            raise MissingFMIDependencies(
-                "running an FMU needs fmpy: pip install 'aldm-gym[fmi]'"
-            ) from None
-        md = read_model_description(str(fmu))
+        md = import_fmpy().read_model_description(str(fmu))
         self.refs = {v.name: v.valueReference for v in md.modelVariables}
-        self._dir = extract(str(fmu))
-        self.fmu = FMU2Slave(
-            guid=md.guid,
-            unzipDirectory=self._dir,
-            modelIdentifier=md.coSimulation.modelIdentifier,
-            instanceName="osmp_sensor",
-        )
         self.parameters = dict(parameters or {})
         self.step_size = step_size
         self.time = 0.0
         self._input: ctypes.Array[ctypes.c_char] | None = None
-        self.fmu.instantiate()
-        self._initialize()
+        self.instance = Instance(fmu, md, "osmp_sensor", self._set_parameters)
+        self.fmu = self.instance.fmu
 
-    def _initialize(self) -> None:
-        fmu = self.fmu
-        fmu.setupExperiment(startTime=0.0)
-        fmu.enterInitializationMode()
+    def _set_parameters(self, fmu: Any) -> None:
         for name, value in self.parameters.items():
             if isinstance(value, int):
                 fmu.setInteger([self.refs[name]], [value])
             else:
                 fmu.setString([self.refs[name]], [value])
-        fmu.exitInitializationMode()
-        self.time = 0.0
 
     def reset(self) -> None:
         """``fmi2Reset``, then initialise again with the same parameters."""
-        self.fmu.reset()
-        self._initialize()
+        self.instance.reset()
+        self.time = 0.0
 
     def step(self, view: bytes) -> bytes | None:
         """One SensorView in, its SensorData out (None where ``OSMPValid`` is false)."""
@@ -377,8 +356,4 @@ class OSMPHost:
 
     def close(self) -> None:
         """Terminate and free the instance."""
-        try:
-            self.fmu.terminate()
-        finally:
-            free_instance(self.fmu)
-            shutil.rmtree(self._dir, ignore_errors=True)
+        self.instance.close()

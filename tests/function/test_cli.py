@@ -4,7 +4,6 @@ cut-in, the precedence of ``--env`` over ``--config``, and bad files and keys.""
 from __future__ import annotations
 
 import json
-import os
 import re
 from pathlib import Path
 
@@ -13,19 +12,12 @@ import pytest
 from aldm_gym.cli import main
 from tests._cli import usage_error
 from tests.scenario._build import write
+from tests.scenario.test_alks import SUITE
 
 ROOT = Path(__file__).resolve().parents[2]
 EXAMPLE = ROOT / "examples" / "lane_centering.py"
 
 
-def _suite() -> Path | None:
-    for candidate in (os.environ.get("OSC_ALKS_DIR"), ROOT.parent / "shared" / "osc-alks"):
-        if candidate and (Path(candidate) / "logical_scenarios").is_dir():
-            return Path(candidate) / "logical_scenarios"
-    return None
-
-
-SUITE = _suite()
 CUT_IN = (
     SUITE / "concrete_scenarios" / "alks_scenario_4_4_1_cut_in_no_collision_template.xosc"
     if SUITE
