@@ -19,7 +19,7 @@ import gymnasium as gym
 from aldm_gym import ENV_ID
 from aldm_gym.agents.episodes import run_episodes, summarize
 from aldm_gym.agents.policies import IdlePolicy, RuleBasedLCA
-from aldm_gym.envs.config import merged_config
+from aldm_gym.envs.config import EnvOverrides, merged_config
 from aldm_gym.errors import ConfigError
 from aldm_gym.roads.highway import MARKING_MODELS
 from aldm_gym.sensor.aldm import MODES as ALDM_MODES
@@ -142,7 +142,7 @@ def compare_closed_loop(
                 config["road"] = {"xodr": os.fspath(xodr)}
             if env is not None:
                 config = merged_config(config, env)
-            made = gym.make(ENV_ID, config=config)
+            made = gym.make(ENV_ID, config=EnvOverrides(config))
             played: list[list[Any]] = []
             try:
                 for factory in factories:
@@ -203,7 +203,7 @@ def conditions_scene(
         config["traffic"] = dict(traffic)
     if road is not None:
         config["road"] = dict(road)
-    env = gym.make(ENV_ID, config=config)
+    env = gym.make(ENV_ID, config=EnvOverrides(config))
     try:
         env.reset(seed=seed)
         u = env.unwrapped

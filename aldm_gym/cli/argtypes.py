@@ -18,7 +18,7 @@ import argparse
 import importlib
 import math
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -279,14 +279,15 @@ def nested_pairs(pairs: list[tuple[str, Any]], flag: str = "--env") -> dict[str,
     return out
 
 
-def check_env(overrides: dict[str, Any], flag: str = "--env") -> None:
-    """Env settings (:func:`nested_pairs`) checked as the env checks them:
+def check_env(overrides: Mapping[str, Any], flag: str = "--env") -> Any:
+    """Env settings (:func:`nested_pairs`) validated as the env validates them, once:
+    the :class:`~aldm_gym.envs.config.EnvOverrides` that passes on to ``gym.make``;
     :class:`BadArgument` naming ``flag``, the key and the allowed ones."""
-    from aldm_gym.envs.config import default_config, merge_config
+    from aldm_gym.envs.config import EnvOverrides
     from aldm_gym.errors import ConfigError
 
     try:
-        merge_config(default_config(), overrides)
+        return EnvOverrides(overrides)
     except ConfigError as exc:
         raise BadArgument(flag, str(exc)) from None
 

@@ -261,7 +261,7 @@ COMPARE_FLAGS = {
 """``--env`` keys ``compare`` sets itself, and what sets them."""
 
 
-def compare_env(args: argparse.Namespace) -> dict[str, Any]:
+def compare_env(args: argparse.Namespace) -> Any:
     """``--env`` (and ``--config``) of the closed loop, checked; :class:`BadArgument`
     for a key the command sets itself (:data:`COMPARE_FLAGS`)."""
     overrides = nested_pairs(args.env)
@@ -269,8 +269,7 @@ def compare_env(args: argparse.Namespace) -> dict[str, Any]:
         for own, flag in COMPARE_FLAGS.items():
             if key == own or key.startswith(own + "."):
                 raise BadArgument("--env", f"{key} is set by {flag}, not --env")
-    check_env(overrides)
-    return overrides
+    return check_env(overrides)
 
 
 MIN_RADIUS = MIN_RADIUS_BY_SPEED[110]

@@ -182,20 +182,17 @@ def _run_function(args: argparse.Namespace, function: Any, episodes: int) -> int
     """``evaluate --function``: the function against IDLE and the rule-based LCA on
     the env's default settings (``--detector``, ``--marking-model``, ``--env`` over
     them)."""
-    from aldm_gym.envs.config import default_config, merged_config
     from aldm_gym.errors import ConfigError
     from aldm_gym.function import FunctionPolicy, close_function, env_for
     from aldm_gym.training.model_evaluation import RULE_BASED, play_policies
 
     overrides = nested_pairs(args.env)
-    check_env(overrides)
     for key, value in (("detector", args.detector), ("marking_model", args.marking_model)):
         if value is not None:
             overrides[key] = value
-    base = merged_config({}, overrides)
+    base = check_env(overrides)
     try:
         config = env_for(function, base, given=set(overrides))
-        check_env(config)
     except ConfigError as exc:
         raise BadArgument("--env", str(exc)) from None
     t0 = time.perf_counter()
@@ -217,16 +214,16 @@ def _run_function(args: argparse.Namespace, function: Any, episodes: int) -> int
             per_episode.update(per)
     finally:
         close_function(function)
-    full = merged_config(default_config(), config)
+    detector, marking_model = config.settings.detector, config.settings.marking_model
     info = {
         "function": args.function,
-        "env_config": {"detector": full["detector"], "marking_model": full["marking_model"]} | base,
-        "function_env_config": config,
+        "env_config": {"detector": detector, "marking_model": marking_model} | base.to_dict(),
+        "function_env_config": config.to_dict(),
         "seeds": [args.seed, args.seed + episodes - 1],
         "per_episode": per_episode,
     }
     out = make_output_dir(args.out or Path("evaluate_results"))
     name = Path(args.function.replace(":", "_")).name
-    path = out / f"evaluate_function_{name}_{full['detector']}_{full['marking_model']}.json"
+    path = out / f"evaluate_function_{name}_{detector}_{marking_model}.json"
     _report(path, rows, info, t0)
     return 0

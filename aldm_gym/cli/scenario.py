@@ -135,7 +135,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     return parser
 
 
-def scenario_env(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+def scenario_env(pairs: list[tuple[str, Any]]) -> Any:
     """``--env`` pairs as the env settings of a scenario run, checked as the env checks
     them (:class:`BadArgument` naming the key and the allowed ones). Settings the
     command has arguments for are refused; those the scenario decides (its map and
@@ -147,14 +147,14 @@ def scenario_env(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
         if key in OWN_FLAGS:
             raise BadArgument("--env", f"{key} is set by {OWN_FLAGS[key]}, not --env")
     dropped = [key for key in overrides if key in SCENARIO_OWNS]
-    check_env(overrides)
+    checked = check_env(overrides)
     if dropped:
         print(
             f"note: the scenario's own map and traffic take precedence over --env "
             f"{', '.join(sorted(dropped))} (ignored)",
             file=sys.stderr,
         )
-    return {k: v for k, v in overrides.items() if k not in dropped}
+    return checked.without(*dropped)
 
 
 def gif_file(text: str) -> Path:
@@ -178,7 +178,7 @@ def run_one(args: argparse.Namespace) -> int:
     frames: list[Any] | None = [] if args.video is not None else None
     config = scenario_env(args.env)
     if args.osi is not None:
-        config["osi"] = {"trace": str(args.osi)}
+        config = config.merged({"osi": {"trace": str(args.osi)}})
     function = function_spec(args)
     try:
         result = run_scenario(

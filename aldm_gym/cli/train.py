@@ -49,6 +49,7 @@ from aldm_gym.cli.argtypes import (
 from aldm_gym.cli.console import console
 from aldm_gym.envs.config import default_config, merge_config
 from aldm_gym.errors import (
+    CheckpointError,
     ClusterError,
     ConfigError,
     MissingRLDependencies,
@@ -68,8 +69,8 @@ from aldm_gym.training.outputs import (
     TRAINING_FILE,
     VALIDATION_FILE,
     holds_training,
-    read_training,
 )
+from aldm_gym.training.record import TrainingRecord
 from aldm_gym.training.rllib.backend import TB_RUN, train_rllib
 from aldm_gym.training.sb3.backend import train
 from aldm_gym.training.sb3.pretrain import MAX_PRETRAIN_EPISODES
@@ -83,6 +84,7 @@ from aldm_gym.training.settings import (
     DEFAULT_VALIDATION_FREQ,
     KEEP_BY,
     LR_SCHEDULES,
+    MAX_N_STEPS,
     NAMED_ENV_KEYS,
     VALIDATION_SEED,
     PPOParams,
@@ -190,7 +192,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     )
     parser.add_argument(
         "--n-steps",
-        type=int_in(2, 1_000_000),
+        type=int_in(2, MAX_N_STEPS),
         default=None,
         help=f"PPO rollout length per env ({PPOParams.n_steps})",
     )
@@ -295,10 +297,10 @@ def _flag(dest: str) -> str:
     return "--" + dest.replace("_", "-")
 
 
-def _backend(args: argparse.Namespace, meta: dict[str, Any] | None) -> str:
+def _backend(args: argparse.Namespace, record: TrainingRecord | None) -> str:
     """The backend of the run: ``--backend``, else the resumed training's, else sb3;
     refuses flags of the other backend (:class:`BadArgument`)."""
-    saved = None if meta is None else meta.get("backend", "sb3")
+    saved = None if record is None else record.backend
     backend = args.backend or saved or "sb3"
     if saved is not None and backend != saved:
         raise BadArgument(
@@ -379,15 +381,12 @@ def env_settings(
     return [f"{key}={json.dumps(value)}" for key, value in rest], flags
 
 
-def _check_resume(args: argparse.Namespace, meta: dict[str, Any]) -> None:
+def _check_resume(args: argparse.Namespace, record: TrainingRecord) -> None:
     """Refuse flags that contradict the training being resumed (:class:`BadArgument`)."""
-    cfg = meta["env_config"]
+    cfg, ppo = record.env_config, record.ppo
     if args.env:
         # compared as JSON values (the config view holds tuples where --env gives lists)
-        saved_env = {
-            k: json.loads(json.dumps(v))
-            for k, v in dotted_settings(merge_config(default_config(), cfg))
-        }
+        saved_env = {k: json.loads(json.dumps(v)) for k, v in dotted_settings(cfg.parsed()[1])}
         for key, value in dotted_settings(_env_overrides(args.env)):
             if key not in saved_env:
                 raise BadArgument(
@@ -409,7 +408,7 @@ def _check_resume(args: argparse.Namespace, meta: dict[str, Any]) -> None:
             raise BadArgument(
                 name, "clones before a new training only; a resume keeps the training's own"
             )
-    algo = {name: key for key, name in ALGORITHMS.items()}.get(meta.get("algorithm", "PPO"))
+    algo = {name: key for key, name in ALGORITHMS.items()}.get(record.algorithm)
     for name, value, saved in (
         ("--algo", args.algo, algo),
         ("--detector", args.detector, cfg["detector"]),
@@ -418,12 +417,12 @@ def _check_resume(args: argparse.Namespace, meta: dict[str, Any]) -> None:
         ("--vehicles", args.vehicles, cfg.get("vehicles_count")),
         ("--collision-reward", args.collision_reward, cfg.get("collision_reward")),
         ("--overtaking-reward", args.overtaking_reward, cfg.get("overtaking_reward")),
-        ("--learning-rate", args.learning_rate, meta["ppo"].get("learning_rate")),
-        ("--ent-coef", args.ent_coef, meta["ppo"].get("ent_coef")),
-        ("--n-steps", args.n_steps, meta["ppo"]["n_steps"]),
-        ("--lr-schedule", args.lr_schedule, meta["ppo"].get("lr_schedule", "constant")),
-        ("--gamma", args.gamma, meta["ppo"]["gamma"]),
-        ("--keep-by", args.keep_by, meta.get("keep_by", "return")),
+        ("--learning-rate", args.learning_rate, ppo.learning_rate),
+        ("--ent-coef", args.ent_coef, ppo.ent_coef),
+        ("--n-steps", args.n_steps, ppo.n_steps),
+        ("--lr-schedule", args.lr_schedule, ppo.lr_schedule),
+        ("--gamma", args.gamma, ppo.gamma),
+        ("--keep-by", args.keep_by, record.keep_by),
     ):
         if value is not None and value != saved:
             raise BadArgument(
@@ -503,23 +502,22 @@ def run(args: argparse.Namespace) -> int:
         check_unlocked(out)
     except OutputLocked as exc:
         raise BadArgument("--out", str(exc)) from None
-    meta = None
+    record = None
     if args.resume:
         if not (out / TRAINING_FILE).exists():
             raise BadArgument("--resume", f"nothing to resume in {out} (no {TRAINING_FILE})")
         try:
-            meta = read_training(out)
-            _check_resume(args, meta)
-        except (ValueError, KeyError, TypeError, AttributeError) as exc:
-            raise BadArgument(
-                "--resume", f"{out / TRAINING_FILE} is not a training record ({exc!r})"
-            ) from None
+            record = TrainingRecord.read(out / TRAINING_FILE)
+        except CheckpointError as exc:
+            raise BadArgument("--resume", str(exc)) from None
     elif holds_training(out):
         raise BadArgument(
             "--out",
             f"{out} already holds a training; pass --resume to continue it or choose another --out",
         )
-    backend = _backend(args, meta)
+    backend = _backend(args, record)
+    if record is not None:
+        _check_resume(args, record)
     _env_overrides(args.env)  # a bad --env is refused before --out is made
     check_pretrain_arguments(args)
     make_output_dir(out)
@@ -551,7 +549,7 @@ def run(args: argparse.Namespace) -> int:
         f"{tb} (tensorboard --logdir {tb})"
     )
     validation = out / VALIDATION_FILE
-    if read_training(out)["validation_freq"] > 0 and validation.exists():
+    if TrainingRecord.read(out / TRAINING_FILE).run.validation_freq > 0 and validation.exists():
         record = json.loads(validation.read_text())
         best = next(h for h in record["history"] if h["steps"] == record["best_steps"])
         print(

@@ -71,8 +71,10 @@ __all__ = [
     "SECTIONS",
     "ConfigView",
     "EnvConfig",
+    "EnvOverrides",
     "MapConfig",
     "default_config",
+    "env_overrides",
     "load_map",
     "merge_config",
     "parse_config",
@@ -386,6 +388,83 @@ def _view(settings: EnvConfig, given: Mapping[str, Any]) -> ConfigView:
         else:
             out[f.name] = getattr(settings, f.name)
     return ConfigView(out)
+
+
+class EnvOverrides(ConfigView):
+    """Env settings that differ from the defaults, validated once, where they are made.
+
+    What passes from the command line, a training, the agents and the scenario harness
+    into ``gymnasium.make("ALDMHighway-v0", config=overrides)``: a read-only ``dict`` of
+    the settings given (sections hold only their keys given, as in ``gym.make``'s
+    ``config``), JSON-ready as it is, and the :class:`EnvConfig` they make. The env
+    takes that :class:`EnvConfig` without validating again; a plain ``dict`` keeps
+    working for users and is validated by the env.
+
+    :param overrides: env settings (a section's keys one by one), or None.
+    :raises ConfigError: naming an unknown key (with the allowed ones) or a bad value.
+    """
+
+    __slots__ = ("_settings", "_view")
+
+    def __init__(self, overrides: Mapping[str, Any] | None = None) -> None:
+        tree = merged_config({}, overrides)
+        settings, view = parse_config(merged_config(default_config(), tree))
+        dict.__init__(
+            self, {k: ConfigView(v) if isinstance(v, dict) else v for k, v in tree.items()}
+        )
+        self._settings = settings
+        self._view = view
+
+    @property
+    def settings(self) -> EnvConfig:
+        """The complete settings these overrides make (shared: read, never modify)."""
+        return self._settings
+
+    def parsed(self) -> tuple[EnvConfig, ConfigView]:
+        """``(settings, view)`` as :func:`parse_config` returns them, copies the caller
+        may complete (the env sets a map's lane count on its own)."""
+        return copy.copy(self._settings), ConfigView(dict(self._view))
+
+    def merged(self, update: Mapping[str, Any] | None) -> EnvOverrides:
+        """These overrides updated with ``update`` (sections key by key), validated.
+
+        :raises ConfigError: as the constructor.
+        """
+        if not update:
+            return self
+        return EnvOverrides(merged_config(self, update))
+
+    def without(self, *keys: str) -> EnvOverrides:
+        """These overrides without the top-level ``keys`` (their defaults apply)."""
+        if not set(keys) & set(self):
+            return self
+        return EnvOverrides({k: v for k, v in self.items() if k not in keys})
+
+    def to_dict(self) -> dict[str, Any]:
+        """A plain, nested ``dict`` copy (for a file, or to edit)."""
+        return copy.deepcopy(dict(self))
+
+    def __repr__(self) -> str:
+        return f"EnvOverrides({self.to_dict()!r})"
+
+    def __copy__(self) -> EnvOverrides:
+        return self
+
+    def __deepcopy__(self, memo: dict[int, Any]) -> EnvOverrides:  # type: ignore[override]
+        return self
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        return (EnvOverrides, (self.to_dict(),))
+
+
+def env_overrides(config: Mapping[str, Any] | None) -> EnvOverrides:
+    """``config`` as :class:`EnvOverrides` (itself if it is one; validated otherwise).
+
+    :raises ConfigError: as :class:`EnvOverrides`.
+    """
+    if isinstance(config, EnvOverrides):
+        return config
+    return EnvOverrides(config)
 
 
 def default_config() -> dict[str, Any]:

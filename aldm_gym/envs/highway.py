@@ -30,6 +30,7 @@ from aldm_gym.envs.actions import ALDMAction
 from aldm_gym.envs.config import (
     ConfigView,
     EnvConfig,
+    EnvOverrides,
     default_config,
     load_map,
     map_lanes_count,
@@ -213,7 +214,10 @@ class ALDMHighwayEnv(AbstractEnv):
         """This episode's scenario run (``scenario.xosc`` set), else None."""
         self.osi: OsiRecorder | None = None
         """The OSI trace writer (``osi.trace`` set), else None."""
-        super().__init__(dict(config) if config else None, render_mode)
+        self._configured = False
+        if config is not None and not isinstance(config, EnvOverrides):
+            config = dict(config)
+        super().__init__(config or None, render_mode)
 
     # ------------------------------------------------------------------ config
     @classmethod
@@ -223,16 +227,21 @@ class ALDMHighwayEnv(AbstractEnv):
 
     def configure(self, config: Mapping[str, Any] | None) -> None:
         """Merge ``config`` into the current configuration, validate it into
-        :attr:`settings` (once), and read a map it names.
+        :attr:`settings` (once), and read a map it names. The first configuration
+        given as :class:`~aldm_gym.envs.config.EnvOverrides` was validated where it
+        was made and is taken as it is.
 
         :raises ConfigError: naming unknown keys and the allowed ones, or a bad value.
         :raises MapNotFoundError, MapError: ``road.xodr`` names a missing or bad file.
         :raises ScenarioError: ``scenario.xosc`` names a file the player cannot play.
         """
-        merged = merged_config(self.config, config)
-        if merged["offscreen_rendering"] is None:
-            merged["offscreen_rendering"] = self.render_mode != "human"
-        settings, view = parse_config(merged)
+        if isinstance(config, EnvOverrides) and not self._configured:
+            settings, view = config.parsed()  # validated where it was made
+        else:
+            settings, view = parse_config(merged_config(self.config, config))
+        if settings.offscreen_rendering is None:
+            object.__setattr__(settings, "offscreen_rendering", self.render_mode != "human")
+            dict.__setitem__(view, "offscreen_rendering", settings.offscreen_rendering)
         scenario = None
         if settings.scenario.enabled:
             scenario = read_config_scenario(settings)
@@ -249,6 +258,7 @@ class ALDMHighwayEnv(AbstractEnv):
                 dict.__setitem__(view, key, value)
         self.settings = settings
         self.config: ConfigView = view
+        self._configured = True
         self._scene = make_scene(settings, on_map, scenario)
         self.lka = LKAController(
             **{k: v for k, v in vars(settings.lka).items() if k != "path_range"},

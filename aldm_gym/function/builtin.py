@@ -115,13 +115,14 @@ class PolicyFunction:
         """
         from aldm_gym.training.models import load_policy
 
-        policy, meta = load_policy(path)
-        trained = dict(meta.get("env_config", {}))
-        action = dict(trained.get("action", {}))
-        env_config = {"observation": trained["observation"]} if "observation" in trained else {}
+        policy, record = load_policy(path)
+        trained = record.env_config
+        env_config = (
+            {"observation": dict(trained["observation"])} if "observation" in trained else {}
+        )
         return cls(
             policy,
-            continuous=action.get("type") == "ContinuousAction",
+            continuous=trained.settings.action.type == "ContinuousAction",
             env_config=env_config,
             name=str(path),
         )

@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from aldm_gym.envs.actions import MetaAction
+from aldm_gym.envs.config import EnvOverrides
 from aldm_gym.errors import AldmGymWarning, InputError
 from aldm_gym.function.interface import (
     DOMAINS,
@@ -75,8 +76,9 @@ def close_function(function: Any) -> bool:
     return False
 
 
-def env_for(function: Function, config: Mapping[str, Any], given: Any = ()) -> dict[str, Any]:
-    """``config`` with the env settings ``function`` needs.
+def env_for(function: Function, config: Mapping[str, Any], given: Any = ()) -> EnvOverrides:
+    """``config`` with the env settings ``function`` needs, validated
+    (:class:`~aldm_gym.envs.config.EnvOverrides`, what ``gym.make`` takes as it is).
 
     * Its ``env_config`` (e.g. the observation a policy was trained on) is merged in.
     * A function that takes a domain is stepped at every simulation step: its
@@ -85,8 +87,10 @@ def env_for(function: Function, config: Mapping[str, Any], given: Any = ()) -> d
 
     :param given: the top-level keys the user set; one the function needs otherwise is
         an error.
-    :raises ConfigError: naming the key the user set and the value the function needs.
+    :raises ConfigError: naming the key the user set and the value the function needs,
+        or an unknown or bad setting.
     """
+    from aldm_gym.envs.config import EnvConfig, env_overrides
     from aldm_gym.errors import ConfigError
 
     out = dict(config)
@@ -99,10 +103,8 @@ def env_for(function: Function, config: Mapping[str, Any], given: Any = ()) -> d
             )
         out[key] = value
     if function.domains and "policy_frequency" not in needs and "policy_frequency" not in given:
-        from aldm_gym.envs.config import EnvConfig
-
         out["policy_frequency"] = out.get("simulation_frequency", EnvConfig().simulation_frequency)
-    return out
+    return env_overrides(config) if out == dict(config) else env_overrides(out)
 
 
 def function_input(

@@ -10,11 +10,12 @@ drives either through a training; what every training does is written here once:
 * a new training refuses a folder that holds one; a resume reads ``training.json``,
   refuses another backend's training and restores the env config, the hyperparameters
   and the run settings not given
-  (:func:`~aldm_gym.training.settings.resolve_run_settings`);
+  (:func:`~aldm_gym.training.record.resolve_run`);
 * a resume continues from the newest checkpoint that is intact and restores, skipping
   each newer one with a :class:`~aldm_gym.errors.TrainingWarning` that says why
   (:func:`restore_newest`); with none it starts again from step 0;
-* ``training.json`` is written once the trainer is built (a failure before leaves the
+* ``training.json`` (:class:`~aldm_gym.training.record.TrainingRecord`) is written
+  once the trainer is built (a failure before leaves the
   folder as it was);
 * the first SIGINT or SIGTERM stops the training at a safe point
   (:func:`~aldm_gym.training.signals.stop_on_signal`), the last consistent state is
@@ -33,11 +34,11 @@ import warnings
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from contextlib import AbstractContextManager, nullcontext
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, ClassVar, Generic, Protocol, TypeVar
 
-from aldm_gym import ENV_ID
+from aldm_gym.envs.config import EnvOverrides
 from aldm_gym.errors import (
     CheckpointError,
     ConfigError,
@@ -49,11 +50,10 @@ from aldm_gym.training.lock import output_lock
 from aldm_gym.training.outputs import (
     TRAINING_FILE,
     holds_training,
-    read_training,
     remove_temporary_files,
-    write_json,
 )
-from aldm_gym.training.settings import PPOParams, check_run_settings, resolve_run_settings
+from aldm_gym.training.record import TrainingRecord, resolve_run
+from aldm_gym.training.settings import PPOParams, check_run_settings
 from aldm_gym.training.signals import (
     StopRequest,
     raised_by_interrupt,
@@ -105,9 +105,9 @@ class Backend(ABC, Generic[C]):
     :meth:`save_final`, or after a stop :meth:`save_checkpoint`; :meth:`close` last.
 
     :param out: the output folder.
-    :param meta: the training's ``training.json`` (backend, env config, ``ppo``, run
-        settings).
-    :param saved: the ``training.json`` being resumed, or None for a new training.
+    :param record: the training's record (``training.json``: backend, env config,
+        hyperparameters, run settings).
+    :param saved: the record being resumed, or None for a new training.
     :param progress: show a progress bar.
     :cvar name: the backend's name (``training.json``'s ``backend``, ``--backend``).
     :cvar stops_at_once: the first signal stops the training at once (its last
@@ -122,17 +122,21 @@ class Backend(ABC, Generic[C]):
     algorithms: ClassVar[tuple[str, ...]] = ("PPO",)
 
     def __init__(
-        self, out: Path, meta: Mapping[str, Any], saved: Mapping[str, Any] | None, progress: bool
+        self, out: Path, record: TrainingRecord, saved: TrainingRecord | None, progress: bool
     ) -> None:
         self.out = Path(out)
-        self.meta = dict(meta)
+        self.record = record
         self.saved = saved
         self.progress = progress
 
     @property
     def params(self) -> PPOParams:
         """The training's hyperparameters."""
-        return PPOParams(**self.meta["ppo"])
+        return self.record.ppo
+
+    def write_record(self) -> None:
+        """Write :attr:`record` to the output folder's ``training.json``."""
+        self.record.write(self.out / TRAINING_FILE)
 
     @staticmethod
     @abstractmethod
@@ -268,7 +272,7 @@ def train_with(
     out: Path,
     *,
     given: Mapping[str, int | None],
-    config: Mapping[str, Any],
+    config: EnvOverrides,
     params: PPOParams | None,
     resume: bool,
     progress: bool,
@@ -305,33 +309,29 @@ def train_with(
                 f"{out} already holds a training; pass --resume to continue it "
                 "or choose another --out"
             )
-        run, report = resolve_run_settings(given, saved, backend_type.name)
+        run, report = resolve_run(given, saved, backend_type.name)
         if saved is not None:
-            config, params = saved["env_config"], PPOParams.saved(saved["ppo"])
-            algorithm = str(saved.get("algorithm", "PPO"))
-        else:
-            config, params = dict(config), params or PPOParams()
+            config, params, algorithm = saved.env_config, saved.ppo, saved.algorithm
         backend_type.require_algorithm(algorithm)
-        meta = {
-            "algorithm": algorithm,
-            "backend": backend_type.name,
-            "env_id": ENV_ID,
-            "env_config": config,
-            "ppo": asdict(params),
-            **run,
-        }
-        backend = backend_type(out, meta, saved, progress, **options)
+        record = TrainingRecord(
+            backend=backend_type.name,
+            algorithm=algorithm,
+            env_config=config,
+            ppo=params or PPOParams(),
+            run=run,
+        )
+        backend = backend_type(out, record, saved, progress, **options)
         with backend.session():
             _train(backend, report)
     return backend
 
 
-def _saved_training(out: Path, backend: str) -> dict[str, Any]:
-    """The ``training.json`` a resume of ``backend`` continues."""
+def _saved_training(out: Path, backend: str) -> TrainingRecord:
+    """The record a resume of ``backend`` continues."""
     if not (out / TRAINING_FILE).exists():
         raise FileNotFoundError(f"nothing to resume in {out}: no {TRAINING_FILE}")
-    saved = read_training(out)
-    other = saved.get("backend", "sb3")
+    saved = TrainingRecord.read(out / TRAINING_FILE)
+    other = saved.backend
     if other != backend:
         raise ResumeError(
             f"{out} holds an {_TITLES.get(other, other)} training; resume it with --backend {other}"
@@ -357,7 +357,7 @@ def _train(backend: Backend[Any], report: list[str]) -> None:
                         logger.info("resuming %s at %d steps; %s", backend.out, done, lines)
                     else:
                         backend.build()
-                write_json(backend.out / TRAINING_FILE, backend.meta)
+                backend.write_record()
                 backend.learn(stop)
             except (KeyboardInterrupt, SystemError) as exc:
                 if not raised_by_interrupt(exc):

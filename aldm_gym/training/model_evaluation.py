@@ -28,10 +28,10 @@ from pathlib import Path
 from typing import Any
 
 from aldm_gym import ENV_ID
-from aldm_gym.envs.config import default_config, merge_config, merged_config
+from aldm_gym.envs.config import EnvOverrides, env_overrides, merged_config
 from aldm_gym.errors import ConfigError, InputError
 from aldm_gym.training.models import load_policy
-from aldm_gym.training.settings import NAMED_ENV_KEYS, dotted_settings, env_config
+from aldm_gym.training.settings import NAMED_ENV_KEYS, dotted_settings
 
 EVALUATION_SEED = 10_000
 """First seed of the evaluation episodes (training envs use ``0 ..``, validation 20000..)."""
@@ -108,22 +108,23 @@ def evaluate(
     :raises ConfigError: ``env_overrides`` sets the observation or action, or a bad
         setting.
     """
-    policy, meta = load_policy(model_path)
-    config = dict(meta["env_config"])
+    policy, record = load_policy(model_path)
+    trained = record.env_config
+    given = trained.to_dict()
     if detector is not None:
-        config["detector"] = env_config(detector=detector)["detector"]
-        if config["detector"] != meta["env_config"].get("detector"):
-            config.pop("detector_params", None)  # the trained detector's own parameters
+        if detector != trained.settings.detector:
+            given.pop("detector_params", None)  # the trained detector's own parameters
+        given["detector"] = detector
     if marking_model is not None:
-        config["marking_model"] = env_config(marking_model=marking_model)["marking_model"]
+        given["marking_model"] = marking_model
     if env_overrides:
         fixed = sorted(set(env_overrides) & {"observation", "action"})
         if fixed:
             raise ConfigError(
                 f"{', '.join(fixed)}: the policy was trained on them; they stay as trained"
             )
-        config = merged_config(config, env_overrides)
-        merge_config(default_config(), config)  # checked before any episode
+        given = merged_config(given, env_overrides)
+    config = EnvOverrides(given)  # checked once, before any episode
     rows, per_episode = play_policies(
         config,
         (*RULE_BASED, ("model", lambda _env: policy)),
@@ -132,10 +133,10 @@ def evaluate(
         progress=progress,
     )
     info = {
-        "env_config": config,
-        "trained_on": meta["env_config"],
+        "env_config": config.to_dict(),
+        "trained_on": trained.to_dict(),
         "timesteps": int(policy.num_timesteps),
-        "algorithm": meta.get("algorithm", "PPO"),
+        "algorithm": record.algorithm,
         "seeds": [seed, seed + episodes - 1],
         "per_episode": per_episode,
     }
@@ -152,7 +153,7 @@ def play_policies(
 ) -> tuple[list[dict[str, Any]], dict[str, dict[str, list[Any]]]]:
     """Every policy on the same seeds ``seed .. seed + episodes - 1`` of one env.
 
-    :param config: the env's settings.
+    :param config: the env's settings (validated once here, if not yet).
     :param policies: ``(name, factory)`` pairs; ``factory(env)`` makes the policy.
     :return: one row per policy (``policy`` and the
         :func:`~aldm_gym.agents.episodes.summarize` metrics), and per policy each
@@ -163,7 +164,7 @@ def play_policies(
 
     from aldm_gym.agents.episodes import run_episodes, summarize
 
-    env = gym.make(ENV_ID, config=dict(config))
+    env = gym.make(ENV_ID, config=env_overrides(config))
     seeds = range(seed, seed + episodes)
     rows = []
     per_episode: dict[str, dict[str, list[Any]]] = {}

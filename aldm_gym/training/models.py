@@ -15,6 +15,7 @@ from typing import Any
 
 from aldm_gym.training.backend import Backend
 from aldm_gym.training.outputs import is_output_folder, trained_model
+from aldm_gym.training.record import TrainingRecord
 from aldm_gym.training.rllib.backend import RLlibBackend
 from aldm_gym.training.sb3.backend import SB3Backend
 
@@ -40,9 +41,9 @@ def model_to_evaluate(path: Path) -> tuple[Path, str | None]:
     return path, None
 
 
-def load_policy(model_path: Path) -> tuple[Any, dict[str, Any]]:
-    """Load a trained model as a policy with SB3's ``predict``, and its
-    ``training.json``.
+def load_policy(model_path: Path) -> tuple[Any, TrainingRecord]:
+    """Load a trained model as a policy with SB3's ``predict``, and its record
+    (``training.json``, read once).
 
     :param model_path: an SB3 model ``.zip``, an RLlib checkpoint folder, or a
         training's output folder (:func:`model_to_evaluate`).

@@ -159,11 +159,6 @@ def can_resume(out: Path) -> bool:
     return (Path(out) / TRAINING_FILE).exists() and latest_checkpoint(out) is not None
 
 
-def read_training(out: Path) -> dict[str, Any]:
-    """The ``training.json`` of ``out``."""
-    return json.loads((Path(out) / TRAINING_FILE).read_text())
-
-
 def find_training_file(model_path: Path) -> Path | None:
     """The ``training.json`` of a model: next to it, or one folder up (checkpoints)."""
     model_path = Path(model_path)
@@ -171,20 +166,6 @@ def find_training_file(model_path: Path) -> Path | None:
         if (folder / TRAINING_FILE).exists():
             return folder / TRAINING_FILE
     return None
-
-
-def read_training_record(meta_path: Path) -> dict[str, Any]:
-    """A model's ``training.json``, checked to be a training record.
-
-    :raises CheckpointError: not JSON, or no ``env_config`` object in it.
-    """
-    try:
-        meta = json.loads(meta_path.read_text())
-        if not isinstance(meta.get("env_config"), dict):
-            raise CheckpointError("no env_config")
-    except (ValueError, AttributeError) as exc:  # AttributeError: JSON but not an object
-        raise CheckpointError(f"{meta_path}: not a training record ({exc})") from exc
-    return meta
 
 
 def is_output_folder(path: Path) -> bool:

@@ -2,23 +2,22 @@
 
 Both backends train the same task from these: :func:`env_config` (``ALDMHighway-v0``
 with one detector's lanes in the observation), :class:`PPOParams` (SB3's names; the
-RLlib backend maps them onto RLlib's) and the run settings of :data:`RUN_DEFAULTS`
-(budget, workers, seed, checkpoint and validation periods), which ``resume`` restores
-from ``training.json`` unless given (:func:`resolve_run_settings`). Each default lives
-here once.
+RLlib backend maps them onto RLlib's) and the defaults of the run settings (budget,
+workers, seed, checkpoint and validation periods:
+:class:`~aldm_gym.training.record.RunSettings`, which ``resume`` restores from
+``training.json`` unless given). Each default lives here once.
 """
 
 from __future__ import annotations
 
 import functools
+import math
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-from aldm_gym.envs.config import default_config, merge_config, merged_config
+from aldm_gym.envs.config import EnvOverrides, merged_config
 from aldm_gym.errors import ConfigError
-from aldm_gym.roads.highway import MARKING_MODELS
-from aldm_gym.sensor.detectors import DETECTORS
 
 DEFAULT_TIMESTEPS = 49_152
 """Default training budget [policy steps] (about 15 min on 2 cores, see docs/results.md)."""
@@ -89,25 +88,6 @@ def algorithm_name(algo: str) -> str:
     return ALGORITHMS[algo]
 
 
-RUN_DEFAULTS: dict[str, dict[str, int]] = {
-    "sb3": {
-        "timesteps": DEFAULT_TIMESTEPS,
-        "n_envs": 1,
-        "seed": 0,
-        "checkpoint_freq": DEFAULT_CHECKPOINT_FREQ,
-        "validation_freq": DEFAULT_VALIDATION_FREQ,
-        "validation_episodes": DEFAULT_VALIDATION_EPISODES,
-    },
-    "rllib": {
-        "timesteps": DEFAULT_TIMESTEPS,
-        "num_env_runners": DEFAULT_ENV_RUNNERS,
-        "seed": 0,
-        "checkpoint_freq": DEFAULT_CHECKPOINT_FREQ,
-    },
-}
-"""Each backend's run settings and their defaults (``resume`` restores them from
-``training.json`` unless given)."""
-
 RUN_MINIMUM = {
     "timesteps": 1,
     "n_envs": 1,
@@ -117,6 +97,16 @@ RUN_MINIMUM = {
     "validation_episodes": 0,
 }
 """The least value of each bounded run setting (``seed`` is any integer)."""
+
+
+MAX_N_STEPS = 1_000_000
+"""The longest rollout per env [policy steps] (``--n-steps``' bound)."""
+
+MAX_LAYERS = 16
+"""The most hidden layers of the policy and value networks."""
+
+MAX_UNITS = 4_096
+"""The most units of a hidden layer."""
 
 
 @dataclass
@@ -147,6 +137,45 @@ class PPOParams:
         if self.lr_schedule not in LR_SCHEDULES:
             raise ConfigError(
                 f"lr_schedule must be one of {LR_SCHEDULES}, got {self.lr_schedule!r}"
+            )
+        # Bounds before anything is allocated: the rollout buffer holds n_steps rows
+        # per env, the network net_arch units per layer.
+        for name, lo, hi in (
+            ("n_steps", 2, MAX_N_STEPS),
+            ("batch_size", 1, MAX_N_STEPS),
+            ("n_epochs", 1, 1_000),
+        ):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
+                raise ConfigError(f"{name} must be an integer in [{lo}, {hi}], got {value!r}")
+        for name, lo, hi, open_low in (
+            ("learning_rate", 0.0, 1.0, True),
+            ("gamma", 0.0, 1.0, False),
+            ("gae_lambda", 0.0, 1.0, False),
+            ("ent_coef", 0.0, 1e3, False),
+            ("clip_range", 0.0, 1e3, True),
+        ):
+            value = getattr(self, name)
+            ok = (
+                isinstance(value, int | float)
+                and not isinstance(value, bool)
+                and math.isfinite(value)
+                and (lo < value if open_low else lo <= value)
+                and value <= hi
+            )
+            if not ok:
+                bracket = "(" if open_low else "["
+                raise ConfigError(f"{name} must be in {bracket}{lo}, {hi}], got {value!r}")
+        arch = self.net_arch
+        if (
+            not isinstance(arch, list | tuple)
+            or not 1 <= len(arch) <= MAX_LAYERS
+            or not all(
+                isinstance(n, int) and not isinstance(n, bool) and 1 <= n <= MAX_UNITS for n in arch
+            )
+        ):
+            raise ConfigError(
+                f"net_arch must be 1 to {MAX_LAYERS} layer sizes in [1, {MAX_UNITS}], got {arch!r}"
             )
 
     @classmethod
@@ -186,8 +215,9 @@ def env_config(
     collision_reward: float | None = None,
     overtaking_reward: float | None = None,
     env_overrides: Mapping[str, Any] | None = None,
-) -> dict[str, Any]:
-    """The ``ALDMHighway-v0`` config of a training (only keys that differ from defaults).
+) -> EnvOverrides:
+    """The ``ALDMHighway-v0`` settings of a training (only keys that differ from the
+    defaults), validated once, here.
 
     :param collision_reward: weight of the collision term of the reward (env: -1).
     :param overtaking_reward: weight of the overtaking term (vehicles passed minus
@@ -201,10 +231,6 @@ def env_config(
         in ``env_overrides`` (naming the key and the allowed ones), or one of the named
         arguments' keys there.
     """
-    if detector not in DETECTORS:
-        raise ConfigError(f"detector must be one of {DETECTORS}, got {detector!r}")
-    if marking_model not in MARKING_MODELS:
-        raise ConfigError(f"marking_model must be one of {MARKING_MODELS}, got {marking_model!r}")
     config: dict[str, Any] = {"detector": detector, "marking_model": marking_model}
     if duration is not None:
         config["duration"] = float(duration)
@@ -226,8 +252,7 @@ def env_config(
                 f"arguments ({', '.join(NAMED_ENV_KEYS)})"
             )
         config = merged_config(config, env_overrides)
-        merge_config(default_config(), config)  # validates every key and value
-    return config
+    return EnvOverrides(config)
 
 
 def dotted_settings(config: Mapping[str, Any], prefix: str = "") -> Iterator[tuple[str, Any]]:
@@ -249,40 +274,3 @@ def check_run_settings(given: Mapping[str, int | None]) -> None:
         least = RUN_MINIMUM.get(name)
         if value is not None and least is not None and value < least:
             raise ConfigError(f"{name} must be >= {least}, got {value}")
-
-
-def resolve_run_settings(
-    given: Mapping[str, int | None], saved: Mapping[str, Any] | None, backend: str = "sb3"
-) -> tuple[dict[str, int], list[str]]:
-    """The run settings of a training and, for a resume, what was restored/overridden.
-
-    :param given: each of the backend's run settings as passed (None: not given).
-    :param saved: the ``training.json`` being resumed, or None for a new training.
-    :param backend: whose settings (a key of :data:`RUN_DEFAULTS`).
-    :return: the settings, and lines saying which were restored from ``saved`` and
-        which were overridden (empty for a new training).
-    """
-    defaults = RUN_DEFAULTS[backend]
-    settings: dict[str, int] = {}
-    restored, overridden = [], []
-    for name, default in defaults.items():
-        value = given.get(name)
-        if saved is None:
-            settings[name] = default if value is None else int(value)
-            continue
-        was = int(saved.get(name, default))
-        if value is None:
-            settings[name] = was
-            restored.append(f"{name}={was}")
-        else:
-            settings[name] = int(value)
-            if int(value) == was:
-                restored.append(f"{name}={was}")
-            else:
-                overridden.append(f"{name}={int(value)} (was {was})")
-    report = []
-    if saved is not None:
-        report.append("restored: env config, PPO hyperparameters, " + ", ".join(restored))
-        if overridden:
-            report.append("overridden: " + ", ".join(overridden))
-    return settings, report

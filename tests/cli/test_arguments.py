@@ -238,6 +238,11 @@ def test_a_corrupt_training_record_names_the_file(
         (tmp_path / "training.json").write_text(record)
         line = usage_error(["evaluate", "--model", str(model), "--no-progress"], capsys)
         assert f"argument --model: {tmp_path / 'training.json'}: not a training record" in line
+        line = usage_error(["train", "--out", str(tmp_path), "--resume"], capsys)
+        assert f"argument --resume: {tmp_path / 'training.json'}: not a training record" in line
+    (tmp_path / "training.json").write_text(json.dumps({"env_config": {}, "ppo": {"gamma": 2}}))
+    line = usage_error(["train", "--out", str(tmp_path), "--resume"], capsys)
+    assert line.endswith("not a training record (gamma must be in [0.0, 1.0], got 2)")
 
 
 def test_the_installed_command_exits_2_without_traceback(tmp_path: Path) -> None:

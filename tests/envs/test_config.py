@@ -19,6 +19,7 @@ from aldm_gym.envs.config import (
     merge_config,
 )
 from aldm_gym.envs.control import LKAConfig, LKAController
+from aldm_gym.errors import ConfigError
 from aldm_gym.roads.highway import RoadConfig
 from aldm_gym.sensor.line_sensor import LineSensorConfig
 
@@ -92,3 +93,32 @@ def test_road_config_normalises_to_a_hashable_key() -> None:
     a = RoadConfig(segments=[[500.0, 0, 0.001], (300, 0.001, 0.0)], straight_length=[100, 200])
     b = RoadConfig(segments=((500.0, 0.0, 0.001), (300.0, 0.001, 0.0)), straight_length=(100, 200))
     assert a == b and hash(a) == hash(b)
+
+
+def test_env_overrides_are_validated_once_read_only_and_plain_at_the_edges() -> None:
+    import copy
+    import json
+    import pickle
+
+    from aldm_gym.envs.config import EnvOverrides, env_overrides
+
+    given = {"detector": "naive", "sensor": {"preset": "camera"}}
+    made = EnvOverrides(given)
+    assert made == given and json.loads(json.dumps(made)) == given
+    assert made.settings.sensor.preset == "camera" and made.settings.detector == "naive"
+    assert env_overrides(made) is made and copy.deepcopy(made) is made
+    assert pickle.loads(pickle.dumps(made)) == made
+    with pytest.raises(ConfigError, match="read-only"):
+        made["duration"] = 5.0
+    with pytest.raises(ConfigError, match="read-only"):
+        made["sensor"]["range"] = 50.0
+    plain = made.to_dict()
+    plain["sensor"]["range"] = 50.0  # a copy: the overrides stay as made
+    assert made["sensor"] == {"preset": "camera"}
+    merged = made.merged({"sensor": {"range": 50.0}})
+    assert merged["sensor"] == {"preset": "camera", "range": 50.0}
+    assert merged.without("sensor") == {"detector": "naive"} and made.without("x") is made
+    with pytest.raises(ConfigError, match=r"unknown sensor key\(s\) \['rang'\]"):
+        made.merged({"sensor": {"rang": 50.0}})
+    with pytest.raises(ConfigError, match="did you mean 'detector'"):
+        EnvOverrides({"detectr": "naive"})

@@ -61,7 +61,7 @@ class CountingBackend(Backend[CheckpointRef]):
         self.calls.append("build")
 
     def learn(self, stop: StopRequest) -> None:
-        while self.steps < self.meta["timesteps"] and not stop.requested:
+        while self.steps < self.record.run.timesteps and not stop.requested:
             self.steps += 1
             if self.during_learn is not None:
                 type(self).during_learn(self)  # type: ignore[misc]
@@ -79,7 +79,7 @@ class CountingBackend(Backend[CheckpointRef]):
         self.calls.append(f"close {interrupted}")
 
     @classmethod
-    def load_policy(cls, path: Path) -> tuple[Any, dict[str, Any]]:
+    def load_policy(cls, path: Path) -> tuple[Any, Any]:
         raise NotImplementedError
 
 

@@ -143,10 +143,10 @@ def test_a_checkpoint_plays_outside_ray_with_frozen_statistics(trained: Path) ->
     from aldm_gym import ENV_ID
     from aldm_gym.training.models import load_policy
 
-    policy, meta = load_policy(trained / "rllib_model")
-    assert policy.num_timesteps == 256 and meta["backend"] == "rllib"
+    policy, record = load_policy(trained / "rllib_model")
+    assert policy.num_timesteps == 256 and record.backend == "rllib"
     state = json.dumps(policy.pipeline.get_state(), default=str)
-    env = gym.make(ENV_ID, config=meta["env_config"])
+    env = gym.make(ENV_ID, config=record.env_config)
     obs, _ = env.reset(seed=3)
     for _ in range(5):
         logits = policy.logits(obs)
@@ -303,9 +303,9 @@ def test_a_masked_checkpoint_never_chooses_a_masked_action(masked: Path) -> None
 
     meta = json.loads((masked / "training.json").read_text())
     assert meta["algorithm"] == "MaskablePPO" and meta["timesteps"] == 128
-    policy, meta = load_policy(masked / "rllib_model")
+    policy, record = load_policy(masked / "rllib_model")
     assert policy.uses_action_masks and policy.num_timesteps == 128
-    env = gym.make(ENV_ID, config=meta["env_config"])
+    env = gym.make(ENV_ID, config=record.env_config)
     obs, info = env.reset(seed=3)
     free = policy.logits(obs, np.ones(5, bool))
     for allowed in ([1, 1, 1, 1, 1], [0, 1, 0, 1, 1], [1, 0, 1, 0, 0], [0, 0, 0, 0, 1]):
@@ -336,8 +336,8 @@ def test_an_unmasked_checkpoint_refuses_a_mask(trained: Path) -> None:
     from aldm_gym import ENV_ID
     from aldm_gym.training.models import load_policy
 
-    policy, meta = load_policy(trained / "rllib_model")
-    env = gym.make(ENV_ID, config=meta["env_config"])
+    policy, record = load_policy(trained / "rllib_model")
+    env = gym.make(ENV_ID, config=record.env_config)
     obs, info = env.reset(seed=0)
     assert not policy.uses_action_masks
     with pytest.raises(InputError, match="trained without action masks"):

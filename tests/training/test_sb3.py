@@ -99,10 +99,10 @@ def test_validation_keeps_the_model_it_scored_best(tmp_path: Path) -> None:
     assert record["best_steps"] == best["steps"]
     # best_model.zip is the validated policy: replaying the validation seeds with it
     # (and its saved normalisation) gives the recorded return exactly.
-    policy, meta = load_policy(out / "best_model.zip")
+    policy, trained = load_policy(out / "best_model.zip")
     assert policy.vecnormalize is not None
     assert policy.model.num_timesteps == best["steps"]
-    env = gym.make(ENV_ID, config=meta["env_config"])
+    env = gym.make(ENV_ID, config=trained.env_config)
     episodes = run_episodes(env, policy, range(VALIDATION_SEED, VALIDATION_SEED + 2))
     assert float(np.mean([e.reward for e in episodes])) == best["mean_return"]
     # A resume continues the record (same seeds, baselines kept) with the saved settings.

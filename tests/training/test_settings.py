@@ -7,13 +7,8 @@ import pytest
 
 from aldm_gym import ENV_ID
 from aldm_gym.errors import ConfigError
-from aldm_gym.training.settings import (
-    RUN_DEFAULTS,
-    PPOParams,
-    check_run_settings,
-    env_config,
-    resolve_run_settings,
-)
+from aldm_gym.training.record import RunSettings, TrainingRecord, resolve_run
+from aldm_gym.training.settings import PPOParams, check_run_settings, env_config
 
 
 def test_linear_learning_rate_decays_to_zero_over_the_budget() -> None:
@@ -44,15 +39,19 @@ def test_env_config_names_the_bad_setting(kwargs: dict, message: str) -> None:
 
 def test_run_settings_restore_the_saved_ones_unless_given() -> None:
     given = {"timesteps": 192, "n_envs": None, "seed": 3}
-    run, report = resolve_run_settings(given, None)
-    assert run == {**RUN_DEFAULTS["sb3"], "timesteps": 192, "seed": 3} and report == []
-    saved = {"timesteps": 64, "n_envs": 2, "seed": 3, "checkpoint_freq": 64}
-    run, report = resolve_run_settings(given, saved)
-    assert (run["timesteps"], run["n_envs"], run["checkpoint_freq"]) == (192, 2, 64)
+    run, report = resolve_run(given, None)
+    assert run == RunSettings(timesteps=192, seed=3) and report == []
+
+    def record(backend: str, **run: int) -> TrainingRecord:
+        return TrainingRecord(backend, "PPO", env_config(), run=RunSettings(**run))
+
+    saved = record("sb3", timesteps=64, n_envs=2, seed=3, checkpoint_freq=64)
+    run, report = resolve_run(given, saved)
+    assert (run.timesteps, run.n_envs, run.checkpoint_freq) == (192, 2, 64)
     assert report[0].startswith("restored: env config, PPO hyperparameters, n_envs=2, seed=3")
     assert report[1] == "overridden: timesteps=192 (was 64)"
-    run, _ = resolve_run_settings({"num_env_runners": None}, {"seed": 5}, "rllib")
-    assert run == {**RUN_DEFAULTS["rllib"], "seed": 5}
+    run, _ = resolve_run({"num_env_runners": None}, record("rllib", seed=5), "rllib")
+    assert run == RunSettings(seed=5)
 
 
 @pytest.mark.parametrize(

@@ -39,6 +39,7 @@ from aldm_gym.training.outputs import (
     rllib_checkpoint_path,
 )
 from aldm_gym.training.progress import postfix, training_bar
+from aldm_gym.training.record import TrainingRecord
 from aldm_gym.training.rllib import import_rllib
 from aldm_gym.training.rllib.checkpoints import (
     STEPS_FILE,
@@ -131,13 +132,13 @@ class RLlibBackend(Backend[CheckpointRef]):
     def __init__(
         self,
         out: Path,
-        meta: Mapping[str, Any],
-        saved: Mapping[str, Any] | None,
+        record: TrainingRecord,
+        saved: TrainingRecord | None,
         progress: bool,
         address: str | None = None,
     ) -> None:
         # RLlib reads a relative path as a URI without a scheme.
-        super().__init__(Path(out).absolute(), meta, saved, progress)
+        super().__init__(Path(out).absolute(), record, saved, progress)
         self.address = address
         self.algo: Any = None
         self.writer: Any = None
@@ -159,7 +160,7 @@ class RLlibBackend(Backend[CheckpointRef]):
         import torch
 
         torch.set_num_threads(1)
-        connect(self.address, self.meta["num_env_runners"])
+        connect(self.address, self.record.run.num_env_runners)
         try:
             yield
         finally:
@@ -180,14 +181,14 @@ class RLlibBackend(Backend[CheckpointRef]):
     def _build(self, done: int) -> None:
         """The algorithm of the training at ``done`` steps (its envs seeded
         ``seed + done``, so a resume does not replay the first episodes)."""
-        meta = self.meta
+        record, run = self.record, self.record.run
         self.algo = ppo_config(
-            meta["env_config"],
+            record.env_config,
             self.params,
-            timesteps=meta["timesteps"],
-            num_env_runners=meta["num_env_runners"],
-            seed=meta["seed"] + done,
-            masked=meta["algorithm"] == "MaskablePPO",
+            timesteps=run.timesteps,
+            num_env_runners=run.num_env_runners,
+            seed=run.seed + done,
+            masked=record.algorithm == "MaskablePPO",
         ).build_algo()
         self.steps = self.last_saved = done
 
@@ -211,7 +212,7 @@ class RLlibBackend(Backend[CheckpointRef]):
         push_runner_statistics(self.algo)
         return (
             f"restored {checkpoint.path}; the env runners start new episodes, "
-            f"seeded {self.meta['seed'] + done}"
+            f"seeded {self.record.run.seed + done}"
         )
 
     def learn(self, stop: StopRequest) -> None:
@@ -219,7 +220,7 @@ class RLlibBackend(Backend[CheckpointRef]):
         ``checkpoint_freq`` steps; tensorboard gets :data:`LOGGED` of each."""
         from torch.utils.tensorboard import SummaryWriter
 
-        total = self.meta["timesteps"]
+        total = self.record.run.timesteps
         self.writer = SummaryWriter(str(self.out / TENSORBOARD_DIR / TB_RUN))
         with training_bar(total, self.steps, self.progress) as bar:
             while self.steps < total and not stop.requested:
@@ -231,7 +232,7 @@ class RLlibBackend(Backend[CheckpointRef]):
                 for tag, value in tb_scalars(result).items():
                     self.writer.add_scalar(tag, value, self.steps)
                 self.writer.flush()  # tensorboard (and a watcher) sees each iteration
-                if self.steps - self.last_saved >= self.meta["checkpoint_freq"]:
+                if self.steps - self.last_saved >= self.record.run.checkpoint_freq:
                     self.save_checkpoint()
 
     def save_checkpoint(self) -> CheckpointRef | None:
@@ -258,7 +259,7 @@ class RLlibBackend(Backend[CheckpointRef]):
                 logger.warning("stopping the algorithm failed: %s", exc)
 
     @classmethod
-    def load_policy(cls, path: Path) -> tuple[Any, dict[str, Any]]:
+    def load_policy(cls, path: Path) -> tuple[Any, TrainingRecord]:
         """An RLlib checkpoint folder
         (:func:`~aldm_gym.training.rllib.policy.load_rllib_policy`)."""
         from aldm_gym.training.rllib.policy import load_rllib_policy

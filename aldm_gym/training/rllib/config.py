@@ -26,6 +26,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from aldm_gym import ENV_ID
+from aldm_gym.envs.config import env_overrides
 from aldm_gym.training.rllib import import_rllib
 from aldm_gym.training.rllib.connectors import flatten_and_normalise
 from aldm_gym.training.settings import DEFAULT_ENV_RUNNERS, PPOParams
@@ -76,7 +77,7 @@ def ppo_config(
         module = {"rl_module_spec": masking_module_spec(model_config)}
     return (
         PPOConfig()
-        .environment(RLLIB_ENV_ID, env_config={"config": dict(config)})
+        .environment(RLLIB_ENV_ID, env_config={"config": env_overrides(config)})
         .env_runners(
             num_env_runners=num_env_runners,
             num_envs_per_env_runner=1,

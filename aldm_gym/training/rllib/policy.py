@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from aldm_gym.errors import CheckpointError, InputError
-from aldm_gym.training.outputs import TRAINING_FILE, find_training_file, read_training_record
+from aldm_gym.training.record import TrainingRecord, model_record
 from aldm_gym.training.rllib import MissingRayDependencies, import_rllib
 from aldm_gym.training.rllib.checkpoints import (
     ENV_TO_MODULE,
@@ -116,7 +116,7 @@ class RLlibPolicy:
         return np.asarray(int(self._rng.choice(len(p), p=p / p.sum()))), state
 
 
-def load_rllib_policy(path: Path) -> tuple[RLlibPolicy, dict[str, Any]]:
+def load_rllib_policy(path: Path) -> tuple[RLlibPolicy, TrainingRecord]:
     """An RLlib checkpoint folder and the ``training.json`` of its output folder.
 
     :raises FileNotFoundError: not a checkpoint written by a training, or no
@@ -131,10 +131,7 @@ def load_rllib_policy(path: Path) -> tuple[RLlibPolicy, dict[str, Any]]:
             f"{path} is a folder but not an RLlib checkpoint of aldm-gym train "
             f"(no {RLLIB_MARKER} and {STEPS_FILE})"
         )
-    meta_path = find_training_file(path)
-    if meta_path is None:
-        raise FileNotFoundError(f"no {TRAINING_FILE} next to {path} (written by aldm-gym train)")
-    meta = read_training_record(meta_path)
+    record = model_record(path)
     try:
         policy = RLlibPolicy(path)
     except MissingRayDependencies:
@@ -143,4 +140,4 @@ def load_rllib_policy(path: Path) -> tuple[RLlibPolicy, dict[str, Any]]:
         raise CheckpointError(
             f"{path}: not a readable RLlib checkpoint ({type(exc).__name__}: {exc})"
         ) from exc
-    return policy, meta
+    return policy, record

@@ -40,6 +40,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
+from dataclasses import replace
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -48,12 +49,11 @@ from aldm_gym.training.backend import Backend, CheckpointRef, train_with
 from aldm_gym.training.outputs import (
     MODEL_FILE,
     TENSORBOARD_DIR,
-    TRAINING_FILE,
     VECNORM_FILE,
     write_bytes_atomic,
-    write_json,
 )
 from aldm_gym.training.progress import report
+from aldm_gym.training.record import BACKEND_RUN_SETTINGS, TrainingRecord
 from aldm_gym.training.sb3 import import_sb3, model_class
 from aldm_gym.training.sb3.checkpoints import (
     Checkpoint,
@@ -73,7 +73,6 @@ from aldm_gym.training.sb3.pretrain import (
 from aldm_gym.training.settings import (
     DEFAULT_COLLISION_REWARD,
     DEFAULT_PRETRAIN_EPOCHS,
-    RUN_DEFAULTS,
     PPOParams,
     algorithm_name,
     check_keep_by,
@@ -81,7 +80,7 @@ from aldm_gym.training.settings import (
 )
 from aldm_gym.training.signals import StopRequest
 
-RUN_SETTINGS = tuple(RUN_DEFAULTS["sb3"])
+RUN_SETTINGS = BACKEND_RUN_SETTINGS["sb3"]
 """Settings of a run that ``resume`` restores from ``training.json`` unless given."""
 
 
@@ -110,8 +109,8 @@ class SB3Backend(Backend[Checkpoint]):
     def __init__(
         self,
         out: Path,
-        meta: Mapping[str, Any],
-        saved: Mapping[str, Any] | None,
+        record: TrainingRecord,
+        saved: TrainingRecord | None,
         progress: bool,
         verbose: int = 0,
         callback: Any = None,
@@ -119,9 +118,8 @@ class SB3Backend(Backend[Checkpoint]):
         pretrain_epochs: int = DEFAULT_PRETRAIN_EPOCHS,
         keep_by: str | None = None,
     ) -> None:
-        super().__init__(out, meta, saved, progress)
-        # a resume keeps the training's own (before keep_by existed: the return)
-        was = None if saved is None else str(saved.get("keep_by", "return"))
+        super().__init__(out, record, saved, progress)
+        was = None if saved is None else saved.keep_by  # a resume keeps the training's own
         if keep_by is not None:
             check_keep_by(keep_by)
             if was is not None and keep_by != was:
@@ -129,15 +127,15 @@ class SB3Backend(Backend[Checkpoint]):
                     f"keep_by={keep_by!r}, but the training being resumed keeps its best "
                     f"model by {was!r} (its best_model.zip was chosen so)"
                 )
-        self.meta["keep_by"] = keep_by or was or "return"
+        self.record = replace(self.record, keep_by=keep_by or was or "return")
         self.verbose = verbose
         self.callback = callback
         self.pretrain_episodes = pretrain_episodes
         self.pretrain_epochs = pretrain_epochs
         if saved is not None:  # a resume keeps the training's own (none: no cloning)
-            record = saved.get("pretrain") or {"episodes": 0, "epochs": pretrain_epochs}
-            self.pretrain_episodes = int(record["episodes"])
-            self.pretrain_epochs = int(record["epochs"])
+            cloned = saved.pretrain or {"episodes": 0, "epochs": pretrain_epochs}
+            self.pretrain_episodes = int(cloned["episodes"])
+            self.pretrain_epochs = int(cloned["epochs"])
         self.clone_pending = False
         self.model: Any = None
         self.venv: Any = None
@@ -178,31 +176,32 @@ class SB3Backend(Backend[Checkpoint]):
         saved ``n_envs`` and ``seed``, put the envs and RNGs back as they were."""
         from stable_baselines3.common.vec_env import VecNormalize
 
-        run, saved = self.meta, self.saved or {}
+        run, saved = self.record.run, self.saved
         done = checkpoint.steps
         exact = (
             checkpoint.resume_state is not None
-            and run["n_envs"] == int(saved.get("n_envs", 1))
-            and run["seed"] == int(saved.get("seed", 0))
+            and saved is not None
+            and run.n_envs == saved.run.n_envs
+            and run.seed == saved.run.seed
         )
-        self.venv = make_vec_env(run["env_config"], run["n_envs"], run["seed"] + done)
+        self.venv = make_vec_env(self.record.env_config, run.n_envs, run.seed + done)
         self.venv = VecNormalize.load(str(checkpoint.vecnormalize), self.venv)
         self.venv.training = True
         # load takes n_envs from venv and rebuilds the rollout buffer for it.
-        self.model = model_class(run["algorithm"]).load(
+        self.model = model_class(self.record.algorithm).load(
             checkpoint.model, env=self.venv, device="cpu"
         )
         self.model.tensorboard_log = str(self.out / TENSORBOARD_DIR)
         self.done, self.resumed = done, True
-        if saved.get("pretrain"):
-            self.meta["pretrain"] = saved["pretrain"]
+        if saved is not None and saved.pretrain:
+            self.record = replace(self.record, pretrain=saved.pretrain)
         if exact:
             assert checkpoint.resume_state is not None
             restore_resume_state(self.model, checkpoint.resume_state)
             return f"envs and RNGs continue exactly from {checkpoint.model.name}"
-        self.model.set_random_seed(run["seed"] + done)
+        self.model.set_random_seed(run.seed + done)
         return (
-            f"envs restart from seed {run['seed'] + done} (n_envs or seed changed, "
+            f"envs restart from seed {run.seed + done} (n_envs or seed changed, "
             "or the checkpoint has no resume state)"
         )
 
@@ -210,17 +209,17 @@ class SB3Backend(Backend[Checkpoint]):
         """A new model (PPO or MaskablePPO) on new, normalised envs."""
         from stable_baselines3.common.vec_env import VecNormalize
 
-        run, params = self.meta, self.params
+        run, params = self.record.run, self.params
         self.venv = VecNormalize(
-            make_vec_env(run["env_config"], run["n_envs"], run["seed"]),
+            make_vec_env(self.record.env_config, run.n_envs, run.seed),
             norm_reward=False,
             clip_obs=10.0,
         )
-        self.model = model_class(run["algorithm"])(
+        self.model = model_class(self.record.algorithm)(
             "MultiInputPolicy",
             self.venv,
             n_steps=params.n_steps,
-            batch_size=min(params.batch_size, params.n_steps * run["n_envs"]),
+            batch_size=min(params.batch_size, params.n_steps * run.n_envs),
             n_epochs=params.n_epochs,
             learning_rate=params.learning_rate_schedule(),
             gamma=params.gamma,
@@ -229,39 +228,39 @@ class SB3Backend(Backend[Checkpoint]):
             clip_range=params.clip_range,
             policy_kwargs={"net_arch": list(params.net_arch)},
             tensorboard_log=str(self.out / TENSORBOARD_DIR),
-            seed=run["seed"],
+            seed=run.seed,
             device="cpu",
             verbose=self.verbose,
         )
         if self.pretrain_episodes > 0:
             # The cloning itself runs in learn (a signal stops it there); the settings
             # go to training.json first, so a resume of a stopped cloning clones again.
-            self.meta["pretrain"] = {
-                "episodes": self.pretrain_episodes,
-                "epochs": self.pretrain_epochs,
-            }
+            self.record = replace(
+                self.record,
+                pretrain={"episodes": self.pretrain_episodes, "epochs": self.pretrain_epochs},
+            )
             self.clone_pending = True
 
     def _pretrain(self) -> None:
         """Clone the rule-based LCA into the new model
         (:mod:`aldm_gym.training.sb3.pretrain`); the report replaces the settings in
         ``training.json``'s ``"pretrain"``."""
-        run = self.meta
-        seeds = demonstration_seeds(run["seed"], self.pretrain_episodes)
+        record = self.record
+        seeds = demonstration_seeds(record.run.seed, self.pretrain_episodes)
         report(f"playing the rule-based LCA on {len(seeds)} demonstration episodes…")
         demos = collect_demonstrations(
-            run["env_config"], seeds, self.params.gamma, progress=self.progress
+            record.env_config, seeds, self.params.gamma, progress=self.progress
         )
         result = clone(
             self.model,
             demos,
             self.pretrain_epochs,
-            seed=run["seed"],
+            seed=record.run.seed,
             seeds=seeds,
-            masked=run["algorithm"] == "MaskablePPO",
+            masked=record.algorithm == "MaskablePPO",
         )
-        self.meta["pretrain"] = result.record()
-        write_json(self.out / TRAINING_FILE, self.meta)
+        self.record = replace(record, pretrain=result.record())
+        self.write_record()
         self.clone_pending = False
         report(result.text())
 
@@ -274,23 +273,23 @@ class SB3Backend(Backend[Checkpoint]):
             ValidationCallback,
         )
 
-        run = self.meta
-        self.checkpointer = RolloutCheckpointCallback(run["checkpoint_freq"], self.out)
+        record, run = self.record, self.record.run
+        self.checkpointer = RolloutCheckpointCallback(run.checkpoint_freq, self.out)
         callbacks: list[Any] = [self.checkpointer]
-        if run["validation_freq"] > 0 and run["validation_episodes"] > 0:
+        if run.validation_freq > 0 and run.validation_episodes > 0:
             callbacks.append(
                 ValidationCallback(
                     self.out,
-                    run["env_config"],
-                    run["validation_freq"],
-                    run["validation_episodes"],
+                    record.env_config,
+                    run.validation_freq,
+                    run.validation_episodes,
                     progress=self.progress,
-                    validate_first="pretrain" in run and self.done == 0,
-                    keep_by=run["keep_by"],
+                    validate_first=record.pretrain is not None and self.done == 0,
+                    keep_by=record.keep_by or "return",
                 )
             )
         if self.progress:
-            callbacks.append(ProgressCallback(run["timesteps"]))
+            callbacks.append(ProgressCallback(run.timesteps))
         if self.callback is not None:
             callbacks += self.callback if isinstance(self.callback, list) else [self.callback]
         return callbacks
@@ -302,12 +301,12 @@ class SB3Backend(Backend[Checkpoint]):
         if self.clone_pending:
             self._pretrain()
         callbacks = self._callbacks()
-        if self.meta["timesteps"] > self.done:
+        if self.record.run.timesteps > self.done:
             self.model.learn(
-                total_timesteps=self.meta["timesteps"] - self.done,
+                total_timesteps=self.record.run.timesteps - self.done,
                 callback=callbacks,
                 reset_num_timesteps=not self.resumed,
-                tb_log_name=self.meta["algorithm"],
+                tb_log_name=self.record.algorithm,
             )
         # The state after the last update (also when resumed with nothing left to do),
         # taken while the envs are open.
@@ -338,7 +337,7 @@ class SB3Backend(Backend[Checkpoint]):
             close_envs(self.venv, interrupted)
 
     @classmethod
-    def load_policy(cls, path: Path) -> tuple[Any, dict[str, Any]]:
+    def load_policy(cls, path: Path) -> tuple[Any, TrainingRecord]:
         """A model ``.zip`` (:func:`aldm_gym.training.sb3.policy.load_policy`)."""
         from aldm_gym.training.sb3.policy import load_policy
 

@@ -18,7 +18,7 @@ callbacks); the backend imports it only when a training runs.
 from __future__ import annotations
 
 import json
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
@@ -202,7 +202,7 @@ class ValidationCallback(BaseCallback):
     def __init__(
         self,
         out: Path,
-        env_config: dict[str, Any],
+        env_config: Mapping[str, Any],
         validation_freq: int,
         n_episodes: int,
         progress: bool = False,

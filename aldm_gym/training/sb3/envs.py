@@ -10,7 +10,7 @@ from __future__ import annotations
 import functools
 import pickle
 import random
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import gymnasium as gym
@@ -43,7 +43,7 @@ class ResumableEnv(gym.Wrapper):
         set_global_rng_state(data["rng"])
 
 
-def make_env(config: dict[str, Any]) -> ResumableEnv:
+def make_env(config: Mapping[str, Any]) -> ResumableEnv:
     """One monitored, resumable env (module level so ``SubprocVecEnv`` can pickle the
     factory)."""
     from stable_baselines3.common.monitor import Monitor
@@ -53,7 +53,7 @@ def make_env(config: dict[str, Any]) -> ResumableEnv:
     return ResumableEnv(Monitor(gym.make(ENV_ID, config=config)))
 
 
-def make_vec_env(config: dict[str, Any], n_envs: int, seed: int) -> Any:
+def make_vec_env(config: Mapping[str, Any], n_envs: int, seed: int) -> Any:
     """``n_envs`` copies of the env: ``SubprocVecEnv`` for several, else ``DummyVecEnv``.
 
     The i-th env's first reset uses ``seed + i``.

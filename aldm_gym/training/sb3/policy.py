@@ -7,7 +7,7 @@ from pathlib import Path
 from typing import Any
 
 from aldm_gym.errors import CheckpointError, InputError
-from aldm_gym.training.outputs import TRAINING_FILE, find_training_file, read_training_record
+from aldm_gym.training.record import TrainingRecord, model_record
 from aldm_gym.training.sb3 import model_class
 from aldm_gym.training.sb3.checkpoints import vecnormalize_for
 
@@ -69,10 +69,10 @@ class NormalizedModel:
         )
 
 
-def load_policy(model_path: Path) -> tuple[NormalizedModel, dict[str, Any]]:
+def load_policy(model_path: Path) -> tuple[NormalizedModel, TrainingRecord]:
     """Load a model ``.zip`` (final, best or checkpoint) and its ``training.json``.
 
-    :return: the policy (with its observation normalisation) and the training metadata.
+    :return: the policy (with its observation normalisation) and the training's record.
     :raises FileNotFoundError: no model, or no ``training.json`` next to it or in its
         parent folder.
     :raises CheckpointError: the model, its normalisation or its ``training.json`` is
@@ -83,17 +83,8 @@ def load_policy(model_path: Path) -> tuple[NormalizedModel, dict[str, Any]]:
     model_path = Path(model_path)
     if not model_path.is_file():
         raise FileNotFoundError(f"no model file {model_path}")
-    meta_path = find_training_file(model_path)
-    if meta_path is None:
-        raise FileNotFoundError(
-            f"no {TRAINING_FILE} next to {model_path} (written by aldm-gym train)"
-        )
-    meta = read_training_record(meta_path)
-    algorithm = str(meta.get("algorithm", "PPO"))
-    try:
-        cls = model_class(algorithm)
-    except ValueError as exc:
-        raise CheckpointError(f"{meta_path}: {exc}") from None
+    record = model_record(model_path)
+    cls = model_class(record.algorithm)
     try:
         model = cls.load(model_path, device="cpu")
     except Exception as exc:  # a corrupt zip fails in zipfile, pickle or torch
@@ -111,4 +102,4 @@ def load_policy(model_path: Path) -> tuple[NormalizedModel, dict[str, Any]]:
                 f"{vecnorm_path}: not a readable normalisation ({type(exc).__name__}: {exc})"
             ) from exc
         vecnorm.training = False
-    return NormalizedModel(model, vecnorm), meta
+    return NormalizedModel(model, vecnorm), record

@@ -17,6 +17,7 @@ learns it only as far as the vehicles and lines show it.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass
 from typing import Any
 
@@ -160,7 +161,7 @@ def discounted_returns(rewards: np.ndarray, ends: np.ndarray, gamma: float) -> n
 
 
 def collect_demonstrations(
-    env_config: dict[str, Any], seeds: range, gamma: float, progress: bool = False
+    env_config: Mapping[str, Any], seeds: range, gamma: float, progress: bool = False
 ) -> Demonstrations:
     """Play the rule-based LCA on ``seeds`` in ``ALDMHighway-v0`` with ``env_config``.
 
