@@ -100,10 +100,40 @@ class RunResult:
         return out
 
 
-def _lead(world: Any, ego: Entity, others: list[Entity]) -> tuple[Entity, float] | None:
+@dataclass(frozen=True)
+class _Box:
+    """A generated vehicle's box, around its reference point (its centre)."""
+
+    cx: float
+    length: float
+    width: float
+
+
+class _Generated:
+    """A generated vehicle (a swarm's, a source's) as :func:`_lead` reads an entity."""
+
+    kind = "vehicle"
+
+    def __init__(self, vehicle: Any) -> None:
+        self.vehicle = vehicle
+        self.box = _Box(0.0, float(vehicle.LENGTH), float(vehicle.WIDTH))
+        self.velocity = float(vehicle.speed)
+
+    def reference_point(self) -> np.ndarray:
+        """The box centre [m] (highway-env's frame)."""
+        return np.asarray(self.vehicle.position, dtype=float)
+
+    def forward(self) -> np.ndarray:
+        """The unit vector of the heading."""
+        h = float(self.vehicle.heading)
+        return np.array([math.cos(h), math.sin(h)])
+
+
+def _lead(world: Any, ego: Entity, others: list[Any]) -> tuple[Any, float] | None:
     """The vehicle in front in the ego's lane, and the freespace gap to it [m]: the
-    nearest scenario vehicle wholly ahead of the ego's front whose box overlaps the
-    lane, with distances along the lane's centre (reference points projected on it)."""
+    nearest scenario or generated vehicle wholly ahead of the ego's front whose box
+    overlaps the lane, with distances along the lane's centre (reference points
+    projected on it)."""
     try:
         c = world.coordinates(ego)
     except OffRoadError:
@@ -154,7 +184,8 @@ class Judge:
         if info.get("lane_departure"):
             r.departures += 1
         ego = runner.ego
-        others = [e for e in world.entities.values() if e is not ego]
+        others: list[Any] = [e for e in world.entities.values() if e is not ego]
+        others += [_Generated(v) for v in runner.generated()]
         lead = _lead(world, ego, others)
         v = ego.velocity
         if lead is None or v < 0.5:

@@ -53,6 +53,7 @@ __all__ = [
     "AssignRoute",
     "Dynamics",
     "FollowTrajectory",
+    "GenerateTraffic",
     "Ignored",
     "LaneChange",
     "LaneOffset",
@@ -60,6 +61,7 @@ __all__ = [
     "LongitudinalDistance",
     "SpeedChange",
     "SpeedProfile",
+    "StopTraffic",
     "StoreChange",
     "Synchronize",
     "Teleport",
@@ -357,6 +359,48 @@ class EntityChange(Instance):
             entity.teleport = where
         else:
             entity.arrival = where
+
+
+class GenerateTraffic(Instance):
+    """``TrafficSwarmAction``, ``TrafficSourceAction``, ``TrafficSinkAction``
+    (:mod:`aldm_gym.scenario.traffic`): its generator acts at every step from its start
+    until the storyboard stops it (or a ``TrafficStopAction`` naming it)."""
+
+    def __init__(self, entity: Entity | None, where: str, make: Callable[[Any], Any]) -> None:
+        """``make(runner)``: the generator, its positions resolved at the start."""
+        super().__init__(entity, where)
+        self.make = make
+        self.runner: Any = None
+        self.generator: Any = None
+
+    def start(self, runner: Any) -> None:
+        """Make the generator and hand it to the runner (replacing one of its name)."""
+        self.runner, self.generator = runner, self.make(runner)
+        for other in list(runner.generators):
+            if other.generator.name == self.generator.name:
+                other.stop()
+        runner.generators.append(self)
+
+    def _release(self) -> None:
+        if self.runner is not None and self in self.runner.generators:
+            self.runner.generators.remove(self)
+
+
+class StopTraffic(Instance):
+    """``TrafficStopAction``: end the traffic action of a ``trafficName`` (its vehicles
+    drive on); one of no such name running changes nothing."""
+
+    def __init__(self, entity: Entity | None, where: str, name: str) -> None:
+        """``name``: the ``trafficName`` to stop."""
+        super().__init__(entity, where)
+        self.name = name
+
+    def start(self, runner: Any) -> None:
+        """Stop the named traffic action."""
+        for other in list(runner.generators):
+            if other.generator.name == self.name:
+                other.stop()
+        self.done = True
 
 
 class TrailerLink(Instance):

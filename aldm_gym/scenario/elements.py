@@ -254,15 +254,27 @@ ELEMENTS: dict[str, tuple[str, str]] = {
         "EntityAction AddEntityAction DeleteEntityAction",
     ),
     **_each(
-        "refused",
-        "generated traffic (swarms, sources, sinks) is not played: the scenario's "
-        "entities are the traffic",
+        "played",
+        "generated traffic: the env's map traffic (IDM/MOBIL) kept in a swarm's ring, "
+        "placed by a source, removed by a sink, drawn from the episode's seed "
+        "(aldm_gym.scenario.traffic)",
         "TrafficAction TrafficSwarmAction TrafficSourceAction TrafficSinkAction "
-        "TrafficStopAction TrafficAreaAction TrafficArea TrafficDefinition "
-        "CentralObject InitialSpeedRange DirectionOfTravelDistribution "
-        "VehicleCategoryDistribution VehicleCategoryDistributionEntry "
+        "TrafficStopAction TrafficDefinition CentralObject InitialSpeedRange "
+        "DirectionOfTravelDistribution VehicleCategoryDistribution "
+        "VehicleCategoryDistributionEntry",
+    ),
+    **_each(
+        "ignored",
+        "generated vehicles drive as the env's map traffic: their controllers and roles "
+        "are its own",
         "ControllerDistribution ControllerDistributionEntry VehicleRoleDistribution "
-        "VehicleRoleDistributionEntry TrafficDistribution TrafficDistributionEntry "
+        "VehicleRoleDistributionEntry",
+    ),
+    **_each(
+        "refused",
+        "traffic areas (1.3) and traffic drawn from entity templates are not played "
+        "(the templates are not either)",
+        "TrafficAreaAction TrafficArea TrafficDistribution TrafficDistributionEntry "
         "EntityDistribution EntityDistributionEntry",
     ),
     # 1.0 spelling of the root in some writers' schemas

@@ -85,6 +85,12 @@ _NO_MEANING = {
 }
 """Elements the player accepts and ignores, and why (one warning per kind and file)."""
 
+_GENERATED_DRIVERS = (
+    "generated vehicles drive as the env's map traffic (IDM/MOBIL): their controllers and "
+    "roles are its own"
+)
+"""Why a traffic definition's controller and role distributions are ignored."""
+
 _SHAPES = ("Polyline", "Clothoid", "ClothoidSpline", "Nurbs")
 """The trajectory shapes."""
 
@@ -949,6 +955,8 @@ class _Reader(ElementReader):
             return self._store_change(body, "parameters")
         if body.tag == "VariableAction":
             return self._store_change(body, "variables")
+        if body.tag == "TrafficAction":
+            return self._traffic(body)
         if body.tag == "EntityAction":
             name = self._entity_ref(body, "entityRef")
             change = self.one(body, ("AddEntityAction", "DeleteEntityAction"))
@@ -958,6 +966,165 @@ class _Reader(ElementReader):
                 self.added.add(name)
             return lambda actor: A.EntityChange(actor, where, name, pos)
         raise self.error(body, f"{body.tag} is not supported yet")
+
+    def _traffic(self, body: Any) -> Callable[[Entity | None], A.Instance]:
+        """A ``TrafficAction``: a swarm, source or sink, or a stop of one
+        (:mod:`aldm_gym.scenario.traffic`)."""
+        from aldm_gym.scenario import traffic as T
+
+        where = self.where(body)
+        name = self.attr(body, "trafficName", f"traffic@{body.sourceline}")
+        kind = self.one(
+            body,
+            (
+                "TrafficSwarmAction",
+                "TrafficSourceAction",
+                "TrafficSinkAction",
+                "TrafficStopAction",
+            ),
+        )
+        if kind.tag == "TrafficStopAction":
+            if body.get("trafficName") is None:
+                raise self.error(body, "a TrafficStopAction needs the trafficName to stop")
+            return lambda actor: A.StopTraffic(actor, where, name)
+        definition = self._traffic_definition(kind)
+        speed_range = None
+        if kind.find("InitialSpeedRange") is not None:
+            limits = self.child(kind, "InitialSpeedRange")
+            lo, hi = self.num(limits, "lowerLimit"), self.num(limits, "upperLimit")
+            if not 0.0 <= lo <= hi <= T.MAX_SPEED:
+                raise self.error(
+                    limits,
+                    f"needs 0 <= lowerLimit <= upperLimit <= {T.MAX_SPEED:g} [m/s], "
+                    f"got {lo:g}, {hi:g}",
+                )
+            speed_range = (lo, hi)
+        speed = self._traffic_speed(kind, "velocity", None)
+        if kind.tag == "TrafficSwarmAction":
+            self.kids(
+                kind,
+                (
+                    "CentralObject",
+                    "TrafficDefinition",
+                    "InitialSpeedRange",
+                    "DirectionOfTravelDistribution",
+                ),
+            )
+            central_el = kind.find("CentralObject")
+            if central_el is None:  # esmini's older spelling
+                central_el = kind.find("CentralSwarmObject")
+            if central_el is None:
+                raise self.error(kind, "missing <CentralObject>")
+            central = self._entity_ref(central_el, "entityRef")
+            inner = self.num(kind, "innerRadius")
+            major, minor = self.num(kind, "semiMajorAxis"), self.num(kind, "semiMinorAxis")
+            count = self.integer(kind, "numberOfVehicles")
+            if not (0.0 <= inner and major > 0.0 and minor > 0.0):
+                raise self.error(kind, "needs innerRadius >= 0 and semi-axes > 0")
+            if not 0 <= count <= T.MAX_GENERATED:
+                raise self.error(
+                    kind, f"numberOfVehicles must be in [0, {T.MAX_GENERATED}], got {count}"
+                )
+            same_share = 1.0
+            travel = kind.find("DirectionOfTravelDistribution")
+            if travel is not None:
+                same, opposite = self.num(travel, "same"), self.num(travel, "opposite")
+                if same < 0.0 or opposite < 0.0 or same + opposite <= 0.0:
+                    raise self.error(travel, "needs weights >= 0, not both 0")
+                same_share = same / (same + opposite)
+            swarm = {
+                "name": name,
+                "definition": definition,
+                "speed_range": speed_range,
+                "speed": speed,
+                "central": central,
+                "inner_radius": inner,
+                "semi_major": major,
+                "semi_minor": minor,
+                "offset": self.num(kind, "offset", 0.0),
+                "count": count,
+                "same_share": same_share,
+            }
+            return lambda actor: A.GenerateTraffic(actor, where, lambda runner: T.Swarm(**swarm))
+        self.kids(kind, ("Position", "TrafficDefinition"))
+        position = self.position(self.child(kind, "Position"))
+        radius = self.num(kind, "radius")
+        if radius < 0.0:
+            raise self.error(kind, f"radius must be >= 0, got {radius:g}")
+        if kind.tag == "TrafficSourceAction":
+            rate = self.num(kind, "rate")
+            if rate <= 0.0:
+                raise self.error(kind, f"rate must be > 0 [vehicles/s], got {rate:g}")
+            speed = self._traffic_speed(kind, "speed", speed)
+
+            def source(runner: Any) -> T.Source:
+                return T.Source(
+                    name=name,
+                    definition=definition,
+                    speed_range=speed_range,
+                    speed=speed,
+                    point=runner.world.point_of(position.resolve(runner.world)),
+                    radius=radius,
+                    rate=rate,
+                    started=runner.world.time,
+                )
+
+            return lambda actor: A.GenerateTraffic(actor, where, source)
+        rate = self.num(kind, "rate", math.inf)
+        if rate <= 0.0:
+            raise self.error(kind, f"rate must be > 0 [vehicles/s], got {rate:g}")
+
+        def sink(runner: Any) -> T.Sink:
+            return T.Sink(
+                name=name,
+                definition=definition,
+                point=runner.world.point_of(position.resolve(runner.world)),
+                radius=radius,
+                rate=rate,
+            )
+
+        return lambda actor: A.GenerateTraffic(actor, where, sink)
+
+    def _traffic_speed(self, el: Any, name: str, default: float | None) -> float | None:
+        """A generated vehicle's speed attribute [m/s], within ``[0, MAX_SPEED]``."""
+        from aldm_gym.scenario.traffic import MAX_SPEED
+
+        value = self.num(el, name, default)
+        if value is not None and not 0.0 <= value <= MAX_SPEED:
+            raise self.error(el, f"{name} must be in [0, {MAX_SPEED:g}] [m/s], got {value:g}")
+        return value
+
+    def _traffic_definition(self, kind: Any) -> Any:
+        """The ``TrafficDefinition`` of a traffic action: its vehicle categories (the
+        controllers and roles are the env's traffic's: ignored, one warning)."""
+        from aldm_gym.scenario.traffic import CATEGORY_SIZES, TrafficDefinition
+
+        el = kind.find("TrafficDefinition")
+        if el is None:
+            if kind.tag == "TrafficSinkAction":
+                return TrafficDefinition()
+            raise self.error(kind, "missing <TrafficDefinition>")
+        parts = self.kids(
+            el,
+            ("VehicleCategoryDistribution", "ControllerDistribution", "VehicleRoleDistribution"),
+        )
+        categories: list[tuple[str, float]] = []
+        for part in parts:
+            if part.tag != "VehicleCategoryDistribution":
+                self.ignore(part, _GENERATED_DRIVERS)
+                continue
+            for entry in self.kids(part, ("VehicleCategoryDistributionEntry",)):
+                category = self.choice(entry, "category", tuple(CATEGORY_SIZES))
+                weight = self.num(entry, "weight")
+                if weight < 0.0:
+                    raise self.error(entry, f"weight must be >= 0, got {weight:g}")
+                if weight > 0.0:
+                    categories.append((category, weight))
+        if not categories:
+            if any(p.tag == "VehicleCategoryDistribution" for p in parts):
+                raise self.error(el, "no vehicle category has a weight above 0")
+            return TrafficDefinition()
+        return TrafficDefinition(tuple(categories))
 
     def dynamics(self, el: Any) -> A.Dynamics:
         """``*Dynamics`` with shape, dimension, value."""

@@ -77,6 +77,11 @@ class ScenarioRunner:
         self.on_activate: Callable[[Entity], None] | None = None
         self.traffic: Any = None
         """The road whose vehicles the entities' are (set by :meth:`populate`)."""
+        self.generators: list[Any] = []
+        """The running traffic actions (swarms, sources, sinks:
+        :mod:`aldm_gym.scenario.traffic`), in the order they started."""
+        self.rng: Any = None
+        """The episode's generator, which the generated traffic draws from."""
 
     @property
     def active(self) -> bool:
@@ -93,17 +98,20 @@ class ScenarioRunner:
         traffic: Any,
         make_ego: Callable[[Any, Any, float, float], Any],
         dt: float | None = None,
+        rng: Any = None,
     ) -> Any:
         """Make every entity's vehicle on ``traffic`` (the ego with ``make_ego``), play
         ``Init`` at time 0, and start the storyboard; return the ego's vehicle. ``dt``
         [s]: the simulation step, to prepare the first one (the actions that measure
-        where every entity begins a step).
+        where every entity begins a step). ``rng``: the episode's generator, for
+        generated traffic (a fixed seed when None).
 
         :raises ScenarioError: an entity that ``Init`` does not place.
         """
         import numpy as np
 
         self.traffic = traffic
+        self.rng = rng if rng is not None else np.random.default_rng(0)
         for entity in self.world.entities.values():
             if entity.is_ego:
                 v = make_ego(traffic, np.zeros(2), 0.0, 0.0)
@@ -146,6 +154,7 @@ class ScenarioRunner:
         self.world.track(0.0)
         self.world.running = True
         self.storyboard.update(self, 0.0)
+        self._generate(dt or 0.0)
         if dt is not None:
             self.world.prepare(dt)
         self.world.ego_due()
@@ -189,10 +198,22 @@ class ScenarioRunner:
         world.time = self.steps / frequency if abs(frequency * dt - 1.0) < 1e-9 else self.steps * dt
         world.track(dt)
         self.storyboard.update(self, world.time)
+        self._generate(dt)
         if self.domains == {"lateral"}:
             world.script_speed(self.ego, dt)  # the next step's speed is the script's
         world.prepare(dt)
         world.ego_due()
+
+    def generated(self) -> list[Any]:
+        """The generated vehicles on the road (swarms', sources'), in road order."""
+        if self.traffic is None:
+            return []
+        return [v for v in self.traffic.vehicles if getattr(v, "generated_by", None) is not None]
+
+    def _generate(self, dt: float) -> None:
+        """Let the running traffic actions add and remove their vehicles."""
+        for action in list(self.generators):
+            action.generator.step(self, self.rng, dt)
 
     def _couple(self) -> None:
         """The trailers the vehicles tow from the start (``Trailer``), in line behind

@@ -282,6 +282,17 @@ class World:
     def _lane(self, key: LaneKey) -> Any:
         return self.network.get_lane(self.network.index_of[key])
 
+    def lane(self, key: LaneKey) -> Any:
+        """The highway-env lane of a driving lane's key (``position(u, lateral)``,
+        ``heading_at(u)``, ``length``, ``speed_limit``)."""
+        return self._lane(key)
+
+    def point_of(self, where: Any) -> np.ndarray:
+        """The world point [m] (highway-env's frame) of a resolved position."""
+        if where.lane is not None:
+            return self.pose(where.lane, where.u, where.t)[0]
+        return np.asarray(where.point, dtype=np.float64)
+
     def coordinates(self, entity: Entity) -> RoadCoordinates:
         """Where the entity's reference point is, in the road's coordinates.
 

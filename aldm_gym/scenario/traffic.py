@@ -1,0 +1,299 @@
+"""Generated traffic: ``TrafficSwarmAction``, ``TrafficSourceAction``,
+``TrafficSinkAction`` and ``TrafficStopAction``.
+
+OpenSCENARIO leaves the generated vehicles' behaviour to the tool ("controlled by the
+simulator's default traffic"): here they are the env's own map traffic
+(:class:`~aldm_gym.envs.vehicle.MapIDMVehicle`, highway-env's IDM and MOBIL with the
+mandatory merge), placed on a driving lane's centre, heading along it. Their draws
+(where, which category, how fast) come from the episode's generator, so a seed gives
+the same traffic. They are not scenario objects: no condition or action names them;
+they are vehicles of the road, which the function under test senses and can hit.
+
+* A **swarm** keeps ``numberOfVehicles`` vehicles in the ring between the circle of
+  ``innerRadius`` around its central object and the ellipse of semi-axes
+  ``semiMajorAxis`` (along the central object's heading) and ``semiMinorAxis``, centred
+  ``offset`` ahead of it: each step it removes its vehicles outside the ellipse and
+  places new ones in the ring (a few tries per step) where they keep a gap to every
+  vehicle. ``DirectionOfTravelDistribution`` weighs lanes driven the central object's
+  way against the others (default: its way only).
+* A **source** places a vehicle within ``radius`` of its position every ``1 / rate``
+  seconds (a blocked place is tried again the next step).
+* A **sink** removes the generated vehicles within ``radius`` of its position, at most
+  ``rate`` per second (all, without ``rate``). Scenario objects are never removed.
+* **TrafficStopAction** ends the traffic action of its ``trafficName``; the vehicles it
+  generated drive on.
+
+A generating action runs until the storyboard stops it (as esmini plays swarms).
+The speed of a new vehicle: uniform in ``InitialSpeedRange``, else the action's
+``velocity`` (``speed`` of a source), else 70-80 % of the lane's speed limit (as the
+env's map traffic). Its size: its category's (``VehicleCategoryDistribution``, drawn
+by weight; :data:`CATEGORY_SIZES`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from aldm_gym.errors import InputError
+
+__all__ = [
+    "CATEGORY_SIZES",
+    "MAX_GENERATED",
+    "MAX_SPEED",
+    "Sink",
+    "Source",
+    "Swarm",
+    "TrafficDefinition",
+]
+
+CATEGORY_SIZES: dict[str, tuple[float, float]] = {
+    "car": (5.0, 2.0),
+    "van": (5.5, 2.1),
+    "truck": (12.0, 2.55),
+    "semitrailer": (16.5, 2.55),
+    "trailer": (12.0, 2.55),
+    "bus": (12.0, 2.55),
+    "motorbike": (2.2, 0.8),
+    "bicycle": (1.8, 0.6),
+    "train": (20.0, 2.8),
+    "tram": (20.0, 2.65),
+}
+"""Length and width [m] of a generated vehicle by OpenSCENARIO ``vehicleCategory``."""
+
+MAX_GENERATED = 200
+"""The most vehicles one action keeps or places (``numberOfVehicles`` above is an
+error): each is a highway-env vehicle stepped at the simulation rate."""
+
+MAX_SPEED = 100.0
+"""The fastest a generated vehicle starts [m/s] (a faster one is an error)."""
+
+TRIES_PER_STEP = 5
+"""Places a swarm tries per step to fill its ring (a blocked one is left for later)."""
+
+GAP_TIME = 0.5
+"""Time gap [s] a new vehicle keeps to every vehicle at its speed, at least
+:data:`MIN_GAP` [m] between the boxes."""
+
+MIN_GAP = 2.0
+"""Least distance [m] between a new vehicle's box and another's (bumper to bumper)."""
+
+
+@dataclass(frozen=True)
+class TrafficDefinition:
+    """``TrafficDefinition``: the vehicle categories to draw, with their weights.
+
+    :ivar categories: ``(vehicleCategory, weight)`` pairs, weights > 0.
+    """
+
+    categories: tuple[tuple[str, float], ...] = (("car", 1.0),)
+
+    def draw(self, rng: np.random.Generator) -> str:
+        """One category, drawn by weight."""
+        weights = np.array([w for _, w in self.categories], dtype=float)
+        i = int(rng.choice(len(weights), p=weights / weights.sum()))
+        return self.categories[i][0]
+
+
+@dataclass
+class _Generator:
+    """What every generating action shares: its definition, speeds, and vehicles."""
+
+    name: str
+    definition: TrafficDefinition
+    speed_range: tuple[float, float] | None = None
+    speed: float | None = None
+
+    def __post_init__(self) -> None:
+        self.vehicles: list[Any] = []
+        self.pending: str | None = None  # the next vehicle's category, kept until placed
+
+    def _speed(self, rng: np.random.Generator, lane: Any) -> float:
+        if self.speed_range is not None:
+            lo, hi = self.speed_range
+            return float(rng.uniform(lo, hi))
+        if self.speed is not None:
+            return float(self.speed)
+        limit = float(getattr(lane, "speed_limit", None) or 30.0)
+        return float(rng.uniform(0.7 * limit, 0.8 * limit))
+
+    def _place(
+        self,
+        runner: Any,
+        rng: np.random.Generator,
+        point: np.ndarray,
+        heading_to_match: float | None = None,
+        same_share: float = 1.0,
+    ) -> bool:
+        """Put a new vehicle on the driving lane nearest ``point`` (on its centre), if
+        it keeps its gap to every vehicle; whether it did. With ``heading_to_match``,
+        a lane driven that way is taken with probability ``same_share`` and one driven
+        the other way otherwise."""
+        from aldm_gym.envs.vehicle import MapIDMVehicle
+
+        world = runner.world
+        try:
+            pos = world.road.lane_position(point)
+        except InputError:
+            return False  # off the map
+        if not math.isfinite(pos.s):
+            return False
+        key = pos.lane
+        u = pos.s - world.road.chain_start(key)
+        lane = world.lane(key)
+        if not 0.0 <= u <= lane.length:
+            return False
+        if heading_to_match is not None:
+            same = math.cos(float(lane.heading_at(u)) - heading_to_match) > 0.0
+            want_same = rng.uniform() < same_share
+            if same != want_same:
+                return False
+        if self.pending is None:
+            self.pending = self.definition.draw(rng)
+        category = self.pending
+        length, width = CATEGORY_SIZES[category]
+        speed = self._speed(rng, lane)
+        where = np.asarray(lane.position(u, 0.0), dtype=float)
+        road = runner.traffic
+        for other in road.vehicles:
+            gap = float(np.hypot(*(np.asarray(other.position) - where)))
+            room = (length + float(getattr(other, "LENGTH", 5.0))) / 2
+            if gap < room + max(MIN_GAP, GAP_TIME * max(speed, float(other.speed))):
+                return False
+        v = MapIDMVehicle(road, where, float(lane.heading_at(u)), speed)
+        v.LENGTH, v.WIDTH = length, width
+        v.diagonal = float(np.hypot(length, width))
+        v.target_speed = speed
+        v.generated_by = self.name
+        v.category = category
+        road.vehicles.append(v)
+        self.vehicles.append(v)
+        self.pending = None
+        return True
+
+    def _forget_gone(self, runner: Any) -> None:
+        """Drop the vehicles no longer on the road (removed by a sink)."""
+        on_road = {id(v) for v in runner.traffic.vehicles}
+        self.vehicles = [v for v in self.vehicles if id(v) in on_road]
+
+
+@dataclass
+class Swarm(_Generator):
+    """``TrafficSwarmAction`` (see the module docstring).
+
+    :ivar central: the central object's name.
+    :ivar inner_radius: [m].
+    :ivar semi_major, semi_minor: the ellipse's semi-axes [m].
+    :ivar offset: the ellipse's centre ahead of the central object [m].
+    :ivar count: the vehicles kept.
+    :ivar same_share: the share of lanes driven the central object's way.
+    """
+
+    central: str = ""
+    inner_radius: float = 0.0
+    semi_major: float = 0.0
+    semi_minor: float = 0.0
+    offset: float = 0.0
+    count: int = 0
+    same_share: float = 1.0
+
+    def _frame(self, runner: Any) -> tuple[np.ndarray, float] | None:
+        entity = runner.world.entities[self.central]
+        if not entity.present or entity.vehicle is None:
+            return None
+        return np.asarray(entity.vehicle.position, dtype=float), float(entity.vehicle.heading)
+
+    def _inside(self, centre: np.ndarray, heading: float, point: np.ndarray) -> bool:
+        d = point - centre
+        c, s = math.cos(heading), math.sin(heading)
+        along = d[0] * c + d[1] * s - self.offset
+        across = -d[0] * s + d[1] * c
+        return (along / self.semi_major) ** 2 + (across / self.semi_minor) ** 2 <= 1.0
+
+    def step(self, runner: Any, rng: np.random.Generator, dt: float) -> None:
+        """Remove this swarm's vehicles outside the ellipse; fill the ring."""
+        self._forget_gone(runner)
+        frame = self._frame(runner)
+        if frame is None:
+            return
+        centre, heading = frame
+        road = runner.traffic
+        for v in list(self.vehicles):
+            if not self._inside(centre, heading, np.asarray(v.position, dtype=float)):
+                road.vehicles.remove(v)
+                self.vehicles.remove(v)
+        c, s = math.cos(heading), math.sin(heading)
+        for _ in range(TRIES_PER_STEP):
+            if len(self.vehicles) >= self.count:
+                break
+            # a point uniform in the ellipse, kept where it is outside the inner circle
+            r = math.sqrt(float(rng.uniform()))
+            phi = float(rng.uniform(0.0, 2.0 * math.pi))
+            along = self.offset + self.semi_major * r * math.cos(phi)
+            across = self.semi_minor * r * math.sin(phi)
+            point = centre + np.array([along * c - across * s, along * s + across * c])
+            if float(np.hypot(*(point - centre))) < self.inner_radius:
+                continue
+            self._place(runner, rng, point, heading, self.same_share)
+
+
+@dataclass
+class Source(_Generator):
+    """``TrafficSourceAction`` (see the module docstring).
+
+    :ivar point: the source's position (highway-env's frame) [m].
+    :ivar radius: [m].
+    :ivar rate: vehicles per second.
+    :ivar started: the time it started [s].
+    """
+
+    point: Any = None
+    radius: float = 0.0
+    rate: float = 0.0
+    started: float = 0.0
+    placed: int = 0
+
+    def step(self, runner: Any, rng: np.random.Generator, dt: float) -> None:
+        """Place the next vehicle once it is due (and the place is free)."""
+        self._forget_gone(runner)
+        if self.placed >= MAX_GENERATED:
+            return
+        if runner.world.time + 1e-9 < self.started + self.placed / self.rate:
+            return
+        r = self.radius * math.sqrt(float(rng.uniform()))
+        phi = float(rng.uniform(0.0, 2.0 * math.pi))
+        point = np.asarray(self.point, dtype=float) + r * np.array([math.cos(phi), math.sin(phi)])
+        if self._place(runner, rng, point):
+            self.placed += 1
+
+
+@dataclass
+class Sink(_Generator):
+    """``TrafficSinkAction`` (see the module docstring).
+
+    :ivar point: the sink's position (highway-env's frame) [m].
+    :ivar radius: [m].
+    :ivar rate: vehicles removed per second at most (inf: all).
+    """
+
+    point: Any = None
+    radius: float = 0.0
+    rate: float = math.inf
+    budget: float = 0.0
+
+    def step(self, runner: Any, rng: np.random.Generator, dt: float) -> None:
+        """Remove the generated vehicles inside the radius (at most ``rate`` a second)."""
+        self.budget = min(self.budget + self.rate * dt, float(MAX_GENERATED))
+        road = runner.traffic
+        centre = np.asarray(self.point, dtype=float)
+        for v in list(road.vehicles):
+            if self.budget < 1.0:
+                break
+            if getattr(v, "generated_by", None) is None:
+                continue  # a scenario object or the function under test
+            if float(np.hypot(*(np.asarray(v.position, dtype=float) - centre))) <= self.radius:
+                road.vehicles.remove(v)
+                self.budget -= 1.0

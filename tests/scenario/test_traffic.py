@@ -1,0 +1,226 @@
+"""Generated traffic: swarms, sources, sinks and their stop (aldm_gym.scenario.traffic)."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from scenariogeneration import xosc
+
+from aldm_gym.errors import ScenarioError
+from aldm_gym.scenario import read_scenario
+from tests.scenario._build import STEP, at_time, write
+
+
+def _global(name: str, action: Any, t: float = 0.5) -> xosc.Event:
+    ev = xosc.Event(name, xosc.Priority.override)
+    ev.add_action(f"{name}_action", action)
+    ev.add_trigger(at_time(t, name=f"{name}_t"))
+    return ev
+
+
+CARS_ONLY = (
+    '<TrafficDefinition name="cars"><VehicleCategoryDistribution>'
+    '<VehicleCategoryDistributionEntry category="car" weight="1"/>'
+    "</VehicleCategoryDistribution><ControllerDistribution>"
+    '<ControllerDistributionEntry weight="1"><Controller name="idm"><Properties/>'
+    "</Controller></ControllerDistributionEntry></ControllerDistribution>"
+    "</TrafficDefinition>"
+)
+"""Cars only."""
+
+DEFINITION = (
+    '<TrafficDefinition name="mix"><VehicleCategoryDistribution>'
+    '<VehicleCategoryDistributionEntry category="car" weight="3"/>'
+    '<VehicleCategoryDistributionEntry category="truck" weight="1"/>'
+    "</VehicleCategoryDistribution><ControllerDistribution>"
+    '<ControllerDistributionEntry weight="1"><Controller name="idm"><Properties/>'
+    "</Controller></ControllerDistributionEntry></ControllerDistribution>"
+    "</TrafficDefinition>"
+)
+"""A traffic definition as OpenSCENARIO 1.0-1.2 writes it (files written for esmini)."""
+
+
+def _with_traffic(path: Path, bodies: dict[str, str]) -> Path:
+    """Put each traffic action's body in place of the ``TrafficStopAction`` of its
+    ``trafficName`` (scenariogeneration writes 1.3, where a TrafficDefinition is
+    deprecated)."""
+    text = path.read_text()
+    for name, body in bodies.items():
+        placeholder = f'<TrafficAction trafficName="{name}">\n'
+        start = text.index(placeholder) + len(placeholder)
+        end = text.index("<TrafficStopAction/>", start) + len("<TrafficStopAction/>")
+        text = text[:start] + body + text[end:]
+    path.write_text(text)
+    return path
+
+
+def _run(path: Path, seconds: float, seed: int = 0) -> tuple[Any, list[list[tuple]]]:
+    """Play a scenario with the IDLE function; per step the generated vehicles as
+    ``(generator, category, x, y, speed)``."""
+    import warnings
+
+    import gymnasium as gym
+
+    import aldm_gym  # noqa: F401
+
+    cfg = {"scenario": {"xosc": str(path)}, "policy_frequency": 10, "simulation_frequency": 10}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        env = gym.make("ALDMHighway-v0", config=cfg).unwrapped
+        env.reset(seed=seed)
+    frames = []
+    while env.scenario.world.time < seconds - 1e-9:
+        *_, terminated, truncated, _ = env.step(1)
+        frames.append(
+            [
+                (v.generated_by, v.category, *map(float, v.position), float(v.speed))
+                for v in env.road.vehicles
+                if getattr(v, "generated_by", None) is not None
+            ]
+        )
+        if terminated or truncated:
+            break
+    return env, frames
+
+
+def test_a_swarm_keeps_its_vehicles_in_the_ring_and_follows_the_seed(tmp_path: Path) -> None:
+    swarm = (
+        '<TrafficSwarmAction semiMajorAxis="150" semiMinorAxis="12" innerRadius="30" '
+        'offset="20" numberOfVehicles="6"><CentralObject entityRef="Ego"/>'
+        f'{DEFINITION}<InitialSpeedRange lowerLimit="18" upperLimit="22"/>'
+        "</TrafficSwarmAction>"
+    )
+    events = [_global("swarm", xosc.TrafficStopAction("swarm"))]
+    path = write(tmp_path, [("Ego", events)], target=None, stop=20.0)
+    _with_traffic(path, {"swarm": swarm})
+    env, frames = _run(path, 12.0)
+    ego = env.scenario.world.entities["Ego"].vehicle
+    assert frames[2] == []  # it starts at 0.5 s
+    kept = frames[-1]
+    assert len(kept) == 6 and {g for g, *_ in kept} == {"swarm"}
+    assert {c for _, c, *_ in kept} <= {"car", "truck"}
+    h = float(ego.heading)
+    for _, _, x, y, speed in kept:
+        d = np.array([x, y]) - np.asarray(ego.position)
+        along = d[0] * math.cos(h) + d[1] * math.sin(h) - 20.0
+        across = -d[0] * math.sin(h) + d[1] * math.cos(h)
+        assert (along / 150.0) ** 2 + (across / 12.0) ** 2 <= 1.0 + 1e-9
+        assert 0.0 < speed < 30.0
+    _, again = _run(path, 12.0)
+    assert again == frames  # the same seed, the same traffic
+    _, other = _run(path, 12.0, seed=1)
+    assert other != frames
+
+
+def test_a_source_places_at_its_rate_a_sink_removes_and_a_stop_ends_it(tmp_path: Path) -> None:
+    # OpenSCENARIO 1.0-1.2 spelling (a TrafficDefinition), as files written for esmini
+    source = (
+        '<TrafficSourceAction rate="1" radius="0" velocity="15"><Position>'
+        '<LanePosition roadId="0" laneId="-1" offset="0" s="150"/></Position>'
+        f"{CARS_ONLY}</TrafficSourceAction>"
+    )
+    sink = (
+        '<TrafficSinkAction radius="10"><Position>'
+        '<LanePosition roadId="0" laneId="-1" offset="0" s="200"/></Position>'
+        "</TrafficSinkAction>"
+    )
+    events = [
+        _global("source", xosc.TrafficStopAction("ramp"), t=1.0),
+        _global("sink", xosc.TrafficStopAction("exit"), t=0.0),
+        _global("stop", xosc.TrafficStopAction("ramp"), t=3.95),
+    ]
+    # one maneuver each: an event of one maneuver would override the others
+    path = write(tmp_path, [("Ego", [ev]) for ev in events], target=None, stop=15.0)
+    _with_traffic(path, {"ramp": source, "exit": sink})
+    env, frames = _run(path, 14.0)
+    counts = [len([v for v in f if v[0] == "ramp"]) for f in frames]
+    times = [round(STEP * (k + 1), 1) for k in range(len(frames))]
+    # started once the time is past 1 s: placed at 1.1, 2.1 and 3.1 s (the one due
+    # at 4.1 s is stopped at 4 s), each at 15 m/s
+    assert counts[times.index(1.0)] == 0 and counts[times.index(1.1)] == 1
+    assert counts[times.index(3.0)] == 2 and counts[times.index(3.1)] == 3
+    assert max(counts) == 3
+    # 40-60 m on at 15 m/s the sink takes them: from 1.1 + 40 / 15 ≈ 3.8 s for the first
+    assert counts[-1] == 0
+    gone = next(t for t, c in zip(times, counts, strict=True) if t > 3.1 and c < 3)
+    assert 3.7 < gone < 4.9
+    assert all(v.entity is not None for v in env.road.vehicles if hasattr(v, "entity"))
+
+
+@pytest.mark.parametrize(
+    ("body", "message"),
+    [
+        (
+            '<TrafficSwarmAction semiMajorAxis="100" semiMinorAxis="10" innerRadius="5" '
+            f'offset="0" numberOfVehicles="500"><CentralObject entityRef="Ego"/>{DEFINITION}'
+            "</TrafficSwarmAction>",
+            r"numberOfVehicles must be in \[0, 200\], got 500",
+        ),
+        (
+            '<TrafficSourceAction rate="0" radius="1"><Position><WorldPosition x="0" y="0"/>'
+            f"</Position>{DEFINITION}</TrafficSourceAction>",
+            r"rate must be > 0 \[vehicles/s\], got 0",
+        ),
+        (
+            '<TrafficSourceAction rate="1" radius="1" velocity="1e9"><Position>'
+            f'<WorldPosition x="0" y="0"/></Position>{DEFINITION}</TrafficSourceAction>',
+            r"velocity must be in \[0, 100\] \[m/s\], got 1e\+09",
+        ),
+        (
+            '<TrafficSwarmAction semiMajorAxis="100" semiMinorAxis="10" innerRadius="5" '
+            'offset="0" numberOfVehicles="5"><CentralObject entityRef="Nobody"/>'
+            f"{DEFINITION}</TrafficSwarmAction>",
+            "entityRef='Nobody' names no scenario object",
+        ),
+        (
+            '<TrafficSwarmAction semiMajorAxis="100" semiMinorAxis="10" innerRadius="5" '
+            'offset="0" numberOfVehicles="5"><CentralObject entityRef="Ego"/>'
+            '<TrafficDefinition name="d"><VehicleCategoryDistribution>'
+            '<VehicleCategoryDistributionEntry category="spaceship" weight="1"/>'
+            "</VehicleCategoryDistribution></TrafficDefinition></TrafficSwarmAction>",
+            "category='spaceship' is not one of",
+        ),
+    ],
+)
+def test_bad_traffic_actions_are_refused_by_name(tmp_path: Path, body: str, message: str) -> None:
+    path = write(tmp_path, [("Ego", [_global("bad", xosc.TrafficStopAction("t"))])], target=None)
+    _with_traffic(path, {"t": body})
+    with pytest.raises(ScenarioError, match=f"scenario.xosc:\\d+ <\\w+>: {message}"):
+        read_scenario(path)
+
+
+def test_a_stop_without_a_name_is_refused(tmp_path: Path) -> None:
+    path = write(tmp_path, [("Ego", [_global("bad", xosc.TrafficStopAction())])], target=None)
+    with pytest.raises(ScenarioError, match="needs the trafficName to stop"):
+        read_scenario(path)
+
+
+def test_a_traffic_area_is_refused_by_name(tmp_path: Path) -> None:
+    path = write(tmp_path, [("Ego", [_global("stop", xosc.TrafficStopAction("x"))])], target=None)
+    text = path.read_text().replace(
+        "<TrafficStopAction/>",
+        '<TrafficAreaAction continuous="true" numberOfEntities="3"/>',
+    )
+    path.write_text(text)
+    with pytest.raises(ScenarioError, match="TrafficAreaAction"):
+        read_scenario(path)
+
+
+def test_the_verdict_sees_a_generated_vehicle_ahead(tmp_path: Path) -> None:
+    from aldm_gym.harness.criteria import run_scenario
+
+    source = (
+        '<TrafficSourceAction rate="0.1" radius="0" velocity="8"><Position>'
+        '<LanePosition roadId="0" laneId="-2" offset="0" s="100"/></Position>'
+        f"{CARS_ONLY}</TrafficSourceAction>"
+    )
+    events = [_global("source", xosc.TrafficStopAction("slow"), t=0.0)]
+    path = write(tmp_path, [("Ego", events)], target=None, stop=8.0, activate_at=0.0)
+    _with_traffic(path, {"slow": source})
+    result = run_scenario(path, detector="ground_truth", marking_model="per_dash")
+    # 50 m ahead of the ego's rear axle at 8 m/s against its 20 m/s: the ACC closes in
+    assert result.min_time_gap_s < 3.0 and result.min_ttc_s < 10.0
