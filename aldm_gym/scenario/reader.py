@@ -1005,13 +1005,14 @@ class _Reader(ElementReader):
                 kind,
                 (
                     "CentralObject",
+                    "CentralSwarmObject",
                     "TrafficDefinition",
                     "InitialSpeedRange",
                     "DirectionOfTravelDistribution",
                 ),
             )
             central_el = kind.find("CentralObject")
-            if central_el is None:  # esmini's older spelling
+            if central_el is None:  # OpenSCENARIO 1.0's name
                 central_el = kind.find("CentralSwarmObject")
             if central_el is None:
                 raise self.error(kind, "missing <CentralObject>")

@@ -22,7 +22,14 @@ from typing import Any
 
 from aldm_gym.errors import ScenarioError
 
-__all__ = ["LENIENT", "REQUIRED_ATTRIBUTES", "SINGLE_CHILDREN", "TEXT_ELEMENTS", "check_structure"]
+__all__ = [
+    "LENIENT",
+    "RENAMED",
+    "REQUIRED_ATTRIBUTES",
+    "SINGLE_CHILDREN",
+    "TEXT_ELEMENTS",
+    "check_structure",
+]
 
 SINGLE_CHILDREN: dict[str, frozenset[str]] = {
     "AbsoluteSpeed": frozenset({"TargetDistanceSteadyState", "TargetTimeSteadyState"}),
@@ -661,6 +668,11 @@ TEXT_ELEMENTS = frozenset(
 """The elements whose content is text; anywhere else text is an error."""
 
 
+RENAMED: dict[str, str] = {"CentralSwarmObject": "CentralObject"}
+"""Elements of OpenSCENARIO 1.0 that later versions renamed, checked as the new name
+(the player reads both)."""
+
+
 def check_structure(root: Any, source: str) -> None:
     """Raise unless every element under ``root`` is an element of OpenSCENARIO 1.3 with
     the attributes the schema requires (but :data:`LENIENT`'s), no text where the
@@ -679,6 +691,7 @@ def check_structure(root: Any, source: str) -> None:
         tag = el.tag
         if not isinstance(tag, str):
             continue  # comments, processing instructions
+        tag = RENAMED.get(tag, tag)
         if tag not in ELEMENTS:
             near = difflib.get_close_matches(tag, list(ELEMENTS), n=1)
             hint = f" (did you mean <{near[0]}>?)" if near else ""
@@ -701,7 +714,7 @@ def check_structure(root: Any, source: str) -> None:
             continue
         seen: set[str] = set()
         for child in el:
-            kid = child.tag
+            kid = RENAMED.get(child.tag, child.tag) if isinstance(child.tag, str) else child.tag
             if not isinstance(kid, str) or kid not in single:
                 continue
             if kid in seen:

@@ -224,3 +224,19 @@ def test_the_verdict_sees_a_generated_vehicle_ahead(tmp_path: Path) -> None:
     result = run_scenario(path, detector="ground_truth", marking_model="per_dash")
     # 50 m ahead of the ego's rear axle at 8 m/s against its 20 m/s: the ACC closes in
     assert result.min_time_gap_s < 3.0 and result.min_ttc_s < 10.0
+
+
+def test_a_swarm_written_for_openscenario_1_0_plays(tmp_path: Path) -> None:
+    """1.0 named the central object ``CentralSwarmObject`` and gave the speed as
+    ``velocity``."""
+    swarm = (
+        '<TrafficSwarmAction semiMajorAxis="120" semiMinorAxis="10" innerRadius="25" '
+        'offset="0" numberOfVehicles="3" velocity="21"><CentralSwarmObject entityRef="Ego"/>'
+        f"{CARS_ONLY}</TrafficSwarmAction>"
+    )
+    path = write(tmp_path, [("Ego", [_global("swarm", xosc.TrafficStopAction("s"))])], target=None)
+    _with_traffic(path, {"s": swarm})
+    _, frames = _run(path, 3.0)
+    assert len(frames[-1]) == 3
+    first = next(f for f in frames if f)
+    assert 21.0 in {v[-1] for v in first}  # placed at its velocity (IDM drives on)
