@@ -71,7 +71,6 @@ __all__ = [
 SHAPES = ("step", "linear", "cubic", "sinusoidal")
 """The dynamics shapes."""
 
-_STARTS = itertools.count()
 """Numbers the motions in the order they start (see :class:`FollowTrajectory`)."""
 
 SPRING = 0.4
@@ -164,6 +163,11 @@ class Instance:
     slot: str | None = None
     """The entity's motion this action drives (``longitudinal``, ``lateral``,
     ``trajectory``), if any."""
+
+    rank: tuple[int, ...] = (2,)
+    """Where the action moves its actor within a step, as esmini steps actions: those
+    of ``Init`` first, then the storyboard's in document order (the runner and the
+    storyboard set it)."""
 
     def _release(self) -> None:
         """Take the instance's motion off its entity."""
@@ -491,7 +495,6 @@ class SpeedChange(Instance):
         self.v0 = entity.speed
         self.v1 = float(self.target(world))
         self.elapsed = 0.0
-        self.order = next(_STARTS)
         change = self.v1 - self.v0
         self.T = (
             0.0
@@ -582,7 +585,6 @@ class SpeedProfile(Instance):
     def start(self, runner: Any) -> None:
         """Begin the first entry (``follow``: plan the whole profile)."""
         entity = self._scripted(runner)
-        self.order = next(_STARTS)
         self.index = -1
         self.plan = None
         if self.jerks is not None:
@@ -900,7 +902,6 @@ class Synchronize(_Measured):
         self.submode = "none"
         self.last = (math.inf, math.inf)
         self.steady_dist: float | None = None
-        self.order = next(_STARTS)
         _override(entity, "longitudinal", self)
 
     def _final_speed(self, world: World) -> float | None:
@@ -1124,30 +1125,35 @@ class LongitudinalDistance(_Measured):
         if self.rigid and not runner.world.running and runner.world.entities[self.ref].placed:
             self.settle(runner.world)  # in Init: the actor starts there (else: first step)
 
-    def settle(self, world: World) -> None:
+    def settle(self, world: World, ahead: float = 0.0) -> None:
         """After every entity moved in a step: put the actor at the distance from where
-        the referenced entity is now (rigid), whatever order they moved in; a
-        non-continuous action ends there."""
+        the referenced entity is now (rigid), ``ahead`` [m] further on along the
+        reference's direction (:meth:`World.settle`); a non-continuous action ends
+        there."""
         entity = self.entity
         assert entity is not None
-        self._snap(world, entity)
+        self._snap(world, entity, ahead)
         if not self.continuous:
             self._complete()
 
-    def _snap(self, world: World, entity: Entity) -> None:
-        """Put the actor at the distance along its lane (a rigid connection), at the
-        referenced entity's speed."""
+    def _snap(self, world: World, entity: Entity, ahead: float = 0.0) -> None:
+        """Put the actor at the distance along its lane (a rigid connection), ``ahead``
+        [m] further on along the reference's direction, at the referenced entity's
+        speed."""
         ref = world.entities[self.ref]
         entity.speed = ref.current_speed
         c = world.coordinates(ref)
         mine = world.coordinates(entity)
         try:
             key, u, t = world.locate(
-                mine.road_id, mine.lane_id, c.s + self._wanted(world) * c.direction, mine.offset
+                mine.road_id,
+                mine.lane_id,
+                c.s + self._wanted(world) * c.direction + ahead * c.direction,
+                mine.offset,
             )
             world.place(entity, key, u, t, entity.heading_offset)
             for _ in range(4):  # the road's s is a first guess where the system differs
-                error = self._now(world) - self._wanted(world)
+                error = self._now(world) - self._wanted(world) - ahead
                 if abs(error) < 1e-6:
                     break
                 world.place(entity, entity.lane, entity.u - error, entity.t, entity.heading_offset)
@@ -1249,7 +1255,6 @@ class LaneChange(Instance):
             raise ScenarioError(f"{self.where}: the lane change never ends (rate 0 or speed 0)")
         # a step shape too moves the entity at the next step (esmini: in the frame's
         # action step, seen in the next frame)
-        self.order = next(_STARTS)
         _override(entity, "lateral", self)
 
     def offset_after(self, world: World, entity: Entity, dt: float) -> float:
@@ -1515,7 +1520,6 @@ class FollowTrajectory(Instance):
         _override(entity, "trajectory", self)
         # The actor is put on the path by the first step (as esmini, which steps a new
         # action in the frame it starts in: its first logged pose is a step along).
-        self.order = next(_STARTS)
 
     def _at_time(self, t: float) -> tuple[int, float]:
         """Segment and fraction along it at time ``t`` [s] (timed)."""
@@ -1559,13 +1563,13 @@ class FollowTrajectory(Instance):
             finished = t >= self.times[-1]
         else:
             # The speed that moves the actor: the one before this step's longitudinal
-            # update if the trajectory started before that action (esmini steps the
-            # running actions in the order they started), else the updated one.
+            # update if the trajectory comes before that action in the document (esmini
+            # steps the running actions in document order), else the updated one.
             speed = entity.speed
             motion = entity.longitudinal
             if motion is not None:
                 entity.speed = float(motion.speed_after(world, entity, dt))
-                if getattr(motion, "order", -1) < self.order:
+                if motion.rank < self.rank:
                     speed = entity.speed
             else:
                 speed = entity.speed

@@ -68,6 +68,8 @@ class ScenarioRunner:
         self.variables: dict[str, Any] = dict(scenario.variables)
         """The variables' values now (``VariableAction`` changes them)."""
         self.init_actions, self.storyboard = scenario.build(self.world.entities)
+        for k, action in enumerate(self.init_actions):
+            action.rank = (0, k)
         self.steps = 0
         self.domains: frozenset[str] = frozenset()
         """The domains the function under test drives (``lateral``, ``longitudinal``);
@@ -179,7 +181,7 @@ class ScenarioRunner:
     def _step(self, dt: float) -> None:
         world = self.world
         if not self.active:
-            world.advance_ego(dt)  # unless a scripted entity's step already moved it
+            world.advance_all(dt)  # unless a scripted entity's step already moved them
         elif self.domains == {"longitudinal"}:
             world.follow_lateral(self.ego, dt)  # its speed the function's, its lane the script's
         else:
@@ -190,7 +192,7 @@ class ScenarioRunner:
                 self.ego.speed = speed  # the script's (the vehicle's has the env's push)
         self._come_and_go(dt)
         world.tow()
-        world.settle()
+        world.settle(dt)
         # the clock counts steps at the simulation frequency: 12 / 10 is 1.2 exactly,
         # where 12 * 0.1 (or a sum of 0.1 s) is 1.2000000000000002
         self.steps += 1

@@ -188,6 +188,8 @@ class ActionElement(Element):
         super().__init__(name, where)
         self.make = make
         self.instances: list[Any] = []
+        self.rank: tuple[int, ...] = (1, 0)
+        """Where the action moves its actors within a step (the storyboard sets it)."""
 
 
 class Event(Element):
@@ -282,8 +284,13 @@ class Storyboard:
         self.finished_at: float | None = None
         """The simulation time [s] the stop trigger fired at."""
         self.by_name: dict[str, list[Element]] = {}
+        actions = 0
         for element in self.elements():
             self.by_name.setdefault(element.name, []).append(element)
+            if element.kind == "action":
+                # where esmini steps it within a step: after Init's, in document order
+                element.rank = (1, actions)
+                actions += 1
 
     def elements(self) -> Iterator[Element]:
         """Every element, top down in document order."""
@@ -390,7 +397,8 @@ class Storyboard:
             for action in event.actions:
                 action._move("startTransition", "runningState", tick)
                 action.instances = [action.make(runner, actor) for actor in group.actors or [None]]
-                for instance in action.instances:
+                for k, instance in enumerate(action.instances):
+                    instance.rank = (*action.rank, k)
                     instance.start(runner)
             # An action that ended as it started (instant) completes now, but state
             # conditions see its end from the next update on: esmini completes it in

@@ -98,8 +98,7 @@ class ScenarioVehicle(Vehicle):
         """Advance the script by ``dt`` [s]; then highway-env's lane bookkeeping."""
         if self.entity is not None and self.entity.world is not None:
             world = self.entity.world
-            world.advance_ego(dt)  # first, so that actions relative to it see it now
-            world.advance(self.entity, dt)
+            world.advance_all(dt)  # every scripted entity, in esmini's order, once a step
         self.impact = None
         self.on_state_update()
 
@@ -178,6 +177,10 @@ class Entity:
     """The trailer it tows now."""
     tractor: Entity | None = None
     """The vehicle that tows it now."""
+    speed_before: float | None = None
+    """Its speed at the start of the step, where its longitudinal action already set
+    this step's speed (esmini steps every action before the default moves); None
+    otherwise."""
 
     def chain(self) -> list[Entity]:
         """The trailers it tows, nearest first."""
@@ -250,6 +253,9 @@ class World:
         """Simulation time [s]."""
         self.ego: Entity | None = None
         self._ego_due = False
+        self._all_due = False
+        self.moved_at: dict[str, tuple[int, ...]] = {}
+        """The entities an action moved in this step, by the action's rank."""
         self.running = False
         """Whether the storyboard runs (``Init`` has been played)."""
 
@@ -261,8 +267,76 @@ class World:
             self.ego = entity
 
     def ego_due(self) -> None:
-        """A simulation step begins: the scripted ego is yet to move."""
+        """A simulation step begins: the scripted ego and entities are yet to move."""
         self._ego_due = True
+        self._all_due = True
+
+    def advance_all(self, dt: float) -> None:
+        """Move every scripted entity by ``dt`` [s], once a step, in esmini's order.
+
+        esmini steps the running actions (``Init``'s, then the storyboard's, in
+        document order), then moves the entities no action moved along their lanes
+        (its default controller). So here: in the actions' order, an entity with a
+        lateral motion or a trajectory moves, and a speed action sets its entity's
+        speed for the step; then the other entities move, in the file's order. Each
+        sees the others where they are at that point: an action written after its
+        reference's sees the reference's new state, one written before sees the old."""
+        if not self._all_due:
+            return
+        self._all_due = False
+        self.moved_at = {}
+        steps: list[tuple[tuple[int, ...], int, bool, Entity]] = []
+        others = []
+        for index, entity in enumerate(self.entities.values()):
+            ranks = [
+                motion.rank
+                for motion in (entity.lateral, entity.trajectory)
+                if motion is not None and hasattr(motion, "rank")
+            ]
+            if ranks:
+                steps.append((min(ranks), index, True, entity))
+            else:
+                others.append(entity)
+            speed = entity.longitudinal
+            if (
+                speed is not None
+                and self._moves_normally(entity)
+                and (not ranks or speed.rank < min(ranks))
+            ):
+                steps.append((speed.rank, index, False, entity))
+        for rank, _, moves, entity in sorted(steps, key=lambda item: item[:2]):
+            if moves:
+                self.moved_at[entity.name] = rank
+                self._advance_one(entity, dt)
+            else:  # a speed action: the speed now, the move later
+                entity.speed_before = entity.speed
+                entity.speed = float(entity.longitudinal.speed_after(self, entity, dt))
+        for entity in others:
+            self._advance_one(entity, dt)
+        for entity in self.entities.values():
+            entity.speed_before = None  # one that did not move after all keeps its speed
+
+    def _moves_normally(self, entity: Entity) -> bool:
+        """Whether :meth:`advance` will move the entity along its lane by its speed
+        (not a vehicle the function drives, an absent, towed, teleported or stopped one,
+        nor one on a trajectory)."""
+        return (
+            entity.scripted
+            and entity.placed
+            and entity.present
+            and not entity.leaving
+            and entity.tractor is None
+            and entity.teleport is None
+            and not entity.ended
+            and entity.trajectory is None
+            and (not entity.is_ego or self._ego_due)
+        )
+
+    def _advance_one(self, entity: Entity, dt: float) -> None:
+        if entity.is_ego:
+            self.advance_ego(dt)
+        else:
+            self.advance(entity, dt)
 
     def advance_ego(self, dt: float) -> None:
         """Move the ego by ``dt`` [s] if the scenario drives it and it has not moved in
@@ -499,18 +573,24 @@ class World:
         if entity.trajectory is not None:
             entity.trajectory.advance(self, entity, dt)
             return
-        speed_before = entity.speed
         longitudinal = entity.longitudinal
-        if longitudinal is not None:
-            entity.speed = float(longitudinal.speed_after(self, entity, dt))
+        if entity.speed_before is not None:  # its action set this step's speed already
+            speed_before, entity.speed_before = entity.speed_before, None
+        else:
+            speed_before = entity.speed
+            if longitudinal is not None:
+                entity.speed = float(longitudinal.speed_after(self, entity, dt))
         entity.speed = min(max(entity.speed, -entity.max_speed), entity.max_speed)
         # a rigid distance places the actor once everyone has moved (settle)
         settles = getattr(longitudinal, "rigid", False)
-        # A lane change moves the entity itself, before a speed action that started
-        # after it has changed the speed (esmini steps actions in the order they began)
+        # A lane change moves the entity itself, before a speed action written after it
+        # has changed the speed (esmini steps actions in document order)
         travel_speed = entity.speed
-        lateral_order = getattr(entity.lateral, "order", None)
-        if lateral_order is not None and getattr(longitudinal, "order", -1) > lateral_order:
+        if (
+            entity.lateral is not None
+            and longitudinal is not None
+            and longitudinal.rank > entity.lateral.rank
+        ):
             travel_speed = speed_before
         lateral_speed = 0.0
         t_before = entity.t
@@ -649,14 +729,24 @@ class World:
                     trailer.vehicle.on_state_update()
                 tractor = trailer
 
-    def settle(self) -> None:
-        """After every entity moved in a step: the rigid distance actions place their
-        actors from where their referenced entities are now."""
+    def settle(self, dt: float = 0.0) -> None:
+        """After every entity moved in a step of ``dt`` [s]: the rigid distance actions
+        place their actors from where their referenced entities are now.
+
+        esmini places such an actor when it steps the action, at the distance from
+        where the reference will be after its default move (``speed · dt`` on along its
+        lane): the same place, unless an action that esmini stepped before moved the
+        reference already. Then the actor is placed that much further on, as there."""
+        moved_at = self.moved_at
         for entity in self.entities.values():
             motion = entity.longitudinal
             own = "longitudinal" not in entity.controlled  # the storyboard's speed
             if own and entity.placed and entity.present and getattr(motion, "rigid", False):
-                motion.settle(self)
+                ref = self.entities.get(getattr(motion, "ref", ""))
+                ahead = 0.0
+                if ref is not None and moved_at.get(ref.name, (9,)) < motion.rank:
+                    ahead = ref.current_speed * dt
+                motion.settle(self, ahead)
 
     def follow_lateral(self, entity: Entity, dt: float) -> None:
         """The ego after a step of ``dt`` [s] whose speed the function drives and whose

@@ -792,6 +792,52 @@ def trailers(folder: Path) -> Path:
     return path
 
 
+def actions_in_document_order(folder: Path) -> Path:
+    """esmini steps actions in document order, then moves the entities no action moves:
+    ``Over`` keeps 0.5 m left of ``Ego`` (continuous ``LateralDistanceAction``, written
+    before ``Ego``'s lane change, so it sees ``Ego`` where it was at the start of the
+    step), ``Tail`` rides 15 m behind ``Ego`` (rigid ``LongitudinalDistanceAction``,
+    written after the lane change, so it is placed from where ``Ego`` already is)."""
+    init = placed((
+        ("Ego", -3, 50.0, 30.0), ("Over", -2, 60.0, 30.0), ("Tail", -3, 35.0, 30.0),
+    ))  # fmt: skip
+    entities, board = cars_and_board(("Ego", "Over", "Tail"), init, 12.0)
+    keep = xosc.LateralDistanceAction(
+        "Ego", 0.5, freespace=True, continuous=True, max_speed=2.0,
+        displacement=xosc.LateralDisplacement.leftToReferencedEntity,
+        coordinate_system=xosc.CoordinateSystem.road,
+    )  # fmt: skip
+    dyn = xosc.TransitionDynamics(xosc.DynamicsShapes.sinusoidal, xosc.DynamicsDimension.time, 2.0)
+    tail = xosc.LongitudinalDistanceAction(
+        "Ego", freespace=False, continuous=True, distance=15.0,
+        coordinate_system=xosc.CoordinateSystem.road,
+        displacement=xosc.LongitudinalDisplacement.trailingReferencedEntity,
+    )  # fmt: skip
+    for actor, event in (
+        ("Over", _event("keep", keep, at_time(1.0))),
+        ("Ego", _event("change", xosc.RelativeLaneChangeAction(1, "Ego", dyn), at_time(2.0))),
+        ("Tail", _event("tail", tail, at_time(1.0))),
+    ):
+        man = xosc.Maneuver(f"m_{actor}")
+        man.add_event(event)
+        board.add_maneuver(man, actor)
+    return save(folder, "actions_in_document_order.xosc", entities, board)
+
+
+def relative_speed_before_its_reference(folder: Path) -> Path:
+    """The target keeps 2 m/s below the ego (continuous ``RelativeTargetSpeed``),
+    written before the ego's linear slowdown: esmini steps it first, on the ego's
+    speed of the step before."""
+    dyn = xosc.TransitionDynamics(xosc.DynamicsShapes.step, xosc.DynamicsDimension.time, 0)
+    follow = xosc.RelativeSpeedAction(-2.0, "Ego", dyn, continuous=True)
+    linear = xosc.TransitionDynamics(xosc.DynamicsShapes.linear, xosc.DynamicsDimension.rate, 1.0)
+    events = [
+        ("Target", [_event("follow", follow, at_time(0.5))]),
+        ("Ego", [_event("slow", xosc.AbsoluteSpeedAction(14.0, linear), at_time(1.0))]),
+    ]
+    return write(folder, events, target=(1, 30.0, 25.0), name="relative_speed.xosc")
+
+
 CORPUS: dict[str, Callable[[Path], Path]] = {
     f.__name__: f
     for f in (
@@ -821,6 +867,8 @@ CORPUS: dict[str, Callable[[Path], Path]] = {
         lateral_distances,
         jerk_limited_speed_profiles,
         trailers,
+        actions_in_document_order,
+        relative_speed_before_its_reference,
     )
 }
 """The corpus by name."""
