@@ -37,7 +37,7 @@ from highway_env.road.lane import LineType
 from highway_env.road.road import LaneIndex, RoadNetwork
 
 from aldm_gym.roads.lane import ReferenceLane
-from aldm_gym.roads.reference_line import ReferenceLine, project_point_near
+from aldm_gym.roads.reference_line import LineLookup, ReferenceLine, project_point_near
 from aldm_gym.types import BoolArray, FloatArray
 
 if TYPE_CHECKING:
@@ -138,14 +138,7 @@ class MapLane(ReferenceLane):
             return None
         pts = np.ascontiguousarray(positions, dtype=np.float64).reshape(-1, 2)
         s, _, on, order = _neighbour_table(
-            c.xy,
-            c.heading,
-            c.step,
-            c._CELL,
-            c._hash_keys,
-            c._hash_ptr,
-            c._hash_idx,
-            2 * c._STRIDE,
+            c.lookup,
             self._u,
             self._w,
             self._constant,
@@ -566,14 +559,7 @@ _closest_lanes = numba.njit(cache=True)(_closest_lanes_py)
 
 
 def _neighbour_table_py(
-    xy: FloatArray,
-    heading: FloatArray,
-    step: float,
-    cell: float,
-    hash_keys: np.ndarray,
-    hash_ptr: np.ndarray,
-    hash_idx: np.ndarray,
-    window: int,
+    line: LineLookup,
     u: FloatArray,
     w: FloatArray,
     constant: bool,
@@ -591,9 +577,7 @@ def _neighbour_table_py(
     ``s`` with a stable sort. ``s``, ``d`` (left offset [m]), ``on`` have shape
     ``(N,)``, ``order`` ``(M,)``.
     """
-    s, d, near = project_point_near(
-        xy, heading, step, cell, hash_keys, hash_ptr, hash_idx, window, points
-    )
+    s, d, near = project_point_near(line, points)
     n = points.shape[0]
     on = np.zeros(n, dtype=np.bool_)
     count = 0

@@ -24,15 +24,34 @@ import numba
 import numpy as np
 
 from aldm_gym.errors import InputError
-from aldm_gym.types import BoolArray, FloatArray
+from aldm_gym.types import BoolArray, FloatArray, IntArray
 
 _F64 = np.dtype(np.float64)
 
 _POINT_MEMO_SIZE = 4096
 """Positions remembered by :meth:`ReferenceLine.project` (the memo is emptied when full)."""
 
-_BATCH_COORD_LIMIT = 1e12
-"""Largest |coordinate| [m] handled by the batch projection (cell keys fit in int64)."""
+COORD_LIMIT = 1e12
+"""Largest |coordinate| [m] the compiled projection takes (its cell keys fit in int64)."""
+
+LineLookup = tuple[
+    FloatArray, FloatArray, float, float, IntArray, IntArray, IntArray, IntArray, int
+]
+"""A reference line's projection tables, one argument of the kernels (built once as
+:attr:`ReferenceLine.lookup`): ``(xy, heading, step, cell, keys, ptr, idx, coarse,
+window)``.
+
+- ``xy`` ``(n, 2)`` [m], ``heading`` ``(n,)`` [rad]: the tabulated samples, ``step``
+  [m] apart in arc length;
+- ``cell`` [m]: the spatial hash's cell size; ``keys`` (sorted) are the cell keys that
+  list candidates, cell ``keys[i]``'s candidate coarse samples are
+  ``idx[ptr[i]:ptr[i + 1]]``; ``coarse`` lists every coarse sample;
+- ``window``: how many samples either side of the nearest candidate are searched.
+
+A plain tuple rather than a ``NamedTuple``: numba types a plain tuple argument in C when
+Python calls a kernel, a ``NamedTuple`` in Python (about 2 µs a call). Kernels unpack
+it in this order.
+"""
 
 
 @dataclass(frozen=True)
@@ -127,7 +146,7 @@ class ReferenceLine:
         self._x_list: list[float] = xy[:, 0].tolist()
         self._y_list: list[float] = xy[:, 1].tolist()
         self._h_list: list[float] = h.tolist()
-        self._build_hash()
+        self._build_lookup()
 
     @classmethod
     def from_points(
@@ -178,13 +197,14 @@ class ReferenceLine:
         self._x_list = table[:, 0].tolist()
         self._y_list = table[:, 1].tolist()
         self._h_list = heading.tolist()
-        self._build_hash()
+        self._build_lookup()
 
     # ------------------------------------------------------------------ tables
     _STRIDE = 10  # coarse samples: every 10th tabulated point
 
-    def _build_hash(self) -> None:
-        """Map each spatial cell to the coarse samples that may be nearest to a point in it.
+    def _build_lookup(self) -> None:
+        """Build :attr:`lookup`: map each spatial cell to the coarse samples that may be
+        nearest to a point in it.
 
         A point within ``max_offset`` of the line has its nearest coarse sample
         within ``max_offset + coarse spacing`` of itself, hence within
@@ -204,14 +224,18 @@ class ReferenceLine:
         order = np.argsort(keys, kind="stable")
         keys, idx = keys[order], idx[order]
         uniq, first = np.unique(keys, return_index=True)
-        groups = np.split(idx, first[1:])
-        self._hash = dict(zip(uniq.tolist(), groups, strict=True))
-        self._coarse = coarse
-        # The same map in sorted-array form for the batch kernel: cell key ``k`` has
-        # candidates ``_hash_idx[_hash_ptr[i]:_hash_ptr[i + 1]]`` where ``_hash_keys[i] == k``.
-        self._hash_keys = uniq.astype(np.int64)
-        self._hash_ptr = np.concatenate([first, [len(idx)]]).astype(np.int64)
-        self._hash_idx = idx.astype(np.int64)
+        self.lookup: LineLookup = (
+            np.ascontiguousarray(self.xy, dtype=np.float64),
+            np.ascontiguousarray(self.heading, dtype=np.float64),
+            self.step,
+            c,
+            uniq.astype(np.int64),
+            np.concatenate([first, [len(idx)]]).astype(np.int64),
+            idx.astype(np.int64),
+            coarse.astype(np.int64),
+            2 * self._STRIDE,
+        )
+        """The projection tables the kernels take (:data:`LineLookup`)."""
 
     def _interp(self, s: FloatArray | float) -> tuple[FloatArray, FloatArray]:
         """Position ``(..., 2)`` and heading at arc length(s) ``s``, extrapolated straight."""
@@ -231,26 +255,11 @@ class ReferenceLine:
 
         highway-env's vehicles ask for one lane position or heading at a time, thousands
         of times per step; this avoids numpy's per-call overhead (~2 µs instead of ~40 µs)
-        with the same table and arithmetic.
+        with the same table and arithmetic. The table interval and the heading come from
+        :func:`heading_on_table_py`, which the compiled traffic calls too.
         """
-        # Clamps are written as comparisons (builtin min/max cost ~0.15 µs each here);
-        # they keep min/max's results, NaN and signed zeros included.
-        s_tab = self._s_list
-        i = int(s / self.step)
-        last = len(s_tab) - 2
-        if i < 0:
-            i = 0
-        elif i > last:
-            i = last
-        s0 = s_tab[i]
-        tt = (s - s0) / (s_tab[i + 1] - s0)
-        if tt < 0.0:
-            tt = 0.0
-        elif tt > 1.0:
-            tt = 1.0
-        h_tab, x_tab, y_tab = self._h_list, self._x_list, self._y_list
-        h0 = h_tab[i]
-        h = h0 + (h_tab[i + 1] - h0) * tt
+        i, tt, h = heading_on_table_py(self._s_list, self._h_list, self.step, s)
+        x_tab, y_tab = self._x_list, self._y_list
         x0, y0 = x_tab[i], y_tab[i]
         x = x0 + (x_tab[i + 1] - x0) * tt
         y = y0 + (y_tab[i + 1] - y0) * tt
@@ -294,6 +303,8 @@ class ReferenceLine:
         simulation step highway-env's vehicles ask for the same positions on every lane
         (all lanes share this line) many times. The memo holds the last
         :data:`_POINT_MEMO_SIZE` positions or so; a hit returns the very same floats.
+
+        :raises InputError: if a coordinate is not finite.
         """
         key = None
         if type(point) is np.ndarray and point.dtype == _F64 and point.shape == (2,):
@@ -302,14 +313,15 @@ class ReferenceLine:
             if hit is not None:
                 return hit
         px, py = float(point[0]), float(point[1])
-        c = self._CELL
-        cell = math.floor(px / c) * 1_000_003 + math.floor(py / c)
-        cand = self._hash.get(cell)
-        if cand is None:  # far from the road: search every coarse sample
-            cand = self._coarse
-        result: tuple[float, float] = project_point(
-            self.xy, self.heading, self.step, cand, 2 * self._STRIDE, px, py
-        )
+        result: tuple[float, float]
+        if abs(px) < COORD_LIMIT and abs(py) < COORD_LIMIT:  # False for NaN
+            result = project_on(self.lookup, px, py)
+        else:
+            if not (math.isfinite(px) and math.isfinite(py)):
+                raise InputError(f"cannot project the point ({px}, {py}): not finite")
+            # Farther out than any cell of the spatial hash: search every coarse sample.
+            xy, heading, step, _, _, _, _, coarse, window = self.lookup
+            result = project_point(xy, heading, step, coarse, window, px, py)
         if key is not None:
             memo = self._point_memo
             if len(memo) >= _POINT_MEMO_SIZE:
@@ -328,7 +340,7 @@ class ReferenceLine:
         """
         pts = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 2)
         # One reduction checks project_many's batch condition (NaN fails the comparison).
-        if len(pts) == 0 or not float(np.abs(pts).max()) < _BATCH_COORD_LIMIT:
+        if len(pts) == 0 or not float(np.abs(pts).max()) < COORD_LIMIT:
             return {}  # a NaN position fails in project itself, at its own look-up
         s, d = self._batch_project(pts)
         raw = pts.tobytes()  # row k is raw[16 k : 16 (k + 1)], as point.tobytes() in project
@@ -345,24 +357,13 @@ class ReferenceLine:
 
     def _batch_project(self, pts: FloatArray) -> tuple[FloatArray, FloatArray]:
         """One compiled call projecting finite ``(N, 2)`` points (see :meth:`project`)."""
-        return _project_many(
-            self.xy,
-            self.heading,
-            self.step,
-            self._CELL,
-            self._hash_keys,
-            self._hash_ptr,
-            self._hash_idx,
-            self._coarse,
-            2 * self._STRIDE,
-            pts,
-        )
+        return _project_many(self.lookup, pts)
 
     def project_many(self, points: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Vectorised :meth:`project` for ``(N, 2)`` points: ``(s (N,), d (N,))``.
 
-        One compiled call (``_project_many``, the same per-point arithmetic and
-        candidates as :meth:`project`, so the same results bit for bit). The last
+        One compiled call (``_project_many``: :func:`project_on`'s steps for each point,
+        as :meth:`project`, so the same results bit for bit). The last
         result is memoised: traffic code projects the same vehicle positions once per
         lane, and all lanes of a road share this reference line.
         """
@@ -370,7 +371,7 @@ class ReferenceLine:
         key = pts.tobytes()
         if self._memo is not None and self._memo[0] == key:
             return self._memo[1].copy(), self._memo[2].copy()
-        if np.isfinite(pts).all() and (np.abs(pts) < _BATCH_COORD_LIMIT).all():
+        if np.isfinite(pts).all() and (np.abs(pts) < COORD_LIMIT).all():
             s, d = self._batch_project(pts)
         else:  # NaN / huge coordinates: the scalar path (and its errors)
             out = np.array([self.project(p) for p in pts], dtype=np.float64).reshape(-1, 2)
@@ -391,17 +392,7 @@ class ReferenceLine:
         :return: ``(s (N,) [m], d (N,) [m], near (N,))``.
         """
         pts = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 2)
-        return project_point_near(
-            self.xy,
-            self.heading,
-            self.step,
-            self._CELL,
-            self._hash_keys,
-            self._hash_ptr,
-            self._hash_idx,
-            2 * self._STRIDE,
-            pts,
-        )
+        return project_point_near(self.lookup, pts)
 
 
 def project_point_py(
@@ -470,37 +461,53 @@ def project_point_py(
 project_point = numba.njit(cache=True)(project_point_py)
 
 
-def _project_many_py(
-    xy: FloatArray,
-    heading: FloatArray,
-    step: float,
-    cell: float,
-    hash_keys: np.ndarray,
-    hash_ptr: np.ndarray,
-    hash_idx: np.ndarray,
-    coarse: np.ndarray,
-    window: int,
-    points: FloatArray,
-) -> tuple[FloatArray, FloatArray]:
-    """:func:`project_point_py` for every row of ``points`` ``(N, 2)``: ``(s (N,), d (N,))``.
+def cell_slice_py(line: LineLookup, px: float, py: float) -> tuple[int, int]:
+    """The candidates of the spatial-hash cell of ``(px, py)`` [m]: ``(lo, hi)``, the
+    slice ``idx[lo:hi]`` of ``line``'s ``idx``, empty (``lo == hi``) when the cell lists
+    none (the point is beyond the line's fast reach: search every coarse sample).
+    Coordinates must be finite and below :data:`COORD_LIMIT` (int64 cell keys)."""
+    _, _, _, cell, keys, ptr, _, _, _ = line
+    key = np.int64(math.floor(px / cell)) * 1_000_003 + np.int64(math.floor(py / cell))
+    i = np.searchsorted(keys, key)
+    if i < keys.shape[0] and keys[i] == key:
+        return ptr[i], ptr[i + 1]
+    return 0, 0
 
-    Candidates come from the spatial hash in sorted-array form (``hash_keys`` sorted,
-    cell ``i``'s samples ``hash_idx[hash_ptr[i]:hash_ptr[i + 1]]``), the same samples in
-    the same order as :meth:`ReferenceLine.project`'s dict, else every coarse sample.
-    Coordinates must be finite and below :data:`_BATCH_COORD_LIMIT` (int64 cell keys).
+
+# Inlined where it is called (numba IR): a call of it from project_on costs about a
+# fifth of a projection.
+cell_slice = numba.njit(cache=True, inline="always")(cell_slice_py)
+
+
+def project_on_py(line: LineLookup, px: float, py: float) -> tuple[float, float]:
+    """:meth:`ReferenceLine.project` of ``(px, py)`` [m]: ``(s [m], d [m])``, the same
+    floats (:func:`project_point` from the samples :func:`cell_slice` lists, else from
+    every coarse sample). Coordinates must be finite and below :data:`COORD_LIMIT`."""
+    xy, heading, step, _, _, _, idx, coarse, window = line
+    lo, hi = cell_slice(line, px, py)
+    cand = idx[lo:hi] if lo < hi else coarse
+    return project_point(xy, heading, step, cand, window, px, py)
+
+
+project_on = numba.njit(cache=True)(project_on_py)
+
+
+def _project_many_py(line: LineLookup, points: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """:func:`project_on_py` for every row of ``points`` ``(N, 2)``: ``(s (N,), d (N,))``.
+
+    Its steps are written out in the loop: a call of the compiled ``project_on`` per
+    point costs about 40 % more here. Coordinates must be finite and below
+    :data:`COORD_LIMIT` (int64 cell keys).
     """
+    xy, heading, step, _, _, _, idx, coarse, window = line
     n = points.shape[0]
     s_out = np.empty(n)
     d_out = np.empty(n)
     for k in range(n):
         px = points[k, 0]
         py = points[k, 1]
-        key = np.int64(math.floor(px / cell)) * 1_000_003 + np.int64(math.floor(py / cell))
-        i = np.searchsorted(hash_keys, key)
-        if i < hash_keys.shape[0] and hash_keys[i] == key:
-            cand = hash_idx[hash_ptr[i] : hash_ptr[i + 1]]
-        else:
-            cand = coarse
+        lo, hi = cell_slice(line, px, py)
+        cand = idx[lo:hi] if lo < hi else coarse
         s, d = project_point(xy, heading, step, cand, window, px, py)
         s_out[k] = s
         d_out[k] = d
@@ -511,21 +518,14 @@ _project_many = numba.njit(cache=True)(_project_many_py)
 
 
 def project_point_near_py(
-    xy: FloatArray,
-    heading: FloatArray,
-    step: float,
-    cell: float,
-    hash_keys: np.ndarray,
-    hash_ptr: np.ndarray,
-    hash_idx: np.ndarray,
-    window: int,
-    points: FloatArray,
+    line: LineLookup, points: FloatArray
 ) -> tuple[FloatArray, FloatArray, BoolArray]:
     """:func:`_project_many_py` restricted to points whose hash cell has candidates.
 
     Other points (and points with a coordinate not finite or beyond
-    :data:`_BATCH_COORD_LIMIT`) get ``s = d = NaN`` and ``near = False``.
+    :data:`COORD_LIMIT`) get ``s = d = NaN`` and ``near = False``.
     """
+    xy, heading, step, _, _, _, idx, _, window = line
     n = points.shape[0]
     s_out = np.full(n, np.nan)
     d_out = np.full(n, np.nan)
@@ -534,14 +534,11 @@ def project_point_near_py(
         px = points[k, 0]
         py = points[k, 1]
         # The comparisons fail for NaN.
-        if not (abs(px) < _BATCH_COORD_LIMIT and abs(py) < _BATCH_COORD_LIMIT):
+        if not (abs(px) < COORD_LIMIT and abs(py) < COORD_LIMIT):
             continue
-        key = np.int64(math.floor(px / cell)) * 1_000_003 + np.int64(math.floor(py / cell))
-        i = np.searchsorted(hash_keys, key)
-        if i < hash_keys.shape[0] and hash_keys[i] == key:
-            s, d = project_point(
-                xy, heading, step, hash_idx[hash_ptr[i] : hash_ptr[i + 1]], window, px, py
-            )
+        lo, hi = cell_slice(line, px, py)
+        if lo < hi:
+            s, d = project_point(xy, heading, step, idx[lo:hi], window, px, py)
             s_out[k] = s
             d_out[k] = d
             near[k] = True
@@ -549,3 +546,36 @@ def project_point_near_py(
 
 
 project_point_near = numba.njit(cache=True)(project_point_near_py)
+
+
+def heading_on_table_py(
+    s_tab: FloatArray | list[float], h_tab: FloatArray | list[float], step: float, s: float
+) -> tuple[int, float, float]:
+    """Where arc length ``s`` [m] falls in a line's table, and the heading [rad] there.
+
+    :param s_tab: the tabulated arc lengths [m], ``step`` [m] apart.
+    :param h_tab: the headings [rad] at them.
+    :return: ``(i, tt, h)``: the interval ``[s_tab[i], s_tab[i + 1]]`` (the first or
+        the last one beyond the ends), the fraction ``tt`` of it at ``s`` (clamped to
+        ``[0, 1]``) and the interpolated heading ``h``. :meth:`ReferenceLine.pose_at`
+        interpolates the positions with the same ``i`` and ``tt``. The clamps are
+        comparisons (builtin min/max cost ~0.15 µs each in Python) with min/max's
+        results, NaN and signed zeros included.
+    """
+    i = int(s / step)
+    last = len(s_tab) - 2
+    if i < 0:
+        i = 0
+    elif i > last:
+        i = last
+    s0 = s_tab[i]
+    tt = (s - s0) / (s_tab[i + 1] - s0)
+    if tt < 0.0:
+        tt = 0.0
+    elif tt > 1.0:
+        tt = 1.0
+    h0 = h_tab[i]
+    return i, tt, h0 + (h_tab[i + 1] - h0) * tt
+
+
+heading_on_table = numba.njit(cache=True)(heading_on_table_py)

@@ -277,14 +277,7 @@ SHIPPED = ("motorway", "two_plus_one", "features", "bridges")
 def _lane_table_args(lane: MapLane, points: np.ndarray) -> tuple:
     c = lane.reference
     return (
-        c.xy,
-        c.heading,
-        c.step,
-        c._CELL,
-        c._hash_keys,
-        c._hash_ptr,
-        c._hash_idx,
-        2 * c._STRIDE,
+        c.lookup,
         lane._u,
         lane._w,
         lane._constant,
@@ -351,17 +344,7 @@ def test_project_near_projects_only_within_reach() -> None:
     for k in np.flatnonzero(near):
         assert (s[k], d[k]) == line.project(points[k])
     assert np.isnan(s[~near]).all() and np.isnan(d[~near]).all()
-    args = (
-        line.xy,
-        line.heading,
-        line.step,
-        line._CELL,
-        line._hash_keys,
-        line._hash_ptr,
-        line._hash_idx,
-        2 * line._STRIDE,
-        points,
-    )
+    args = (line.lookup, points)
     for got, want in zip(project_point_near(*args), project_point_near_py(*args), strict=True):
         assert np.array_equal(got, want, equal_nan=True)
 

@@ -112,7 +112,8 @@ def test_projection_kernel_matches_plain_python() -> None:
     ref = _PROJ_ROAD.reference
     for s, d in [(10.0, 3.0), (2500.0, -12.0), (5900.0, 20.0)]:
         p = ref.position(s, d)
-        args = (ref.xy, ref.heading, ref.step, ref._coarse, 20, float(p[0]), float(p[1]))
+        xy, heading, step, _, _, _, _, coarse, window = ref.lookup
+        args = (xy, heading, step, coarse, window, float(p[0]), float(p[1]))
         assert project_point(*args) == project_point_py(*args)
 
 

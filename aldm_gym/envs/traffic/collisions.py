@@ -12,16 +12,17 @@ from __future__ import annotations
 import math
 from functools import cache
 
+import numba
 from highway_env.vehicle.kinematics import Vehicle
 from highway_env.vehicle.objects import RoadObject
 
 __all__ = ["resolve_collisions"]
 
-_BROAD_PHASE_SLACK = 1e-6
+BROAD_PHASE_SLACK = 1e-6
 """Absolute slack [m] added to collision radii so that float rounding in the base
 ``np.linalg.norm`` pre-check can never make the broad phase drop a pair it keeps."""
 
-_SEPARATION_MARGIN = 1e-4
+SEPARATION_MARGIN = 1e-4
 """Gap [m] a box pair must clear on a separating axis before its exact check is skipped.
 
 highway-env's polygon test computes the same projections with rounding errors of
@@ -54,16 +55,35 @@ def uses_base_box(cls: type) -> bool:
     )
 
 
-def _boxes_separated(a: _BoxShape, b: _BoxShape) -> bool:
-    """Whether the boxes ``a`` (swept by its displacement relative to ``b``) and ``b`` are
-    apart by more than :data:`_SEPARATION_MARGIN` on one of their four edge normals.
+def boxes_separated_py(
+    ax: float,
+    ay: float,
+    ac: float,
+    as_: float,
+    al: float,
+    aw: float,
+    adx: float,
+    ady: float,
+    bx: float,
+    by: float,
+    bc: float,
+    bs: float,
+    bl: float,
+    bw: float,
+    bdx: float,
+    bdy: float,
+) -> bool:
+    """Whether box ``a`` (swept by its displacement relative to ``b``) and box ``b`` are
+    apart by more than :data:`SEPARATION_MARGIN` on one of their four edge normals.
 
-    Those normals are among the axes of ``utils.are_polygons_intersecting``, so
-    then it reports neither a current nor a future intersection, and
-    ``handle_collisions`` has no effect. NaN never passes (the pair is then checked).
+    A box is its centre ``(x, y)``, heading cosine and sine ``(c, s)``, half length
+    ``l``, half width ``w`` and displacement over the step ``(dx, dy)`` [m] (the
+    :data:`_BoxShape` fields). Those normals are among the axes of
+    ``utils.are_polygons_intersecting``, so then it reports neither a current nor a
+    future intersection, and ``handle_collisions`` has no effect. NaN never passes (the
+    pair is then checked). Plain Python for :func:`resolve_collisions`, compiled
+    (:func:`boxes_separated`) for the traffic kernels.
     """
-    ax, ay, ac, as_, al, aw, adx, ady = a
-    bx, by, bc, bs, bl, bw, bdx, bdy = b
     dx = bx - ax
     dy = by - ay
     wx = adx - bdx
@@ -77,9 +97,12 @@ def _boxes_separated(a: _BoxShape, b: _BoxShape) -> bool:
             - bw * abs(bc * ny - bs * nx)
             - abs(wx * nx + wy * ny)
         )
-        if gap > _SEPARATION_MARGIN:
+        if gap > SEPARATION_MARGIN:
             return True
     return False
+
+
+boxes_separated = numba.njit(cache=True)(boxes_separated_py)
 
 
 def resolve_collisions(vehicles: list[RoadObject], objects: list[RoadObject], dt: float) -> None:
@@ -91,7 +114,7 @@ def resolve_collisions(vehicles: list[RoadObject], objects: list[RoadObject], dt
     ``(diag_i + diag_j) / 2 + speed_i * dt`` (its spherical pre-check). A
     sort-and-sweep on ``x`` with radius ``diag / 2 + max(speed * dt, 0)`` keeps a
     superset of those pairs. Pairs of plain boxes that are apart on one of their
-    edge normals (:func:`_boxes_separated`; vehicles side by side in adjacent
+    edge normals (:func:`boxes_separated_py`; vehicles side by side in adjacent
     lanes are the common case) are dropped too: the base polygon test would report
     no intersection for them. The rest are handled in the base loop's order, so the
     last write to each ``impact`` is the same. (Plain Python: for a few dozen
@@ -116,7 +139,7 @@ def resolve_collisions(vehicles: list[RoadObject], objects: list[RoadObject], dt
             radius = math.inf  # its own collision logic: pair it with everything
         else:
             radius = obj.diagonal / 2 + max(obj.speed * dt, 0.0)
-            radius = radius * (1 + 1e-9) + _BROAD_PHASE_SLACK
+            radius = radius * (1 + 1e-9) + BROAD_PHASE_SLACK
         if not (math.isfinite(px) and math.isfinite(py)) or radius != radius:
             _resolve_all_collisions(vehicles, objects, dt)
             return
@@ -144,7 +167,7 @@ def resolve_collisions(vehicles: list[RoadObject], objects: list[RoadObject], dt
                     box_i = boxes.get(i)
                     box_j = boxes.get(j)
                     if box_i is not None and box_j is not None:
-                        if _boxes_separated(box_i, box_j):
+                        if boxes_separated_py(*box_i, *box_j):
                             continue
                     pairs.append((i, j))
         active.append(entry)

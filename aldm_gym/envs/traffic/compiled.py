@@ -74,6 +74,7 @@ from aldm_gym.envs.traffic.vehicles import (
     FastIDMVehicle,
     uses_base_kinematics,
 )
+from aldm_gym.roads.reference_line import COORD_LIMIT
 
 __all__ = ["COMPILED", "ENGINES", "CompiledTraffic"]
 
@@ -91,9 +92,6 @@ _NOT_FINITE = "a vehicle's position is not finite"
 
 _WARNED: set[str] = set()
 """Reasons already warned about in this process (:meth:`CompiledTraffic.holding`)."""
-
-_COORD_LIMIT = 1e12
-"""Largest coordinate [m] the compiled projection takes (its int64 cell keys)."""
 
 _BASE_LANE_DISTANCE = (RoadObject.lane_distance_to, FastControlledVehicle.lane_distance_to)
 
@@ -196,15 +194,7 @@ class CompiledTraffic:
         self.lane_of_index = {index: i for i, index in enumerate(self.lane_indices)}
         self._lane_key: tuple[Any, ...] = ()
         self.s_tab = np.ascontiguousarray(ref.s, dtype=np.float64)
-        self.h_tab = np.ascontiguousarray(ref.heading, dtype=np.float64)
-        self.ref_xy = np.ascontiguousarray(ref.xy, dtype=np.float64)
-        self.step_length = float(ref.step)
-        self.cell = float(ref._CELL)
-        self.hash_keys = ref._hash_keys
-        self.hash_ptr = ref._hash_ptr
-        self.hash_idx = ref._hash_idx
-        self.coarse = np.ascontiguousarray(ref._coarse, dtype=np.int64)
-        self.window = int(2 * ref._STRIDE)
+        self.line = ref.lookup
         self._tabulate_lanes()  # the lane arrays and the kernels' argument tuples
         self._memo = np.full((0, 4), np.nan)
         """``(x, y, s, d)`` [m] of the rows :func:`~aldm_gym.envs.traffic.kernels.traffic_step`
@@ -259,17 +249,6 @@ class CompiledTraffic:
 
     def _build_tables(self) -> None:
         """The kernels' argument tuples (lane arrays and the reference line)."""
-        ref_tables = (
-            self.ref_xy,
-            self.step_length,
-            self.cell,
-            self.hash_keys,
-            self.hash_ptr,
-            self.hash_idx,
-            self.coarse,
-            self.window,
-            _COORD_LIMIT,
-        )
         self.act_tables = (
             self.lane_offset,
             self.lane_width_of,
@@ -277,12 +256,12 @@ class CompiledTraffic:
             self.lane_forbidden,
             self.lane_vehicle_length,
             self.s_tab,
-            self.h_tab,
-            *ref_tables,
+            self.line,
+            COORD_LIMIT,
         )
         """The arguments of :func:`~aldm_gym.envs.traffic.kernels.traffic_act` after
         the state arrays ``f, k, p`` and the projection memo."""
-        self.step_tables = (self.lanes_count, self.lane_width, self.h_tab, *ref_tables)
+        self.step_tables = (self.lanes_count, self.lane_width, self.line, COORD_LIMIT)
         """The arguments of :func:`~aldm_gym.envs.traffic.kernels.traffic_step` after
         ``f, k, p``, the projection memo and ``dt``."""
 
@@ -449,7 +428,7 @@ class CompiledTraffic:
             if lane is None or limit is None or target == -2:
                 return _OFF_LANES
             x, y = v.position.tolist()
-            if not (abs(x) < _COORD_LIMIT and abs(y) < _COORD_LIMIT):
+            if not (abs(x) < COORD_LIMIT and abs(y) < COORD_LIMIT):
                 return _NOT_FINITE
             impact = v.impact
             ix, iy = (0.0, 0.0) if impact is None else impact.tolist()

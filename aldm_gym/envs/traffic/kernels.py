@@ -39,7 +39,8 @@ import math
 import numba
 import numpy as np
 
-from aldm_gym.roads.reference_line import project_point
+from aldm_gym.envs.traffic.collisions import BROAD_PHASE_SLACK, boxes_separated
+from aldm_gym.roads.reference_line import LineLookup, heading_on_table, project_on
 from aldm_gym.types import FloatArray
 
 F_X, F_Y, F_HEADING, F_SPEED, F_LENGTH, F_TARGET_SPEED, F_SPEED_LIMIT = 0, 1, 2, 3, 4, 5, 6
@@ -75,54 +76,6 @@ CAR_LENGTH = 5.0
 """highway-env's ``Vehicle.LENGTH`` [m]: gaps to longer vehicles are bumper to bumper."""
 NEIGHBOUR_MARGIN = 1.0
 """Lateral margin [m] of ``Road.neighbour_vehicles``'s ``on_lane(..., margin=1)``."""
-
-
-def _project_point_py(
-    ref_xy: FloatArray,
-    ref_heading: FloatArray,
-    step: float,
-    cell: float,
-    hash_keys: np.ndarray,
-    hash_ptr: np.ndarray,
-    hash_idx: np.ndarray,
-    coarse: np.ndarray,
-    window: int,
-    px: float,
-    py: float,
-) -> tuple[float, float]:
-    """``ReferenceLine.project`` of one point: ``(s [m], d [m])``, the same floats."""
-    key = np.int64(math.floor(px / cell)) * 1_000_003 + np.int64(math.floor(py / cell))
-    i = np.searchsorted(hash_keys, key)
-    if i < hash_keys.shape[0] and hash_keys[i] == key:
-        return project_point(
-            ref_xy, ref_heading, step, hash_idx[hash_ptr[i] : hash_ptr[i + 1]], window, px, py
-        )
-    return project_point(ref_xy, ref_heading, step, coarse, window, px, py)
-
-
-_project_point = numba.njit(cache=True)(_project_point_py)
-
-
-def _heading_at_py(s_tab: FloatArray, h_tab: FloatArray, step: float, s: float) -> float:
-    """``ReferenceLine.pose_at(s)[2]``: the heading [rad] at arc length ``s`` [m] (the
-    same table and arithmetic, compiled: the kernels cannot call the method)."""
-    i = int(s / step)
-    last = s_tab.shape[0] - 2
-    if i < 0:
-        i = 0
-    elif i > last:
-        i = last
-    s0 = s_tab[i]
-    tt = (s - s0) / (s_tab[i + 1] - s0)
-    if tt < 0.0:
-        tt = 0.0
-    elif tt > 1.0:
-        tt = 1.0
-    h0 = h_tab[i]
-    return h0 + (h_tab[i + 1] - h0) * tt
-
-
-_heading_at = numba.njit(cache=True)(_heading_at_py)
 
 
 def _clip_py(x: float, low: float, high: float) -> float:
@@ -306,10 +259,12 @@ def _steering_py(
     i: int,
     lane: int,
 ) -> float:
-    """``ControlledVehicle.steering_control(lane)`` of vehicle ``i`` [rad]."""
+    """``ControlledVehicle.steering_control(lane)`` of vehicle ``i`` [rad] (``s_tab``,
+    ``h_tab``: the reference line's arc lengths [m], ``step`` [m] apart, and headings)."""
     r = lane_offset[lane] - d[i]
     speed = f[i, F_SPEED]
-    lane_future_heading = _heading_at(s_tab, h_tab, step, s[i] + speed * p[i, P_TAU_PURSUIT])
+    future = s[i] + speed * p[i, P_TAU_PURSUIT]
+    lane_future_heading = heading_on_table(s_tab, h_tab, step, future)[2]
     lateral_speed_command = -p[i, P_KP_LATERAL] * r
     heading_command = math.asin(_clip(lateral_speed_command / _not_zero(speed), -1.0, 1.0))
     heading_ref = lane_future_heading + _clip(heading_command, -np.pi / 4, np.pi / 4)
@@ -336,15 +291,7 @@ def _traffic_act_py(
     lane_forbidden: np.ndarray,
     lane_vehicle_length: float,
     s_tab: FloatArray,
-    h_tab: FloatArray,
-    ref_xy: FloatArray,
-    step: float,
-    cell: float,
-    hash_keys: np.ndarray,
-    hash_ptr: np.ndarray,
-    hash_idx: np.ndarray,
-    coarse: np.ndarray,
-    window: int,
+    line: LineLookup,
     coord_limit: float,
 ) -> bool:
     """``IDMVehicle.act`` of every compiled, uncrashed vehicle, in row order, in place.
@@ -354,7 +301,8 @@ def _traffic_act_py(
     ``(x, y, s, d)`` [m] hold :func:`traffic_step`'s projections, reused for a row
     whose position is the very same (a projection depends on the point alone).
     ``follow_road`` is left out: on a one-edge network its ``next_lane`` returns the
-    lane it is given.
+    lane it is given. ``s_tab`` [m] are the reference line's tabulated arc lengths,
+    ``line`` its :attr:`~aldm_gym.roads.reference_line.ReferenceLine.lookup`.
 
     :return: False, with nothing written, if a coordinate is not below
         ``coord_limit`` [m] in magnitude (NaN included): the caller's Python path.
@@ -363,6 +311,7 @@ def _traffic_act_py(
     for j in range(n):
         if not (abs(f[j, F_X]) < coord_limit and abs(f[j, F_Y]) < coord_limit):
             return False
+    _, h_tab, step, _, _, _, _, _, _ = line
     s = np.empty(n)
     d = np.empty(n)
     for j in range(n):
@@ -370,19 +319,7 @@ def _traffic_act_py(
             s[j] = memo[j, 2]  # projected by the last traffic_step: the same floats
             d[j] = memo[j, 3]
             continue
-        s[j], d[j] = _project_point(
-            ref_xy,
-            h_tab,
-            step,
-            cell,
-            hash_keys,
-            hash_ptr,
-            hash_idx,
-            coarse,
-            window,
-            f[j, F_X],
-            f[j, F_Y],
-        )
+        s[j], d[j] = project_on(line, f[j, F_X], f[j, F_Y])
     n_lanes = lane_offset.shape[0]
     for i in range(n):
         if k[i, K_COMPILED] == 0 or k[i, K_CRASHED] != 0:
@@ -456,22 +393,15 @@ def _traffic_step_py(
     dt: float,
     lanes_count: int,
     lane_width: float,
-    h_tab: FloatArray,
-    ref_xy: FloatArray,
-    step: float,
-    cell: float,
-    hash_keys: np.ndarray,
-    hash_ptr: np.ndarray,
-    hash_idx: np.ndarray,
-    coarse: np.ndarray,
-    window: int,
+    line: LineLookup,
     coord_limit: float,
 ) -> bool:
     """``IDMVehicle.step(dt)`` [s] of every compiled vehicle, then its closest lane.
 
     ``Vehicle.clip_actions`` (crashed vehicles brake to a stop, speeds stay within
     ``MIN_SPEED``/``MAX_SPEED``), the kinematic bicycle model, a pending impact, then
-    ``HighwayRoad.lane_of_offset`` of the new position's projection. Writes the
+    ``HighwayRoad.lane_of_offset`` of the new position's projection on ``line`` (the
+    reference line's :attr:`~aldm_gym.roads.reference_line.ReferenceLine.lookup`). Writes the
     position, heading, speed, timer, clipped action, lane and crash columns, and, if
     ``memo`` has ``N`` rows, the compiled rows' ``(x, y, s, d)`` (NaN for the others)
     for the next :func:`traffic_act`.
@@ -525,19 +455,7 @@ def _traffic_step_py(
         f[i, F_SPEED] += acceleration * dt
         if not (abs(f[i, F_X]) < coord_limit and abs(f[i, F_Y]) < coord_limit):
             return False
-        s_new, d = _project_point(
-            ref_xy,
-            h_tab,
-            step,
-            cell,
-            hash_keys,
-            hash_ptr,
-            hash_idx,
-            coarse,
-            window,
-            f[i, F_X],
-            f[i, F_Y],
-        )
+        s_new, d = project_on(line, f[i, F_X], f[i, F_Y])
         lane = math.ceil(0.5 * lanes_count - d / lane_width) - 1
         lanes[i] = min(max(lane, 0), lanes_count - 1)
         projected[i, 0] = f[i, F_X]
@@ -559,56 +477,16 @@ def _traffic_step_py(
 traffic_step = numba.njit(cache=True)(_traffic_step_py)
 
 
-BROAD_PHASE_SLACK = 1e-6
-"""As :data:`aldm_gym.envs.traffic.collisions._BROAD_PHASE_SLACK` [m]."""
-SEPARATION_MARGIN = 1e-4
-"""As :data:`aldm_gym.envs.traffic.collisions._SEPARATION_MARGIN` [m]."""
+def _box_py(f: FloatArray, i: int, dt: float) -> tuple[float, ...]:
+    """Vehicle ``i``'s box for :func:`~aldm_gym.envs.traffic.collisions.boxes_separated_py`:
+    ``(x, y, cos h, sin h, length / 2, width / 2, vx dt, vy dt)`` [m]."""
+    c = math.cos(f[i, F_HEADING])
+    s = math.sin(f[i, F_HEADING])
+    step = f[i, F_SPEED] * dt
+    return (f[i, F_X], f[i, F_Y], c, s, f[i, F_LENGTH] / 2, f[i, F_WIDTH] / 2, step * c, step * s)
 
 
-def _separated_py(f: FloatArray, a: int, b: int, dt: float) -> bool:
-    """``collisions._boxes_separated`` of the boxes of vehicles ``a`` and ``b`` (the same
-    test on the state arrays, compiled; the Python path keeps its tuple form)."""
-    ax = f[a, F_X]
-    ay = f[a, F_Y]
-    ac = math.cos(f[a, F_HEADING])
-    as_ = math.sin(f[a, F_HEADING])
-    al = f[a, F_LENGTH] / 2
-    aw = f[a, F_WIDTH] / 2
-    a_step = f[a, F_SPEED] * dt
-    bx = f[b, F_X]
-    by = f[b, F_Y]
-    bc = math.cos(f[b, F_HEADING])
-    bs = math.sin(f[b, F_HEADING])
-    bl = f[b, F_LENGTH] / 2
-    bw = f[b, F_WIDTH] / 2
-    b_step = f[b, F_SPEED] * dt
-    dx = bx - ax
-    dy = by - ay
-    wx = a_step * ac - b_step * bc
-    wy = a_step * as_ - b_step * bs
-    for axis in range(4):
-        if axis == 0:
-            nx, ny = ac, as_
-        elif axis == 1:
-            nx, ny = -as_, ac
-        elif axis == 2:
-            nx, ny = bc, bs
-        else:
-            nx, ny = -bs, bc
-        gap = (
-            abs(dx * nx + dy * ny)
-            - al * abs(ac * nx + as_ * ny)
-            - aw * abs(ac * ny - as_ * nx)
-            - bl * abs(bc * nx + bs * ny)
-            - bw * abs(bc * ny - bs * nx)
-            - abs(wx * nx + wy * ny)
-        )
-        if gap > SEPARATION_MARGIN:
-            return True
-    return False
-
-
-_separated = numba.njit(cache=True)(_separated_py)
+_box = numba.njit(cache=True)(_box_py)
 
 
 def _collision_pairs_py(f: FloatArray, k: np.ndarray, dt: float) -> tuple[bool, np.ndarray]:
@@ -647,7 +525,7 @@ def _collision_pairs_py(f: FloatArray, k: np.ndarray, dt: float) -> tuple[bool, 
                 continue
             if abs(f[i, F_Y] - f[j, F_Y]) > radius[i] + radius[j]:
                 continue
-            if _separated(f, i, j, dt):
+            if boxes_separated(*_box(f, i, dt), *_box(f, j, dt)):
                 continue
             pairs[m, 0] = i
             pairs[m, 1] = j

@@ -296,7 +296,7 @@ def test_use_fast_road_is_idempotent_and_repoints_vehicles() -> None:
 
 def test_box_separation_implies_no_collision() -> None:
     """Wherever the narrow-phase filter skips a pair, highway-env's polygon test is a no-op."""
-    from aldm_gym.envs.traffic.collisions import _boxes_separated
+    from aldm_gym.envs.traffic.collisions import boxes_separated, boxes_separated_py
 
     rng = np.random.default_rng(7)
     road = Road(network=RoadNetwork.straight_road_network(4, length=1e4))
@@ -314,7 +314,9 @@ def test_box_separation_implies_no_collision() -> None:
             boxes.append(
                 (*v.position.tolist(), c, s, v.LENGTH / 2, v.WIDTH / 2, step * c, step * s)
             )
-        if _boxes_separated(boxes[0], boxes[1]):
+        separated = boxes_separated_py(*boxes[0], *boxes[1])
+        assert boxes_separated(*boxes[0], *boxes[1]) is separated
+        if separated:
             skipped += 1
             intersecting, will_intersect, _ = a._is_colliding(b, dt)
             assert not intersecting and not will_intersect
@@ -348,18 +350,7 @@ def test_project_many_kernel_matches_plain_python_and_project() -> None:
     s = rng.uniform(-60.0, ref.length + 60.0, 300)
     d = rng.uniform(-50.0, 50.0, 300)
     points = np.vstack([ref.position(s, d), [[1e5, -3e4], [0.0, -0.0]]])
-    args = (
-        ref.xy,
-        ref.heading,
-        ref.step,
-        ref._CELL,
-        ref._hash_keys,
-        ref._hash_ptr,
-        ref._hash_idx,
-        ref._coarse,
-        2 * ref._STRIDE,
-        points,
-    )
+    args = (ref.lookup, points)
     fast, plain = _project_many(*args), _project_many_py(*args)
     many = ref.project_many(points)
     scalar = np.array([ref.project(p) for p in points])
@@ -454,9 +445,7 @@ def test_aldm_env_fast_paths_change_nothing(monkeypatch: pytest.MonkeyPatch) -> 
 
     def plain_project(self: Any, point: Any) -> tuple[float, float]:
         px, py = float(point[0]), float(point[1])
-        cell = math.floor(px / self._CELL) * 1_000_003 + math.floor(py / self._CELL)
-        cand = self._hash.get(cell, self._coarse)
-        return reference_line.project_point(self.xy, self.heading, self.step, cand, 20, px, py)
+        return reference_line.project_on_py(self.lookup, px, py)
 
     def plain_project_many(self: Any, points: Any) -> tuple[Any, Any]:
         out = np.array([plain_project(self, p) for p in np.reshape(points, (-1, 2))])
@@ -470,7 +459,7 @@ def test_aldm_env_fast_paths_change_nothing(monkeypatch: pytest.MonkeyPatch) -> 
     monkeypatch.setattr(
         ReferenceLane, "heading_at", lambda self, s: float(self.reference.heading_at(s))
     )
-    monkeypatch.setattr(collisions, "_boxes_separated", lambda a, b: False)
+    monkeypatch.setattr(collisions, "boxes_separated_py", lambda *boxes: False)
     monkeypatch.setattr(road_module, "STEPS_ENDING_WITH_UPDATE", frozenset())
     monkeypatch.setattr(SensorVehicle, "step", Vehicle.step)
     assert rollout() == fast
