@@ -270,7 +270,7 @@ class ScenarioScene(MapScene):
 
         self.runner = ScenarioRunner(self.scenario, self.map, self.ego_name)
         dt = 1.0 / float(self.settings.simulation_frequency)
-        return self.runner.populate(traffic, make_ego, dt, rng=rng)
+        return self.runner.populate(traffic, make_ego, dt, rng=rng, traffic_vehicle=MapIDMVehicle)
 
 
 def make_scene(settings: EnvConfig, map_road: OpenDriveRoad | None, scenario: Any = None) -> Scene:

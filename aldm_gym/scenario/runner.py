@@ -22,6 +22,13 @@ from aldm_gym.scenario.world import Entity, ScenarioVehicle, World
 __all__ = ["ScenarioRunner", "choose_ego"]
 
 
+def _idm_vehicle(road: Any, position: Any, heading: float, speed: float) -> Any:
+    """highway-env's IDM/MOBIL vehicle (a generated vehicle where the env gives none)."""
+    from highway_env.vehicle.behavior import IDMVehicle
+
+    return IDMVehicle(road, position, heading, speed)
+
+
 def choose_ego(scenario: Scenario, name: str = "") -> str:
     """The name of the entity the env drives: ``name`` when given, else the one vehicle
     with an ``ObjectController``, else one called ``Ego``.
@@ -84,6 +91,8 @@ class ScenarioRunner:
         :mod:`aldm_gym.scenario.traffic`), in the order they started."""
         self.rng: Any = None
         """The episode's generator, which the generated traffic draws from."""
+        self.traffic_vehicle: Callable[..., Any] = _idm_vehicle
+        """Makes a generated vehicle: ``(road, position, heading, speed)``."""
 
     @property
     def active(self) -> bool:
@@ -101,12 +110,15 @@ class ScenarioRunner:
         make_ego: Callable[[Any, Any, float, float], Any],
         dt: float | None = None,
         rng: Any = None,
+        traffic_vehicle: Callable[..., Any] | None = None,
     ) -> Any:
         """Make every entity's vehicle on ``traffic`` (the ego with ``make_ego``), play
         ``Init`` at time 0, and start the storyboard; return the ego's vehicle. ``dt``
         [s]: the simulation step, to prepare the first one (the actions that measure
         where every entity begins a step). ``rng``: the episode's generator, for
-        generated traffic (a fixed seed when None).
+        generated traffic (a fixed seed when None); ``traffic_vehicle``: makes a
+        generated vehicle, ``(road, position, heading, speed)`` (highway-env's IDM
+        vehicle when None).
 
         :raises ScenarioError: an entity that ``Init`` does not place.
         """
@@ -114,6 +126,8 @@ class ScenarioRunner:
 
         self.traffic = traffic
         self.rng = rng if rng is not None else np.random.default_rng(0)
+        if traffic_vehicle is not None:
+            self.traffic_vehicle = traffic_vehicle
         for entity in self.world.entities.values():
             if entity.is_ego:
                 v = make_ego(traffic, np.zeros(2), 0.0, 0.0)

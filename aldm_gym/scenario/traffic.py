@@ -2,9 +2,10 @@
 ``TrafficSinkAction`` and ``TrafficStopAction``.
 
 OpenSCENARIO leaves the generated vehicles' behaviour to the tool ("controlled by the
-simulator's default traffic"): here they are the env's own map traffic
-(:class:`~aldm_gym.envs.vehicle.MapIDMVehicle`, highway-env's IDM and MOBIL with the
-mandatory merge), placed on a driving lane's centre, heading along it. Their draws
+simulator's default traffic"): here they are the env's own map traffic (the runner's
+``traffic_vehicle``: in the env :class:`~aldm_gym.envs.vehicle.MapIDMVehicle`,
+highway-env's IDM and MOBIL with the mandatory merge), placed on a driving lane's
+centre, heading along it. Their draws
 (where, which category, how fast) come from the episode's generator, so a seed gives
 the same traffic. They are not scenario objects: no condition or action names them;
 they are vehicles of the road, which the function under test senses and can hit.
@@ -132,8 +133,6 @@ class _Generator:
         it keeps its gap to every vehicle; whether it did. With ``heading_to_match``,
         a lane driven that way is taken with probability ``same_share`` and one driven
         the other way otherwise."""
-        from aldm_gym.envs.vehicle import MapIDMVehicle
-
         world = runner.world
         try:
             pos = world.road.lane_position(point)
@@ -163,7 +162,7 @@ class _Generator:
             room = (length + float(getattr(other, "LENGTH", 5.0))) / 2
             if gap < room + max(MIN_GAP, GAP_TIME * max(speed, float(other.speed))):
                 return False
-        v = MapIDMVehicle(road, where, float(lane.heading_at(u)), speed)
+        v = runner.traffic_vehicle(road, where, float(lane.heading_at(u)), speed)
         v.LENGTH, v.WIDTH = length, width
         v.diagonal = float(np.hypot(length, width))
         v.target_speed = speed
