@@ -84,6 +84,8 @@ from aldm_gym.training.settings import (
     DEFAULT_VALIDATION_FREQ,
     KEEP_BY,
     LR_SCHEDULES,
+    MAX_ENV_RUNNERS,
+    MAX_N_ENVS,
     MAX_N_STEPS,
     NAMED_ENV_KEYS,
     VALIDATION_SEED,
@@ -106,12 +108,6 @@ QUICK_VALIDATION_FREQ = 512
 
 QUICK_VALIDATION_EPISODES = 3
 """``train --quick``: episodes per validation."""
-
-MAX_N_ENVS = 64
-"""Most ``--n-envs`` accepted (each is a subprocess)."""
-
-MAX_ENV_RUNNERS = 1024
-"""Most ``--num-env-runners`` accepted."""
 
 _ONLY = {
     "sb3": (

@@ -404,16 +404,15 @@ class EnvOverrides(ConfigView):
     :raises ConfigError: naming an unknown key (with the allowed ones) or a bad value.
     """
 
-    __slots__ = ("_settings", "_view")
+    __slots__ = ("_settings",)
 
     def __init__(self, overrides: Mapping[str, Any] | None = None) -> None:
         tree = merged_config({}, overrides)
-        settings, view = parse_config(merged_config(default_config(), tree))
+        settings, _ = parse_config(merged_config(default_config(), tree))
         dict.__init__(
             self, {k: ConfigView(v) if isinstance(v, dict) else v for k, v in tree.items()}
         )
         self._settings = settings
-        self._view = view
 
     @property
     def settings(self) -> EnvConfig:
@@ -423,7 +422,8 @@ class EnvOverrides(ConfigView):
     def parsed(self) -> tuple[EnvConfig, ConfigView]:
         """``(settings, view)`` as :func:`parse_config` returns them, copies the caller
         may complete (the env sets a map's lane count on its own)."""
-        return copy.copy(self._settings), ConfigView(dict(self._view))
+        settings = copy.deepcopy(self._settings)  # lists in it (centering_position) too
+        return settings, _view(settings, {**dict.fromkeys(_GIVEN_SECTIONS), **self})
 
     def merged(self, update: Mapping[str, Any] | None) -> EnvOverrides:
         """These overrides updated with ``update`` (sections key by key), validated.

@@ -208,7 +208,7 @@ class ALDMHighwayEnv(AbstractEnv):
         self.acc_command: LongitudinalCommand | None = None
         """The longitudinal controller's output at the last simulation step."""
         self._s_before = 0.0
-        self._passing_before: dict[int, float] = {}
+        self._passing_before: dict[Any, float] = {}
         self._space_seed: int | None = None
         self.scenario: ScenarioRunner | None = None
         """This episode's scenario run (``scenario.xosc`` set), else None."""

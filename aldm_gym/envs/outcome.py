@@ -41,24 +41,26 @@ PASSING_WINDOW = (60.0, 15.0)
 behind and to either side of the ego, in the ego's frame [m], before and after the step."""
 
 
-def passing_positions(ego: Any, vehicles: Any) -> dict[int, float]:
+def passing_positions(ego: Any, vehicles: Any) -> dict[Any, float]:
     """How far ahead of the ego each other vehicle within :data:`PASSING_WINDOW` is:
-    ``{id(vehicle): x}``, x along the ego's heading [m] (> 0 ahead)."""
+    ``{vehicle: x}``, x along the ego's heading [m] (> 0 ahead). Keyed by the vehicle
+    itself (identity), not by ``id()``: a vehicle removed in the step (a sink, a
+    deleted entity) could otherwise hand its id to a new one."""
     reach, side = PASSING_WINDOW
     cos_h, sin_h = math.cos(ego.heading), math.sin(ego.heading)
     ex, ey = float(ego.position[0]), float(ego.position[1])
-    out: dict[int, float] = {}
+    out: dict[Any, float] = {}
     for vehicle in vehicles:
         if vehicle is ego:
             continue
         dx, dy = float(vehicle.position[0]) - ex, float(vehicle.position[1]) - ey
         x = dx * cos_h + dy * sin_h
         if abs(x) <= reach and abs(dy * cos_h - dx * sin_h) <= side:
-            out[id(vehicle)] = x
+            out[vehicle] = x
     return out
 
 
-def net_overtakes(before: dict[int, float], after: dict[int, float]) -> int:
+def net_overtakes(before: dict[Any, float], after: dict[Any, float]) -> int:
     """Vehicles the ego passed minus vehicles that passed the ego between two
     :func:`passing_positions` (only those in the window at both times count)."""
     net = 0

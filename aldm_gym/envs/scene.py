@@ -150,6 +150,17 @@ class MapScene(Scene):
         """The map (the same every episode)."""
         return self.map
 
+    def traffic_class(self) -> type:
+        """The class of the map's traffic: ``other_vehicles_type``, where the default
+        is :class:`~aldm_gym.envs.vehicle.MapIDMVehicle` (with the mandatory merge)."""
+        s = self.settings
+        other_type = utils.class_from_path(s.other_vehicles_type)
+        if other_type.__name__ == "FastIDMVehicle" and s.other_vehicles_type == (
+            EnvConfig.other_vehicles_type
+        ):
+            return MapIDMVehicle
+        return other_type
+
     def place_vehicles(
         self, road: Road, traffic: FastRoad, rng: np.random.Generator, make_ego: MakeEgo
     ) -> SensorVehicle:
@@ -205,11 +216,7 @@ class MapScene(Scene):
         lane = net.get_lane(net.index_of[key])
         ego = make_ego(traffic, lane.position(u, 0.0), lane.heading_at(u), speed)
         traffic.vehicles.append(ego)
-        other_type = utils.class_from_path(s.other_vehicles_type)
-        if other_type.__name__ == "FastIDMVehicle" and s.other_vehicles_type == (
-            EnvConfig.other_vehicles_type
-        ):
-            other_type = MapIDMVehicle  # the default traffic, with the mandatory merge
+        other_type = self.traffic_class()
         spacing = 1.0 / float(s.vehicles_density)
         spawner = Spawner(s.traffic, rng)
         cur, cur_u = key, u
@@ -270,7 +277,9 @@ class ScenarioScene(MapScene):
 
         self.runner = ScenarioRunner(self.scenario, self.map, self.ego_name)
         dt = 1.0 / float(self.settings.simulation_frequency)
-        return self.runner.populate(traffic, make_ego, dt, rng=rng, traffic_vehicle=MapIDMVehicle)
+        return self.runner.populate(
+            traffic, make_ego, dt, rng=rng, traffic_vehicle=self.traffic_class()
+        )
 
 
 def make_scene(settings: EnvConfig, map_road: OpenDriveRoad | None, scenario: Any = None) -> Scene:

@@ -71,8 +71,6 @@ __all__ = [
 SHAPES = ("step", "linear", "cubic", "sinusoidal")
 """The dynamics shapes."""
 
-"""Numbers the motions in the order they start (see :class:`FollowTrajectory`)."""
-
 SPRING = 0.4
 """The gap spring of a ``LongitudinalDistanceAction`` with ``DynamicConstraints``:
 its stiffness is this times the acceleration limit it pulls with [1/s² per m/s²]

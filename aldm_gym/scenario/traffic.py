@@ -18,7 +18,7 @@ they are vehicles of the road, which the function under test senses and can hit.
   vehicle. ``DirectionOfTravelDistribution`` weighs lanes driven the central object's
   way against the others (default: its way only).
 * A **source** places a vehicle within ``radius`` of its position every ``1 / rate``
-  seconds (a blocked place is tried again the next step).
+  seconds (a blocked place is tried again the next step), :data:`MAX_GENERATED` in all.
 * A **sink** removes the generated vehicles within ``radius`` of its position, at most
   ``rate`` per second (all, without ``rate``). Scenario objects are never removed.
 * **TrafficStopAction** ends the traffic action of its ``trafficName``; the vehicles it
@@ -163,6 +163,9 @@ class _Generator:
             if gap < room + max(MIN_GAP, GAP_TIME * max(speed, float(other.speed))):
                 return False
         v = runner.traffic_vehicle(road, where, float(lane.heading_at(u)), speed)
+        randomize = getattr(v, "randomize_behavior", None)
+        if callable(randomize):
+            randomize()  # as the env's map traffic (drawn from the road's generator)
         v.LENGTH, v.WIDTH = length, width
         v.diagonal = float(np.hypot(length, width))
         v.target_speed = speed
@@ -285,7 +288,9 @@ class Sink(_Generator):
 
     def step(self, runner: Any, rng: np.random.Generator, dt: float) -> None:
         """Remove the generated vehicles inside the radius (at most ``rate`` a second)."""
-        self.budget = min(self.budget + self.rate * dt, float(MAX_GENERATED))
+        # what it may remove now: its rate over this step, and at least one vehicle
+        # (an idle sink saves nothing up)
+        self.budget = min(self.budget + self.rate * dt, max(1.0, self.rate * dt))
         road = runner.traffic
         centre = np.asarray(self.point, dtype=float)
         for v in list(road.vehicles):

@@ -270,6 +270,7 @@ class World:
         """A simulation step begins: the scripted ego and entities are yet to move."""
         self._ego_due = True
         self._all_due = True
+        self.moved_at = {}
 
     def advance_all(self, dt: float) -> None:
         """Move every scripted entity by ``dt`` [s], once a step, in esmini's order.
@@ -304,33 +305,38 @@ class World:
                 and (not ranks or speed.rank < min(ranks))
             ):
                 steps.append((speed.rank, index, False, entity))
-        for rank, _, moves, entity in sorted(steps, key=lambda item: item[:2]):
-            if moves:
-                self.moved_at[entity.name] = rank
+        try:
+            for rank, _, moves, entity in sorted(steps, key=lambda item: item[:2]):
+                if moves:
+                    if self._moves(entity):
+                        self.moved_at[entity.name] = rank
+                    self._advance_one(entity, dt)
+                else:  # a speed action: the speed now, the move later
+                    entity.speed_before = entity.speed
+                    entity.speed = float(entity.longitudinal.speed_after(self, entity, dt))
+            for entity in others:
                 self._advance_one(entity, dt)
-            else:  # a speed action: the speed now, the move later
-                entity.speed_before = entity.speed
-                entity.speed = float(entity.longitudinal.speed_after(self, entity, dt))
-        for entity in others:
-            self._advance_one(entity, dt)
-        for entity in self.entities.values():
-            entity.speed_before = None  # one that did not move after all keeps its speed
+        finally:
+            for entity in self.entities.values():
+                entity.speed_before = None  # one that did not move keeps its speed
 
-    def _moves_normally(self, entity: Entity) -> bool:
-        """Whether :meth:`advance` will move the entity along its lane by its speed
-        (not a vehicle the function drives, an absent, towed, teleported or stopped one,
-        nor one on a trajectory)."""
+    def _moves(self, entity: Entity) -> bool:
+        """Whether :meth:`advance` will move the entity in this step (not a vehicle the
+        function drives, nor an absent, towed or stopped one)."""
         return (
             entity.scripted
             and entity.placed
             and entity.present
             and not entity.leaving
             and entity.tractor is None
-            and entity.teleport is None
             and not entity.ended
-            and entity.trajectory is None
             and (not entity.is_ego or self._ego_due)
         )
+
+    def _moves_normally(self, entity: Entity) -> bool:
+        """Whether :meth:`advance` will move the entity along its lane by its speed
+        (:meth:`_moves`, and neither teleported nor on a trajectory)."""
+        return self._moves(entity) and entity.teleport is None and entity.trajectory is None
 
     def _advance_one(self, entity: Entity, dt: float) -> None:
         if entity.is_ego:
@@ -340,10 +346,8 @@ class World:
 
     def advance_ego(self, dt: float) -> None:
         """Move the ego by ``dt`` [s] if the scenario drives it and it has not moved in
-        this step. The road moves the env's ego (its vehicle, first in the list) before
-        the scripted entities; a scripted ego moves as the first of them, so that every
-        scripted entity moves on the others' states at the start of the step except the
-        ego's, which it sees at the end (as it sees an active ego)."""
+        this step (a scripted ego moves where :meth:`advance_all` puts it in the order;
+        the env's ego, which its function drives, moves by itself before them all)."""
         ego = self.ego
         if not self._ego_due or ego is None:
             return

@@ -38,6 +38,7 @@ from aldm_gym.training.settings import (
     DEFAULT_VALIDATION_EPISODES,
     DEFAULT_VALIDATION_FREQ,
     KEEP_BY,
+    RUN_MAXIMUM,
     RUN_MINIMUM,
     PPOParams,
 )
@@ -81,9 +82,10 @@ class RunSettings:
             value = getattr(self, f.name)
             if isinstance(value, bool) or not isinstance(value, int):
                 raise ConfigError(f"{f.name} must be an integer, got {value!r}")
-            least = RUN_MINIMUM.get(f.name)
-            if least is not None and value < least:
-                raise ConfigError(f"{f.name} must be >= {least}, got {value}")
+            least = RUN_MINIMUM.get(f.name, 0)
+            most = RUN_MAXIMUM[f.name]
+            if not least <= value <= most:
+                raise ConfigError(f"{f.name} must be in [{least}, {most}], got {value}")
 
     def of(self, backend: str) -> dict[str, int]:
         """The settings ``backend`` uses, by name (:data:`BACKEND_RUN_SETTINGS`)."""
@@ -104,6 +106,22 @@ BACKEND_RUN_SETTINGS: dict[str, tuple[str, ...]] = {
 """Each backend's run settings (of :class:`RunSettings`), in the record's order."""
 
 _RUN_NAMES = tuple(f.name for f in dataclasses.fields(RunSettings))
+
+
+def _check_pretrain(pretrain: Any, backend: str) -> None:
+    """Refuse a cloning record a resume cannot use (:class:`ConfigError` naming it)."""
+    from aldm_gym.training.sb3.pretrain import MAX_PRETRAIN_EPISODES
+
+    if backend != "sb3":
+        raise ConfigError(f"pretrain is an SB3 setting; the {backend} backend has none")
+    if not isinstance(pretrain, Mapping):
+        raise ConfigError(f"pretrain must be a mapping, got {type(pretrain).__name__}")
+    for name, least, most in (("episodes", 0, MAX_PRETRAIN_EPISODES), ("epochs", 1, 10**6)):
+        value = pretrain.get(name)
+        if isinstance(value, bool) or not isinstance(value, int) or not least <= value <= most:
+            raise ConfigError(
+                f"pretrain.{name} must be an integer in [{least}, {most}], got {value!r}"
+            )
 
 
 @dataclass(frozen=True)
@@ -142,8 +160,10 @@ class TrainingRecord:
             )
         if self.keep_by is not None and self.keep_by not in KEEP_BY:
             raise ConfigError(f"keep_by must be one of {KEEP_BY}, got {self.keep_by!r}")
-        if self.pretrain is not None and not isinstance(self.pretrain, Mapping):
-            raise ConfigError(f"pretrain must be a mapping, got {type(self.pretrain).__name__}")
+        if self.keep_by is not None and self.backend != "sb3":
+            raise ConfigError(f"keep_by is an SB3 setting; the {self.backend} backend has none")
+        if self.pretrain is not None:
+            _check_pretrain(self.pretrain, self.backend)
         if not isinstance(self.env_config, EnvOverrides):
             object.__setattr__(self, "env_config", EnvOverrides(self.env_config))
 

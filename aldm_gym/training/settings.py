@@ -98,6 +98,27 @@ RUN_MINIMUM = {
 }
 """The least value of each bounded run setting (``seed`` is any integer)."""
 
+MAX_N_ENVS = 64
+"""Most ``n_envs`` (SB3: each is a subprocess)."""
+
+MAX_ENV_RUNNERS = 1024
+"""Most ``num_env_runners`` (RLlib)."""
+
+MAX_SEED = 2**31 - 1
+"""The largest seed a training's record holds (the command line's bound)."""
+
+RUN_MAXIMUM = {
+    "timesteps": 10**12,
+    "n_envs": MAX_N_ENVS,
+    "num_env_runners": MAX_ENV_RUNNERS,
+    "checkpoint_freq": 10**12,
+    "validation_freq": 10**12,
+    "validation_episodes": 10_000,
+    "seed": MAX_SEED,
+}
+"""The largest value of each run setting a training's record may hold (checked when it
+is read, before anything is built from it)."""
+
 
 MAX_N_STEPS = 1_000_000
 """The longest rollout per env [policy steps] (``--n-steps``' bound)."""

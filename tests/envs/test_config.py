@@ -122,3 +122,10 @@ def test_env_overrides_are_validated_once_read_only_and_plain_at_the_edges() -> 
         made.merged({"sensor": {"rang": 50.0}})
     with pytest.raises(ConfigError, match="did you mean 'detector'"):
         EnvOverrides({"detectr": "naive"})
+    # every env made from one record has its own settings (highway-env moves the
+    # centering position in place)
+    (a, view_a), (b, view_b) = made.parsed(), made.parsed()
+    assert a.centering_position == b.centering_position
+    assert a.centering_position is not b.centering_position
+    assert view_a["centering_position"] is not made.settings.centering_position
+    assert dict(view_a) == dict(view_b)

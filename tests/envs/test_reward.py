@@ -4,7 +4,6 @@ normalisation over each term's range."""
 from __future__ import annotations
 
 import math
-from types import SimpleNamespace
 
 import gymnasium as gym
 import numpy as np
@@ -16,8 +15,16 @@ from aldm_gym.envs import outcome
 from aldm_gym.envs.config import EnvConfig
 
 
-def car(x: float, y: float, heading: float = 0.0) -> SimpleNamespace:
-    return SimpleNamespace(position=np.array([x, y]), heading=heading)
+class _Car:
+    """A vehicle as the outcome reads it (hashable by identity, as highway-env's)."""
+
+    def __init__(self, x: float, y: float, heading: float) -> None:
+        self.position = np.array([x, y])
+        self.heading = heading
+
+
+def car(x: float, y: float, heading: float = 0.0) -> _Car:
+    return _Car(x, y, heading)
 
 
 def test_net_overtakes_counts_sign_changes_seen_at_both_times() -> None:
@@ -39,9 +46,9 @@ def test_passing_positions_are_along_the_ego_heading_within_the_window() -> None
         car(100.0 + side + 1.0, 50.0),  # too far to the side
     ]
     got = outcome.passing_positions(ego, [ego, *others])
-    assert set(got) == {id(others[0]), id(others[1])}
-    assert got[id(others[0])] == pytest.approx(10.0)
-    assert got[id(others[1])] == pytest.approx(-5.0)
+    assert set(got) == {others[0], others[1]}
+    assert got[others[0]] == pytest.approx(10.0)
+    assert got[others[1]] == pytest.approx(-5.0)
 
 
 def terms(**values: float) -> dict[str, float]:

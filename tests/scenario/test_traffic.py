@@ -240,3 +240,31 @@ def test_a_swarm_written_for_openscenario_1_0_plays(tmp_path: Path) -> None:
     assert len(frames[-1]) == 3
     first = next(f for f in frames if f)
     assert 21.0 in {v[-1] for v in first}  # placed at its velocity (IDM drives on)
+
+
+def test_an_idle_sink_saves_nothing_up() -> None:
+    """A sink removes at most ``rate`` vehicles a second, also after a long idle time."""
+    from types import SimpleNamespace
+
+    from aldm_gym.scenario.traffic import Sink, TrafficDefinition
+
+    class Car:
+        def __init__(self, x: float) -> None:
+            self.position, self.generated_by = np.array([x, 0.0]), "src"
+
+    road = SimpleNamespace(vehicles=[])
+    runner = SimpleNamespace(traffic=road)
+    sink = Sink(
+        name="exit", definition=TrafficDefinition(), point=(0.0, 0.0), radius=10.0, rate=0.5
+    )
+    rng = np.random.default_rng(0)
+    for _ in range(100):  # 10 s without a vehicle in reach
+        sink.step(runner, rng, 0.1)
+    road.vehicles.extend(Car(x) for x in (-2.0, 0.0, 2.0, 30.0))
+    sink.step(runner, rng, 0.1)
+    assert len(road.vehicles) == 3  # one removed, not all three in reach
+    for _ in range(19):  # 1.9 s more at 0.5 a second: none due yet
+        sink.step(runner, rng, 0.1)
+    assert len(road.vehicles) == 3
+    sink.step(runner, rng, 0.1)
+    assert len(road.vehicles) == 2

@@ -70,6 +70,12 @@ def test_a_written_record_reads_typed_and_writes_back_the_same_file(tmp_path: Pa
     assert TrainingRecord.read(tmp_path / "again.json") == record
 
 
+def test_sb3_settings_are_refused_in_an_rllib_record() -> None:
+    for key, value in (("keep_by", "return"), ("pretrain", {"episodes": 1, "epochs": 1})):
+        with pytest.raises(ConfigError, match=f"{key} is an SB3 setting"):
+            TrainingRecord.from_dict({"backend": "rllib", "env_config": {}, key: value})
+
+
 def test_an_older_record_takes_what_it_was_trained_with() -> None:
     record = TrainingRecord.from_dict({"env_config": {}, "ppo": {"n_steps": 64}})
     assert (record.backend, record.algorithm, record.keep_by) == ("sb3", "PPO", "return")
@@ -95,7 +101,11 @@ def test_an_older_record_takes_what_it_was_trained_with() -> None:
         ({"ppo": {"n_steps": 10**9}}, r"n_steps must be an integer in \[2, 1000000\]"),
         ({"ppo": {"net_arch": [10**7]}}, "net_arch must be"),
         ({"ppo": {"momentum": 0.9}}, "ppo: .*momentum"),
-        ({"timesteps": 0}, "timesteps must be >= 1"),
+        ({"timesteps": 0}, r"timesteps must be in \[1, "),
+        ({"n_envs": 100_000}, r"n_envs must be in \[1, 64\], got 100000"),
+        ({"seed": -5}, r"seed must be in \[0, 2147483647\], got -5"),
+        ({"pretrain": {"episodes": "x", "epochs": 3}}, "pretrain.episodes must be an integer"),
+        ({"pretrain": {"episodes": 2}}, "pretrain.epochs must be an integer"),
         ({"seed": 1.5}, "seed must be an integer"),
         ({"keep_by": "speed"}, "keep_by must be one of"),
         ({"num_env_runners": 2}, "not run settings of the sb3 backend"),
