@@ -333,6 +333,7 @@ class ALDMHighwayEnv(AbstractEnv):
         scene = self._scene
         self.highway = road = scene.road(self.np_random)
         self.perception = Perception(self.settings, self.path_range)
+        self._passing_before = {}  # holds the last step's vehicles
         if self.road is not None:
             # The old road and its vehicles reference each other; releasing them frees
             # them at once instead of at Python's next full garbage collection
