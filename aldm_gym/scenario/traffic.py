@@ -83,6 +83,12 @@ MIN_GAP = 2.0
 """Least distance [m] between a new vehicle's box and another's (bumper to bumper)."""
 
 
+def _in_unit_disc(rng: np.random.Generator) -> tuple[float, float]:
+    """A point uniform in the unit disc, in polar coordinates ``(r, phi [rad])``."""
+    r = math.sqrt(float(rng.uniform()))
+    return r, float(rng.uniform(0.0, 2.0 * math.pi))
+
+
 @dataclass(frozen=True)
 class TrafficDefinition:
     """``TrafficDefinition``: the vehicle categories to draw, with their weights.
@@ -232,8 +238,7 @@ class Swarm(_Generator):
             if len(self.vehicles) >= self.count:
                 break
             # a point uniform in the ellipse, kept where it is outside the inner circle
-            r = math.sqrt(float(rng.uniform()))
-            phi = float(rng.uniform(0.0, 2.0 * math.pi))
+            r, phi = _in_unit_disc(rng)
             along = self.offset + self.semi_major * r * math.cos(phi)
             across = self.semi_minor * r * math.sin(phi)
             point = centre + np.array([along * c - across * s, along * s + across * c])
@@ -265,8 +270,8 @@ class Source(_Generator):
             return
         if runner.world.time + 1e-9 < self.started + self.placed / self.rate:
             return
-        r = self.radius * math.sqrt(float(rng.uniform()))
-        phi = float(rng.uniform(0.0, 2.0 * math.pi))
+        r, phi = _in_unit_disc(rng)
+        r = self.radius * r
         point = np.asarray(self.point, dtype=float) + r * np.array([math.cos(phi), math.sin(phi)])
         if self._place(runner, rng, point):
             self.placed += 1

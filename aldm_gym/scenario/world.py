@@ -748,8 +748,10 @@ class World:
             if own and entity.placed and entity.present and getattr(motion, "rigid", False):
                 ref = self.entities.get(getattr(motion, "ref", ""))
                 ahead = 0.0
-                if ref is not None and moved_at.get(ref.name, (9,)) < motion.rank:
-                    ahead = ref.current_speed * dt
+                if ref is not None:
+                    ref_rank = moved_at.get(ref.name)
+                    if ref_rank is not None and ref_rank < motion.rank:
+                        ahead = ref.current_speed * dt
                 motion.settle(self, ahead)
 
     def follow_lateral(self, entity: Entity, dt: float) -> None:

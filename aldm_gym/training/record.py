@@ -108,6 +108,12 @@ BACKEND_RUN_SETTINGS: dict[str, tuple[str, ...]] = {
 _RUN_NAMES = tuple(f.name for f in dataclasses.fields(RunSettings))
 
 
+def _check_backend(backend: Any) -> None:
+    """Refuse a backend that is not a key of :data:`BACKEND_RUN_SETTINGS`."""
+    if not isinstance(backend, str) or backend not in BACKEND_RUN_SETTINGS:
+        raise ConfigError(f"backend must be one of {tuple(BACKEND_RUN_SETTINGS)}, got {backend!r}")
+
+
 def _check_pretrain(pretrain: Any, backend: str) -> None:
     """Refuse a cloning record a resume cannot use (:class:`ConfigError` naming it)."""
     from aldm_gym.training.sb3.pretrain import MAX_PRETRAIN_EPISODES
@@ -150,10 +156,7 @@ class TrainingRecord:
     env_id: str = "ALDMHighway-v0"
 
     def __post_init__(self) -> None:
-        if not isinstance(self.backend, str) or self.backend not in BACKEND_RUN_SETTINGS:
-            raise ConfigError(
-                f"backend must be one of {tuple(BACKEND_RUN_SETTINGS)}, got {self.backend!r}"
-            )
+        _check_backend(self.backend)
         if self.algorithm not in ALGORITHMS.values():
             raise ConfigError(
                 f"algorithm must be one of {tuple(ALGORITHMS.values())}, got {self.algorithm!r}"
@@ -212,10 +215,7 @@ class TrainingRecord:
                 f"unknown key(s) {unknown}; allowed keys: {sorted((*known, *_RUN_NAMES))}"
             )
         backend = data.get("backend", "sb3")
-        if not isinstance(backend, str) or backend not in BACKEND_RUN_SETTINGS:
-            raise ConfigError(
-                f"backend must be one of {tuple(BACKEND_RUN_SETTINGS)}, got {backend!r}"
-            )
+        _check_backend(backend)  # before its run settings are looked up
         if "env_config" not in data:
             raise ConfigError("no env_config")
         if not isinstance(data["env_config"], Mapping):

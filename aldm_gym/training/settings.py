@@ -169,7 +169,7 @@ class PPOParams:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
                 raise ConfigError(f"{name} must be an integer in [{lo}, {hi}], got {value!r}")
-        for name, lo, hi, open_low in (
+        for name, low, high, open_low in (
             ("learning_rate", 0.0, 1.0, True),
             ("gamma", 0.0, 1.0, False),
             ("gae_lambda", 0.0, 1.0, False),
@@ -181,12 +181,12 @@ class PPOParams:
                 isinstance(value, int | float)
                 and not isinstance(value, bool)
                 and math.isfinite(value)
-                and (lo < value if open_low else lo <= value)
-                and value <= hi
+                and (low < value if open_low else low <= value)
+                and value <= high
             )
             if not ok:
                 bracket = "(" if open_low else "["
-                raise ConfigError(f"{name} must be in {bracket}{lo}, {hi}], got {value!r}")
+                raise ConfigError(f"{name} must be in {bracket}{low}, {high}], got {value!r}")
         arch = self.net_arch
         if (
             not isinstance(arch, list | tuple)
