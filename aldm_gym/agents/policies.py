@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from aldm_gym.envs.actions import MetaAction
+from aldm_gym.envs.lane_end import CLOSING_TIME, GAP_AHEAD, GAP_BEHIND, gap_is_free
 from aldm_gym.envs.observation import VEHICLE_LENGTH, LaneCode
 
 
@@ -66,9 +67,9 @@ class RuleBasedLCA:
 
     front_gap: float = 40.0
     slower_by: float = 1.0
-    left_clear: tuple[float, float] = (20.0, 40.0)
+    left_clear: tuple[float, float] = (GAP_BEHIND, GAP_AHEAD)
     right_clear: tuple[float, float] = (25.0, 70.0)
-    closing_time: float = 3.0
+    closing_time: float = CLOSING_TIME
     cooldown: int = 4
 
     def __post_init__(self) -> None:
@@ -79,16 +80,16 @@ class RuleBasedLCA:
         self._since = self.cooldown
 
     def _free(self, vehicles: np.ndarray, code: int, window: tuple[float, float]) -> bool:
-        behind, ahead = window
-        for present, x, _y, vx, _vy, lane in vehicles:
-            if present < 0.5 or round(float(lane)) != code:
-                continue
-            gap = abs(x) - VEHICLE_LENGTH
-            if -behind - VEHICLE_LENGTH <= x <= ahead + VEHICLE_LENGTH:
-                return False
-            if x < 0 and vx > 0 and gap < self.closing_time * vx + 5.0:
-                return False  # approaching fast from behind
-        return True
+        """Whether lane ``code`` has ``window`` free (:func:`~aldm_gym.envs.lane_end.gap_is_free`,
+        the check the env's lane change out of an ending lane makes too)."""
+        rows = [
+            (x, vx)
+            for present, x, _y, vx, _vy, lane in vehicles
+            if present >= 0.5 and round(float(lane)) == code
+        ]
+        xs = np.array([r[0] for r in rows], dtype=np.float64)
+        vxs = np.array([r[1] for r in rows], dtype=np.float64)
+        return gap_is_free(xs, vxs, window[0], window[1], self.closing_time)
 
     @staticmethod
     def _lead(vehicles: np.ndarray, code: int) -> tuple[float, float] | None:

@@ -27,9 +27,9 @@ from typing import Any
 
 import numpy as np
 
-from aldm_gym.envs.longitudinal import ACCConfig
+from aldm_gym.envs.longitudinal import ACCConfig, selector_for
 from aldm_gym.envs.observation import to_sensor_frame
-from aldm_gym.envs.targets import NO_TARGET, Objects, TargetSelector
+from aldm_gym.envs.targets import NO_TARGET, Objects
 from aldm_gym.errors import ConfigError
 from aldm_gym.roads.highway import MARKING_MODELS, HighwayRoad
 from aldm_gym.sensor.detectors import DETECTORS, make_detector
@@ -185,13 +185,7 @@ def select_in_scenes(
             width=np.array([VEHICLE_WIDTH]),
             length=np.array([VEHICLE_LENGTH]),
         )
-        selector = TargetSelector(
-            max_range=cfg.range,
-            enter_overlap=cfg.enter_overlap,
-            exit_overlap=cfg.exit_overlap,
-            lane_width=road.lane_width,
-            ego_x=ego_x,
-        )
+        selector = selector_for(cfg, ego_x=ego_x, lane_width=road.lane_width)
         out.append(selector.select(detection, objects) != NO_TARGET)
         if progress is not None:
             progress(1)

@@ -14,6 +14,7 @@ top level              :class:`EnvConfig` (below)
 ``observation``        :class:`aldm_gym.envs.observation.ObservationConfig`
 ``lka``                :class:`aldm_gym.envs.control.LKAConfig`
 ``acc``                :class:`aldm_gym.envs.longitudinal.ACCConfig`
+``lane_end``           :class:`aldm_gym.envs.lane_end.LaneEndConfig` (lanes that end)
 ``traffic``            :class:`aldm_gym.envs.traffic.mix.TrafficConfig` (trucks)
 ``sensor``             :class:`aldm_gym.sensor.line_sensor.LineSensorConfig`
 ``road``               :class:`aldm_gym.roads.highway.RoadConfig`, or :class:`MapConfig`
@@ -51,6 +52,7 @@ from typing import Any, NoReturn
 from aldm_gym.config import Rule, check_keys, rules, section, setting, validate
 from aldm_gym.envs.actions import ACTION_TYPES, ActionConfig
 from aldm_gym.envs.control import LKAConfig
+from aldm_gym.envs.lane_end import LaneEndConfig
 from aldm_gym.envs.longitudinal import ACCConfig
 from aldm_gym.envs.observation import ObservationConfig
 from aldm_gym.envs.traffic.mix import TrafficConfig
@@ -193,6 +195,7 @@ class EnvConfig:
     )
     lka: LKAConfig = section(LKAConfig)
     acc: ACCConfig = section(ACCConfig)
+    lane_end: LaneEndConfig = section(LaneEndConfig)
     traffic: TrafficConfig = section(TrafficConfig)
     scenario: ScenarioConfig = section(ScenarioConfig)
     osi: OsiConfig = section(OsiConfig)
@@ -323,6 +326,7 @@ SECTIONS: dict[str, Any] = {
     "action": ActionConfig,
     "lka": LKAConfig,
     "acc": ACCConfig,
+    "lane_end": LaneEndConfig,
     "traffic": TrafficConfig,
     "sensor": LineSensorConfig,
     "scenario": ScenarioConfig,

@@ -39,6 +39,7 @@ from aldm_gym.envs.config import (
     read_config_scenario,
 )
 from aldm_gym.envs.control import LKAController
+from aldm_gym.envs.lane_end import LaneEnd, LaneEndMonitor, target_lane_free
 from aldm_gym.envs.longitudinal import LongitudinalCommand, LongitudinalController
 from aldm_gym.envs.observation import ALDMObservation
 from aldm_gym.envs.osi_trace import OsiRecorder
@@ -163,9 +164,11 @@ class ALDMHighwayEnv(AbstractEnv):
     ``departures`` (count this episode), ``target`` (the ACC's target against ground
     truth: ``target``, ``leader``, ``correct``, ``missed``, ``false``, ``aeb``,
     ``aeb_activations``, ``phantom_braking``, ``gap``, ``time_gap``), ``collision``
-    (``""``, ``"front"``, ``"rear"``, ``"side"``); on a map also ``lane_ends_in`` (distance to
-    the end of the ego's lane chain when it ends before the road [m], else inf). See
-    ``docs/env.md``.
+    (``""``, ``"front"``, ``"rear"``, ``"side"``), ``lane_end`` (the end of the ego's
+    lane the chauffeur acts on: ``distance`` [m], ``side``, ``source``,
+    ``lane_changes``; docs/acc.md, "Lanes that end"); on a map also ``lane_ends_in``
+    (distance to the end of the ego's lane chain when it ends before the road [m], else
+    inf). See ``docs/env.md``.
 
     ## Maps
 
@@ -207,6 +210,10 @@ class ALDMHighwayEnv(AbstractEnv):
         """Target selection, ACC and AEB (``acc.enabled``): :mod:`aldm_gym.envs.longitudinal`."""
         self.acc_command: LongitudinalCommand | None = None
         """The longitudinal controller's output at the last simulation step."""
+        self.lane_end = LaneEndMonitor(self.settings.lane_end)
+        """Where the ego's lane ends, this episode (:mod:`aldm_gym.envs.lane_end`)."""
+        self.lane_end_changes = 0
+        """Lane changes the chauffeur started out of an ending lane this episode."""
         self._s_before = 0.0
         self._passing_before: dict[Any, float] = {}
         self._space_seed: int | None = None
@@ -388,6 +395,7 @@ class ALDMHighwayEnv(AbstractEnv):
             path_range=self.path_range,
         )
         ego.sim_frequency = float(s.simulation_frequency)
+        ego.opening_factor = float(s.lane_end.opening_factor)
         return ego
 
     def _reset_longitudinal(self, road: Road) -> None:
@@ -396,6 +404,8 @@ class ALDMHighwayEnv(AbstractEnv):
         assert self.sensor is not None
         ego_x = -float(self.sensor.config.mount_x)
         self.referee = Referee(road, acc, ego_x)
+        self.lane_end = LaneEndMonitor(self.settings.lane_end, ego_x)
+        self.lane_end_changes = 0
         self.acc_command = None
         self.vehicle.acc_braking_limit = acc.aeb_deceleration
         if not acc.enabled:
@@ -419,9 +429,48 @@ class ALDMHighwayEnv(AbstractEnv):
         s_hint = pos.s if abs(pos.offset) <= HINT_REACH else None
         perception.measure(road, ego, t, s_hint, self.np_random, self.road.vehicles)
         perception.detect(road, pos.lane, ego)
+        ahead = self.lane_end.update(
+            road,
+            None if referee.off_map else pos,
+            perception.detection,
+            travelled=max(float(ego.speed), 0.0) / self.settings.simulation_frequency,
+            lane_changes=int(ego.lane_changes_completed),
+        )
+        if ahead is not None:
+            self._leave_ending_lane(ahead)
         if self.longitudinal is not None:
             self._longitudinal_step()
         referee.judge(ego, self.road.vehicles)
+
+    def _leave_ending_lane(self, ahead: LaneEnd) -> None:
+        """Start a lane change out of a lane that ends (``docs/acc.md``, "Lanes that
+        end"): under the built-in lateral control, none under way, the end within the
+        zone, the side known and detected, and the target lane with a free gap."""
+        ego = self.vehicle
+        if ego.continuous or ego.requested_steering is not None or ego.lane_change != 0:
+            return
+        if self.scenario is not None and "lateral" not in self.scenario.domains:
+            return  # the storyboard drives the ego
+        if ahead.side == 0 or ahead.distance > self.lane_end.zone(float(ego.speed)):
+            return
+        if not ego.lane_change_available(ahead.side):
+            return
+        perception = self.perception
+        assert perception is not None and self.highway is not None
+        objects = perception.sense_objects(self.road, ego)
+        speed = float(ego.speed)
+        if not target_lane_free(
+            perception.detection,
+            objects,
+            ahead.side,
+            lane_width=float(self.highway.lane_width),
+            ego_x=self.lane_end.ego_x,
+            ego_speed=speed,
+            curvature=ego.yaw_rate / speed if abs(speed) > 0.1 else 0.0,
+        ):
+            return
+        if ego.start_lane_change(ahead.side):
+            self.lane_end_changes += 1
 
     def _longitudinal_step(self) -> None:
         """Target selection, ACC and AEB on this step's detection; its ground truth."""
@@ -432,6 +481,12 @@ class ALDMHighwayEnv(AbstractEnv):
         speed = float(ego.speed)
         curvature = ego.yaw_rate / speed if abs(speed) > 0.1 else 0.0
         path = ego.planned_path if len(ego.planned_path) >= 2 else ego.trajectory
+        ahead = self.lane_end.lane_end
+        stop = None
+        zone = self.lane_end.zone(speed)
+        if ahead is not None and ego.lane_change == 0 and ahead.distance <= zone:
+            # No way out yet: brake for the end as for a standing vehicle before it.
+            stop = ahead.distance - self.settings.lane_end.stop_margin
         cmd = self.acc_command = ctrl.update(
             perception.detection,
             objects,
@@ -440,12 +495,15 @@ class ALDMHighwayEnv(AbstractEnv):
             path=path,
             side=int(ego.lane_change_side),
             curvature=curvature,
+            stop_at=stop,
         )
         # The continuous action stays raw: the selection runs (info), nothing acts on it.
         ego.acc_command = None if ego.continuous else cmd.acceleration
         if ego.continuous:
             return
-        referee.check_braking(cmd, ctrl, objects, perception.objects_xy, ego)
+        referee.check_braking(
+            cmd, ctrl, objects, perception.objects_xy, ego, perception.objects_velocity
+        )
 
     def _simulate(self, action: Any = None) -> None:
         """``simulation_frequency / policy_frequency`` steps; sensor + detector at each."""
@@ -523,8 +581,16 @@ class ALDMHighwayEnv(AbstractEnv):
             perception.objects,
             perception.objects_xy,
             self.vehicle,
+            perception.objects_velocity,
         )
         info.update(outcome.step_info(self.vehicle, referee, detection, target))
+        ahead = self.lane_end.lane_end
+        info["lane_end"] = {
+            "distance": math.inf if ahead is None else ahead.distance,
+            "side": 0 if ahead is None else ahead.side,
+            "source": "" if ahead is None else ahead.source,
+            "lane_changes": self.lane_end_changes,
+        }
         if not self.action_type.continuous:
             info["action_mask"] = self.action_type.action_mask()
         if self.scenario is not None:

@@ -43,6 +43,7 @@ from aldm_gym.envs.targets import (
     TargetSelector,
     arc_line,
     corridor_overlaps,
+    line_slope,
     line_y,
 )
 from aldm_gym.sensor.lane_detection import LaneDetection
@@ -77,6 +78,14 @@ class ACCConfig:
         much of its width lies inside it [m].
     :ivar exit_overlap: the target leaves it (cut-out) when its overlap falls below
         this [m] (<= ``enter_overlap``: hysteresis).
+    :ivar enter_fraction: a narrow object (a motorbike, a pedestrian) enters when this
+        share of its width is inside, if that is less than ``enter_overlap``.
+    :ivar prediction_horizon: objects are predicted this far ahead at constant lateral
+        speed relative to the lanes [s] (0: no prediction); an object whose predicted
+        overlap reaches the threshold before the ego reaches it is a target, and the
+        AEB counts an object predicted in the ego's path when the ego gets there.
+    :ivar min_lateral_speed: lateral speeds below this are not predicted [m/s] (the
+        lanes' and the object sensor's errors).
     :ivar aeb_ttc: the AEB brakes when an object in the driving corridor is closer
         than this time to collision [s] (0: no AEB).
     :ivar aeb_deceleration: the AEB's braking [m/s²] (> 0).
@@ -95,6 +104,9 @@ class ACCConfig:
     speed_gain: float = setting(0.8, lo=0.0, hi=10.0)
     enter_overlap: float = setting(0.5, lo=0.0, hi=3.0)
     exit_overlap: float = setting(0.1, lo=-3.0, hi="enter_overlap")
+    enter_fraction: float = setting(0.4, lo=0.0, lo_open=True, hi=1.0)
+    prediction_horizon: float = setting(3.0, lo=0.0, hi=10.0)
+    min_lateral_speed: float = setting(0.25, lo=0.0, hi=10.0)
     aeb_ttc: float = setting(1.5, lo=0.0, hi=10.0)
     aeb_deceleration: float = setting(9.0, lo=0.0, lo_open=True, hi=15.0)
     phantom_deceleration: float = setting(1.0, lo=0.0, hi=15.0)
@@ -170,30 +182,60 @@ def _min_ttc_py(
     x: FloatArray,
     y: FloatArray,
     vx: FloatArray,
+    vy: FloatArray,
     width: FloatArray,
     length: FloatArray,
     path: FloatArray,
     ego_x: float,
     ego_length: float,
     ego_width: float,
+    ego_speed: float,
+    min_lateral_speed: float,
 ) -> float:
     """Smallest time to collision [s] of the objects ahead in the driving corridor
-    (their width overlapping the ego's along ``path``); ``inf`` if none closes in."""
+    (their width overlapping the ego's along ``path``) now, or, moving sideways
+    relative to the path at ``min_lateral_speed`` or more, when the ego gets there
+    (their lateral position then, at constant lateral speed: a crossing pedestrian on
+    a collision course); ``inf`` if none closes in."""
     best = np.inf
     half = 0.5 * ego_width
     for i in range(x.shape[0]):
         if x[i] <= ego_x or vx[i] >= 0.0:
             continue
+        gap = max(x[i] - ego_x - 0.5 * (length[i] + ego_length), 0.0)
+        ttc = gap / -vx[i]
+        if ttc >= best:
+            continue
         centre = line_y(path, 0.0, x[i])
         w = 0.5 * width[i]
-        if min(y[i] + w, centre + half) - max(y[i] - w, centre - half) <= 0.0:
-            continue
-        gap = max(x[i] - ego_x - 0.5 * (length[i] + ego_length), 0.0)
-        best = min(best, gap / -vx[i])
+        hit = min(y[i] + w, centre + half) - max(y[i] - w, centre - half) > 0.0
+        if not hit:
+            lateral = vy[i] - line_slope(path, x[i]) * (vx[i] + ego_speed)
+            if abs(lateral) >= min_lateral_speed:
+                there = y[i] + lateral * ttc
+                hit = min(there + w, centre + half) - max(there - w, centre - half) > 0.0
+        if hit:
+            best = ttc
     return best
 
 
 _min_ttc = numba.njit(cache=True)(_min_ttc_py)
+
+
+def selector_for(config: ACCConfig, *, ego_x: float, lane_width: float) -> TargetSelector:
+    """A :class:`~aldm_gym.envs.targets.TargetSelector` with the ``acc`` section's
+    selection settings (the perceived and the ground-truth selection share them)."""
+    return TargetSelector(
+        max_range=config.range,
+        enter_overlap=config.enter_overlap,
+        exit_overlap=config.exit_overlap,
+        enter_fraction=config.enter_fraction,
+        horizon=config.prediction_horizon,
+        min_lateral_speed=config.min_lateral_speed,
+        lane_width=lane_width,
+        ego_x=ego_x,
+        ego_length=EGO_LENGTH,
+    )
 
 
 @dataclass
@@ -239,6 +281,7 @@ class LongitudinalCommand:
     :ivar following: the target limits the command (not the set speed).
     :ivar aeb: the AEB brakes.
     :ivar min_ttc: smallest time to collision in the driving corridor [s].
+    :ivar stopping: the end of the lane limits the command (``stop_at``).
     """
 
     acceleration: float
@@ -248,6 +291,7 @@ class LongitudinalCommand:
     following: bool = False
     aeb: bool = False
     min_ttc: float = math.inf
+    stopping: bool = False
 
 
 class LongitudinalController:
@@ -263,14 +307,12 @@ class LongitudinalController:
     ) -> None:
         self.config = config or ACCConfig()
         self.ego_x = float(ego_x)
-        self.selector = TargetSelector(
-            max_range=self.config.range,
-            enter_overlap=self.config.enter_overlap,
-            exit_overlap=self.config.exit_overlap,
-            lane_width=lane_width,
-            ego_x=self.ego_x,
-        )
+        self.selector = selector_for(self.config, ego_x=self.ego_x, lane_width=lane_width)
         self.aeb = AEB(self.config.aeb_ttc, self.config.aeb_deceleration)
+        # Without prediction the AEB too takes only what is in the path now.
+        self._aeb_lateral_speed = (
+            self.config.min_lateral_speed if self.config.prediction_horizon > 0.0 else math.inf
+        )
 
     def reset(self) -> None:
         """A new episode: no target, AEB inactive, counters zero."""
@@ -291,6 +333,7 @@ class LongitudinalController:
         path: FloatArray | None = None,
         side: int = 0,
         curvature: float = 0.0,
+        stop_at: float | None = None,
     ) -> LongitudinalCommand:
         """One simulation step: select the target, then the ACC and AEB command.
 
@@ -303,8 +346,15 @@ class LongitudinalController:
         :param side: +1/-1 while a lane change into the adjacent lane on that side is
             under way (the corridor includes that lane), 0 otherwise.
         :param curvature: the ego's path curvature [1/m] (> 0 left).
+        :param stop_at: stop before a point this far ahead of the ego's centre [m] (the
+            end of its lane, :mod:`aldm_gym.envs.lane_end`): the ACC law brakes for it
+            as for a standing vehicle there, and where that cannot stop in time at its
+            comfort limit, the constant deceleration that stops at the point does (at
+            most ``aeb_deceleration``); ``None``: nothing to stop for.
         """
-        target = self.selector.select(detection, objects, side=side, curvature=curvature)
+        target = self.selector.select(
+            detection, objects, side=side, curvature=curvature, ego_speed=speed
+        )
         gap: float | None = None
         rel = 0.0
         min_ttc = math.inf
@@ -323,16 +373,31 @@ class LongitudinalController:
                         objects.x,
                         objects.y,
                         objects.vx,
+                        objects.vy,
                         objects.width,
                         objects.length,
                         line,
                         self.ego_x,
                         EGO_LENGTH,
                         EGO_WIDTH,
+                        float(speed),
+                        self._aeb_lateral_speed,
                     )
                 )
         cruise = acc_acceleration(speed, set_speed, None, 0.0, self.config)
         accel = acc_acceleration(speed, set_speed, gap, rel, self.config)
+        stopping = False
+        if stop_at is not None:
+            end_gap = float(stop_at) - 0.5 * EGO_LENGTH
+            v = max(speed, 0.0)
+            stop = acc_acceleration(speed, set_speed, end_gap, -v, self.config)
+            # Seen too late for comfort (a detector that shows the taper only near its
+            # end): the deceleration that stops at the point, up to the AEB's.
+            needed = -v * v / (2.0 * max(end_gap, 0.1))
+            if needed < -self.config.max_deceleration:
+                stop = min(stop, max(needed, -self.config.aeb_deceleration))
+            stopping = stop < accel
+            accel = min(accel, stop)
         aeb = self.aeb.update(min_ttc)
         if aeb:
             accel = -self.aeb.deceleration
@@ -341,7 +406,8 @@ class LongitudinalController:
             target=target,
             gap=math.inf if gap is None else gap,
             relative_speed=rel,
-            following=gap is not None and accel < cruise,
+            following=gap is not None and accel < cruise and not stopping,
+            stopping=stopping,
             aeb=aeb,
             min_ttc=min_ttc,
         )

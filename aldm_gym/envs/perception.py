@@ -41,6 +41,7 @@ class Perception:
     :ivar objects: the other vehicles in the sensor frame at the last
         :meth:`sense_objects` (ids: their index in ``road.vehicles``).
     :ivar objects_xy: their world positions ``(N, 2)`` [m] (for ground truth).
+    :ivar objects_velocity: their world velocities ``(N, 2)`` [m/s] (for ground truth).
     """
 
     def __init__(self, settings: EnvConfig, path_range: float | None) -> None:
@@ -54,6 +55,7 @@ class Perception:
         self.detection: LaneDetection | None = None
         self.objects = Objects()
         self.objects_xy = np.zeros((0, 2))
+        self.objects_velocity = np.zeros((0, 2))
         self._odometry: tuple[float, float, float] | None = None
 
     def measure(
@@ -123,6 +125,7 @@ class Perception:
         rows = [*range(ego_row), *range(ego_row + 1, n)]
         if not rows:
             self.objects = Objects()
+            self.objects_xy = self.objects_velocity = np.zeros((0, 2))
             return self.objects
         engine = traffic.engine
         state = engine.moved_state(traffic) if engine is not None else None
@@ -138,6 +141,7 @@ class Perception:
             heading = np.array([v.heading for v in others], dtype=np.float64)
             width = np.array([v.WIDTH for v in others], dtype=np.float64)
             length = np.array([v.LENGTH for v in others], dtype=np.float64)
+        self.objects_velocity = speed[:, None] * np.column_stack([np.cos(heading), np.sin(heading)])
         self.objects = objects_from_world(
             np.array(rows, dtype=np.int64),
             xy,

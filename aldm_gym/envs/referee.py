@@ -18,8 +18,13 @@ from typing import Any
 
 import numpy as np
 
-from aldm_gym.envs.longitudinal import ACCConfig, LongitudinalCommand, LongitudinalController
-from aldm_gym.envs.targets import NO_TARGET, Objects, TargetSelector, lane_overlap
+from aldm_gym.envs.longitudinal import (
+    ACCConfig,
+    LongitudinalCommand,
+    LongitudinalController,
+    selector_for,
+)
+from aldm_gym.envs.targets import NO_TARGET, Objects, lane_overlap, predicted_overlaps
 from aldm_gym.errors import OffRoadError
 from aldm_gym.roads.position import LanePosition
 from aldm_gym.roads.protocol import Road
@@ -62,6 +67,11 @@ def collision_kind(ego: Any, vehicles: list[Any]) -> str:
     return "side"
 
 
+TRUTH_STEP = 0.1
+"""The time step [s] over which ground truth differences a vehicle's lateral offset
+(its lateral speed relative to the lanes, for the predicted true overlaps)."""
+
+
 class Referee:
     """Ground truth of one episode (module docstring).
 
@@ -92,13 +102,7 @@ class Referee:
         self.collision = ""
         self.acc_step: dict[str, bool] = {"aeb": False, "phantom_braking": False}
         self._lc_target_index: int | None = None
-        self.truth = TargetSelector(
-            max_range=acc.range,
-            enter_overlap=acc.enter_overlap,
-            exit_overlap=acc.exit_overlap,
-            lane_width=lane_width,
-            ego_x=ego_x,
-        )
+        self.truth = selector_for(acc, ego_x=ego_x, lane_width=lane_width)
 
     def begin_step(self) -> None:
         """A new policy step: its departure and ACC flags start clear."""
@@ -139,11 +143,22 @@ class Referee:
 
     # ------------------------------------------------------------------ ACC truth
     def true_overlap(
-        self, objects: Objects, objects_xy: np.ndarray, rows: np.ndarray, ego: Any
+        self,
+        objects: Objects,
+        objects_xy: np.ndarray,
+        rows: np.ndarray,
+        ego: Any,
+        velocity: np.ndarray | None = None,
     ) -> np.ndarray:
         """Overlap [m] of ``objects`` ``rows`` (world positions ``objects_xy``) with the
         ego's true corridor: its lane, plus the lane it changes into while a lane
-        change is under way; ``-inf`` for a vehicle on no lane."""
+        change is under way; ``-inf`` for a vehicle on no lane.
+
+        With their world velocities ``velocity`` ``(N, 2)`` [m/s] and a prediction
+        horizon, the overlap is the predicted one, as the ACC's selection predicts
+        (:meth:`~aldm_gym.envs.targets.TargetSelector.overlaps`), with each vehicle's
+        true lateral speed relative to the lanes: the change of its lateral offset
+        over :data:`TRUTH_STEP` at its velocity."""
         pos = self.lane_position
         if ego.lane_change == 0:
             self._lc_target_index = None
@@ -155,8 +170,20 @@ class Referee:
         left, right = (pos.index - lo) * w + 0.5 * w, (pos.index - hi) * w - 0.5 * w
         xy = objects_xy[rows]
         y = self.road.lateral_offsets(xy, pos) if len(xy) else np.zeros(0)
-        overlap = lane_overlap(y, objects.width[rows], left, right)
-        overlap[~np.isfinite(y)] = -math.inf
+        finite = np.isfinite(y)
+        width = objects.width[rows]
+        truth = self.truth
+        if velocity is None or truth.horizon <= 0.0 or not len(xy):
+            overlap = lane_overlap(y, width, left, right)
+        else:
+            ahead = self.road.lateral_offsets(xy + TRUTH_STEP * velocity[rows], pos)
+            lateral = np.where(finite & np.isfinite(ahead), (ahead - y) / TRUTH_STEP, 0.0)
+            shift = truth.shifts(objects.x[rows], objects.vx[rows], objects.length[rows], lateral)
+            n = len(y)
+            overlap = predicted_overlaps(
+                np.where(finite, y, 0.0), width, shift, np.full(n, left), np.full(n, right)
+            )
+        overlap[~finite] = -math.inf
         return overlap
 
     def check_braking(
@@ -166,6 +193,7 @@ class Referee:
         objects: Objects,
         objects_xy: np.ndarray,
         ego: Any,
+        velocity: np.ndarray | None = None,
     ) -> None:
         """After the ACC's command: note an AEB activation, and whether a hard braking
         for the target was for a vehicle truly in the ego's corridor (else a phantom
@@ -176,18 +204,27 @@ class Referee:
         )
         if braking and cmd.target != NO_TARGET and not self.acc_step["phantom_braking"]:
             row = np.array([objects.index_of(cmd.target)])
-            overlap = self.true_overlap(objects, objects_xy, row, ego)[0]
+            overlap = self.true_overlap(objects, objects_xy, row, ego, velocity)[0]
             self.acc_step["phantom_braking"] = bool(overlap < ctrl.config.exit_overlap)
 
-    def true_leader(self, objects: Objects, objects_xy: np.ndarray, ego: Any) -> int:
+    def true_leader(
+        self,
+        objects: Objects,
+        objects_xy: np.ndarray,
+        ego: Any,
+        velocity: np.ndarray | None = None,
+    ) -> int:
         """The in-lane leader by ground truth: the target selector's rule and
         hysteresis (:class:`~aldm_gym.envs.targets.TargetSelector`) on the true
-        corridor (:meth:`true_overlap`). Evaluated once per policy step, for ``info``."""
+        corridor (:meth:`true_overlap`, predicted with the world ``velocity``).
+        Evaluated once per policy step, for ``info``."""
         truth = self.truth
         x = objects.x - truth.ego_x
         near = np.flatnonzero((x > 0.0) & (x <= truth.max_range))
-        overlap = self.true_overlap(objects, objects_xy, near, ego)
-        return truth.select_overlaps(objects.ids[near], objects.x[near], overlap)
+        overlap = self.true_overlap(objects, objects_xy, near, ego, velocity)
+        return truth.select_overlaps(
+            objects.ids[near], objects.x[near], overlap, objects.width[near]
+        )
 
     def target_info(
         self,
@@ -196,11 +233,12 @@ class Referee:
         objects: Objects,
         objects_xy: np.ndarray,
         ego: Any,
+        velocity: np.ndarray | None = None,
     ) -> dict[str, Any]:
         """``info["target"]``: the ACC's target against ground truth (``docs/acc.md``)."""
         if cmd is None or ctrl is None:
             return dict(NO_TARGET_INFO)
-        leader = self.true_leader(objects, objects_xy, ego)
+        leader = self.true_leader(objects, objects_xy, ego, velocity)
         target = cmd.target
         time_gap = math.inf
         if leader != NO_TARGET:

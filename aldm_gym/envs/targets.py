@@ -41,6 +41,8 @@ from aldm_gym.types import FloatArray, IntArray
 NO_TARGET = -1
 """The id of "no target"."""
 
+_FIELDS = ("ids", "x", "y", "vx", "width", "length", "vy")
+
 
 def _empty() -> FloatArray:
     return np.zeros(0)
@@ -56,6 +58,9 @@ class Objects:
     :ivar vx: longitudinal speed relative to the ego [m/s] (< 0: closing in).
     :ivar width: the object's width [m].
     :ivar length: the object's length [m].
+    :ivar vy: lateral speed relative to the ego [m/s] (> 0: moving left); not given
+        (or empty): zeros, an object sensor without lateral velocity (nothing is then
+        predicted to move sideways).
     """
 
     ids: IntArray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
@@ -64,10 +69,13 @@ class Objects:
     vx: FloatArray = field(default_factory=_empty)
     width: FloatArray = field(default_factory=_empty)
     length: FloatArray = field(default_factory=_empty)
+    vy: FloatArray = field(default_factory=_empty)
 
     def __post_init__(self) -> None:
         n = len(self.ids)
-        for name in ("x", "y", "vx", "width", "length"):
+        if n and np.shape(self.vy) == (0,):
+            object.__setattr__(self, "vy", np.zeros(n))
+        for name in _FIELDS[1:]:
             arr = np.asarray(getattr(self, name), dtype=np.float64)
             if arr.shape != (n,):
                 raise InputError(f"Objects.{name} must have shape ({n},) like ids, got {arr.shape}")
@@ -83,23 +91,39 @@ class Objects:
     def trusted(cls, **fields: np.ndarray) -> Objects:
         """Build from arrays known to be valid (the env's own), skipping the checks.
 
-        :param fields: every field, as float64 (``ids`` int64) arrays of one length.
+        :param fields: every field, as float64 (``ids`` int64) arrays of one length
+            (``vy`` may be left out: zeros).
         """
         out = object.__new__(cls)
-        for name in ("ids", "x", "y", "vx", "width", "length"):
+        for name in _FIELDS[:-1]:
             object.__setattr__(out, name, fields[name])
+        vy = fields.get("vy")  # optional: a sensor without lateral velocity
+        object.__setattr__(out, "vy", np.zeros(len(fields["ids"])) if vy is None else vy)
         return out
 
     def take(self, rows: IntArray) -> Objects:
         """The objects of ``rows`` (already validated: no checks again)."""
-        return Objects.trusted(
-            **{n: getattr(self, n)[rows] for n in ("ids", "x", "y", "vx", "width", "length")}
-        )
+        return Objects.trusted(**{n: getattr(self, n)[rows] for n in _FIELDS})
 
     def index_of(self, object_id: int) -> int:
         """Row of the object with id ``object_id``, or -1."""
         rows = np.flatnonzero(self.ids == object_id)
         return int(rows[0]) if len(rows) else -1
+
+
+def _segment_py(line: FloatArray, x: float) -> int:
+    """Index ``i`` of the segment ``line[i:i + 2]`` that :func:`line_y` evaluates at ``x``
+    (the first or last beyond the ends)."""
+    k = line.shape[0]
+    if x <= line[0, 0]:
+        return 0
+    if x >= line[k - 1, 0]:
+        return k - 2
+    i = int(np.searchsorted(line[:, 0], x, side="right")) - 1
+    return min(max(i, 0), k - 2)
+
+
+_segment = numba.njit(cache=True)(_segment_py)
 
 
 def line_y_py(line: FloatArray, offset: float, x: float) -> float:
@@ -108,14 +132,7 @@ def line_y_py(line: FloatArray, offset: float, x: float) -> float:
 
     :param line: ``(K >= 2, 2)`` points sorted by x.
     """
-    k = line.shape[0]
-    if x <= line[0, 0]:
-        i = 0
-    elif x >= line[k - 1, 0]:
-        i = k - 2
-    else:
-        i = int(np.searchsorted(line[:, 0], x, side="right")) - 1
-        i = min(max(i, 0), k - 2)
+    i = _segment(line, x)
     x0, x1 = line[i, 0], line[i + 1, 0]
     y0, y1 = line[i, 1], line[i + 1, 1]
     if x1 > x0:
@@ -124,6 +141,16 @@ def line_y_py(line: FloatArray, offset: float, x: float) -> float:
 
 
 line_y = numba.njit(cache=True)(line_y_py)
+
+
+def line_slope_py(line: FloatArray, x: float) -> float:
+    """dy/dx of ``line`` at ``x`` (the slope of the segment :func:`line_y` evaluates)."""
+    i = _segment(line, x)
+    dx = line[i + 1, 0] - line[i, 0]
+    return (line[i + 1, 1] - line[i, 1]) / dx if dx > 0.0 else 0.0
+
+
+line_slope = numba.njit(cache=True)(line_slope_py)
 
 
 def corridor_overlaps_py(
@@ -149,13 +176,104 @@ def corridor_overlaps_py(
 corridor_overlaps = numba.njit(cache=True)(corridor_overlaps_py)
 
 
+def predicted_overlaps_py(
+    y: FloatArray, width: FloatArray, shift: FloatArray, y_left: FloatArray, y_right: FloatArray
+) -> FloatArray:
+    """The largest overlap [m] each object reaches with the corridor while its lateral
+    position moves from ``y`` to ``y + shift`` (constant velocity over the window).
+
+    The overlap is a concave function of the shift (the smaller of two rising ramps
+    minus the larger of two), so its largest value over the window lies at the shift
+    in ``[0, shift]`` nearest the one that centres the object in the corridor.
+
+    :param y: ``(N,)`` lateral positions now [m]; ``width``: ``(N,)`` [m].
+    :param shift: ``(N,)`` lateral displacements over the window [m] (0: the overlap now).
+    :param y_left, y_right: ``(N,)`` the corridor's bounds at each object [m].
+    """
+    n = y.shape[0]
+    out = np.empty(n)
+    for i in range(n):
+        centre = 0.5 * (y_left[i] + y_right[i]) - y[i]
+        d = min(max(centre, min(shift[i], 0.0)), max(shift[i], 0.0))
+        half = 0.5 * width[i]
+        out[i] = min(y[i] + d + half, y_left[i]) - max(y[i] + d - half, y_right[i])
+    return out
+
+
+predicted_overlaps = numba.njit(cache=True)(predicted_overlaps_py)
+
+
+def _corridor_motion_py(
+    x: FloatArray,
+    y: FloatArray,
+    vx: FloatArray,
+    vy: FloatArray,
+    left: FloatArray,
+    left_offset: float,
+    right: FloatArray,
+    right_offset: float,
+    ego_speed: float,
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """The corridor's bounds at each object and each object's lateral speed relative to
+    the lanes: ``(y_left, y_right, lateral speed)``, ``(N,)`` each [m], [m/s].
+
+    The lateral speed is ``vy − slope · vx_road`` [m/s] (> 0: moving left relative to
+    the lanes): the rate of the object's y minus that of the corridor line on its side
+    (the left one for an object left of the corridor's centre, else the right one) at
+    its x, where ``vx_road = vx + ego_speed`` is its speed along x over the road. An
+    object that follows a curved lane has none, however much its heading differs from
+    the ego's; the line on its side, not the corridor's centre, so that a taper or an
+    opening of the ego's lane tilts no neighbour into it.
+    """
+    n = x.shape[0]
+    yl, yr, lateral = np.empty(n), np.empty(n), np.empty(n)
+    for i in range(n):
+        yl[i] = line_y(left, left_offset, x[i])
+        yr[i] = line_y(right, right_offset, x[i])
+        line = left if y[i] >= 0.5 * (yl[i] + yr[i]) else right
+        lateral[i] = vy[i] - line_slope(line, x[i]) * (vx[i] + ego_speed)
+    return yl, yr, lateral
+
+
+_corridor_motion = numba.njit(cache=True)(_corridor_motion_py)
+
+
+def prediction_shifts(
+    gap: FloatArray,
+    vx: FloatArray,
+    lateral_speed: FloatArray,
+    horizon: float,
+    min_lateral_speed: float,
+) -> FloatArray:
+    """Each object's predicted lateral displacement [m] relative to the lanes: its
+    lateral speed times its window, ``min(horizon, time for the ego to reach it)``
+    (an object that will cross the ego's lane only after the ego has passed it is no
+    target); 0 for a lateral speed below ``min_lateral_speed`` (what the lanes' and the
+    object sensor's errors alone give) or a horizon of 0.
+
+    :param gap: ``(N,)`` bumper-to-bumper gaps from the ego [m].
+    :param vx: ``(N,)`` longitudinal speeds relative to the ego [m/s] (< 0: closing in).
+    :param lateral_speed: ``(N,)`` lateral speeds relative to the lanes [m/s].
+    :param horizon: the prediction horizon [s].
+    :param min_lateral_speed: the smallest lateral speed predicted [m/s].
+    """
+    gap = np.maximum(np.asarray(gap, dtype=np.float64), 0.0)
+    vx = np.asarray(vx, dtype=np.float64)
+    lateral_speed = np.asarray(lateral_speed, dtype=np.float64)
+    window = np.full(gap.shape, float(horizon))
+    closing = vx < 0.0
+    window[closing] = np.minimum(window[closing], gap[closing] / -vx[closing])
+    moving = np.abs(lateral_speed) >= min_lateral_speed
+    return np.where(moving & (horizon > 0.0), lateral_speed * window, 0.0)
+
+
 def _select_py(
     ids: IntArray,
     x: FloatArray,
     overlap: FloatArray,
+    enter: FloatArray,
     previous: int,
     max_range: float,
-    enter_overlap: float,
     exit_overlap: float,
 ) -> tuple[int, np.ndarray]:
     """:func:`select_in_corridor`'s loop: ``(target id or -1, (N,) inside mask)``."""
@@ -163,7 +281,9 @@ def _select_py(
     inside = np.zeros(n, dtype=np.bool_)
     best, best_x = -1, np.inf
     for i in range(n):
-        limit = exit_overlap if ids[i] == previous and previous != -1 else enter_overlap
+        limit = enter[i]
+        if ids[i] == previous and previous != -1:
+            limit = min(exit_overlap, enter[i])
         if overlap[i] >= limit and x[i] > 0.0 and x[i] <= max_range:
             inside[i] = True
             if x[i] < best_x:
@@ -183,13 +303,14 @@ def _to_sensor_py(
     yaw: float,
     ego_vx: float,
     ego_vy: float,
-) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """World states as sensor-frame ``(x, y, relative vx)`` (the arithmetic of
-    :func:`~aldm_gym.envs.observation.to_sensor_frame`; highway-env's world, where the
-    driver's left is ``(sin yaw, -cos yaw)``, and velocity is ``speed (cos, sin)(heading)``).
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """World states as sensor-frame ``(x, y, relative vx, relative vy)`` (the arithmetic
+    of :func:`~aldm_gym.envs.observation.to_sensor_frame`; highway-env's world, where
+    the driver's left is ``(sin yaw, -cos yaw)``, and velocity is
+    ``speed (cos, sin)(heading)``).
     """
     n = xy.shape[0]
-    x, y, vx = np.empty(n), np.empty(n), np.empty(n)
+    x, y, vx, vy = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
     cy, sy = np.cos(yaw), np.sin(yaw)
     for i in range(n):
         px, py = xy[i, 0] - origin_x, xy[i, 1] - origin_y
@@ -198,7 +319,8 @@ def _to_sensor_py(
         x[i] = px * cy + py * sy
         y[i] = px * sy - py * cy
         vx[i] = wx * cy + wy * sy
-    return x, y, vx
+        vy[i] = wx * sy - wy * cy
+    return x, y, vx, vy
 
 
 _to_sensor = numba.njit(cache=True)(_to_sensor_py)
@@ -220,9 +342,10 @@ def objects_from_world(
     :param xy: ``(N, 2)`` world positions [m]; ``speed`` [m/s], ``heading`` [rad],
         ``width``, ``length`` [m]: ``(N,)`` each, highway-env's conventions.
     :param origin: the sensor's world position [m]; ``yaw`` its world heading [rad].
-    :param ego_velocity: the ego's world velocity [m/s] (``vx`` is relative to it).
+    :param ego_velocity: the ego's world velocity [m/s] (``vx`` and ``vy`` are
+        relative to it).
     """
-    x, y, vx = _to_sensor(
+    x, y, vx, vy = _to_sensor(
         np.ascontiguousarray(xy, dtype=np.float64),
         # contiguous (views of a state table are not): one compiled layout per kernel
         np.ascontiguousarray(speed, dtype=np.float64),
@@ -240,6 +363,7 @@ def objects_from_world(
         vx=vx,
         width=np.ascontiguousarray(width, dtype=np.float64),
         length=np.ascontiguousarray(length, dtype=np.float64),
+        vy=vy,
     )
 
 
@@ -332,6 +456,15 @@ def lane_overlap(
     return np.minimum(y + half, y_left) - np.maximum(y - half, y_right)
 
 
+def enter_thresholds(
+    width: FloatArray, enter_overlap: float, enter_fraction: float = 1.0
+) -> FloatArray:
+    """The overlap [m] at which each object enters the corridor:
+    ``min(enter_overlap, enter_fraction · width)``, so that a narrow object (a
+    motorbike, a pedestrian) with that share of its width in the lane is in it."""
+    return np.minimum(float(enter_overlap), float(enter_fraction) * np.asarray(width, float))
+
+
 def select_in_corridor(
     ids: IntArray,
     x: FloatArray,
@@ -339,7 +472,7 @@ def select_in_corridor(
     previous: int,
     *,
     max_range: float,
-    enter_overlap: float,
+    enter_overlap: float | FloatArray,
     exit_overlap: float,
 ) -> tuple[int, np.ndarray]:
     """The nearest object ahead in the corridor, with hysteresis.
@@ -351,17 +484,21 @@ def select_in_corridor(
 
     :param ids: ``(N,)`` object ids (>= 0).
     :param x: ``(N,)`` longitudinal positions from the ego's centre [m].
-    :param overlap: ``(N,)`` overlaps with the corridor [m] (:func:`lane_overlap`).
+    :param overlap: ``(N,)`` overlaps with the corridor [m] (:func:`lane_overlap`, or
+        the predicted ones of :func:`predicted_overlaps`).
     :param previous: the id selected at the previous step, or :data:`NO_TARGET`.
+    :param enter_overlap: one threshold [m], or ``(N,)`` per object
+        (:func:`enter_thresholds`).
     :return: ``(target id or NO_TARGET, (N,) bool mask of the objects in the corridor)``.
     """
+    x = np.asarray(x, dtype=np.float64)
     target, inside = _select(
         np.asarray(ids, dtype=np.int64),
-        np.asarray(x, dtype=np.float64),
+        x,
         np.asarray(overlap, dtype=np.float64),
+        np.broadcast_to(np.asarray(enter_overlap, dtype=np.float64), x.shape).copy(),
         int(previous),
         float(max_range),
-        float(enter_overlap),
         float(exit_overlap),
     )
     return int(target), inside
@@ -369,22 +506,33 @@ def select_in_corridor(
 
 @dataclass
 class TargetSelector:
-    """Target selection with hysteresis on one stream of detections (see the module).
+    """Target selection with prediction and hysteresis on one stream of detections
+    (see the module).
 
     :ivar max_range: farthest target, from the ego's centre [m].
     :ivar enter_overlap: an object enters the corridor (a cut-in) when this much of
-        its width is inside [m].
+        its width is inside [m], or ...
+    :ivar enter_fraction: ... this share of its width, if that is less (a narrow object).
     :ivar exit_overlap: the target leaves (a cut-out) when its overlap falls below this [m].
+    :ivar horizon: objects are predicted this far ahead [s] (0: not predicted): the
+        overlap an object reaches within ``min(horizon, time for the ego to reach it)``
+        at its lateral speed relative to the lanes counts.
+    :ivar min_lateral_speed: lateral speeds below this are not predicted [m/s].
     :ivar lane_width: width assumed for a missing line [m].
     :ivar ego_x: x of the ego's centre in the sensor frame [m] (``-mount_x``).
+    :ivar ego_length: the ego's length [m] (for the gaps of the prediction windows).
     :ivar target: the id selected last, or :data:`NO_TARGET`.
     """
 
     max_range: float = 150.0
     enter_overlap: float = 0.5
     exit_overlap: float = 0.1
+    enter_fraction: float = 1.0
+    horizon: float = 0.0
+    min_lateral_speed: float = 0.25
     lane_width: float = 3.75
     ego_x: float = -1.0
+    ego_length: float = 5.0
     target: int = NO_TARGET
     inside: IntArray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     """The ids of the objects found in the corridor at the last selection."""
@@ -394,6 +542,18 @@ class TargetSelector:
         self.target = NO_TARGET
         self.inside = np.zeros(0, dtype=np.int64)
 
+    def gaps(self, x: FloatArray, length: FloatArray) -> FloatArray:
+        """Bumper-to-bumper gaps [m] from the ego to objects at ``x`` (sensor frame)."""
+        return x - self.ego_x - 0.5 * (length + self.ego_length)
+
+    def shifts(
+        self, x: FloatArray, vx: FloatArray, length: FloatArray, lateral: FloatArray
+    ) -> FloatArray:
+        """Predicted lateral displacements [m] (:func:`prediction_shifts`)."""
+        return prediction_shifts(
+            self.gaps(x, length), vx, lateral, self.horizon, self.min_lateral_speed
+        )
+
     def overlaps(
         self,
         detection: LaneDetection | None,
@@ -401,8 +561,15 @@ class TargetSelector:
         *,
         side: int = 0,
         curvature: float = 0.0,
+        ego_speed: float = 0.0,
     ) -> FloatArray:
-        """Each object's overlap with the perceived corridor [m] (:func:`lane_overlap`)."""
+        """Each object's predicted overlap with the perceived corridor [m]: the largest
+        it reaches within its window (:func:`predicted_overlaps`); without prediction
+        (``horizon`` 0), the overlap now (:func:`lane_overlap`).
+
+        :param ego_speed: the ego's speed [m/s] (objects' speeds over the road are
+            their relative speeds plus it).
+        """
         left, lo, right, ro = corridor_lines(
             detection,
             side=side,
@@ -410,7 +577,13 @@ class TargetSelector:
             curvature=curvature,
             reach=self.max_range + 10.0,
         )
-        return corridor_overlaps(objects.x, objects.y, objects.width, left, lo, right, ro)
+        if self.horizon <= 0.0:
+            return corridor_overlaps(objects.x, objects.y, objects.width, left, lo, right, ro)
+        yl, yr, lateral = _corridor_motion(
+            objects.x, objects.y, objects.vx, objects.vy, left, lo, right, ro, float(ego_speed)
+        )
+        shift = self.shifts(objects.x, objects.vx, objects.length, lateral)
+        return predicted_overlaps(objects.y, objects.width, shift, yl, yr)
 
     def select(
         self,
@@ -419,34 +592,45 @@ class TargetSelector:
         *,
         side: int = 0,
         curvature: float = 0.0,
+        ego_speed: float = 0.0,
     ) -> int:
         """Select the target among ``objects`` (sensor frame) and remember it.
 
         :param side: +1 / -1 while a lane change to the left / right is under way and
             the target lane is still the adjacent one (0 otherwise).
         :param curvature: the ego's path curvature [1/m], used only without ego lines.
+        :param ego_speed: the ego's speed [m/s] (for the prediction).
         :return: the target's id, or :data:`NO_TARGET`.
         """
         if len(objects) == 0:
             self.reset()
             return NO_TARGET
-        overlap = self.overlaps(detection, objects, side=side, curvature=curvature)
-        return self.select_overlaps(objects.ids, objects.x, overlap)
+        overlap = self.overlaps(
+            detection, objects, side=side, curvature=curvature, ego_speed=ego_speed
+        )
+        return self.select_overlaps(objects.ids, objects.x, overlap, objects.width)
 
-    def select_overlaps(self, ids: IntArray, x: FloatArray, overlap: FloatArray) -> int:
+    def select_overlaps(
+        self, ids: IntArray, x: FloatArray, overlap: FloatArray, width: FloatArray | None = None
+    ) -> int:
         """:meth:`select` from overlaps computed elsewhere (ground truth does that).
 
         :param ids: ``(N,)`` object ids.
         :param x: ``(N,)`` their x in the sensor frame [m].
-        :param overlap: ``(N,)`` their overlaps with the corridor [m].
+        :param overlap: ``(N,)`` their (predicted) overlaps with the corridor [m].
+        :param width: ``(N,)`` their widths [m], for ``enter_fraction`` (``None``: the
+            ``enter_overlap`` alone).
         """
+        enter: float | FloatArray = self.enter_overlap
+        if width is not None:
+            enter = enter_thresholds(width, self.enter_overlap, self.enter_fraction)
         self.target, inside = select_in_corridor(
             ids,
             x - self.ego_x,
             overlap,
             self.target,
             max_range=self.max_range,
-            enter_overlap=self.enter_overlap,
+            enter_overlap=enter,
             exit_overlap=self.exit_overlap,
         )
         self.inside = ids[inside]

@@ -21,6 +21,7 @@ from highway_env.vehicle.kinematics import Vehicle
 
 from aldm_gym.envs.actions import ActionConfig, MetaAction
 from aldm_gym.envs.control import LKAConfig, LKAController
+from aldm_gym.envs.lane_end import opening_path
 from aldm_gym.envs.traffic import BatchedLaneUpdate, FastBicycleStep, FastIDMVehicle, clip_scalar
 from aldm_gym.roads.highway import RoadConfig
 from aldm_gym.sensor.lane_detection import LaneDetection, driving_trajectory
@@ -99,6 +100,10 @@ class SensorVehicle(FastBicycleStep, BatchedLaneUpdate, Vehicle):
         """A function under test's steering [rad] (ISO), None: the built-in LKA's."""
         self.requested_acceleration: float | None = None
         """A function under test's acceleration [m/s²], None: the built-in ACC/AEB's."""
+        self.opening_factor = 0.0
+        """A detected lane wider than this many lane widths is opening: the LKA keeps a
+        lane's width from the staying line (``lane_end.opening_factor``, set by the env;
+        0: the middle)."""
 
     # ------------------------------------------------------------------ actions
     def set_meta_action(self, action: int) -> None:
@@ -110,15 +115,21 @@ class SensorVehicle(FastBicycleStep, BatchedLaneUpdate, Vehicle):
             self.speed_index = max(self.speed_index - 1, 0)
         elif action in (MetaAction.LANE_LEFT, MetaAction.LANE_RIGHT) and self.lane_change == 0:
             direction = 1 if action == MetaAction.LANE_LEFT else -1
-            path = self._adjacent_path(direction)
-            if len(path) < MIN_TARGET_PATH:
-                self.lane_change_refused = True
-            else:
-                self.lane_change = direction
-                self.lane_change_side = direction
-                self.lane_change_elapsed = 0.0
-                self.lane_change_target_y = float(path[0, 1])
+            self.lane_change_refused = not self.start_lane_change(direction)
         self.target_speed = float(self.target_speeds[self.speed_index])
+
+    def start_lane_change(self, direction: int) -> bool:
+        """Start a lane change to the left (+1) or right (-1) if the adjacent lane on that
+        side is detected (:meth:`lane_change_available`'s rule); whether it started.
+        The meta actions' and the chauffeur's own (a lane that ends) way in."""
+        path = self._adjacent_path(direction)
+        if self.lane_change != 0 or len(path) < MIN_TARGET_PATH:
+            return False
+        self.lane_change = direction
+        self.lane_change_side = direction
+        self.lane_change_elapsed = 0.0
+        self.lane_change_target_y = float(path[0, 1])
+        return True
 
     def lane_change_available(self, direction: int) -> bool:
         """Whether a lane change to the left (+1) or right (-1) would start now: none is
@@ -149,6 +160,8 @@ class SensorVehicle(FastBicycleStep, BatchedLaneUpdate, Vehicle):
         if det is None:
             return np.zeros((0, 2))
         if self.lane_change == 0:
+            if self.opening_factor > 0.0:
+                return opening_path(self.trajectory, det, self.lane_width, self.opening_factor)
             return self.trajectory
         self.lane_change_elapsed += 1.0 / self.sim_frequency
         # The detected lines are relabelled while the ego crosses the marking, so the

@@ -9,6 +9,7 @@ or set-speed step to the env's meta action, and steps the env.
 
 from __future__ import annotations
 
+import math
 import warnings
 from collections.abc import Mapping
 from typing import Any
@@ -17,6 +18,7 @@ import numpy as np
 
 from aldm_gym.envs.actions import MetaAction
 from aldm_gym.envs.config import EnvOverrides
+from aldm_gym.envs.lane_end import map_lane_end
 from aldm_gym.errors import AldmGymWarning, InputError
 from aldm_gym.function.interface import (
     DOMAINS,
@@ -138,10 +140,14 @@ def function_input(
             float(objects.vx[k]),
             float(objects.length[k]),
             float(objects.width[k]),
+            float(objects.vy[k]),
         )
         for k in range(len(objects))
     )
     settings = u.settings
+    horizon = None
+    if not u.referee.off_map:
+        horizon = map_lane_end(u.highway, u.lane_position, settings.lane_end.end_width)
     return FunctionInput(
         time=u.steps / float(settings.simulation_frequency),
         step=1.0 / float(settings.policy_frequency),
@@ -156,6 +162,8 @@ def function_input(
         lane_change=int(ego.lane_change),
         observation=observation,
         action_mask=None if action_mask is None else np.asarray(action_mask, dtype=bool),
+        lane_end_distance=math.inf if horizon is None else horizon.distance,
+        lane_end_side=0 if horizon is None else horizon.side,
     )
 
 

@@ -12,6 +12,9 @@ input                                       unit    meaning
 ``ego.acceleration``                        m/s²    the last step's acceleration
 ``ego.steering``                            rad     the last step's steering angle, > 0 left
 ``ego.lane_change``                         --      the built-in lane change under way: +1/-1/0
+``horizon.lane_end.valid``                  --      1 where the map horizon has a lane end
+``horizon.lane_end.distance``               m       to where the ego's lane gets too narrow
+``horizon.lane_end.side``                   --      the side to leave it by: +1/-1, 0 none
 ``line.<role>.valid``                       --      1 where the detector found the line
 ``line.<role>.c0`` .. ``c3``                m, --,  ``y(x) = c0 + c1 x + c2 x² + c3 x³``
                                             1/m,
@@ -21,6 +24,7 @@ input                                       unit    meaning
 ``object.count``                            --      objects reported (at most the FMU's slots)
 ``object[<i>].x``, ``.y``                   m       centre of the i-th nearest object
 ``object[<i>].vx``                          m/s     its speed relative to the ego
+``object[<i>].vy``                          m/s     its lateral speed relative to the ego
 ``object[<i>].length``, ``.width``          m       its size
 ``object[<i>].valid``                       --      1 where slot i holds an object
 ==========================================  ======  =========================================
@@ -49,6 +53,7 @@ next step.
 from __future__ import annotations
 
 import difflib
+import math
 import re
 from pathlib import Path
 from typing import Any
@@ -62,10 +67,12 @@ from aldm_gym.function.interface import LINE_ROLES, FunctionInput, FunctionOutpu
 __all__ = ["INPUTS", "OUTPUTS", "FMUFunction"]
 
 EGO_INPUTS = ("ego.speed", "ego.yaw_rate", "ego.acceleration", "ego.steering", "ego.lane_change")
+HORIZON_INPUTS = ("horizon.lane_end.valid", "horizon.lane_end.distance", "horizon.lane_end.side")
 LINE_FIELDS = ("valid", "c0", "c1", "c2", "c3", "range", "confidence")
-OBJECT_FIELDS = ("x", "y", "vx", "length", "width", "valid")
+OBJECT_FIELDS = ("x", "y", "vx", "vy", "length", "width", "valid")
 INPUTS: tuple[str, ...] = (
     *EGO_INPUTS,
+    *HORIZON_INPUTS,
     *(f"line.{role}.{f}" for role in LINE_ROLES for f in LINE_FIELDS),
     "object.count",
     *(f"object[<i>].{f}" for f in OBJECT_FIELDS),
@@ -223,6 +230,10 @@ class FMUFunction:
             "ego.steering": ego.steering,
             "ego.lane_change": float(inputs.lane_change),
         }
+        ends = math.isfinite(inputs.lane_end_distance)
+        out["horizon.lane_end.valid"] = float(ends)
+        out["horizon.lane_end.distance"] = inputs.lane_end_distance if ends else 0.0
+        out["horizon.lane_end.side"] = float(inputs.lane_end_side)
         for line in inputs.lines:
             prefix = f"line.{line.role}."
             c = line.cubic()

@@ -127,6 +127,7 @@ class PerceivedObject:
     :ivar vx: longitudinal speed relative to the ego [m/s] (< 0: closing in).
     :ivar length: [m].
     :ivar width: [m].
+    :ivar vy: lateral speed relative to the ego [m/s] (> 0: moving left).
     """
 
     id: int
@@ -135,6 +136,7 @@ class PerceivedObject:
     vx: float
     length: float
     width: float
+    vy: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -151,6 +153,11 @@ class FunctionInput:
         policy; a function written against this interface does not need it).
     :ivar action_mask: which of the env's meta actions act now (``(5,)`` bool), for a
         policy trained with masks.
+    :ivar lane_end_distance: the map horizon (as ADASIS gives a production car): the
+        distance [m] from the ego's centre to where its lane gets too narrow before it
+        ends (``lane_end.end_width``), ``inf`` when its lane does not end before the road
+        or the road has no map (docs/acc.md, "Lanes that end").
+    :ivar lane_end_side: the side to leave that lane by: +1 left, -1 right, 0 none.
     """
 
     time: float
@@ -161,6 +168,8 @@ class FunctionInput:
     lane_change: int = 0
     observation: Mapping[str, Any] | None = field(default=None, repr=False)
     action_mask: np.ndarray | None = field(default=None, repr=False)
+    lane_end_distance: float = math.inf
+    lane_end_side: int = 0
 
     def line(self, role: str) -> PerceivedLine:
         """The line of ``role`` (one of :data:`LINE_ROLES`).

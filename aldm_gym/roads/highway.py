@@ -463,6 +463,14 @@ class HighwayRoad:
         """``None``: the lanes of a generated highway run to the road's end."""
         return None
 
+    def lane_narrows_in(self, pos: LanePosition, width: float, closing: float = 0.0) -> float:
+        """``inf``: the lanes of a generated highway keep their width."""
+        return math.inf
+
+    def lane_end_side(self, pos: LanePosition) -> int:
+        """0: the lanes of a generated highway run to the road's end."""
+        return 0
+
     def sample_poses(
         self,
         n: int,

@@ -333,6 +333,50 @@ class OpenDriveRoad(PolylineRoad):
             return math.inf
         return pos.end - pos.s
 
+    def lane_narrows_in(self, pos: LanePosition, width: float, closing: float = 0.0) -> float:
+        """Distance [m] along the lane chain from ``pos`` to where its last narrowing
+        begins: the first vertex narrower than ``min(width, the chain's widest − closing)``
+        after the last one that is not (the taper before the chain ends). The chain's
+        end where it ends wide, or where no vertex ahead is that wide (a lane too narrow
+        to tell a taper in: its end is the end). A lane that opens (narrow at its start,
+        as a 2+1 road's overtaking lane) is not narrowing."""
+        lane: LaneKey | None = pos.lane
+        c = self._centres
+        done = -(pos.s - self._start[pos.lane])  # the way from pos to the lane's start
+        dist: list[FloatArray] = []
+        widths: list[FloatArray] = []
+        for _ in range(len(self.lanes)):  # a chain visits each lane once at most
+            if lane is None:
+                break
+            row = self._key_index[lane]
+            u = c.u[c.start[row] : c.start[row + 1]]
+            ahead = done + u >= 0.0
+            dist.append((done + u)[ahead])
+            widths.append(self.lane_widths(lane)[ahead])
+            done += float(u[-1])
+            lane = self.successor(lane)
+        d, w = np.concatenate(dist), np.concatenate(widths)
+        if not len(d):
+            return 0.0
+        wide = np.flatnonzero(w >= min(width, float(np.max(w)) - closing))
+        last = int(wide[-1]) if len(wide) else len(d) - 1
+        return float(d[last + 1]) if last + 1 < len(d) else float(d[-1])
+
+    def lane_end_side(self, pos: LanePosition) -> int:
+        """Where to leave the lane at ``pos`` before it ends: +1 by the left neighbour,
+        -1 by the right one, whichever lane chain reaches farther past its own (the
+        right on a tie: keep right); 0 when the lane does not end before the road or
+        neither neighbour reaches farther."""
+        if not math.isfinite(self.lane_ends_in(pos)):
+            return 0
+        siblings = self._siblings[pos.lane]
+        k = siblings.index(pos.lane)
+        best, side = self._beyond(pos.lane) + 1.0, 0
+        for j, s in ((k + 1, -1), (k - 1, 1)):  # right first: it wins a tie
+            if 0 <= j < len(siblings) and self._beyond(siblings[j]) > best:
+                best, side = self._beyond(siblings[j]), s
+        return side
+
     @cached_property
     def network(self) -> MapNetwork:
         """highway-env's lane network of the driving lanes (built on first use)."""

@@ -125,6 +125,18 @@ class Road(MarkedRoad, Protocol):
         does (``inf`` when it does not), or ``None`` on a road whose lanes never end."""
         ...
 
+    def lane_narrows_in(self, pos: LanePosition, width: float, closing: float = 0.0) -> float:
+        """Distance [m] along the lane from ``pos`` to where it gets narrower than
+        ``min(width, its widest − closing)`` before it ends (its taper); ``inf`` on a
+        road whose lanes never end."""
+        ...
+
+    def lane_end_side(self, pos: LanePosition) -> int:
+        """Where to leave the lane at ``pos`` before it ends: +1 by the left neighbour,
+        -1 by the right one (the one whose lane chain reaches farther), 0 when the lane
+        does not end or neither neighbour goes on."""
+        ...
+
     def sample_poses(
         self,
         n: int,

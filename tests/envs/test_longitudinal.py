@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 
@@ -16,6 +17,7 @@ from aldm_gym.envs.longitudinal import (
     ACCConfig,
     LongitudinalController,
     acc_acceleration,
+    selector_for,
     time_to_collision,
 )
 from aldm_gym.envs.targets import NO_TARGET, Objects, TargetSelector, corridor_bounds
@@ -129,6 +131,126 @@ def test_missing_lines_fall_back_to_the_other_line_or_the_curvature() -> None:
     assert left[0] == pytest.approx(on_lane(600.0, 80.0, 0) + 0.5 * W, abs=0.05)
     left, right = corridor_bounds(None, x, lane_width=W, curvature=1 / 600)
     assert 0.5 * (left[0] + right[0]) == pytest.approx(80.0**2 / 1200.0)
+
+
+def predicting(**acc: float) -> TargetSelector:
+    """The env's selector (``acc`` section defaults: prediction on)."""
+    return selector_for(ACCConfig(**acc), ego_x=-1.0, lane_width=W)
+
+
+def walker(x: float, y: float, vy: float, ego_speed: float = 16.7) -> Objects:
+    """A pedestrian (0.5 m wide, 0.3 m long) standing still over the road, walking
+    sideways at ``vy`` [m/s], seen from an ego at ``ego_speed``."""
+    return Objects(
+        ids=np.array([1]),
+        x=np.array([x]),
+        y=np.array([y]),
+        vx=np.array([-ego_speed]),
+        width=np.array([0.5]),
+        length=np.array([0.3]),
+        vy=np.array([vy]),
+    )
+
+
+def test_a_pedestrian_walking_into_the_lane_is_a_target_before_it_is_in_it() -> None:
+    det = straight_detection()
+    crossing = walker(60.0, -5.0, 1.39)  # R157 4.2_3 at its defaults: 5 km/h, 5 m out
+    assert TargetSelector().select(det, crossing, ego_speed=16.7) == NO_TARGET  # not yet in
+    assert predicting().select(det, crossing, ego_speed=16.7) == 1
+    assert predicting(prediction_horizon=0.0).select(det, crossing, ego_speed=16.7) == NO_TARGET
+    # Walking away, or too slowly to be anything but noise: no target.
+    assert predicting().select(det, walker(60.0, -5.0, -1.39), ego_speed=16.7) == NO_TARGET
+    assert predicting().select(det, walker(60.0, -2.5, 0.2), ego_speed=16.7) == NO_TARGET
+    # One the ego passes before it reaches the lane is none either.
+    assert predicting().select(det, walker(8.0, -5.0, 1.39), ego_speed=16.7) == NO_TARGET
+
+
+def test_a_cut_in_is_a_target_by_its_lateral_motion() -> None:
+    det = straight_detection()
+    # A car in the right lane, 0.2 m into the ego lane, moving in at 1 m/s, 3 m/s slower.
+    car = Objects(
+        ids=np.array([1]),
+        x=np.array([30.0]),
+        y=np.array([-0.5 * W - 1.0 + 0.2]),
+        vx=np.array([-3.0]),
+        width=np.array([2.0]),
+        length=np.array([5.0]),
+        vy=np.array([1.0]),
+    )
+    assert TargetSelector().select(det, car) == NO_TARGET
+    assert predicting().select(det, car, ego_speed=20.0) == 1
+    still = dataclasses.replace(car, vy=np.zeros(1))
+    assert predicting().select(det, still, ego_speed=20.0) == NO_TARGET
+
+
+def test_a_car_following_a_curved_lane_is_not_predicted_to_change_lanes() -> None:
+    """Its heading differs from the ego's by x / R, so its sensor-frame lateral speed
+    is large; relative to the lanes it is zero."""
+    from aldm_gym.envs.targets import objects_from_world
+
+    radius, speed = 300.0, 25.0
+    det = curve_detection(radius)
+    xs = np.array([40.0, 80.0, 120.0])
+    ys = np.array([on_lane(radius, float(x), -1) for x in xs])
+    # The lane heading at x on the circle centred at (0, radius): atan2(x, radius - y).
+    heading = np.arctan2(xs, radius - ys)
+    # World = sensor frame here (ego at the origin heading 0); highway-env's world has
+    # y to the right, so flip.
+    world = objects_from_world(
+        np.arange(1, 4),
+        np.column_stack([xs, -ys]),
+        np.full(3, speed),
+        -heading,
+        np.full(3, 2.0),
+        np.full(3, 5.0),
+        np.zeros(2),
+        0.0,
+        np.array([speed, 0.0]),
+    )
+    assert np.allclose(world.y, ys) and np.all(world.vy > 3.0)  # sideways in the sensor frame
+    sel = predicting()
+    overlap = sel.overlaps(det, world, ego_speed=speed)
+    now = TargetSelector().overlaps(det, world)
+    assert np.all(now < -0.8) and np.all(overlap - now < 0.1)  # a lane away, staying there
+    assert sel.select(det, world, ego_speed=speed) == NO_TARGET
+
+
+def test_a_motorbike_straddling_the_boundary_is_the_target() -> None:
+    """R157 4.3_2 lets the lead vehicle's centre sit on the lane boundary: a 0.9 m
+    motorbike there has 0.45 m in the lane, which the fixed 0.5 m threshold missed."""
+    det = straight_detection()
+    bike = Objects(
+        ids=np.array([1]),
+        x=np.array([30.0]),
+        y=np.array([-0.5 * W]),
+        vx=np.array([0.0]),
+        width=np.array([0.9]),
+        length=np.array([2.2]),
+    )
+    assert TargetSelector().select(det, bike) == NO_TARGET
+    assert predicting().select(det, bike) == 1
+    # A car with its centre on the boundary is in (1 m inside); one just touching it is not.
+    car = dataclasses.replace(bike, width=np.array([2.0]), length=np.array([5.0]))
+    assert predicting().select(det, car) == 1
+    touching = dataclasses.replace(car, y=np.array([-0.5 * W - 0.9]))
+    assert predicting().select(det, touching) == NO_TARGET
+
+
+def test_the_aeb_brakes_for_a_pedestrian_on_a_collision_course() -> None:
+    ctrl = LongitudinalController(ACCConfig())
+    path = np.column_stack([np.arange(0.0, 100.0, 5.0), np.zeros(20)])
+    # 20 m ahead at 16.7 m/s (TTC 1.2 s), 2 m to the right, walking left at 1.4 m/s:
+    # in the ego's path when the ego gets there.
+    cmd = ctrl.update(None, walker(20.0, -2.0, 1.4), 16.7, 16.7, path=path)
+    assert cmd.aeb and cmd.min_ttc < 1.5
+    # Walking away from the path, or with no prediction: no AEB.
+    away = LongitudinalController(ACCConfig()).update(
+        None, walker(20.0, -2.0, -1.4), 16.7, 16.7, path=path
+    )
+    off = LongitudinalController(ACCConfig(prediction_horizon=0.0)).update(
+        None, walker(20.0, -2.0, 1.4), 16.7, 16.7, path=path
+    )
+    assert not away.aeb and not off.aeb
 
 
 def test_only_objects_ahead_and_in_range() -> None:
@@ -368,12 +490,22 @@ def test_kernels_match_their_python_twins() -> None:
     args = (x, y, width, det.ego_left, 0.0, det.ego_right, -0.2)
     assert np.array_equal(tg.corridor_overlaps(*args), tg.corridor_overlaps_py(*args))
     ov = tg.corridor_overlaps(*args)
+    enter = tg.enter_thresholds(width, 0.5, 0.4)
     for prev in (-1, int(ids[3])):
-        a = tg._select(ids, x, ov, prev, 150.0, 0.5, 0.1)
-        b = tg._select_py(ids, x, ov, prev, 150.0, 0.5, 0.1)
+        a = tg._select(ids, x, ov, enter, prev, 150.0, 0.1)
+        b = tg._select_py(ids, x, ov, enter, prev, 150.0, 0.1)
         assert a[0] == b[0] and np.array_equal(a[1], b[1])
-    targs = (x, y, vx, width, length, det.trajectory, -1.0, 5.0, 2.0)
-    assert lg._min_ttc(*targs) == lg._min_ttc_py(*targs)
+    vy = rng.uniform(-2.0, 2.0, n)
+    for lateral in (0.25, np.inf):
+        targs = (x, y, vx, vy, width, length, det.trajectory, -1.0, 5.0, 2.0, 20.0, lateral)
+        assert lg._min_ttc(*targs) == lg._min_ttc_py(*targs)
+    margs = (x, y, vx, vy, det.ego_left, 0.0, det.ego_right, -0.2, 20.0)
+    for u, v in zip(tg._corridor_motion(*margs), tg._corridor_motion_py(*margs), strict=True):
+        assert np.array_equal(u, v)
+    yl, yr, lateral = tg._corridor_motion(*margs)
+    shift = tg.prediction_shifts(x - 4.0, vx, lateral, 3.0, 0.25)
+    pargs = (y, width, shift, yl, yr)
+    assert np.array_equal(tg.predicted_overlaps(*pargs), tg.predicted_overlaps_py(*pargs))
     xy = rng.uniform(-1e3, 1e3, (n, 2))
     sargs = (xy, rng.uniform(0, 30, n), rng.uniform(-3, 3, n), 10.0, -5.0, 0.3, 20.0, 3.0)
     for u, v in zip(tg._to_sensor(*sargs), tg._to_sensor_py(*sargs), strict=True):

@@ -15,6 +15,8 @@ from typing import Any
 
 from scenariogeneration import xodr, xosc
 
+from aldm_gym.harness import lane_drop
+
 STEP = 0.1
 """The tests' simulation step [s] (10 Hz, policy at 10 Hz)."""
 
@@ -34,12 +36,8 @@ def straight_road(folder: Path, length: float = 2000.0, left_lanes: int = 0) -> 
     return path
 
 
-def car(name: str = "car") -> xosc.Vehicle:
-    """A 5 m x 2 m car, reference point at the rear axle (box centre 1.4 m ahead)."""
-    bb = xosc.BoundingBox(2.0, 5.0, 1.8, 1.4, 0.0, 0.9)
-    front = xosc.Axle(0.5, 0.8, 1.68, 2.98, 0.4)
-    rear = xosc.Axle(0.0, 0.8, 1.68, 0.0, 0.4)
-    return xosc.Vehicle(name, xosc.VehicleCategory.car, bb, front, rear, 70, 10, 10)
+car = lane_drop.car
+"""A 5 m x 2 m car, reference point at the rear axle (box centre 1.4 m ahead)."""
 
 
 def step_speed(v: float) -> xosc.AbsoluteSpeedAction:
@@ -76,14 +74,7 @@ def cars_and_board(
     entities = xosc.Entities()
     for name in names:
         entities.add_scenario_object(name, car())
-    board = xosc.StoryBoard(
-        init,
-        xosc.ValueTrigger(
-            "stop", 0, xosc.ConditionEdge.rising,
-            xosc.SimulationTimeCondition(stop, xosc.Rule.greaterThan), "stop",
-        ),
-    )  # fmt: skip
-    return entities, board
+    return entities, lane_drop.storyboard(init, stop)
 
 
 def save(folder: Path, name: str, entities: xosc.Entities, board: xosc.StoryBoard) -> Path:
@@ -142,16 +133,7 @@ def write(
             xosc.TeleportAction(xosc.RelativeLanePosition(lane_id=d_lane, entity="Ego", ds=ds)),
         )
         init.add_init_action("Target", step_speed(v))
-    board = xosc.StoryBoard(
-        init,
-        xosc.ValueTrigger(
-            "stop",
-            0,
-            xosc.ConditionEdge.rising,
-            xosc.SimulationTimeCondition(stop, xosc.Rule.greaterThan),
-            "stop",
-        ),
-    )
+    board = lane_drop.storyboard(init, stop)
     for k, (actor, evs) in enumerate(events):
         man = xosc.Maneuver(f"maneuver{k}")
         for ev in evs:

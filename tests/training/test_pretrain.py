@@ -121,7 +121,7 @@ def test_clone_fits_the_teacher_and_is_deterministic(demos: Demonstrations) -> N
 def test_clone_of_a_plain_ppo_policy(demos: Demonstrations) -> None:
     from stable_baselines3 import PPO
 
-    report = clone(_model(algorithm=PPO), demos, 40, 0, demonstration_seeds(0, 6), masked=False)
+    report = clone(_model(algorithm=PPO), demos, 60, 0, demonstration_seeds(0, 6), masked=False)
     assert report.steps == len(demos) and report.accuracy >= 0.9, report
 
 
