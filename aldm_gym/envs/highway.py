@@ -502,7 +502,7 @@ class ALDMHighwayEnv(AbstractEnv):
         if ego.continuous:
             return
         referee.check_braking(
-            cmd, ctrl, objects, perception.objects_xy, ego, perception.objects_velocity
+            cmd, ctrl, objects, perception.objects_xy, ego, lambda: perception.objects_velocity
         )
 
     def _simulate(self, action: Any = None) -> None:

@@ -41,11 +41,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from aldm_gym.config import setting, validate
 from aldm_gym.envs.observation import VEHICLE_LENGTH, eval_line
-from aldm_gym.envs.targets import Objects, corridor_overlaps
+from aldm_gym.envs.targets import Objects, corridor_overlaps, line_y
 from aldm_gym.roads.position import LanePosition
 from aldm_gym.roads.protocol import Road
 from aldm_gym.sensor.lane_detection import LaneDetection
@@ -171,9 +172,12 @@ def perceived_lane_end(
     x0, x1 = max(left[0, 0], right[0, 0]), min(left[-1, 0], right[-1, 0])
     if x1 - x0 < 2.0 * SAMPLE_STEP:
         return None
+    if _width_range(left, right, float(x0), float(x1))[0] >= end_width:
+        return None  # nowhere that narrow: most frames end here
     xs = np.arange(x0, x1 + 1e-9, SAMPLE_STEP)
     width = np.interp(xs, left[:, 0], left[:, 1]) - np.interp(xs, right[:, 0], right[:, 1])
-    limit = min(end_width, float(np.median(width[:NEAR_SAMPLES])) - END_CLOSING)
+    near = sorted(width[:NEAR_SAMPLES].tolist())  # the median, without numpy's overhead
+    limit = min(end_width, near[len(near) // 2] - END_CLOSING)
     if width[0] < limit:
         return None  # narrow from the start: not a taper the ego is in
     narrow = np.flatnonzero(width < limit)
@@ -199,6 +203,27 @@ def perceived_lane_end(
 OPENING_BLEND = 0.2
 """Over this many lane widths beyond ``opening_factor`` the LKA's path blends from the
 detection's trajectory to the staying line's offset (:func:`opening_path`)."""
+
+
+def _width_range_py(
+    left: FloatArray, right: FloatArray, x0: float, x1: float
+) -> tuple[float, float]:
+    """The smallest and the largest width [m] between two lines over ``[x0, x1]``,
+    where both are detected (linear between their points: the width is piecewise
+    linear with its corners at the points of either line, so both are at one of them)."""
+    narrowest, widest = np.inf, -np.inf
+    for i in range(left.shape[0]):
+        if x0 <= left[i, 0] <= x1:
+            w = left[i, 1] - line_y(right, 0.0, left[i, 0])
+            narrowest, widest = min(narrowest, w), max(widest, w)
+    for i in range(right.shape[0]):
+        if x0 <= right[i, 0] <= x1:
+            w = line_y(left, 0.0, right[i, 0]) - right[i, 1]
+            narrowest, widest = min(narrowest, w), max(widest, w)
+    return narrowest, widest
+
+
+_width_range = numba.njit(cache=True)(_width_range_py)
 
 
 def opening_path(
@@ -243,10 +268,14 @@ def opening_path(
     if x1 <= x0:
         return path
     # The width where both lines are detected, held beyond (never extrapolated: a
-    # detector's short lines extrapolated far apart are not a lane opening).
+    # detector's short lines extrapolated far apart are not a lane opening). Its
+    # largest value first: most frames end there.
+    lo = factor * lane_width
+    if _width_range(left, right, float(x0), float(x1))[1] <= lo:
+        return path
     seen = np.clip(path[:, 0], x0, x1)
     width = np.interp(seen, left[:, 0], left[:, 1]) - np.interp(seen, right[:, 0], right[:, 1])
-    weight = np.clip((width - factor * lane_width) / (OPENING_BLEND * lane_width), 0.0, 1.0)
+    weight = np.clip((width - lo) / (OPENING_BLEND * lane_width), 0.0, 1.0)
     if not np.any(weight > 0.0):
         return path
     out = path.copy()

@@ -41,7 +41,6 @@ class Perception:
     :ivar objects: the other vehicles in the sensor frame at the last
         :meth:`sense_objects` (ids: their index in ``road.vehicles``).
     :ivar objects_xy: their world positions ``(N, 2)`` [m] (for ground truth).
-    :ivar objects_velocity: their world velocities ``(N, 2)`` [m/s] (for ground truth).
     """
 
     def __init__(self, settings: EnvConfig, path_range: float | None) -> None:
@@ -55,7 +54,7 @@ class Perception:
         self.detection: LaneDetection | None = None
         self.objects = Objects()
         self.objects_xy = np.zeros((0, 2))
-        self.objects_velocity = np.zeros((0, 2))
+        self._motion = (np.zeros(0), np.zeros(0))  # speed [m/s], heading [rad]
         self._odometry: tuple[float, float, float] | None = None
 
     def measure(
@@ -109,6 +108,13 @@ class Perception:
         last, self._odometry = self._odometry, pose
         return odometry(last, pose, self.dt)
 
+    @property
+    def objects_velocity(self) -> np.ndarray:
+        """The world velocities ``(N, 2)`` [m/s] of :attr:`objects` (for ground truth;
+        computed when asked: the truth reads them once per policy step)."""
+        speed, heading = self._motion
+        return speed[:, None] * np.column_stack([np.cos(heading), np.sin(heading)])
+
     def sense_objects(self, traffic: FastRoad, ego: Any) -> Objects:
         """The other vehicles in the sensor frame (ids: their index in
         ``traffic.vehicles``).
@@ -125,7 +131,8 @@ class Perception:
         rows = [*range(ego_row), *range(ego_row + 1, n)]
         if not rows:
             self.objects = Objects()
-            self.objects_xy = self.objects_velocity = np.zeros((0, 2))
+            self.objects_xy = np.zeros((0, 2))
+            self._motion = (np.zeros(0), np.zeros(0))
             return self.objects
         engine = traffic.engine
         state = engine.moved_state(traffic) if engine is not None else None
@@ -141,7 +148,7 @@ class Perception:
             heading = np.array([v.heading for v in others], dtype=np.float64)
             width = np.array([v.WIDTH for v in others], dtype=np.float64)
             length = np.array([v.LENGTH for v in others], dtype=np.float64)
-        self.objects_velocity = speed[:, None] * np.column_stack([np.cos(heading), np.sin(heading)])
+        self._motion = (speed, heading)
         self.objects = objects_from_world(
             np.array(rows, dtype=np.int64),
             xy,

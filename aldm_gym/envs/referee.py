@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -193,7 +194,7 @@ class Referee:
         objects: Objects,
         objects_xy: np.ndarray,
         ego: Any,
-        velocity: np.ndarray | None = None,
+        velocity: Callable[[], np.ndarray] | None = None,
     ) -> None:
         """After the ACC's command: note an AEB activation, and whether a hard braking
         for the target was for a vehicle truly in the ego's corridor (else a phantom
@@ -204,7 +205,8 @@ class Referee:
         )
         if braking and cmd.target != NO_TARGET and not self.acc_step["phantom_braking"]:
             row = np.array([objects.index_of(cmd.target)])
-            overlap = self.true_overlap(objects, objects_xy, row, ego, velocity)[0]
+            moving = None if velocity is None else velocity()
+            overlap = self.true_overlap(objects, objects_xy, row, ego, moving)[0]
             self.acc_step["phantom_braking"] = bool(overlap < ctrl.config.exit_overlap)
 
     def true_leader(

@@ -176,15 +176,45 @@ def corridor_overlaps_py(
 corridor_overlaps = numba.njit(cache=True)(corridor_overlaps_py)
 
 
-def predicted_overlaps_py(
-    y: FloatArray, width: FloatArray, shift: FloatArray, y_left: FloatArray, y_right: FloatArray
-) -> FloatArray:
-    """The largest overlap [m] each object reaches with the corridor while its lateral
-    position moves from ``y`` to ``y + shift`` (constant velocity over the window).
+def _shifted_overlap_py(
+    y: float, half: float, shift: float, y_left: float, y_right: float
+) -> float:
+    """The largest overlap [m] of ``[y - half, y + half]`` with ``[y_right, y_left]``
+    while it moves by anything from 0 to ``shift`` [m].
 
     The overlap is a concave function of the shift (the smaller of two rising ramps
     minus the larger of two), so its largest value over the window lies at the shift
     in ``[0, shift]`` nearest the one that centres the object in the corridor.
+    """
+    centre = 0.5 * (y_left + y_right) - y
+    d = min(max(centre, min(shift, 0.0)), max(shift, 0.0))
+    return min(y + d + half, y_left) - max(y + d - half, y_right)
+
+
+_shifted_overlap = numba.njit(cache=True)(_shifted_overlap_py)
+
+
+def _window_shift_py(
+    gap: float, vx: float, lateral: float, horizon: float, min_lateral_speed: float
+) -> float:
+    """One object's predicted lateral displacement [m] (:func:`prediction_shifts`)."""
+    if horizon <= 0.0 or abs(lateral) < min_lateral_speed:
+        return 0.0
+    window = horizon
+    if vx < 0.0:
+        window = min(window, max(gap, 0.0) / -vx)
+    return lateral * window
+
+
+_window_shift = numba.njit(cache=True)(_window_shift_py)
+
+
+def predicted_overlaps_py(
+    y: FloatArray, width: FloatArray, shift: FloatArray, y_left: FloatArray, y_right: FloatArray
+) -> FloatArray:
+    """The largest overlap [m] each object reaches with the corridor while its lateral
+    position moves from ``y`` to ``y + shift`` (constant velocity over the window; the
+    closed form of :func:`_shifted_overlap_py`).
 
     :param y: ``(N,)`` lateral positions now [m]; ``width``: ``(N,)`` [m].
     :param shift: ``(N,)`` lateral displacements over the window [m] (0: the overlap now).
@@ -193,52 +223,14 @@ def predicted_overlaps_py(
     n = y.shape[0]
     out = np.empty(n)
     for i in range(n):
-        centre = 0.5 * (y_left[i] + y_right[i]) - y[i]
-        d = min(max(centre, min(shift[i], 0.0)), max(shift[i], 0.0))
-        half = 0.5 * width[i]
-        out[i] = min(y[i] + d + half, y_left[i]) - max(y[i] + d - half, y_right[i])
+        out[i] = _shifted_overlap(y[i], 0.5 * width[i], shift[i], y_left[i], y_right[i])
     return out
 
 
 predicted_overlaps = numba.njit(cache=True)(predicted_overlaps_py)
 
 
-def _corridor_motion_py(
-    x: FloatArray,
-    y: FloatArray,
-    vx: FloatArray,
-    vy: FloatArray,
-    left: FloatArray,
-    left_offset: float,
-    right: FloatArray,
-    right_offset: float,
-    ego_speed: float,
-) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """The corridor's bounds at each object and each object's lateral speed relative to
-    the lanes: ``(y_left, y_right, lateral speed)``, ``(N,)`` each [m], [m/s].
-
-    The lateral speed is ``vy − slope · vx_road`` [m/s] (> 0: moving left relative to
-    the lanes): the rate of the object's y minus that of the corridor line on its side
-    (the left one for an object left of the corridor's centre, else the right one) at
-    its x, where ``vx_road = vx + ego_speed`` is its speed along x over the road. An
-    object that follows a curved lane has none, however much its heading differs from
-    the ego's; the line on its side, not the corridor's centre, so that a taper or an
-    opening of the ego's lane tilts no neighbour into it.
-    """
-    n = x.shape[0]
-    yl, yr, lateral = np.empty(n), np.empty(n), np.empty(n)
-    for i in range(n):
-        yl[i] = line_y(left, left_offset, x[i])
-        yr[i] = line_y(right, right_offset, x[i])
-        line = left if y[i] >= 0.5 * (yl[i] + yr[i]) else right
-        lateral[i] = vy[i] - line_slope(line, x[i]) * (vx[i] + ego_speed)
-    return yl, yr, lateral
-
-
-_corridor_motion = numba.njit(cache=True)(_corridor_motion_py)
-
-
-def prediction_shifts(
+def prediction_shifts_py(
     gap: FloatArray,
     vx: FloatArray,
     lateral_speed: FloatArray,
@@ -257,33 +249,82 @@ def prediction_shifts(
     :param horizon: the prediction horizon [s].
     :param min_lateral_speed: the smallest lateral speed predicted [m/s].
     """
-    gap = np.maximum(np.asarray(gap, dtype=np.float64), 0.0)
-    vx = np.asarray(vx, dtype=np.float64)
-    lateral_speed = np.asarray(lateral_speed, dtype=np.float64)
-    window = np.full(gap.shape, float(horizon))
-    closing = vx < 0.0
-    window[closing] = np.minimum(window[closing], gap[closing] / -vx[closing])
-    moving = np.abs(lateral_speed) >= min_lateral_speed
-    return np.where(moving & (horizon > 0.0), lateral_speed * window, 0.0)
+    n = gap.shape[0]
+    out = np.empty(n)
+    for i in range(n):
+        out[i] = _window_shift(gap[i], vx[i], lateral_speed[i], horizon, min_lateral_speed)
+    return out
+
+
+prediction_shifts = numba.njit(cache=True)(prediction_shifts_py)
+
+
+def _predicted_corridor_py(
+    x: FloatArray,
+    y: FloatArray,
+    vx: FloatArray,
+    vy: FloatArray,
+    width: FloatArray,
+    length: FloatArray,
+    left: FloatArray,
+    left_offset: float,
+    right: FloatArray,
+    right_offset: float,
+    ego_speed: float,
+    ego_x: float,
+    ego_length: float,
+    horizon: float,
+    min_lateral_speed: float,
+) -> FloatArray:
+    """Each object's predicted overlap [m] with the corridor between two (shifted) lines.
+
+    Its lateral speed relative to the lanes is ``vy − slope · vx_road`` [m/s] (> 0:
+    moving left relative to the lanes): the rate of its y minus that of the corridor
+    line on its side (the left one for an object left of the corridor's centre, else
+    the right one) at its x, where ``vx_road = vx + ego_speed`` is its speed along x
+    over the road. An object that follows a curved lane has none, however much its
+    heading differs from the ego's; the line on its side, not the corridor's centre,
+    so that a taper or an opening of the ego's lane tilts no neighbour into it. Its
+    window and displacement: :func:`prediction_shifts_py`; the overlap it reaches:
+    :func:`_shifted_overlap_py`.
+    """
+    n = x.shape[0]
+    out = np.empty(n)
+    for i in range(n):
+        yl = line_y(left, left_offset, x[i])
+        yr = line_y(right, right_offset, x[i])
+        line = left if y[i] >= 0.5 * (yl + yr) else right
+        lateral = vy[i] - line_slope(line, x[i]) * (vx[i] + ego_speed)
+        gap = x[i] - ego_x - 0.5 * (length[i] + ego_length)
+        shift = _window_shift(gap, vx[i], lateral, horizon, min_lateral_speed)
+        out[i] = _shifted_overlap(y[i], 0.5 * width[i], shift, yl, yr)
+    return out
+
+
+_predicted_corridor = numba.njit(cache=True)(_predicted_corridor_py)
 
 
 def _select_py(
     ids: IntArray,
     x: FloatArray,
     overlap: FloatArray,
-    enter: FloatArray,
+    width: FloatArray,
     previous: int,
     max_range: float,
+    enter_overlap: float,
+    enter_fraction: float,
     exit_overlap: float,
 ) -> tuple[int, np.ndarray]:
-    """:func:`select_in_corridor`'s loop: ``(target id or -1, (N,) inside mask)``."""
+    """:func:`select_in_corridor`'s loop: ``(target id or -1, (N,) inside mask)``; an
+    object enters at ``min(enter_overlap, enter_fraction · width)`` (:func:`enter_thresholds`)
+    and the previous target stays above the smaller of that and ``exit_overlap``."""
     n = x.shape[0]
     inside = np.zeros(n, dtype=np.bool_)
     best, best_x = -1, np.inf
     for i in range(n):
-        limit = enter[i]
+        limit = min(enter_overlap, enter_fraction * width[i])
         if ids[i] == previous and previous != -1:
-            limit = min(exit_overlap, enter[i])
+            limit = min(exit_overlap, limit)
         if overlap[i] >= limit and x[i] > 0.0 and x[i] <= max_range:
             inside[i] = True
             if x[i] < best_x:
@@ -472,14 +513,17 @@ def select_in_corridor(
     previous: int,
     *,
     max_range: float,
-    enter_overlap: float | FloatArray,
+    enter_overlap: float,
     exit_overlap: float,
+    width: FloatArray | None = None,
+    enter_fraction: float = 1.0,
 ) -> tuple[int, np.ndarray]:
     """The nearest object ahead in the corridor, with hysteresis.
 
-    An object is in the corridor when its overlap reaches ``enter_overlap``, or, for
-    the ``previous`` target, ``exit_overlap`` (<= ``enter_overlap``). Candidates lie
-    ahead of the ego's centre and within ``max_range``: ``0 < x <= max_range``, with
+    An object is in the corridor when its overlap reaches ``enter_overlap`` or, given
+    its ``width``, ``enter_fraction`` of it if that is less (:func:`enter_thresholds`);
+    the ``previous`` target stays while it reaches ``exit_overlap`` (<= that). Candidates
+    lie ahead of the ego's centre and within ``max_range``: ``0 < x <= max_range``, with
     ``x`` measured from the ego's centre.
 
     :param ids: ``(N,)`` object ids (>= 0).
@@ -487,18 +531,21 @@ def select_in_corridor(
     :param overlap: ``(N,)`` overlaps with the corridor [m] (:func:`lane_overlap`, or
         the predicted ones of :func:`predicted_overlaps`).
     :param previous: the id selected at the previous step, or :data:`NO_TARGET`.
-    :param enter_overlap: one threshold [m], or ``(N,)`` per object
-        (:func:`enter_thresholds`).
+    :param width: ``(N,)`` the objects' widths [m]; ``None``: ``enter_overlap`` alone.
     :return: ``(target id or NO_TARGET, (N,) bool mask of the objects in the corridor)``.
     """
     x = np.asarray(x, dtype=np.float64)
+    if width is None:
+        width, enter_fraction = np.full(x.shape, np.inf), 1.0
     target, inside = _select(
         np.asarray(ids, dtype=np.int64),
         x,
         np.asarray(overlap, dtype=np.float64),
-        np.broadcast_to(np.asarray(enter_overlap, dtype=np.float64), x.shape).copy(),
+        np.asarray(width, dtype=np.float64),
         int(previous),
         float(max_range),
+        float(enter_overlap),
+        float(enter_fraction),
         float(exit_overlap),
     )
     return int(target), inside
@@ -579,11 +626,23 @@ class TargetSelector:
         )
         if self.horizon <= 0.0:
             return corridor_overlaps(objects.x, objects.y, objects.width, left, lo, right, ro)
-        yl, yr, lateral = _corridor_motion(
-            objects.x, objects.y, objects.vx, objects.vy, left, lo, right, ro, float(ego_speed)
+        return _predicted_corridor(
+            objects.x,
+            objects.y,
+            objects.vx,
+            objects.vy,
+            objects.width,
+            objects.length,
+            left,
+            lo,
+            right,
+            ro,
+            float(ego_speed),
+            self.ego_x,
+            self.ego_length,
+            self.horizon,
+            self.min_lateral_speed,
         )
-        shift = self.shifts(objects.x, objects.vx, objects.length, lateral)
-        return predicted_overlaps(objects.y, objects.width, shift, yl, yr)
 
     def select(
         self,
@@ -621,17 +680,16 @@ class TargetSelector:
         :param width: ``(N,)`` their widths [m], for ``enter_fraction`` (``None``: the
             ``enter_overlap`` alone).
         """
-        enter: float | FloatArray = self.enter_overlap
-        if width is not None:
-            enter = enter_thresholds(width, self.enter_overlap, self.enter_fraction)
         self.target, inside = select_in_corridor(
             ids,
             x - self.ego_x,
             overlap,
             self.target,
             max_range=self.max_range,
-            enter_overlap=enter,
+            enter_overlap=self.enter_overlap,
             exit_overlap=self.exit_overlap,
+            width=width,
+            enter_fraction=self.enter_fraction,
         )
         self.inside = ids[inside]
         return self.target

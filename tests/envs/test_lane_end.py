@@ -242,3 +242,18 @@ def test_the_gap_check_refuses_oncoming_traffic_and_sees_behind_in_a_curve() -> 
     )  # fmt: skip
     assert not target_lane_free(curve, behind, 1, lane_width=3.5, curvature=1 / radius)
     assert target_lane_free(curve, behind, 1, lane_width=3.5)  # straight back: not in it
+
+
+def test_the_width_kernel_matches_its_python_twin_and_the_sampled_width() -> None:
+    from aldm_gym.envs import lane_end as le
+
+    rng = np.random.default_rng(3)
+    left = np.column_stack([np.sort(rng.uniform(0.0, 150.0, 40)), rng.uniform(1.0, 3.0, 40)])
+    right = np.column_stack([np.sort(rng.uniform(5.0, 120.0, 30)), rng.uniform(-3.0, -1.0, 30)])
+    args = (left, right, 5.0, 120.0)
+    assert le._width_range(*args) == le._width_range_py(*args)
+    xs = np.linspace(5.0, 120.0, 5001)
+    sampled = np.interp(xs, left[:, 0], left[:, 1]) - np.interp(xs, right[:, 0], right[:, 1])
+    lo, hi = le._width_range(*args)
+    assert lo <= sampled.min() + 1e-12 and hi >= sampled.max() - 1e-12
+    assert sampled.min() - lo < 0.05 and hi - sampled.max() < 0.05

@@ -490,22 +490,27 @@ def test_kernels_match_their_python_twins() -> None:
     args = (x, y, width, det.ego_left, 0.0, det.ego_right, -0.2)
     assert np.array_equal(tg.corridor_overlaps(*args), tg.corridor_overlaps_py(*args))
     ov = tg.corridor_overlaps(*args)
-    enter = tg.enter_thresholds(width, 0.5, 0.4)
     for prev in (-1, int(ids[3])):
-        a = tg._select(ids, x, ov, enter, prev, 150.0, 0.1)
-        b = tg._select_py(ids, x, ov, enter, prev, 150.0, 0.1)
+        a = tg._select(ids, x, ov, width, prev, 150.0, 0.5, 0.4, 0.1)
+        b = tg._select_py(ids, x, ov, width, prev, 150.0, 0.5, 0.4, 0.1)
         assert a[0] == b[0] and np.array_equal(a[1], b[1])
     vy = rng.uniform(-2.0, 2.0, n)
     for lateral in (0.25, np.inf):
         targs = (x, y, vx, vy, width, length, det.trajectory, -1.0, 5.0, 2.0, 20.0, lateral)
         assert lg._min_ttc(*targs) == lg._min_ttc_py(*targs)
-    margs = (x, y, vx, vy, det.ego_left, 0.0, det.ego_right, -0.2, 20.0)
-    for u, v in zip(tg._corridor_motion(*margs), tg._corridor_motion_py(*margs), strict=True):
-        assert np.array_equal(u, v)
-    yl, yr, lateral = tg._corridor_motion(*margs)
+    cargs = (x, y, vx, vy, width, length, det.ego_left, 0.0, det.ego_right, -0.2)
+    for horizon in (3.0, 0.0):
+        pc = (*cargs, 20.0, -1.0, 5.0, horizon, 0.25)
+        assert np.array_equal(tg._predicted_corridor(*pc), tg._predicted_corridor_py(*pc))
+    lateral = rng.uniform(-2.0, 2.0, n)
     shift = tg.prediction_shifts(x - 4.0, vx, lateral, 3.0, 0.25)
+    assert np.array_equal(shift, tg.prediction_shifts_py(x - 4.0, vx, lateral, 3.0, 0.25))
+    yl, yr = y + rng.uniform(0.5, 3.0, n), y - rng.uniform(0.5, 3.0, n)
     pargs = (y, width, shift, yl, yr)
     assert np.array_equal(tg.predicted_overlaps(*pargs), tg.predicted_overlaps_py(*pargs))
+    # Without a horizon the prediction is the overlap now.
+    now = tg.corridor_overlaps(x, y, width, det.ego_left, 0.0, det.ego_right, -0.2)
+    assert np.allclose(tg._predicted_corridor(*cargs, 20.0, -1.0, 5.0, 0.0, 0.25), now)
     xy = rng.uniform(-1e3, 1e3, (n, 2))
     sargs = (xy, rng.uniform(0, 30, n), rng.uniform(-3, 3, n), 10.0, -5.0, 0.3, 20.0, 3.0)
     for u, v in zip(tg._to_sensor(*sargs), tg._to_sensor_py(*sargs), strict=True):
