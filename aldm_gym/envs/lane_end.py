@@ -10,16 +10,18 @@ Two sources say where the ego's lane ends, chosen by the ``lane_end`` section's
 
 * **The map horizon** (:func:`map_lane_end`), what ADASIS gives a production car from
   its navigation map: when the ego's lane chain ends before the road does, the
-  distance along it to where the lane gets narrower than ``end_width`` (its taper's
-  start of the unusable part), and the side of the neighbour that reaches farther. It reads
-  the map at the ego's true position (a map-matched position, as ADASIS's).
+  distance along it to where the lane gets too narrow for the car (below ``end_width``
+  and :data:`END_CLOSING` under its widest: the part of its taper the car cannot use),
+  and the side of the neighbour that reaches farther. It reads the map at the ego's
+  true position (a map-matched position, as ADASIS's).
 * **Perception** (:func:`perceived_lane_end`): the ego's two detected lines converge.
-  The lane ends where its width between them falls below ``end_width``. The side to
-  leave it by is across the line that stays: in a taper one line closes in on the
-  other (a 2+1 road's centre line onto the lane line; an on-ramp's edge line onto the
-  lane line), and the lane beyond the closing line widens as the ego's narrows, while
-  the lane beyond the staying line keeps its width. Without a detected adjacent lane
-  on the side to leave by, there is no side: the chauffeur then stops at the end.
+  The lane ends where its width between them gets as narrow (against its width near
+  the ego). The side to leave it by is across the line that stays: in a taper one line
+  closes in on the other (a 2+1 road's centre line onto the lane line; an on-ramp's
+  edge line onto the lane line), and the lane beyond the closing line widens as the
+  ego's narrows, while the lane beyond the staying line keeps its width. Without a
+  detected adjacent lane on the side to leave by, there is no side: the chauffeur then
+  stops at the end.
 
 :class:`LaneEndMonitor` combines them once per simulation step (the nearer end wins;
 perception's end must be seen in ``confirm_steps`` consecutive frames, and is then held
@@ -32,6 +34,9 @@ until the ego has left the lane or passed it). The env then
   lane change asks for (:func:`gap_is_free`, the same check); and
 * while no lane change is under way, brakes for the end as for a standing vehicle
   ``stop_margin`` before it (the ACC law), so the ego stops there if no gap comes.
+
+The mirror case, a lane that opens beside the ego's with no line between them yet, is
+:func:`opening_path`'s: the LKA keeps right instead of following the middle of the gap.
 
 Sensor frame (ISO 8855: x forward, y left), SI units.
 """
