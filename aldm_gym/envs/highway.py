@@ -53,6 +53,7 @@ from aldm_gym.envs.scene import (
     Scene,
     make_scene,
 )
+from aldm_gym.envs.targets import Objects
 from aldm_gym.envs.vehicle import SensorVehicle
 from aldm_gym.errors import ConfigError, InputError
 from aldm_gym.roads.position import LanePosition
@@ -436,50 +437,57 @@ class ALDMHighwayEnv(AbstractEnv):
             travelled=max(float(ego.speed), 0.0) / self.settings.simulation_frequency,
             lane_changes=int(ego.lane_changes_completed),
         )
-        if ahead is not None:
-            self._leave_ending_lane(ahead)
+        objects = None  # sensed once per step, by the first that needs them
+        if ahead is not None and self._may_leave(ahead):
+            objects = perception.sense_objects(self.road, ego)
+            self._leave_ending_lane(ahead, objects)
         if self.longitudinal is not None:
-            self._longitudinal_step()
+            self._longitudinal_step(objects)
         referee.judge(ego, self.road.vehicles)
 
-    def _leave_ending_lane(self, ahead: LaneEnd) -> None:
-        """Start a lane change out of a lane that ends (``docs/acc.md``, "Lanes that
-        end"): under the built-in lateral control, none under way, the end within the
-        zone, the side known and detected, and the target lane with a free gap."""
+    def _may_leave(self, ahead: LaneEnd) -> bool:
+        """Whether a lane change out of a lane that ends may start now (``docs/acc.md``,
+        "Lanes that end"): under the built-in lateral control, none under way, the end
+        within the zone, its side known and that side's lane detected."""
         ego = self.vehicle
         if ego.continuous or ego.requested_steering is not None or ego.lane_change != 0:
-            return
+            return False
         if self.scenario is not None and "lateral" not in self.scenario.domains:
-            return  # the storyboard drives the ego
+            return False  # the storyboard drives the ego
         if ahead.side == 0 or ahead.distance > self.lane_end.zone(float(ego.speed)):
-            return
-        if not ego.lane_change_available(ahead.side):
-            return
-        perception = self.perception
-        assert perception is not None and self.highway is not None
-        objects = perception.sense_objects(self.road, ego)
-        speed = float(ego.speed)
+            return False
+        return bool(ego.lane_change_available(ahead.side))
+
+    def _leave_ending_lane(self, ahead: LaneEnd, objects: Objects) -> None:
+        """Start the lane change :meth:`_may_leave` allows if the target lane has a free
+        gap among this step's ``objects``."""
+        ego = self.vehicle
+        assert self.perception is not None and self.highway is not None
         if not target_lane_free(
-            perception.detection,
+            self.perception.detection,
             objects,
             ahead.side,
             lane_width=float(self.highway.lane_width),
             ego_x=self.lane_end.ego_x,
-            ego_speed=speed,
-            curvature=ego.yaw_rate / speed if abs(speed) > 0.1 else 0.0,
+            ego_speed=float(ego.speed),
+            curvature=ego.path_curvature,
         ):
             return
         if ego.start_lane_change(ahead.side):
             self.lane_end_changes += 1
 
-    def _longitudinal_step(self) -> None:
-        """Target selection, ACC and AEB on this step's detection; its ground truth."""
+    def _longitudinal_step(self, objects: Objects | None = None) -> None:
+        """Target selection, ACC and AEB on this step's detection; its ground truth.
+
+        :param objects: this step's objects if already sensed (else sensed here).
+        """
         ego = self.vehicle
         ctrl, perception, referee = self.longitudinal, self.perception, self.referee
         assert ctrl is not None and perception is not None and referee is not None
-        objects = perception.sense_objects(self.road, ego)
+        if objects is None:
+            objects = perception.sense_objects(self.road, ego)
         speed = float(ego.speed)
-        curvature = ego.yaw_rate / speed if abs(speed) > 0.1 else 0.0
+        curvature = ego.path_curvature
         path = ego.planned_path if len(ego.planned_path) >= 2 else ego.trajectory
         ahead = self.lane_end.lane_end
         stop = None

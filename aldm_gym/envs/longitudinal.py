@@ -321,7 +321,7 @@ class LongitudinalController:
 
     def gaps(self, objects: Objects) -> FloatArray:
         """Bumper-to-bumper gaps from the ego to ``objects`` along x [m] (``(N,)``)."""
-        return objects.x - self.ego_x - 0.5 * (objects.length + EGO_LENGTH)
+        return self.selector.gaps(objects.x, objects.length)
 
     def update(
         self,

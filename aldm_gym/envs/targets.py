@@ -316,8 +316,9 @@ def _select_py(
     exit_overlap: float,
 ) -> tuple[int, np.ndarray]:
     """:func:`select_in_corridor`'s loop: ``(target id or -1, (N,) inside mask)``; an
-    object enters at ``min(enter_overlap, enter_fraction · width)`` (:func:`enter_thresholds`)
-    and the previous target stays above the smaller of that and ``exit_overlap``."""
+    object enters at ``min(enter_overlap, enter_fraction · width)``, so that a narrow
+    object (a motorbike, a pedestrian) with that share of its width in the lane is in
+    it, and the previous target stays above the smaller of that and ``exit_overlap``."""
     n = x.shape[0]
     inside = np.zeros(n, dtype=np.bool_)
     best, best_x = -1, np.inf
@@ -497,15 +498,6 @@ def lane_overlap(
     return np.minimum(y + half, y_left) - np.maximum(y - half, y_right)
 
 
-def enter_thresholds(
-    width: FloatArray, enter_overlap: float, enter_fraction: float = 1.0
-) -> FloatArray:
-    """The overlap [m] at which each object enters the corridor:
-    ``min(enter_overlap, enter_fraction · width)``, so that a narrow object (a
-    motorbike, a pedestrian) with that share of its width in the lane is in it."""
-    return np.minimum(float(enter_overlap), float(enter_fraction) * np.asarray(width, float))
-
-
 def select_in_corridor(
     ids: IntArray,
     x: FloatArray,
@@ -521,7 +513,7 @@ def select_in_corridor(
     """The nearest object ahead in the corridor, with hysteresis.
 
     An object is in the corridor when its overlap reaches ``enter_overlap`` or, given
-    its ``width``, ``enter_fraction`` of it if that is less (:func:`enter_thresholds`);
+    its ``width``, ``enter_fraction`` of it if that is less (a narrow object);
     the ``previous`` target stays while it reaches ``exit_overlap`` (<= that). Candidates
     lie ahead of the ego's centre and within ``max_range``: ``0 < x <= max_range``, with
     ``x`` measured from the ego's centre.

@@ -238,6 +238,13 @@ class SensorVehicle(FastBicycleStep, BatchedLaneUpdate, Vehicle):
         beta = math.atan(0.5 * math.tan(float(self.action["steering"])))
         return -self.speed * math.sin(beta) / (0.5 * self.LENGTH)
 
+    @property
+    def path_curvature(self) -> float:
+        """Curvature of the path driven now [1/m] (> 0 left): yaw rate / speed, 0 below
+        0.1 m/s."""
+        speed = float(self.speed)
+        return self.yaw_rate / speed if abs(speed) > 0.1 else 0.0
+
 
 MERGE_ZONE = 300.0
 """A map vehicle whose lane ends within this distance merges out (mandatory merge) [m]."""
