@@ -53,7 +53,6 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 
 from aldm_gym.errors import InputError
 from aldm_gym.roads.protocol import Road
@@ -264,6 +263,8 @@ def frame_metrics(
             cost[i, j] = float(per_point[union].mean()) if union.any() else LOOSE_TOLERANCE
     matches = []
     if cost.size:
+        from scipy.optimize import linear_sum_assignment  # not at import: a cold start
+
         for i, j in zip(*(a.tolist() for a in linear_sum_assignment(cost)), strict=True):
             d, t = detected[i], truth_names[j]
             line = lines[d]

@@ -23,7 +23,6 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from aldm_gym.roads.markings import MarkingType
 from aldm_gym.roads.opendrive.lanes import SectionSamples
@@ -313,6 +312,8 @@ def _joins(
         leave += [-t0, t1]
         enter += [t0, -t1]
         s_end += [p.s[0], p.s[-1]]
+    from scipy.spatial import cKDTree  # 0.15 s to import: only maps with pieces to chain
+
     cos_max = math.cos(CHAIN_MAX_KINK)
     candidates = []
     for i, j in cKDTree(points).query_pairs(CHAIN_TOLERANCE):

@@ -18,7 +18,6 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.special import fresnel
 
 from aldm_gym.errors import MapError
 from aldm_gym.roads.opendrive.parse import (
@@ -153,6 +152,8 @@ def _spiral(
     a = math.sqrt(math.pi / abs(rate))
     tau0 = k0 / rate
     phi = -0.5 * k0 * tau0
+    from scipy.special import fresnel  # scipy.special: imported by the maps that need it
+
     s_t, c_t = fresnel((ds + tau0) / a)
     s_0, c_0 = fresnel(tau0 / a)
     dc, ds_ = c_t - c_0, s_t - s_0
