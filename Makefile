@@ -9,7 +9,7 @@ PIP    := $(BIN)/python -m pip
 # pip resolves an unpinned torch to a multi-GB CUDA build.
 TORCH  := torch==2.13.0
 
-.PHONY: demo test test-avx2 test-ray figures bench lint clean setup setup-dev setup-ray
+.PHONY: demo wheel test test-avx2 test-ray figures bench lint clean setup setup-dev setup-ray
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -26,11 +26,12 @@ $(VENV)/.stamp-dev: pyproject.toml | $(BIN)/python
 	$(PIP) install --quiet -e ".[rl,dev]"
 	touch $@ $(VENV)/.stamp-base
 
-# Compile the numba kernels once, before any progress bar or test worker needs them
-# (numba caches them on disk; later runs load them in well under a second).
+# Compile the numba kernels once, before any progress bar or test worker needs them,
+# into the package's shipped kernels (aldm_gym/_kernels: generic x86-64, what a wheel
+# carries; every later run loads them in about a second). Nothing to do when they match.
 KERNEL_SOURCES := $(shell find aldm_gym -name '*.py')
 $(VENV)/.stamp-kernels: $(KERNEL_SOURCES) | $(VENV)/.stamp-base
-	MPLBACKEND=Agg SDL_VIDEODRIVER=dummy $(BIN)/python -m aldm_gym.warmup
+	MPLBACKEND=Agg SDL_VIDEODRIVER=dummy $(BIN)/python -m aldm_gym.warmup --store
 	touch $@
 
 setup: $(VENV)/.stamp-base $(VENV)/.stamp-kernels
@@ -39,6 +40,10 @@ setup-dev: $(VENV)/.stamp-dev $(VENV)/.stamp-kernels
 ## Main job: the naive-vs-ALDM comparison (quick default, a few minutes on 2 cores).
 demo: $(VENV)/.stamp-base $(VENV)/.stamp-kernels
 	MPLBACKEND=Agg $(BIN)/aldm-gym compare --quick --out out/demo
+
+## A wheel that carries the shipped kernels (in dist/): its installs compile nothing.
+wheel: $(VENV)/.stamp-base $(VENV)/.stamp-kernels
+	$(PIP) wheel --quiet --no-deps --no-build-isolation -w dist .
 
 ## Test suite (lint, then pytest on both cores).
 test: $(VENV)/.stamp-dev $(VENV)/.stamp-kernels

@@ -18,7 +18,14 @@ tracking ALDM under the camera preset and on a map (the documented examples). Bo
 write the same on-disk cache (numba replaces its index files atomically; a kernel both
 happen to need is compiled twice, not corrupted).
 
-Run: ``python -m aldm_gym.warmup [--serial]`` (prints what it did and how long it took).
+With ``--store`` the same warm-up runs in child processes that compile for a generic
+x86-64 CPU into the package's shipped kernels (:data:`aldm_gym._numba.STORE`, emptied
+first, then its manifest), which every later process on any x86-64 CPU loads when
+numba's cache misses (docs/reliability.md, "Shipped kernels"); it does nothing when
+they match this install. Every Makefile setup runs it.
+
+Run: ``python -m aldm_gym.warmup [--serial] [--store]`` (prints what it did and how
+long it took).
 """
 
 from __future__ import annotations
@@ -178,15 +185,58 @@ def warm_up(parallel: bool | None = None) -> float:
     return time.perf_counter() - start
 
 
+def build_store(parallel: bool | None = None) -> float:
+    """Compile the shipped kernels: the warm-up in a child process that compiles for a
+    generic x86-64 CPU into :data:`aldm_gym._numba.STORE` (emptied first), then the
+    manifest. A wheel built afterwards carries them (package data).
+
+    :param parallel: as :func:`warm_up`.
+    :return: the wall time it took [s].
+    :raise OSError: the package folder is not writable.
+    :raise subprocess.CalledProcessError: the compile failed (the store is left empty).
+    """
+    import json
+    import shutil
+
+    from aldm_gym._numba import MANIFEST, STORE, STORE_ENV, store_manifest
+
+    start = time.perf_counter()
+    shutil.rmtree(STORE, ignore_errors=True)
+    STORE.mkdir()
+    env = {**os.environ, "NUMBA_CPU_NAME": "generic", STORE_ENV: "build"}
+    for name in ("NUMBA_CPU_FEATURES", "NUMBA_DISABLE_JIT"):
+        env.pop(name, None)
+    code = f"from aldm_gym.warmup import warm_up; warm_up(parallel={parallel!r})"
+    subprocess.run([sys.executable, "-c", code], env=env, check=True)
+    (STORE / MANIFEST).write_text(json.dumps(store_manifest(), indent=1) + "\n")
+    return time.perf_counter() - start
+
+
 def main() -> None:
-    """Warm up with a one-line message before and after."""
+    from aldm_gym._numba import store_status
+
+    """Warm up (or build the shipped kernels) with a one-line message before and after."""
     parser = argparse.ArgumentParser(prog="python -m aldm_gym.warmup", description=__doc__)
     parser.add_argument(
         "--serial", action="store_true", help="compile in this process only (no helper)"
     )
+    parser.add_argument(
+        "--store",
+        action="store_true",
+        help="compile the shipped kernels (generic x86-64, into the package folder) "
+        "instead of this machine's numba cache; nothing to do when they are current",
+    )
     args = parser.parse_args()
-    print("aldm-gym: compiling the numba kernels (cached on disk; once per install)...", flush=True)
-    took = warm_up(parallel=False if args.serial else None)
+    parallel = False if args.serial else None
+    if args.store:
+        if store_status() == "current":
+            print("aldm-gym: the shipped kernels are current", flush=True)
+            return
+        print("aldm-gym: compiling the shipped kernels (generic x86-64)...", flush=True)
+        took = build_store(parallel)
+    else:
+        print("aldm-gym: compiling the numba kernels (cached on disk; once per install)...")
+        took = warm_up(parallel)
     print(f"aldm-gym: kernels ready in {took:.0f} s", file=sys.stdout, flush=True)
 
 

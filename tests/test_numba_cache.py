@@ -28,7 +28,8 @@ def _run_kernel(env: dict[str, str], cwd: Path | None = None) -> subprocess.Comp
 
 
 def test_a_corrupt_numba_cache_entry_is_recompiled_with_a_warning(tmp_path: Path) -> None:
-    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path)}
+    # the shipped kernels off: this is numba's own cache (tests/test_kernel_store.py)
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path), "ALDM_GYM_KERNEL_STORE": "off"}
     env.pop("NUMBA_DISABLE_JIT", None)
     first = _run_kernel(env)
     assert first.returncode == 0, first.stderr
@@ -53,7 +54,7 @@ def test_without_a_writable_numba_cache_the_kernels_compile_in_memory(tmp_path: 
     folder and no NUMBA_CACHE_DIR: numba used to refuse to decorate the kernels."""
     package = Path(__file__).resolve().parents[1] / "aldm_gym"
     copy = tmp_path / "aldm_gym"
-    shutil.copytree(package, copy, ignore=shutil.ignore_patterns("__pycache__"))
+    shutil.copytree(package, copy, ignore=shutil.ignore_patterns("__pycache__", "_kernels"))
     for folder in [copy, *[p for p in copy.rglob("*") if p.is_dir()]]:
         (folder / "__pycache__").write_text("a file where numba wants a folder")
     env = {**os.environ, "PYTHONPATH": str(tmp_path), "XDG_CACHE_HOME": "/dev/null/cache"}
@@ -81,7 +82,7 @@ def test_a_kernel_is_recompiled_when_a_kernel_it_calls_changes(tmp_path: Path) -
     changed. The package keys every kernel by one digest of all kernel sources."""
     package = Path(__file__).resolve().parents[1] / "aldm_gym"
     copy = tmp_path / "pkg" / "aldm_gym"
-    shutil.copytree(package, copy, ignore=shutil.ignore_patterns("__pycache__"))
+    shutil.copytree(package, copy, ignore=shutil.ignore_patterns("__pycache__", "_kernels"))
     env = {**os.environ, "PYTHONPATH": str(copy.parent), "NUMBA_CACHE_DIR": str(tmp_path / "c")}
     env.pop("NUMBA_DISABLE_JIT", None)
 

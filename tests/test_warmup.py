@@ -44,3 +44,22 @@ def test_the_warm_up_runs_the_compiled_traffic_engine() -> None:
     kernels are in the cache before a test worker or a progress bar needs them."""
     assert warmup._env_steps(warmup._HELPER_ENVS[:1]) == 10  # one env step, 10 simulation steps
     assert warmup._env_steps(warmup._FINAL_ENVS[:1]) == 10
+
+
+def test_store_flag_builds_only_when_the_shipped_kernels_do_not_match(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--store`` compiles the shipped kernels when they are missing or stale, and says
+    so without compiling when they are current."""
+    import aldm_gym._numba as numba_guards
+
+    built: list[bool | None] = []
+    monkeypatch.setattr(warmup, "build_store", lambda parallel=None: built.append(parallel) or 2.0)
+    monkeypatch.setattr(sys, "argv", ["aldm_gym.warmup", "--store", "--serial"])
+    for status, builds in (("current", 0), ("stale", 1), ("missing", 2)):
+        monkeypatch.setattr(numba_guards, "store_status", lambda status=status: status)
+        warmup.main()
+        assert len(built) == builds
+    assert built == [False, False]
+    out = capsys.readouterr().out
+    assert "the shipped kernels are current" in out and out.count("kernels ready in 2 s") == 2
