@@ -23,6 +23,11 @@ Maps (right-hand traffic, lane width 3.75 m on the motorway, 3.5 m elsewhere):
   arcs), ``paramPoly3``, a ``laneOffset`` shift, a lane-width change and double
   (``solid broken``) and ``botts dots`` marks.
 
+And, for the detectors' sequence benchmark (``benchmarks/lane_sequences.py``; not a
+shipped map), ``benchmarks/data/curvature_step.xodr``: a 3-lane carriageway that joins
+straights and R = 100 m arcs with no transition curve, as OpenDRIVE allows (400 m
+straight, a left arc of 90°, 400 m straight, a right arc of 90°, 400 m straight).
+
 scenariogeneration writes everything here; the only post-processing (with lxml) fixes
 the header's date so that the files are reproducible.
 """
@@ -37,6 +42,7 @@ from lxml import etree
 from scenariogeneration import xodr
 
 OUT = Path(__file__).resolve().parents[1] / "aldm_gym" / "roads" / "maps"
+BENCH_DATA = Path(__file__).resolve().parents[1] / "benchmarks" / "data"
 W = 3.75  # motorway lane width [m]
 
 
@@ -361,10 +367,28 @@ def bridges() -> xodr.OpenDrive:
     return odr
 
 
-def write(odr: xodr.OpenDrive, name: str) -> Path:
+def curvature_step() -> xodr.OpenDrive:
+    """A 3-lane carriageway whose straights and R 100 m arcs meet with no clothoid: the
+    curvature steps from 0 to 1/100 m and back, four times."""
+    quarter = math.pi / 2 * 100.0  # a 90° arc of R 100 m [m]
+    geometries = [
+        xodr.Line(400.0),
+        xodr.Arc(1 / 100, quarter),
+        xodr.Line(400.0),
+        xodr.Arc(-1 / 100, quarter),
+        xodr.Line(400.0),
+    ]
+    odr = xodr.OpenDrive("curvature_step")
+    r1 = road(1, geometries, simple_lanes(3))
+    r1.planview.set_start_point(0.0, 0.0, 0.0)
+    odr.add_road(r1)
+    return odr
+
+
+def write(odr: xodr.OpenDrive, name: str, out: Path = OUT) -> Path:
     """Adjust and write a map; fix the header date for reproducible files."""
     odr.adjust_roads_and_lanes()
-    path = OUT / name
+    path = out / name
     odr.write_xml(str(path))
     tree = etree.parse(str(path))
     tree.getroot().find("header").set("date", "2025-01-01T00:00:00")
@@ -382,6 +406,8 @@ def main() -> int:
         (bridges(), "bridges.xodr"),
     ):
         print(write(odr, name))
+    BENCH_DATA.mkdir(parents=True, exist_ok=True)
+    print(write(curvature_step(), "curvature_step.xodr", BENCH_DATA))
     return 0
 
 

@@ -1,0 +1,90 @@
+"""The lane detectors on drives along map lanes: single frame, filter, tracker.
+
+For every map (the shipped ones and ``benchmarks/data/curvature_step.xodr``, whose
+straights and R 100 m arcs meet with no transition curve), every lane chain a drive
+starts on (:func:`aldm_gym.sensor.drives.drive_starts`), and every condition of
+:data:`aldm_gym.sensor.drives.CONDITIONS` (ideal; 5 cm noise and 10 % dropout; 30 %
+worn dashes; four moving vehicles, 30 % trucks; all together), the ego drives the
+chain at 25 m/s with a frame every 0.1 s (per-dash paint, the line sensor's CarMaker
+sampling) and each detector is scored per frame
+(:func:`aldm_gym.sensor.drives.drive`). Prints one Markdown table: per map and
+condition, per detector, the share of frames with both ego lines correct, the longest
+run of wrong frames [s] and the share of ego lines missing.
+
+Run: ``.venv/bin/python -m benchmarks.lane_sequences [--jobs 2] [--max-frames 600]
+[--maps NAME,...] [--conditions NAME,...]`` (about 10 minutes on 2 cores).
+"""
+
+from __future__ import annotations
+
+import argparse
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+from tqdm import tqdm
+
+from aldm_gym.roads import SHIPPED_MAPS, OpenDriveRoad, shipped_map
+from aldm_gym.sensor.drives import CONDITIONS, DETECTORS, DriveScore, drive, drive_starts
+
+CURVATURE_STEP = Path(__file__).resolve().parent / "data" / "curvature_step.xodr"
+"""Straight, R 100 m, straight, R 100 m, straight, with no transition curves."""
+
+MAPS: dict[str, Path] = {
+    **{name: shipped_map(name) for name in SHIPPED_MAPS},
+    "curvature_step": CURVATURE_STEP,
+}
+"""The maps the benchmark drives on."""
+
+
+def _run(task: tuple[str, str, tuple[str, int, int], int]) -> tuple[str, str, dict]:
+    name, condition, start, max_frames = task
+    road = OpenDriveRoad.from_file(MAPS[name], marking_model="per_dash")
+    return name, condition, drive(road, start, CONDITIONS[condition], max_frames=max_frames)
+
+
+def table(
+    maps: list[str], conditions: list[str], max_frames: int, jobs: int
+) -> dict[tuple[str, str], dict[str, DriveScore]]:
+    """Every drive, merged per map and condition."""
+    tasks = []
+    for name in maps:
+        road = OpenDriveRoad.from_file(MAPS[name], marking_model="per_dash")
+        for start in drive_starts(road):
+            tasks += [(name, c, start, max_frames) for c in conditions]
+    totals = {(m, c): {d: DriveScore() for d in DETECTORS} for m in maps for c in conditions}
+    with ProcessPoolExecutor(jobs) as pool:
+        for name, condition, scores in tqdm(
+            pool.map(_run, tasks), total=len(tasks), desc="drives", unit="drive"
+        ):
+            for d, sc in scores.items():
+                totals[name, condition][d].merge(sc)
+    return totals
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Print the table."""
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--jobs", type=int, default=2)
+    parser.add_argument("--max-frames", type=int, default=600, help="per drive (60 s)")
+    parser.add_argument("--maps", default=",".join(MAPS))
+    parser.add_argument("--conditions", default=",".join(CONDITIONS))
+    args = parser.parse_args(argv)
+    maps = [m for m in args.maps.split(",") if m]
+    conditions = [c for c in args.conditions.split(",") if c]
+    bad = [m for m in maps if m not in MAPS] + [c for c in conditions if c not in CONDITIONS]
+    if bad:
+        parser.error(f"unknown {bad}; maps: {list(MAPS)}, conditions: {list(CONDITIONS)}")
+    totals = table(maps, conditions, args.max_frames, args.jobs)
+    head = " | ".join(f"{d} both / longest wrong / missed" for d in DETECTORS)
+    print(f"\n| map | condition | frames | {head} |")
+    print("|---|---|---:|" + "---:|" * len(DETECTORS))
+    for (name, condition), scores in totals.items():
+        cells = " | ".join(
+            f"{sc.share:.3f} / {sc.longest_wrong_s:.1f} s / {sc.missed_share:.3f}"
+            for sc in scores.values()
+        )
+        print(f"| {name} | {condition} | {scores[DETECTORS[0]].frames} | {cells} |")
+
+
+if __name__ == "__main__":
+    main()

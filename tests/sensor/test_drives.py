@@ -1,0 +1,107 @@
+"""Drives along map lanes (:mod:`aldm_gym.sensor.drives`): the path, the moving
+vehicles, and a short drive scored for every detector."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from aldm_gym.errors import InputError
+from aldm_gym.roads import OpenDriveRoad, shipped_map
+from aldm_gym.sensor.drives import (
+    CAR,
+    CONDITIONS,
+    DETECTORS,
+    TRUCK,
+    Condition,
+    DriveScore,
+    drive,
+    drive_starts,
+    lane_path,
+    path_length,
+    path_poses,
+    traffic,
+)
+
+CURVATURE_STEP = Path(__file__).resolve().parents[2] / "benchmarks" / "data" / "curvature_step.xodr"
+
+
+def test_path_poses_follow_a_polyline_with_its_segment_headings() -> None:
+    # highway-env's frame: y down, so a left turn in the driver's view goes to -y
+    xy = np.array([[0.0, 0.0], [10.0, 0.0], [10.0, -10.0]])
+    assert path_length(xy) == 20.0
+    poses = path_poses(xy, np.array([-5.0, 5.0, 15.0, 30.0]))
+    np.testing.assert_allclose(poses[:, :2], [[0, 0], [5, 0], [10, -5], [10, -10]])
+    np.testing.assert_allclose(poses[:, 2], [0.0, 0.0, -math.pi / 2, -math.pi / 2])
+
+
+def test_lane_path_runs_along_the_chain_in_driving_order() -> None:
+    road = OpenDriveRoad.from_file(CURVATURE_STEP, marking_model="per_dash")
+    starts = drive_starts(road)
+    assert starts == [("1", 0, -1), ("1", 0, -2), ("1", 0, -3)]
+    xy = lane_path(road, starts[1])
+    # lane -2 starts 1.5 lanes right of the reference line (y down in highway-env)
+    assert xy[0, 0] == pytest.approx(0.0) and xy[0, 1] == pytest.approx(1.5 * 3.75)
+    # outside of the left arc, inside of the right one: as long as the reference line
+    assert path_length(xy) == pytest.approx(1514.16, abs=0.5)
+    pose = path_poses(xy, np.array([200.0, 700.0]))
+    assert pose[0, 2] == pytest.approx(0.0, abs=1e-9)
+    assert pose[1, 2] == pytest.approx(-math.pi / 2, abs=1e-9)  # heading +y in OpenDRIVE
+
+
+def test_traffic_moves_wraps_and_keeps_its_lanes() -> None:
+    xy = np.array([[0.0, 0.0], [5000.0, 0.0]])
+    u = np.arange(600) * 2.5  # 60 s
+    boxes = traffic(xy, u, 3.75, 4, 0.0, seed=0)
+    assert boxes.shape == (600, 4, 6)
+    gap = boxes[:, :, 0] - u[:, None]
+    # the car ahead in the ego's lane breathes between 18 m and 60 m
+    assert 17.9 < gap[:, 0].min() < 18.5 and 59.5 < gap[:, 0].max() < 60.1
+    # lateral offsets: a lane left (y negative in highway-env's frame), a lane right
+    np.testing.assert_allclose(boxes[:, :, 1], np.broadcast_to([0.0, -3.75, 3.75, -3.75], (600, 4)))
+    # the overtaken car (2 m/s slower) falls behind and comes back 200 m ahead
+    assert gap[:, 1].min() >= -40.0 and gap[:, 1].max() <= 200.0
+    assert np.any(np.diff(gap[:, 1]) > 100.0)
+    assert all(tuple(b[3:]) == CAR for b in boxes[0])
+    trucks = traffic(xy, u, 3.75, 4, 1.0, seed=0)
+    assert all(tuple(b[3:]) == TRUCK for b in trucks[0])
+
+
+def test_a_short_drive_scores_every_detector_and_repeats_bit_for_bit() -> None:
+    road = OpenDriveRoad.from_file(shipped_map("motorway"), marking_model="per_dash")
+    start = drive_starts(road)[0]
+    ideal = drive(road, start, CONDITIONS["ideal"], max_frames=60)
+    assert set(ideal) == set(DETECTORS)
+    for name, sc in ideal.items():
+        assert sc.frames == 60 and sc.share == 1.0 and sc.longest_wrong == 0, name
+    runs = [drive(road, start, CONDITIONS["combined"], seed=3, max_frames=40) for _ in (0, 1)]
+    assert {k: vars(v) for k, v in runs[0].items()} == {k: vars(v) for k, v in runs[1].items()}
+    # a car ahead hides the ego's lines: no detector is always right with it
+    assert min(sc.share for sc in runs[0].values()) < 1.0
+
+
+def test_drive_score_counts_runs_and_misses() -> None:
+    sc = DriveScore()
+    for ok in (True, False, False, True, False):
+        sc.add(ok, True, ok, True)
+    assert (sc.frames, sc.correct, sc.longest_wrong, sc.missed) == (5, 2, 2, 3)
+    assert sc.share == 0.4 and sc.longest_wrong_s == pytest.approx(0.2)
+    assert sc.missed_share == 0.3
+    other = DriveScore()
+    other.add(False, False, False, False)
+    sc.merge(other)
+    assert (sc.frames, sc.longest_wrong, sc.missed) == (6, 2, 5)
+    assert math.isnan(DriveScore().share)
+
+
+def test_bad_settings_are_refused_by_name() -> None:
+    road = OpenDriveRoad.from_file(CURVATURE_STEP, marking_model="per_dash")
+    with pytest.raises(InputError, match="unknown detectors"):
+        drive(road, ("1", 0, -1), CONDITIONS["ideal"], detectors=("naive",))
+    with pytest.raises(InputError, match=r"vehicles must be 0\.\.4"):
+        Condition(vehicles=5)
+    with pytest.raises(InputError, match="truck_share"):
+        Condition(truck_share=1.5)
