@@ -161,7 +161,8 @@ class ALDMHighwayEnv(AbstractEnv):
     ``arc_length`` (true position along the road [m]), ``detection``
     (``{"ego_left"|"ego_right": {"mean_abs_error" [m] up to 60 m, "preview" [m],
     "correct" (1/0)}}``, NaN error and preview when the line is missing; with the
-    lane-model filter also its "confidence" in [0, 1]),
+    lane-model filter also its "confidence" in [0, 1] and "measured_from" /
+    "measured_to", the x range [m] this frame measured it in, NaN when carried),
     ``departures`` (count this episode), ``target`` (the ACC's target against ground
     truth: ``target``, ``leader``, ``correct``, ``missed``, ``false``, ``aeb``,
     ``aeb_activations``, ``phantom_braking``, ``gap``, ``time_gap``), ``collision``

@@ -295,7 +295,10 @@ class Referee:
         ``correct`` is :class:`~aldm_gym.sensor.ground_truth.LineScore`'s: every point
         within 0.3 m of the true marking, starting <= 25 m, reaching >= 60 m. A
         detection with a per-line ``confidence`` (the lane-model filter's) adds it
-        (in [0, 1]; 0 when no line has the role).
+        (in [0, 1]; 0 when no line has the role), and with ``measured`` (the filter's)
+        ``measured_from`` / ``measured_to``: the x range [m] this frame's points
+        measured the line in (NaN: carried by the model alone; beyond the range it is
+        carried too).
         """
         nan = float("nan")
         if detection is None:
@@ -321,4 +324,10 @@ class Referee:
         if confidence is not None:  # the lane-model filter's existence confidence
             for name in ("ego_left", "ego_right"):
                 out[name]["confidence"] = float(confidence[LINE_NAMES.index(name)])
+        measured = getattr(detection, "measured", None)
+        if measured is not None:  # the filter's: where this frame measured the line
+            for name in ("ego_left", "ego_right"):
+                lo, hi = measured[LINE_NAMES.index(name)]
+                out[name]["measured_from"] = float(lo)
+                out[name]["measured_to"] = float(hi)
         return out

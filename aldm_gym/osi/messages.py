@@ -325,7 +325,11 @@ def sensor_data(
     ``MEASUREMENT_STATE_MEASURED``. ``header.existence_probability`` is the line's
     confidence when the detection has one (the lane-model filter's
     :class:`~aldm_gym.sensor.lane_filter.ModelLaneDetection`), unset otherwise (naive
-    detection and the ALDM do not estimate it); per-point confidences are left unset.
+    detection and the ALDM do not estimate it). The filter's lines also carry
+    ``MEASUREMENT_STATE_PREDICTED`` when no point of this frame measured them (drawn
+    from the model alone: hidden, worn) and, per point, ``boundary_line_rmse``: the
+    lateral standard deviation of its position from the filter's covariance (``y``;
+    ``x`` and ``z`` 0). Per-point confidences are left unset.
 
     :param host: the host vehicle (``host_vehicle_location``): a highway-env vehicle,
         an ``osi3.BaseMoving`` to copy, or ``None``.
@@ -359,21 +363,33 @@ def sensor_data(
     found = [(name, detection.line(name)) for name in LINE_NAMES]
     found = [(name, line) for name, line in found if len(line)]
     confidence = getattr(detection, "confidence", None)
+    measured = getattr(detection, "measured", None)
+    lateral_std = getattr(detection, "lateral_std", None)
     objects = line_objects(frame, [line for _, line in found])
     for (name, line), (kind, colour, marking) in zip(found, objects, strict=True):
         db = sd.lane_boundary.add()
         db.header.tracking_id.value = TRACKING_ID[name]
         if marking >= 0 and boundary_ids is not None:
             db.header.ground_truth_id.add().value = int(boundary_ids[marking])
-        db.header.measurement_state = osi3.DetectedItemHeader.MEASUREMENT_STATE_MEASURED
+        role = LINE_NAMES.index(name)
+        carried = measured is not None and not np.isfinite(measured[role]).all()
+        db.header.measurement_state = (
+            osi3.DetectedItemHeader.MEASUREMENT_STATE_PREDICTED
+            if carried
+            else osi3.DetectedItemHeader.MEASUREMENT_STATE_MEASURED
+        )
         if confidence is not None:
-            db.header.existence_probability = float(confidence[LINE_NAMES.index(name)])
+            db.header.existence_probability = float(confidence[role])
         db.header.sensor_id.add().value = sensor
         cand = db.candidate.add()
         cand.probability = 1.0
         cand.classification.type = BOUNDARY_TYPE.get(kind, 0)
         cand.classification.color = BOUNDARY_COLOUR.get(colour, 0) if kind else 0
         db.MergeFromString(encode_points(3, line[:, 0], line[:, 1], z=road_z))
+        if lateral_std is not None and lateral_std.shape[1] == len(line):
+            # the RMSE of each point: lateral only (the filter's covariance)
+            std = lateral_std[role]
+            db.MergeFromString(encode_points(4, np.zeros(len(line)), std))
     return sd
 
 

@@ -327,10 +327,53 @@ class ModelLaneDetection(LaneDetection):
         order, in [0, 1] (0: no line in that role).
     :ivar ids: the filter's id of each line (-1: none); a marking keeps its id while
         its role changes in a lane change.
+    :ivar measured: ``(4, 2)`` per line, the x range ``[from, to]`` [m] of this
+        frame's points that updated it (NaN, NaN: the line was not measured in this
+        frame, e.g. hidden or worn, and is drawn from the model alone). Inside the
+        range the line is measured (across the gaps of a dashed line); outside it, at
+        either end, it is carried by the model: :meth:`measured_mask`.
+    :ivar lateral_std: ``(4, n)`` per line, the standard deviation of each drawn
+        point's lateral position [m] from the filter's covariance (the shape's and the
+        line's offset; NaN where a role has no line). It grows where the line is
+        carried far beyond its measurements.
     """
 
     confidence: FloatArray = field(default_factory=lambda: np.zeros(len(LINE_NAMES)))
     ids: tuple[int, ...] = (-1,) * len(LINE_NAMES)
+    measured: FloatArray = field(default_factory=lambda: np.full((len(LINE_NAMES), 2), np.nan))
+    lateral_std: FloatArray = field(default_factory=lambda: np.zeros((len(LINE_NAMES), 0)))
+
+    def measured_mask(self, name: str) -> np.ndarray:
+        """Per point of line ``name``, whether it lies in the x range measured in this
+        frame (:attr:`measured`); False everywhere for a line drawn from the model
+        alone, and for no line (an empty mask).
+
+        :raises InputError: an unknown line name (naming the allowed ones).
+        """
+        line = self.line(name)
+        lo, hi = self.measured[LINE_NAMES.index(name)]
+        if not (math.isfinite(lo) and math.isfinite(hi)):
+            return np.zeros(len(line), dtype=bool)
+        return (line[:, 0] >= lo) & (line[:, 0] <= hi)
+
+
+def _spans(x: FloatArray, line: np.ndarray, support: FloatArray, n_lines: int) -> FloatArray:
+    """``(n_lines, 2)`` per line, the x range ``[from, to]`` [m] of the points ``x``
+    that updated it (``line``: each point's line, -1: none), NaN for a line without a
+    hit (robust weights summing to less than :data:`MIN_SUPPORT`)."""
+    out = np.full((n_lines, 2), np.nan)
+    if n_lines == 0 or len(x) == 0:
+        return out
+    taken = line >= 0
+    lines, xs = line[taken], x[taken]
+    lo = np.full(n_lines, np.inf)
+    hi = np.full(n_lines, -np.inf)
+    np.minimum.at(lo, lines, xs)
+    np.maximum.at(hi, lines, xs)
+    hit = (support >= MIN_SUPPORT) & np.isfinite(lo)
+    out[hit, 0] = lo[hit]
+    out[hit, 1] = hi[hit]
+    return out
 
 
 class LaneModelFilter:
@@ -382,6 +425,7 @@ class LaneModelFilter:
         self._miss = np.zeros(0)
         self._far = np.zeros(0)
         self._confirmed = np.zeros(0, dtype=bool)
+        self._span = np.zeros((0, 2))
         self._next_id = 0
         self._last_ids: tuple[int, ...] = (-1,) * len(LINE_NAMES)
         self.n_used = 0
@@ -479,6 +523,7 @@ class LaneModelFilter:
                 self.n_restarts += 1
                 travel = 0.0
                 line, support, far = self._correct(x, y)
+            self._span = _spans(x, line, support, len(self._ids))
             self._existence(support, far, travel)
         # the reference curve after the update (births and drawing move no shape)
         tab = curve_table(self._x, fp.model_range)
@@ -548,6 +593,7 @@ class LaneModelFilter:
         self._miss = np.zeros(n)
         self._far = np.array([float(v[-1, 0]) for v in kept])
         self._confirmed = np.ones(n, dtype=bool)
+        self._span = np.full((n, 2), np.nan)
         self.n_starts += 1
         return True
 
@@ -672,6 +718,7 @@ class LaneModelFilter:
         self._ids, self._conf = self._ids[keep], self._conf[keep]
         self._miss, self._far = self._miss[keep], self._far[keep]
         self._confirmed = self._confirmed[keep]
+        self._span = self._span[keep]
 
     def _birth(self, x: FloatArray, y: FloatArray, line: np.ndarray, tab: FloatArray) -> None:
         """New lines from clusters of the points no line took, by their distance to
@@ -701,9 +748,11 @@ class LaneModelFilter:
                 if abs(lines[j] - centre) < fp.min_spacing:
                     if 0.0 < fp.reseat_length <= self._miss[j] and self._regular(j, centre):
                         self._reseat(j, centre, float(np.max(fx[members])))
+                        self._span[j] = (float(np.min(fx[members])), float(np.max(fx[members])))
                         return
                     continue
             self._add_line(centre, float(np.max(fx[members])))
+            self._span[-1] = (float(np.min(fx[members])), float(np.max(fx[members])))
             return
 
     def _regular(self, j: int, offset: float) -> bool:
@@ -756,6 +805,7 @@ class LaneModelFilter:
         self._miss = np.append(self._miss, 0.0)
         self._far = np.append(self._far, far)
         self._confirmed = np.append(self._confirmed, False)
+        self._span = np.vstack((self._span, np.full((1, 2), np.nan)))
         self.n_born += 1
 
     # -- output ------------------------------------------------------------------------
@@ -800,6 +850,8 @@ class LaneModelFilter:
         fields: dict[str, FloatArray] = {}
         conf = np.zeros(len(LINE_NAMES))
         ids = [-1] * len(LINE_NAMES)
+        measured = np.full((len(LINE_NAMES), 2), np.nan)
+        lateral_std = np.full((len(LINE_NAMES), n_points), np.nan)
         drawn: list[tuple[int, int, float]] = []
         for r in range(len(LINE_NAMES)):
             i = roles[r]
@@ -814,10 +866,13 @@ class LaneModelFilter:
             idx = np.array([i for _, i, _ in drawn], dtype=np.int64)
             fars = np.array([far for *_, far in drawn])
             pts = draw_on(tab, self._x, idx, near, fars, n_points)
+            std = self._lateral_std(tab, pts, idx)
             for c, (r, i, _) in enumerate(drawn):
                 fields[LINE_NAMES[r]] = pts[c]
                 conf[r] = self._conf[i]
                 ids[r] = int(self._ids[i])
+                measured[r] = self._span[i]
+                lateral_std[r] = std[c]
         left, right = fields.get("ego_left"), fields.get("ego_right")
         width = DEFAULT_LANE_WIDTH
         if left is not None and right is not None:
@@ -836,8 +891,26 @@ class LaneModelFilter:
             object.__setattr__(det, name, getattr(base, name))
         object.__setattr__(det, "confidence", conf)
         object.__setattr__(det, "ids", tuple(ids))
+        object.__setattr__(det, "measured", measured)
+        object.__setattr__(det, "lateral_std", lateral_std)
         self._last_ids = tuple(ids)
         return det
+
+    def _lateral_std(self, tab: FloatArray, pts: FloatArray, idx: np.ndarray) -> FloatArray:
+        """``(lines, n)`` the standard deviation [m] of the lateral position of the
+        drawn points ``pts`` (``(lines, n, 2)``) of the model lines ``idx``: a point of
+        line ``i`` is where ``l = y0_i``, so its variance is that of ``y0_i - l`` by the
+        state's covariance (the measurement row of a point on the line)."""
+        lines, n = pts.shape[0], pts.shape[1]
+        _s, _l, g = project_on(tab, pts[:, :, 0].ravel(), pts[:, :, 1].ravel())
+        g = g.reshape(lines, n, N_GEOMETRY)
+        cov = self._p
+        shape = cov[:N_GEOMETRY, :N_GEOMETRY]
+        j = N_GEOMETRY + idx
+        gpg = np.einsum("lna,ab,lnb->ln", g, shape, g)
+        cross = np.einsum("lna,al->ln", g, cov[:N_GEOMETRY, j])
+        var = gpg + 2.0 * cross + cov[j, j][:, None]
+        return np.sqrt(np.maximum(var, 0.0))
 
     @property
     def ids(self) -> tuple[int, ...]:

@@ -3,13 +3,21 @@ parse with the official bindings and carry what OSI requires."""
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from aldm_gym.osi import ViewReader, detect_trace, read_messages
-from aldm_gym.osi.messages import BOUNDARY_ID, TRACKING_ID, VEHICLE_ID, detection_from_data
+from aldm_gym.osi._bindings import osi3
+from aldm_gym.osi.messages import (
+    BOUNDARY_ID,
+    TRACKING_ID,
+    VEHICLE_ID,
+    detection_from_data,
+    sensor_data,
+)
 from aldm_gym.osi.trace import binary_path
 from aldm_gym.sensor.lane_detection import LINE_NAMES
 from tests.osi.conftest import ROADS, record
@@ -151,9 +159,30 @@ def test_sensor_data_carries_the_filter_confidence(env_trace, tmp_path: Path) ->
     for db in data[-1].lane_boundary:
         assert db.header.HasField("existence_probability")
         name = names[db.header.tracking_id.value]
-        assert db.header.existence_probability == conf[LINE_NAMES.index(name)] > 0.0
+        role = LINE_NAMES.index(name)
+        assert db.header.existence_probability == conf[role] > 0.0
+        # measured in this frame, and each point's lateral RMSE from the covariance
+        assert np.isfinite(env.detection.measured[role]).all()
+        assert db.header.measurement_state == osi3.DetectedItemHeader.MEASUREMENT_STATE_MEASURED
+        rmse = [p.position.y for p in db.boundary_line_rmse]
+        assert len(rmse) == len(db.boundary_line)
+        np.testing.assert_allclose(rmse, env.detection.lateral_std[role])
+        assert all(p.position.x == 0.0 for p in db.boundary_line_rmse)
+    # a line the frame did not measure is written as predicted (carried by the model)
+    det = env.detection
+    hidden = dataclasses.replace(det, measured=np.full((len(LINE_NAMES), 2), np.nan))
+    sd = sensor_data(t=0.0, host=None, frame=env.frame, detection=hidden)
+    assert sd.lane_boundary and all(
+        db.header.measurement_state == osi3.DetectedItemHeader.MEASUREMENT_STATE_PREDICTED
+        for db in sd.lane_boundary
+    )
     plain = [m for _, m in _all(env_trace[0], "SensorData")]
     assert not any(db.header.HasField("existence_probability") for db in plain[-1].lane_boundary)
+    assert not any(len(db.boundary_line_rmse) for db in plain[-1].lane_boundary)
+    assert all(
+        db.header.measurement_state == osi3.DetectedItemHeader.MEASUREMENT_STATE_MEASURED
+        for db in plain[-1].lane_boundary
+    )
 
 
 def _all(path: Path, topic: str):

@@ -111,6 +111,7 @@ def test_occluded_line_is_carried_through() -> None:
         return pts
 
     conf = []
+    seen_again: list[bool] = []
     for k, road, pts, det, _filt in _drive(800.0, frames=30, hide=hide):
         conf.append(det.confidence[1])
         if k < 10:
@@ -124,7 +125,17 @@ def test_occluded_line_is_carried_through() -> None:
         assert _err(road, road.ego_left, det.ego_left) < 0.1, k
         assert det.preview("ego_left") > 60.0, k  # the paper's preview
         assert _err(road, road.ego_right, det.ego_right) < 0.05, k
+        # the output says which line is measured in this frame and which is carried
+        lo, hi = det.measured[2]
+        assert lo < 25.0 and hi > 70.0 and det.measured_mask("ego_right").sum() >= 8, k
+        if k < 18:
+            assert np.isnan(det.measured[1]).all() and not det.measured_mask("ego_left").any()
+            assert det.lateral_std[1, -1] > det.lateral_std[2, -1], k
+        else:  # its near dashes (a dash and a gap in 5.5-25 m) measure it again
+            seen_again.append(bool(np.isfinite(det.measured[1]).all()))
+        assert np.all(det.lateral_std < 0.3), k
     assert conf[17] < 0.5 * conf[9] and conf[-1] > 0.6
+    assert sum(seen_again) >= len(seen_again) // 2
 
 
 def test_worn_line_keeps_its_role() -> None:
@@ -252,6 +263,7 @@ def test_no_two_lines_stay_closer_than_min_spacing() -> None:
     filt._miss = np.zeros(3)
     filt._far = np.full(3, 50.0)
     filt._confirmed = np.ones(3, dtype=bool)
+    filt._span = np.full((3, 2), np.nan)
     filt._existence(np.full(3, 5.0), np.full(3, 50.0), 0.0)
     assert list(filt._ids) == [7]
     assert np.all(np.diff(np.sort(filt.offsets)) >= filt.filter.min_spacing)
@@ -512,6 +524,9 @@ def test_env_runs_the_filter() -> None:
             conf = env.unwrapped.detection.confidence[LINE_NAMES.index(name)]
             assert info["detection"][name]["confidence"] == conf
             assert conf > 0.5
+            lo, hi = env.unwrapped.detection.measured[LINE_NAMES.index(name)]
+            assert info["detection"][name]["measured_from"] == lo < 25.0
+            assert info["detection"][name]["measured_to"] == hi > 60.0
     base = env.unwrapped
     assert isinstance(base._detector, ModelALDMDetector)
     det = base.detection
