@@ -34,6 +34,12 @@ MIN_TARGET_PATH = 2
 """A lane change needs a target path of at least this many points (the detected
 adjacent lane's centre)."""
 
+MRM_DECELERATION = 3.0
+"""Deceleration [m/s²] of the minimal-risk manoeuvre of the built-in lane keeping: once
+the detection has had no path for longer than the last path reached, the car holds
+its steering and brakes at this rate to a stop (UN R157 asks an MRM to decelerate in
+the lane at no more than 4 m/s²)."""
+
 
 class SensorVehicle(FastBicycleStep, BatchedLaneUpdate, Vehicle):
     """The ego vehicle: laterally controlled only from the detected lanes.
@@ -104,6 +110,14 @@ class SensorVehicle(FastBicycleStep, BatchedLaneUpdate, Vehicle):
         """A detected lane wider than this many lane widths is opening: the LKA keeps a
         lane's width from the staying line (``lane_end.opening_factor``, set by the env;
         0: the middle)."""
+        self.carried_path: FloatArray = np.zeros((0, 2))
+        """The last path the LKA followed, in the world frame [m]: without a path in the
+        detection it is followed on (dead reckoning), see :meth:`act`."""
+        self.blind = False
+        """Whether the last step had no path of the detection to follow."""
+        self.minimal_risk = False
+        """Whether the car brakes in a minimal-risk manoeuvre: no path, and the carried
+        one run out (:data:`MRM_DECELERATION`)."""
 
     # ------------------------------------------------------------------ actions
     def set_meta_action(self, action: int) -> None:
@@ -202,12 +216,26 @@ class SensorVehicle(FastBicycleStep, BatchedLaneUpdate, Vehicle):
         else:
             path = self._lateral_path()
             self.planned_path = path
+            self.blind = len(path) < 2
+            if not self.blind:
+                self.carried_path = self._to_world(path)
+                self.minimal_risk = False
             if self.requested_steering is not None:  # a function under test's lateral domain
                 steer_iso = self.requested_steering
             else:
                 steer = self.lka.steering(path, self.speed)
-                # No path: hold the last steering (a curve continues), like a driver
-                # briefly blind.
+                if steer is None:
+                    # No path: follow the last one on, carried by the car's own motion,
+                    # until it runs out; then hold the steering (a curve continues) and
+                    # the minimal-risk manoeuvre brakes to a stop.
+                    ahead = self._from_world(self.carried_path)
+                    ahead = ahead[ahead[:, 0] > 0.0]
+                    # run out once it ends before the look-ahead point: pure pursuit
+                    # would aim at its end, off the curve it had
+                    if len(ahead) and math.hypot(*ahead[-1]) >= self.lka.lookahead(self.speed):
+                        steer = self.lka.steering(ahead, self.speed)
+                    if steer is None and len(self.carried_path):
+                        self.minimal_risk = True  # until a path comes back
                 steer_iso = self.steering_iso if steer is None else steer
             if self.requested_acceleration is not None:
                 # a function under test's longitudinal domain; it never reverses the car
@@ -218,6 +246,9 @@ class SensorVehicle(FastBicycleStep, BatchedLaneUpdate, Vehicle):
                 # ACC/AEB (aldm_gym.envs.longitudinal), computed by the env on the same
                 # detection; braking never reverses the car.
                 accel = max(self.acc_command, -max(self.speed, 0.0) * self.sim_frequency)
+            if self.minimal_risk and self.requested_steering is None:
+                stop = -max(self.speed, 0.0) * self.sim_frequency
+                accel = min(accel, max(-MRM_DECELERATION, stop))
         # np.clip's result for scalars with non-NaN bounds, without its ~4 µs dispatch.
         max_steering = float(self.lka.max_steering)
         max_acceleration = float(self.max_acceleration)
@@ -231,6 +262,25 @@ class SensorVehicle(FastBicycleStep, BatchedLaneUpdate, Vehicle):
         self.steering_iso = steer_iso
         # highway-env's world: a positive steering angle turns towards the driver's right.
         self.action = {"steering": -steer_iso, "acceleration": accel}
+
+    def _to_world(self, path: FloatArray) -> FloatArray:
+        """Sensor-frame points (ISO 8855: x forward, y left [m]) in highway-env's world
+        frame (y down) [m]."""
+        c, s = math.cos(self.heading), math.sin(self.heading)
+        f = path[:, 0] + self.lka.sensor_x
+        left = path[:, 1]
+        x = self.position[0] + f * c + left * s
+        y = self.position[1] + f * s - left * c
+        return np.column_stack((x, y))
+
+    def _from_world(self, points: FloatArray) -> FloatArray:
+        """World points [m] in the sensor frame (the inverse of :meth:`_to_world`)."""
+        if len(points) == 0:
+            return np.zeros((0, 2))
+        c, s = math.cos(self.heading), math.sin(self.heading)
+        dx = points[:, 0] - self.position[0]
+        dy = points[:, 1] - self.position[1]
+        return np.column_stack((dx * c + dy * s - self.lka.sensor_x, dx * s - dy * c))
 
     @property
     def yaw_rate(self) -> float:

@@ -110,3 +110,62 @@ def test_closed_loop_on_curves_with_ground_truth(radius: float, speed: float, to
         worst, departures = _closed_loop(radius, speed, left)
         assert departures == 0
         assert worst < tol
+
+
+def _blind_env(radius: float) -> gym.Env:
+    """The built-in LKA (meta actions) with ground truth on a long left bend of
+    ``radius``, no traffic, no ACC, 10 Hz steps."""
+    k = 1.0 / radius
+    segments = [[60, 0, 0], [60, 0, k], [1200, k, k]]
+    return gym.make(
+        "ALDMHighway-v0",
+        config={
+            "detector": "ground_truth",
+            "vehicles_count": 0,
+            "initial_lane_id": 1,
+            "initial_speed": 25.0,
+            "policy_frequency": 10,
+            "duration": 30.0,
+            "acc": {"enabled": False},
+            "road": {"segments": segments},
+        },
+    )
+
+
+def test_without_a_path_the_lka_follows_the_last_one_then_stops_the_car() -> None:
+    """No path in the detection (every line lost): the LKA follows the last path on,
+    carried by the car's own motion, and once it has run out holds the steering and
+    brakes to a stop at MRM_DECELERATION; a path that comes back ends the manoeuvre.
+    (Holding the last steering at speed used to drive circles off the road.)"""
+    from aldm_gym.envs.vehicle import MRM_DECELERATION
+    from aldm_gym.sensor.lane_detection import LaneDetection
+
+    env = _blind_env(500.0)
+    env.reset(seed=0)
+    base = env.unwrapped
+    ego = base.vehicle
+    for _ in range(35):  # into the bend, on the path
+        env.step(1)
+    seeing = base._detector
+    base._detector = lambda *args, **kwargs: LaneDetection()
+    speeds, offsets, risk = [], [], []
+    for _ in range(120):
+        _, _, terminated, truncated, info = env.step(1)
+        assert not (terminated or truncated)
+        speeds.append(ego.speed)
+        offsets.append(abs(info["lateral_offset"]))
+        risk.append(ego.minimal_risk)
+    assert ego.blind
+    # the last path (80 m) carries the car for 2-3 s (until it ends before the
+    # look-ahead point) without braking
+    first = int(np.argmax(risk))
+    assert 15 <= first <= 40 and speeds[first - 1] == pytest.approx(25.0, abs=0.5)
+    assert max(offsets[:first]) < 0.3
+    # then it brakes at the MRM's rate to a stop, and stays stopped, in its lane
+    rate = (speeds[first + 5] - speeds[first + 25]) / 2.0
+    assert rate == pytest.approx(MRM_DECELERATION, rel=0.05)
+    assert speeds[-1] == 0.0 and max(offsets) < 1.0
+    base._detector = seeing
+    for _ in range(2):  # the first steps act on the detection made before
+        env.step(1)
+    assert not ego.blind and not ego.minimal_risk and ego.speed > 0.0
