@@ -42,7 +42,13 @@ demo: $(VENV)/.stamp-base $(VENV)/.stamp-kernels
 	MPLBACKEND=Agg $(BIN)/aldm-gym compare --quick --out out/demo
 
 ## A wheel that carries the shipped kernels (in dist/): its installs compile nothing.
+## The store is checked again here: a numba upgrade or a deleted store does not touch
+## the kernel stamp.
 wheel: $(VENV)/.stamp-base $(VENV)/.stamp-kernels
+	MPLBACKEND=Agg SDL_VIDEODRIVER=dummy $(BIN)/python -m aldm_gym.warmup --store
+	$(BIN)/python -c "import sys; from aldm_gym._numba import store_status as s; \
+		sys.exit(None if s() == 'current' else 'the shipped kernels are ' + s())"
+	rm -rf build/lib/aldm_gym/_kernels
 	$(PIP) wheel --quiet --no-deps --no-build-isolation -w dist .
 
 ## Test suite (lint, then pytest on both cores).

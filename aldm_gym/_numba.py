@@ -17,10 +17,12 @@ a ``__pycache__`` folder next to each module (or the user's cache folder, or
 numba keys a cached kernel by its own file's modification time and size only, so a
 kernel that calls a kernel of another module would keep the callee's *old* machine
 code after the callee's file changed (an edit, or a ``git pull`` that touches only
-that file): silently stale behaviour. Every kernel of this package is therefore keyed by
-one digest of the source of all the package's modules that define kernels: any change
-to any of them recompiles them all (a minute), and an unchanged checkout keeps its
-cache whatever the files' times.
+that file): silently stale behaviour; and numba freezes every global a kernel reads
+(a constant of another module, the slot numbers of ``aldm_kernels/layout.py``) into its
+machine code. Every kernel of this package is therefore keyed by one digest of the
+source of all modules a kernel can read from (:data:`KERNEL_LAYERS`): any change to any
+of them recompiles them all (a minute), and an unchanged checkout keeps its cache
+whatever the files' times.
 
 **Shipped kernels.** Compiling every kernel takes about a minute on 2 cores, on every
 new install, CI runner and cluster node. The package therefore ships its kernels
@@ -34,8 +36,9 @@ architecture, so it never serves stale code, and where it does not match (anothe
 numba, Python or CPU family, an edited kernel) the kernels compile as before, with the
 reason in the compile notice. It is only read; a corrupt entry is compiled instead,
 with one warning. ``python -m aldm_gym.warmup --store`` builds it (every Makefile
-setup does) and a wheel built afterwards carries it (``make wheel``). Setting
-:data:`STORE_ENV` to ``off`` ignores it.
+setup does) into :data:`STORE_BUILD` and then moves it into place, and a wheel built
+afterwards carries it (``make wheel``). Setting :data:`STORE_ENV` to ``off`` ignores
+it.
 
 On a cache miss of one of the package's kernels that the store does not serve (the
 first run after a source install or an edit), one log record says that kernels are
@@ -188,17 +191,38 @@ def _guarded_load_overload(original: Any) -> Any:
     return load_overload
 
 
+KERNEL_LAYERS = (
+    "__init__",
+    "errors",
+    "xmlfile",
+    "types",
+    "_numba",
+    "fmi",
+    "config",
+    "roads",
+    "sensor",
+    "osi",
+    "scenario",
+    "envs",
+)
+"""The package's modules and subpackages a kernel can read from: those of the layers up
+to the highest one holding a kernel (``envs``; the layers of ``tests/test_layers.py``).
+numba freezes every global a kernel reads (a slot number of
+``aldm_kernels/layout.py``, a constant of another module) into its machine code, so
+all of them key the cache, not only the files that define kernels."""
+
+
 def kernel_digest() -> str:
-    """sha256 of the source of every module of the package that defines a kernel
-    (``njit`` in its text), in path order; computed once per process."""
+    """sha256 of the source of every module of :data:`KERNEL_LAYERS`, in path order;
+    computed once per process."""
     global _digest
     if _digest is None:
         root = Path(__file__).parent
         h = hashlib.sha256()
         for path in sorted(root.rglob("*.py")):
-            text = path.read_bytes()
-            if b"njit" in text:
-                h.update(path.relative_to(root).as_posix().encode() + b"\0" + text + b"\0")
+            rel = path.relative_to(root)
+            if rel.parts[0].removesuffix(".py") in KERNEL_LAYERS:
+                h.update(rel.as_posix().encode() + b"\0" + path.read_bytes() + b"\0")
         _digest = h.hexdigest()
     return _digest
 
@@ -207,6 +231,10 @@ STORE = Path(__file__).parent / "_kernels"
 """The shipped kernels: the package's kernels compiled ahead of time for a generic
 x86-64 CPU (``NUMBA_CPU_NAME=generic``), in numba's cache format, one folder per
 package folder (``python -m aldm_gym.warmup --store`` writes it; a wheel carries it)."""
+
+STORE_BUILD = STORE.with_name("_kernels.build")
+"""Where ``build`` mode compiles, before :func:`aldm_gym.warmup.build_store` moves it
+to :data:`STORE` (a failed build leaves the old store as it was)."""
 
 STORE_ENV = "ALDM_GYM_KERNEL_STORE"
 """Environment variable: ``read`` (default) loads a kernel from :data:`STORE` when the
@@ -221,13 +249,20 @@ _ROOT = Path(__file__).resolve().parent
 _store_class: Any = None
 _stores: dict[Any, Any] = {}
 _warned_store = False
+_mode: str | None = None
 
 
 def store_mode() -> str:
-    """The value of :data:`STORE_ENV` (``read`` when unset).
+    """The value of :data:`STORE_ENV` (``read`` when unset), read once per process.
 
     :raise ValueError: an unknown value, naming the allowed ones.
+    :raise RuntimeError: ``build`` without ``NUMBA_CPU_NAME=generic`` and no
+        ``NUMBA_CPU_FEATURES`` (code for this CPU would be stored as generic code,
+        and crash another CPU).
     """
+    global _mode
+    if _mode is not None:
+        return _mode
     value = os.environ.get(STORE_ENV, "").strip().lower() or "read"
     if value not in STORE_MODES:
         raise ValueError(
@@ -236,12 +271,13 @@ def store_mode() -> str:
     if value == "build":
         from numba.core import config
 
-        if str(config.CPU_NAME).lower() != _GENERIC:
+        if str(config.CPU_NAME).lower() != _GENERIC or (config.CPU_FEATURES or ""):
             raise RuntimeError(
                 f"{STORE_ENV}=build compiles the shipped kernels, which must run on any "
-                "x86-64 CPU: set NUMBA_CPU_NAME=generic too (python -m aldm_gym.warmup "
-                "--store does)"
+                "x86-64 CPU: set NUMBA_CPU_NAME=generic too, and no NUMBA_CPU_FEATURES "
+                "(python -m aldm_gym.warmup --store does)"
             )
+    _mode = value
     return value
 
 
@@ -287,8 +323,11 @@ def _store_cache_class() -> Any:
         """The folder of :data:`STORE` that mirrors the kernel's package folder."""
 
         def __init__(self, py_func: Any, py_file: str) -> None:
+            self._py_file = py_file
             self._lineno = py_func.__code__.co_firstlineno
-            self._path = STORE / Path(py_file).resolve().parent.relative_to(_ROOT)
+            # a build writes next to the store, which it replaces when it has finished
+            root = STORE_BUILD if store_mode() == "build" else STORE
+            self._path = root / Path(py_file).resolve().parent.relative_to(_ROOT)
 
         def get_cache_path(self) -> str:
             return str(self._path)
@@ -330,7 +369,10 @@ def _store_cache_class() -> Any:
 
         def _index_key(self, sig: Any, codegen: Any) -> Any:
             sig_key, magic, code = super()._index_key(sig, codegen)
-            return sig_key, (magic[0], _GENERIC, ""), code
+            generic = (magic[0], _GENERIC, "")
+            if store_mode() == "build" and tuple(magic) != generic:
+                raise RuntimeError(f"the shipped kernels must be generic code, not {magic}")
+            return sig_key, generic, code
 
     _store_class = StoreCache
     return StoreCache

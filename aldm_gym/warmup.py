@@ -187,35 +187,58 @@ def warm_up(parallel: bool | None = None) -> float:
 
 def build_store(parallel: bool | None = None) -> float:
     """Compile the shipped kernels: the warm-up in a child process that compiles for a
-    generic x86-64 CPU into :data:`aldm_gym._numba.STORE` (emptied first), then the
-    manifest. A wheel built afterwards carries them (package data).
+    generic x86-64 CPU into :data:`aldm_gym._numba.STORE_BUILD`, then the manifest, then
+    that folder replaces :data:`aldm_gym._numba.STORE`. A wheel built afterwards carries
+    them (package data).
+
+    The child runs with ``NUMBA_CPU_NAME=generic`` and Intel's SVML off (code that calls
+    it would not load where it is missing), and without the settings that change the
+    code numba makes (``NUMBA_CPU_FEATURES``, ``NUMBA_OPT``, ``NUMBA_BOUNDSCHECK``,
+    ``NUMBA_DEBUGINFO``, ``NUMBA_DISABLE_JIT``).
 
     :param parallel: as :func:`warm_up`.
     :return: the wall time it took [s].
     :raise OSError: the package folder is not writable.
-    :raise subprocess.CalledProcessError: the compile failed (the store is left empty).
+    :raise subprocess.CalledProcessError: the compile failed (the store is left as it
+        was).
     """
     import json
     import shutil
 
-    from aldm_gym._numba import MANIFEST, STORE, STORE_ENV, store_manifest
+    from aldm_gym._numba import MANIFEST, STORE, STORE_BUILD, STORE_ENV, store_manifest
 
     start = time.perf_counter()
-    shutil.rmtree(STORE, ignore_errors=True)
-    STORE.mkdir()
-    env = {**os.environ, "NUMBA_CPU_NAME": "generic", STORE_ENV: "build"}
-    for name in ("NUMBA_CPU_FEATURES", "NUMBA_DISABLE_JIT"):
+    shutil.rmtree(STORE_BUILD, ignore_errors=True)
+    STORE_BUILD.mkdir()
+    env = {
+        **os.environ,
+        "NUMBA_CPU_NAME": "generic",
+        "NUMBA_DISABLE_INTEL_SVML": "1",
+        STORE_ENV: "build",
+    }
+    for name in (
+        "NUMBA_CPU_FEATURES",
+        "NUMBA_OPT",
+        "NUMBA_BOUNDSCHECK",
+        "NUMBA_DEBUGINFO",
+        "NUMBA_DISABLE_JIT",
+    ):
         env.pop(name, None)
     code = f"from aldm_gym.warmup import warm_up; warm_up(parallel={parallel!r})"
-    subprocess.run([sys.executable, "-c", code], env=env, check=True)
-    (STORE / MANIFEST).write_text(json.dumps(store_manifest(), indent=1) + "\n")
+    try:
+        subprocess.run([sys.executable, "-c", code], env=env, check=True)
+        (STORE_BUILD / MANIFEST).write_text(json.dumps(store_manifest(), indent=1) + "\n")
+        shutil.rmtree(STORE, ignore_errors=True)
+        STORE_BUILD.rename(STORE)
+    finally:
+        shutil.rmtree(STORE_BUILD, ignore_errors=True)
     return time.perf_counter() - start
 
 
 def main() -> None:
+    """Warm up (or build the shipped kernels) with a one-line message before and after."""
     from aldm_gym._numba import store_status
 
-    """Warm up (or build the shipped kernels) with a one-line message before and after."""
     parser = argparse.ArgumentParser(prog="python -m aldm_gym.warmup", description=__doc__)
     parser.add_argument(
         "--serial", action="store_true", help="compile in this process only (no helper)"
@@ -235,7 +258,10 @@ def main() -> None:
         print("aldm-gym: compiling the shipped kernels (generic x86-64)...", flush=True)
         took = build_store(parallel)
     else:
-        print("aldm-gym: compiling the numba kernels (cached on disk; once per install)...")
+        print(
+            "aldm-gym: compiling the numba kernels (cached on disk; once per install)...",
+            flush=True,
+        )
         took = warm_up(parallel)
     print(f"aldm-gym: kernels ready in {took:.0f} s", file=sys.stdout, flush=True)
 

@@ -71,10 +71,13 @@ def _run(code: str, env: dict[str, str], cwd: Path) -> subprocess.CompletedProce
 
 
 def _build(copy: Path, tmp_path: Path, code: str = _KERNEL) -> subprocess.CompletedProcess:
-    """Compile ``code``'s kernels into the copy's store, as ``warmup --store`` does."""
+    """Compile ``code``'s kernels into the copy's store, as ``warmup --store`` does
+    (into ``_kernels.build``, then moved into place)."""
     env = _env(copy, tmp_path / "build-cache", NUMBA_CPU_NAME="generic", **{STORE_ENV: "build"})
     got = _run(code, env, tmp_path)
     assert got.returncode == 0, got.stderr
+    assert not (copy / "_kernels").exists()  # nothing is written into the store itself
+    (copy / "_kernels.build").rename(copy / "_kernels")
     return got
 
 
@@ -146,6 +149,11 @@ def test_generic_code_gives_this_cpus_numbers_bit_for_bit(tmp_path: Path) -> Non
     [
         ({STORE_ENV: "maybe"}, f"{STORE_ENV}='maybe' is not one of read, off, build"),
         ({STORE_ENV: "build"}, "set NUMBA_CPU_NAME=generic too"),
+        # generic with this CPU's features would be stored as generic code
+        (
+            {STORE_ENV: "build", "NUMBA_CPU_NAME": "generic", "NUMBA_CPU_FEATURES": "+avx2"},
+            "no NUMBA_CPU_FEATURES",
+        ),
     ],
 )
 def test_bad_store_settings_are_refused_by_name(
@@ -154,7 +162,7 @@ def test_bad_store_settings_are_refused_by_name(
     copy = _package_copy(tmp_path)
     run = _run(_KERNEL, _env(copy, tmp_path / "c", **extra), tmp_path)
     assert run.returncode != 0 and message in run.stderr, run.stderr
-    assert not (copy / "_kernels").exists()
+    assert not (copy / "_kernels").exists() and not (copy / "_kernels.build").exists()
 
 
 _FIRST_STEP = """

@@ -159,3 +159,26 @@ def test_a_registry_string_is_an_edge_to_the_env() -> None:
     assert ENV_MODULE in found
     assert _layer(ENV_MODULE) > _layer("aldm_gym.scenario.runner")
     assert ENV_MODULE not in _imports("gym.make('CartPole-v1')\n", known)
+
+
+def test_every_kernel_lives_in_a_layer_the_kernel_digest_covers() -> None:
+    """numba freezes the globals a kernel reads into its machine code; the cache's
+    digest (``aldm_gym._numba.KERNEL_LAYERS``) covers the layers a kernel can read
+    from, which holds only while no kernel lives in a higher layer."""
+    from aldm_gym._numba import KERNEL_LAYERS
+
+    def compiles(path: Path) -> bool:  # numba.njit in the code, not in a docstring
+        return any(
+            isinstance(node, ast.Attribute) and node.attr == "njit"
+            for node in ast.walk(ast.parse(path.read_text()))
+        )
+
+    kernels = [p for p in PACKAGE.rglob("*.py") if compiles(p)]
+    assert kernels
+    outside = [
+        p.relative_to(PACKAGE).as_posix()
+        for p in kernels
+        if p.relative_to(PACKAGE).parts[0].removesuffix(".py") not in KERNEL_LAYERS
+    ]
+    assert outside == [], outside
+    assert list(KERNEL_LAYERS[1:]) == list(LAYERS[: LAYERS.index("envs") + 1])
