@@ -12,7 +12,7 @@ condition, per detector, the share of frames with both ego lines correct, the lo
 run of wrong frames [s] and the share of ego lines missing.
 
 Run: ``.venv/bin/python -m benchmarks.lane_sequences [--jobs 2] [--max-frames 600]
-[--maps NAME,...] [--conditions NAME,...]`` (about 10 minutes on 2 cores).
+[--maps NAME,...] [--conditions NAME,...]`` (about a minute on 2 cores).
 """
 
 from __future__ import annotations

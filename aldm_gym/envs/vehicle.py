@@ -222,6 +222,7 @@ class SensorVehicle(FastBicycleStep, BatchedLaneUpdate, Vehicle):
                 self.minimal_risk = False
             if self.requested_steering is not None:  # a function under test's lateral domain
                 steer_iso = self.requested_steering
+                self.minimal_risk = False  # the function steers: not the LKA's manoeuvre
             else:
                 steer = self.lka.steering(path, self.speed)
                 if steer is None:
@@ -230,8 +231,9 @@ class SensorVehicle(FastBicycleStep, BatchedLaneUpdate, Vehicle):
                     # the minimal-risk manoeuvre brakes to a stop.
                     ahead = self._from_world(self.carried_path)
                     ahead = ahead[ahead[:, 0] > 0.0]
-                    # run out once it ends before the look-ahead point: pure pursuit
-                    # would aim at its end, off the curve it had
+                    # run out once it ends nearer than the look-ahead distance (from the
+                    # sensor: a few metres before pure pursuit's, from the rear axle,
+                    # would; there it would aim at the path's end, off its curve)
                     if len(ahead) and math.hypot(*ahead[-1]) >= self.lka.lookahead(self.speed):
                         steer = self.lka.steering(ahead, self.speed)
                     if steer is None and len(self.carried_path):
@@ -246,7 +248,7 @@ class SensorVehicle(FastBicycleStep, BatchedLaneUpdate, Vehicle):
                 # ACC/AEB (aldm_gym.envs.longitudinal), computed by the env on the same
                 # detection; braking never reverses the car.
                 accel = max(self.acc_command, -max(self.speed, 0.0) * self.sim_frequency)
-            if self.minimal_risk and self.requested_steering is None:
+            if self.minimal_risk and self.requested_acceleration is None:
                 stop = -max(self.speed, 0.0) * self.sim_frequency
                 accel = min(accel, max(-MRM_DECELERATION, stop))
         # np.clip's result for scalars with non-NaN bounds, without its ~4 µs dispatch.

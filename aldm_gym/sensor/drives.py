@@ -164,7 +164,7 @@ def traffic(
 
     :param xy: the ego's path (:func:`lane_path`) [m].
     :param ego_u: the ego's arc length along it in each frame [m].
-    :param lane_width: [m].
+    :param lane_width: [m] (one for the whole path: the start lane's).
     :param count: vehicles (0 to 4).
     :param truck_share: the chance of each to be a truck (seeded by ``seed``).
     :return: ``(frames, count, 6)`` world ``(x, y, heading, length, width, height)``.
@@ -298,11 +298,12 @@ def drive(
             out["filter"] = filt.update(frame, motion)
         if "tracker" in detectors:
             out["tracker"] = tracker.update(frame, motion)
-        truth = score_detection(ground_truth_detect(road, frame, lane), road, frame, lane)
+        ego = ("ego_left", "ego_right")
+        truth = score_detection(ground_truth_detect(road, frame, lane), road, frame, lane, ego)
         if not (truth["ego_left"].correct and truth["ego_right"].correct):
             continue
         for name, det in out.items():
-            sc = score_detection(det, road, frame, lane, ("ego_left", "ego_right"))
+            sc = score_detection(det, road, frame, lane, ego)
             left, right = sc["ego_left"], sc["ego_right"]
             scores[name].add(left.correct, right.correct, left.found, right.found)
     return scores
