@@ -391,6 +391,18 @@ def build_observation(
     return out
 
 
+def sensor_to_world(points: FloatArray, origin: FloatArray, yaw: float) -> FloatArray:
+    """Sensor-frame points ``(N, 2)`` (x forward, y left) to world ``(N, 2)`` [m]: the
+    inverse of :func:`to_sensor_frame`'s positions.
+
+    The driver's left in highway-env's world is ``(sin h, -cos h)`` (see
+    :mod:`aldm_gym.roads.reference_line`).
+    """
+    c, s = math.cos(yaw), math.sin(yaw)
+    x, y = points[:, 0], points[:, 1]
+    return np.column_stack([origin[0] + x * c + y * s, origin[1] + x * s - y * c])
+
+
 def to_sensor_frame(
     positions: FloatArray, velocities: FloatArray, origin: FloatArray, yaw: float
 ) -> FloatArray:

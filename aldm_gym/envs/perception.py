@@ -95,6 +95,7 @@ class Perception:
         self.detection = det = detector(self.frame, road, lane, motion=motion)
         ego.detection = det
         ego.trajectory = det.trajectory  # fitted up to lka.path_range by the detector
+        ego.sensor_pose = (self.frame.origin, self.frame.yaw)  # the frame of both
         return det
 
     def ego_motion(self, ego: Any) -> EgoMotion | None:

@@ -30,6 +30,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from aldm_gym.envs.observation import sensor_to_world
 from aldm_gym.roads.paint import PaintedPiece, painted_pieces
 from aldm_gym.sensor.lane_detection import LINE_NAMES
 from aldm_gym.types import FloatArray
@@ -94,17 +95,6 @@ BRIDGE_COLOUR: Colour = (150, 160, 200)
 
 SCALE_BAR = (200.0, 100.0, 50.0, 20.0, 10.0)
 """Lengths a scale bar may have [m]: the longest that fits a quarter of the width."""
-
-
-def sensor_to_world(points: FloatArray, origin: FloatArray, yaw: float) -> FloatArray:
-    """Sensor-frame points ``(N, 2)`` (x forward, y left) to world ``(N, 2)`` [m].
-
-    The driver's left in highway-env's world is ``(sin h, -cos h)`` (see
-    :mod:`aldm_gym.roads.reference_line`).
-    """
-    c, s = math.cos(yaw), math.sin(yaw)
-    x, y = points[:, 0], points[:, 1]
-    return np.column_stack([origin[0] + x * c + y * s, origin[1] + x * s - y * c])
 
 
 def world_to_pixels(surface: WorldSurface, world: FloatArray) -> np.ndarray:

@@ -22,6 +22,7 @@ from highway_env.vehicle.kinematics import Vehicle
 from aldm_gym.envs.actions import ActionConfig, MetaAction
 from aldm_gym.envs.control import LKAConfig, LKAController
 from aldm_gym.envs.lane_end import opening_path
+from aldm_gym.envs.observation import sensor_to_world, to_sensor_frame
 from aldm_gym.envs.traffic import BatchedLaneUpdate, FastBicycleStep, FastIDMVehicle, clip_scalar
 from aldm_gym.roads.highway import RoadConfig
 from aldm_gym.sensor.lane_detection import LaneDetection, driving_trajectory
@@ -110,9 +111,13 @@ class SensorVehicle(FastBicycleStep, BatchedLaneUpdate, Vehicle):
         """A detected lane wider than this many lane widths is opening: the LKA keeps a
         lane's width from the staying line (``lane_end.opening_factor``, set by the env;
         0: the middle)."""
-        self.carried_path: FloatArray = np.zeros((0, 2))
-        """The last path the LKA followed, in the world frame [m]: without a path in the
-        detection it is followed on (dead reckoning), see :meth:`act`."""
+        self.sensor_pose: tuple[FloatArray, float] | None = None
+        """The world pose of the sensor frame of ``detection`` and ``trajectory``:
+        origin [m] and yaw [rad] (set by the environment with them)."""
+        self.carried: tuple[FloatArray, FloatArray, float] | None = None
+        """The last path the LKA followed and the sensor pose it was seen from (path
+        [m], origin [m], yaw [rad]): without a path in the detection it is followed on
+        (dead reckoning), see :meth:`act`."""
         self.blind = False
         """Whether the last step had no path of the detection to follow."""
         self.minimal_risk = False
@@ -218,7 +223,8 @@ class SensorVehicle(FastBicycleStep, BatchedLaneUpdate, Vehicle):
             self.planned_path = path
             self.blind = len(path) < 2
             if not self.blind:
-                self.carried_path = self._to_world(path)
+                if self.sensor_pose is not None:
+                    self.carried = (path, *self.sensor_pose)
                 self.minimal_risk = False
             if self.requested_steering is not None:  # a function under test's lateral domain
                 steer_iso = self.requested_steering
@@ -229,14 +235,13 @@ class SensorVehicle(FastBicycleStep, BatchedLaneUpdate, Vehicle):
                     # No path: follow the last one on, carried by the car's own motion,
                     # until it runs out; then hold the steering (a curve continues) and
                     # the minimal-risk manoeuvre brakes to a stop.
-                    ahead = self._from_world(self.carried_path)
-                    ahead = ahead[ahead[:, 0] > 0.0]
+                    ahead = self._carried_ahead()
                     # run out once it ends nearer than the look-ahead distance (from the
                     # sensor: a few metres before pure pursuit's, from the rear axle,
                     # would; there it would aim at the path's end, off its curve)
                     if len(ahead) and math.hypot(*ahead[-1]) >= self.lka.lookahead(self.speed):
                         steer = self.lka.steering(ahead, self.speed)
-                    if steer is None and len(self.carried_path):
+                    if steer is None and self.carried is not None:
                         self.minimal_risk = True  # until a path comes back
                 steer_iso = self.steering_iso if steer is None else steer
             if self.requested_acceleration is not None:
@@ -265,24 +270,15 @@ class SensorVehicle(FastBicycleStep, BatchedLaneUpdate, Vehicle):
         # highway-env's world: a positive steering angle turns towards the driver's right.
         self.action = {"steering": -steer_iso, "acceleration": accel}
 
-    def _to_world(self, path: FloatArray) -> FloatArray:
-        """Sensor-frame points (ISO 8855: x forward, y left [m]) in highway-env's world
-        frame (y down) [m]."""
-        c, s = math.cos(self.heading), math.sin(self.heading)
-        f = path[:, 0] + self.lka.sensor_x
-        left = path[:, 1]
-        x = self.position[0] + f * c + left * s
-        y = self.position[1] + f * s - left * c
-        return np.column_stack((x, y))
-
-    def _from_world(self, points: FloatArray) -> FloatArray:
-        """World points [m] in the sensor frame (the inverse of :meth:`_to_world`)."""
-        if len(points) == 0:
+    def _carried_ahead(self) -> FloatArray:
+        """The carried path (:attr:`carried`) in the current sensor frame, its points
+        ahead of the sensor only [m] (empty without one)."""
+        if self.carried is None or self.sensor_pose is None:
             return np.zeros((0, 2))
-        c, s = math.cos(self.heading), math.sin(self.heading)
-        dx = points[:, 0] - self.position[0]
-        dy = points[:, 1] - self.position[1]
-        return np.column_stack((dx * c + dy * s - self.lka.sensor_x, dx * s - dy * c))
+        path, origin, yaw = self.carried
+        world = sensor_to_world(path, origin, yaw)
+        now = to_sensor_frame(world, np.zeros_like(world), *self.sensor_pose)[:, :2]
+        return now[now[:, 0] > 0.0]
 
     @property
     def yaw_rate(self) -> float:
