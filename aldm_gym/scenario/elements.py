@@ -42,7 +42,7 @@ ELEMENTS: dict[str, tuple[str, str]] = {
         "played",
         "parameters and their constraints, at every place the schema allows them",
         "ParameterDeclarations ParameterDeclaration ConstraintGroup ValueConstraint "
-        "ParameterAssignments ParameterAssignment Range",
+        "ParameterAssignments ParameterAssignment",
     ),
     **_each(
         "played",
@@ -56,14 +56,14 @@ ELEMENTS: dict[str, tuple[str, str]] = {
     ),
     **_each(
         "played",
-        "catalogs: vehicles, pedestrians, misc objects, trajectories",
+        "catalogs: vehicles, pedestrians, misc objects, trajectories, routes",
         "CatalogLocations Catalog CatalogReference Directory VehicleCatalog "
-        "PedestrianCatalog MiscObjectCatalog TrajectoryCatalog",
+        "PedestrianCatalog MiscObjectCatalog TrajectoryCatalog RouteCatalog",
     ),
     **_each(
         "ignored",
         "the catalog location is accepted; its entries are refused where referenced",
-        "ControllerCatalog EnvironmentCatalog ManeuverCatalog RouteCatalog",
+        "ControllerCatalog EnvironmentCatalog ManeuverCatalog",
     ),
     # ---------------------------------------------------------------- variations
     **_each(
@@ -73,7 +73,7 @@ ELEMENTS: dict[str, tuple[str, str]] = {
         "DeterministicSingleParameterDistribution DeterministicMultiParameterDistribution "
         "DistributionSet DistributionRange ValueSetDistribution ParameterValueSet Element "
         "Stochastic StochasticDistribution ProbabilityDistributionSet NormalDistribution "
-        "LogNormalDistribution UniformDistribution PoissonDistribution Histogram Bin",
+        "LogNormalDistribution UniformDistribution PoissonDistribution Histogram Bin Range",
     ),
     **_each(
         "refused",

@@ -1304,7 +1304,7 @@ class _Reader(ElementReader):
             def offset_target(
                 world: Any, actor: Entity, ref: str = ref, value: float = value
             ) -> float:
-                return world.coordinates(world.entities[ref]).offset + value
+                return float(world.offset_beside(actor, world.entities[ref], value))
 
         return lambda actor: A.LaneOffset(actor, where, shape, acc, offset_target, continuous)
 
@@ -1363,9 +1363,9 @@ class _Reader(ElementReader):
 
     def _route(self, body: Any) -> Callable[[Entity | None], A.Instance]:
         where = self.where(body)
-        route = self.one(body, ("Route",))
-        self.kids(route, ("ParameterDeclarations", "Waypoint"))
-        r = self.scoped(route)
+        self.one(body, ("Route", "CatalogReference"))
+        route, r = self._inline_or_catalog(body, "Route")
+        r.kids(route, ("ParameterDeclarations", "Waypoint"))
         if r.flag(route, "closed", False):
             raise r.error(route, "closed routes are not supported")
         waypoints = []
@@ -1373,7 +1373,7 @@ class _Reader(ElementReader):
             r.choice(wp, "routeStrategy", ("fastest", "shortest", "leastIntersections", "random"))
             waypoints.append(r.position(r.child(wp, "Position")))
         if len(waypoints) < 2:
-            raise self.error(route, f"a route needs at least 2 waypoints, has {len(waypoints)}")
+            raise r.error(route, f"a route needs at least 2 waypoints, has {len(waypoints)}")
         return lambda actor: A.AssignRoute(actor, where, waypoints)
 
     def _routing(self, body: Any) -> Callable[[Entity | None], A.Instance]:
@@ -1417,10 +1417,11 @@ class _Reader(ElementReader):
 
     def _inline_or_catalog(self, holder: Any, tag: str) -> tuple[Any, _Reader]:
         """The ``tag`` element that ``holder`` gives inline or by a ``CatalogReference``,
-        with the reader for it (a catalog entry's parameters)."""
+        with the reader for it: one that sees the element's own parameters (inline:
+        their defaults; a catalog entry: bound to the reference's assignments)."""
         el = holder.find(tag)
         if el is not None:
-            return el, self
+            return el, self.scoped(el)
         catalog = holder.find("CatalogReference")
         if catalog is None:
             raise self.error(holder, f"missing <{tag}> (inline or a CatalogReference)")
@@ -1434,7 +1435,6 @@ class _Reader(ElementReader):
         reader that sees the trajectory's own parameters."""
         traj, r = self._inline_or_catalog(holder, "Trajectory")
         r.kids(traj, ("ParameterDeclarations", "Shape"))
-        r = r.scoped(traj)
         if r.flag(traj, "closed", False):
             raise r.error(traj, "closed trajectories are not supported")
         return traj, r
@@ -1444,7 +1444,6 @@ class _Reader(ElementReader):
         self.kids(p, ("RouteRef", "Orientation", "InRoutePosition"))
         route, r = self._inline_or_catalog(self.child(p, "RouteRef"), "Route")
         r.kids(route, ("ParameterDeclarations", "Waypoint"))
-        r = r.scoped(route)
         waypoints = tuple(r.position(r.child(wp, "Position")) for wp in route.findall("Waypoint"))
         if not waypoints:
             raise r.error(route, "a route needs waypoints")

@@ -411,6 +411,29 @@ class World:
         )
         return coordinates, pos
 
+    def offset_beside(self, entity: Entity, ref: Entity, value: float) -> float:
+        """The offset [m] from the centre of ``entity``'s lane, along the road's ``t`` (a
+        ``LanePosition``'s sense), that puts ``entity`` ``value`` [m] beside ``ref``:
+        where ``ref``'s reference point lies across that lane (on the lane's chain, at
+        ``ref``'s place along it) plus ``value`` to ``ref``'s left along the road's
+        ``t`` (esmini's reading of ``RelativeTargetLaneOffset``)."""
+        road = self.road
+        point = ref.reference_point()
+        key = entity.lane
+        for _ in range(64):  # along the chain to the piece of lane beside ref
+            lane = self._lane(key)
+            u, r = (float(x) for x in lane.local_coordinates(point))
+            nxt = road.successor(key) if u > road.lane_length(key) else None
+            nxt = road.predecessor(key) if u < 0.0 else nxt
+            if nxt is None:
+                break
+            key = nxt
+        direction = road.lane_record(entity.lane).direction
+        facing = 1.0 if math.cos(ref.heading - float(lane.heading_at(u))) >= 0.0 else -1.0
+        # r is to the driver's right of the lane; ref's left along t is the lane's
+        # driver's left when ref faces the lane's way
+        return direction * (-r + value * facing)
+
     def road_t(self, entity: Entity) -> float:
         """The road's ``t`` [m] of the entity's reference point: its distance left of
         the reference line (OpenDRIVE's sense) at its ``s``."""

@@ -7,6 +7,7 @@ plays each in both players and compares them step by step.
 
 from __future__ import annotations
 
+import re
 from collections.abc import Callable
 from pathlib import Path
 
@@ -838,6 +839,376 @@ def relative_speed_before_its_reference(folder: Path) -> Path:
     return write(folder, events, target=(1, 30.0, 25.0), name="relative_speed.xosc")
 
 
+def clothoid_spline(folder: Path) -> Path:
+    """``ClothoidSpline`` (1.3): the target, untimed, along three segments from a start
+    position (a bend left and back, the second segment turned by ``hOffset``); the
+    ego, timed, along three segments with a start time each and an end time."""
+    untimed = xosc.ClothoidSpline([
+        xosc.ClothoidSplineSegment(
+            0.0, 0.004, 40.0, position_start=[xosc.WorldPosition(112.0, -1.75, 0, 0)]
+        ),
+        xosc.ClothoidSplineSegment(0.004, -0.004, 40.0, h_offset=0.05),
+        xosc.ClothoidSplineSegment(-0.004, 0.0, 40.0),
+    ])  # fmt: skip
+    timed = xosc.ClothoidSpline([
+        xosc.ClothoidSplineSegment(
+            0.0, -0.003, 50.0, time_start=0.0,
+            position_start=[xosc.WorldPosition(70.0, -5.25, 0, 0)],
+        ),
+        xosc.ClothoidSplineSegment(-0.003, 0.003, 50.0, time_start=2.5),
+        xosc.ClothoidSplineSegment(0.003, 0.0, 50.0, time_start=5.0),
+    ], time_end=7.5)  # fmt: skip
+    return write(
+        folder,
+        [
+            ("Target", [_event("bend", _follow(untimed, False), at_time(0.5))]),
+            ("Ego", [_event("timed", _follow(timed, True), at_time(0.9))]),
+        ],
+        stop=11.0,
+        name="clothoid_spline.xosc",
+    )
+
+
+def object_kinds_and_collision_by_type(folder: Path) -> Path:
+    """A ``MiscObject`` (an obstacle in the left lane) and a ``Pedestrian`` (on the
+    right edge, walking along the road once the ego is within 60 m of it); the ego
+    changes lanes when the target hits any miscellaneous object (``CollisionCondition``
+    ``ByType``)."""
+    init = placed((("Ego", -2, 50.0, 20.0), ("Target", -1, 80.0, 20.0),
+                   ("Third", -3, 60.0, 18.0)))  # fmt: skip
+    init.add_init_action("Cone", xosc.TeleportAction(xosc.LanePosition(260.0, 0, -1, 0)))
+    init.add_init_action("Walker", xosc.TeleportAction(xosc.LanePosition(280.0, -1.0, -3, 0)))
+    entities, board = cars_and_board(("Ego", "Target", "Third"), init, 14.0)
+    cone = xosc.MiscObject(
+        "cone", 50.0, xosc.MiscObjectCategory.obstacle,
+        xosc.BoundingBox(1.0, 1.0, 1.0, 0.0, 0.0, 0.5),
+    )  # fmt: skip
+    entities.add_scenario_object("Cone", cone)
+    walker = xosc.Pedestrian(
+        "walker", 80.0, xosc.PedestrianCategory.pedestrian,
+        xosc.BoundingBox(0.5, 0.6, 1.8, 0.0, 0.0, 0.9),
+    )  # fmt: skip
+    entities.add_scenario_object("Walker", walker)
+    for name in ("Ego", "Target", "Third"):
+        slow = xosc.Maneuver(f"slow_{name}")
+        slow.add_event(_event("slow", step_speed(15.0), at_time(1.0)))
+        board.add_maneuver(slow, name)
+    hit = xosc.EntityTrigger(
+        "hit", 0, xosc.ConditionEdge.rising,
+        xosc.CollisionCondition(xosc.ObjectType.miscellaneous), "Target",
+    )  # fmt: skip
+    dyn = xosc.TransitionDynamics(xosc.DynamicsShapes.sinusoidal, xosc.DynamicsDimension.time, 2.0)
+    dodge = xosc.Maneuver("dodge")
+    dodge.add_event(_event("right", xosc.RelativeLaneChangeAction(-1, "Ego", dyn), hit))
+    board.add_maneuver(dodge, "Ego")
+    close = _entity_trigger(
+        "close",
+        xosc.RelativeDistanceCondition(
+            60.0, xosc.Rule.lessThan, xosc.RelativeDistanceType.euclidianDistance, "Walker",
+            freespace=False,
+        ),
+    )  # fmt: skip
+    walk = xosc.Maneuver("walk")
+    walk.add_event(_event("walk", step_speed(1.5), close))
+    board.add_maneuver(walk, "Walker")
+    return save(folder, "object_kinds.xosc", entities, board)
+
+
+def parameter_rules_and_reach_position(folder: Path) -> Path:
+    """OpenSCENARIO 1.0's forms: a ``ParameterAction`` sets a parameter and a
+    ``ParameterCondition`` on it starts a brake; a ``ReachPositionCondition`` starts a
+    lane change. A ``VariableAction`` multiplies a variable (``MultiplyByValue``) and a
+    condition on it starts the ego's speed change. The parameter has constraints."""
+    params = xosc.ParameterDeclarations()
+    params.add_parameter(xosc.Parameter("Gain", xosc.ParameterType.double, "2.0"))
+    variables = xosc.VariableDeclarations()
+    variables.add_variable(xosc.Variable("Scale", xosc.ParameterType.double, "1.5"))
+    # written as a variable action, then turned into the 1.0 parameter action below
+    set_gain = _event("set_gain", xosc.VariableSetAction("Gain", 6.0), at_time(1.0))
+    double = _event(
+        "double", xosc.VariableMultiplyAction("Scale", 2.0), at_time(1.5), xosc.Priority.parallel
+    )
+    gained = xosc.ValueTrigger(
+        "gained", 0.0, xosc.ConditionEdge.none,
+        xosc.ParameterCondition("Gain", 5, xosc.Rule.greaterThan),
+    )  # fmt: skip
+    dyn = xosc.TransitionDynamics(xosc.DynamicsShapes.linear, xosc.DynamicsDimension.rate, 2.0)
+    slow = _event("slow", xosc.AbsoluteSpeedAction(14.0, dyn), gained, xosc.Priority.parallel)
+    # written as a distance condition, then turned into the 1.0 reach condition below
+    reach = _entity_trigger(
+        "reach",
+        xosc.DistanceCondition(
+            2.0, xosc.Rule.lessThan, xosc.WorldPosition(150.0, -5.25), False, False
+        ),
+    )
+    lc = xosc.TransitionDynamics(xosc.DynamicsShapes.sinusoidal, xosc.DynamicsDimension.time, 3.0)
+    change = _event("change", xosc.RelativeLaneChangeAction(-1, "Target", lc), reach)
+    scaled = xosc.ValueTrigger(
+        "scaled", 0.0, xosc.ConditionEdge.none,
+        xosc.VariableCondition("Scale", 2.5, xosc.Rule.greaterThan),
+    )  # fmt: skip
+    faster = _event("faster", step_speed(24.0), scaled)
+    path = write(
+        folder,
+        [("Target", [set_gain, double, slow, change]), ("Ego", [faster])],
+        parameters=params,
+        variables=variables,
+        stop=12.0,
+        name="parameter_rules.xosc",
+    )
+    text, n = re.subn(
+        r'<VariableAction variableRef="Gain">(.*?)</VariableAction>',
+        r'<ParameterAction parameterRef="Gain">\1</ParameterAction>', path.read_text(), flags=re.S,
+    )  # fmt: skip
+    assert n == 1
+    text, n = re.subn(
+        r'<DistanceCondition value="2.0"[^>]*>(.*?)</DistanceCondition>',
+        r'<ReachPositionCondition tolerance="2.0">\1</ReachPositionCondition>', text, flags=re.S,
+    )  # fmt: skip
+    assert n == 1
+    # the parameter's constraints (checked when the file is read)
+    plain = '<ParameterDeclaration name="Gain" parameterType="double" value="2.0"/>'
+    assert plain in text
+    text = text.replace(
+        plain,
+        plain[:-2] + '><ConstraintGroup><ValueConstraint rule="greaterThan" value="0"/>'
+        '<ValueConstraint rule="lessThan" value="10"/></ConstraintGroup></ParameterDeclaration>',
+    )
+    path.write_text(text)
+    return path
+
+
+def synchronize_relative_to_master(folder: Path) -> Path:
+    """The target arrives at s = 320 m of its lane when the ego arrives at s = 320 m
+    of its own, 2 m/s faster than the ego (``RelativeSpeedToMaster``, a delta), held
+    for the last 2 s (``TargetTimeSteadyState``)."""
+    sync = xosc.SynchronizeAction(
+        "Ego",
+        xosc.LanePosition(320.0, 0, -2, 0),
+        xosc.LanePosition(320.0, 0, -1, 0),
+        1.0,
+        1.0,
+        final_speed=xosc.RelativeSpeedToMaster(
+            2.0, xosc.SpeedTargetValueType.delta, xosc.TargetTimeSteadyState(2.0)
+        ),
+    )
+    return write(
+        folder,
+        [("Target", [_event("sync", sync, at_time(0.5))])],
+        target=(1, 50.0, 20.0),
+        stop=15.0,
+        name="sync_relative.xosc",
+    )
+
+
+def trailer_by_reference(folder: Path) -> Path:
+    """A truck towing a trailer that is an entity of its own (``TrailerRef``), from the
+    start (``Init`` places the truck only), through a lane change in an arc of
+    R 250 m. esmini finds a referenced trailer only when it is declared first."""
+    entities = xosc.Entities()
+    entities.add_scenario_object("Ego", car())
+    entities.add_scenario_object("Box", _trailer("box"))
+    entities.add_scenario_object("Rig", _truck("Box"))  # a name: a TrailerRef
+    init = placed((("Ego", -1, 20.0, 15.0), ("Rig", -2, 60.0, 15.0)))
+    board = xosc.StoryBoard(
+        init,
+        xosc.ValueTrigger(
+            "stop", 0, xosc.ConditionEdge.rising,
+            xosc.SimulationTimeCondition(12.0, xosc.Rule.greaterThan), "stop",
+        ),
+    )  # fmt: skip
+    dyn = xosc.TransitionDynamics(xosc.DynamicsShapes.sinusoidal, xosc.DynamicsDimension.time, 4.0)
+    rig = xosc.Maneuver("rig")
+    rig.add_event(_event("change", xosc.AbsoluteLaneChangeAction(-3, dyn), at_time(3.0)))
+    board.add_maneuver(rig, "Rig")
+    scenario = xosc.Scenario(
+        "trailer_ref", "aldm-gym tests", xosc.ParameterDeclarations(), entities, board,
+        xosc.RoadNetwork(str(_curved_road(folder))), xosc.Catalog(),
+    )  # fmt: skip
+    path = folder / "trailer_ref.xosc"
+    scenario.write_xml(str(path))
+    assert '<TrailerRef entityRef="Box"/>' in path.read_text()
+    return path
+
+
+def _catalog_file(name: str, entries: str) -> str:
+    """An OpenSCENARIO catalog file: ``entries`` (XML) in a catalog called ``name``."""
+    return (
+        '<?xml version="1.0" encoding="utf-8"?>\n<OpenSCENARIO>\n'
+        '  <FileHeader revMajor="1" revMinor="3" date="2026-01-01T00:00:00" '
+        f'description="{name}" author="aldm-gym tests"/>\n'
+        f'  <Catalog name="{name}">\n{entries}  </Catalog>\n</OpenSCENARIO>\n'
+    )
+
+
+_VEHICLE_CATALOG = _catalog_file(
+    "cars",
+    """\
+    <Vehicle name="car" vehicleCategory="car">
+      <ParameterDeclarations>
+        <ParameterDeclaration name="MaxSpeed" parameterType="double" value="70"/>
+        <ParameterDeclaration name="Length" parameterType="double" value="5.0"/>
+      </ParameterDeclarations>
+      <BoundingBox>
+        <Center x="1.4" y="0.0" z="0.75"/>
+        <Dimensions width="2.0" length="$Length" height="1.5"/>
+      </BoundingBox>
+      <Performance maxSpeed="$MaxSpeed" maxAcceleration="10" maxDeceleration="10"/>
+      <Axles>
+        <FrontAxle maxSteering="0.5" wheelDiameter="0.6" trackWidth="1.8" positionX="2.8"
+                   positionZ="0.3"/>
+        <RearAxle maxSteering="0.0" wheelDiameter="0.6" trackWidth="1.8" positionX="0.0"
+                  positionZ="0.3"/>
+      </Axles>
+      <Properties/>
+    </Vehicle>
+""",
+)
+
+_TRAJECTORY_CATALOG = _catalog_file(
+    "paths",
+    """\
+    <Trajectory name="swerve" closed="false">
+      <ParameterDeclarations>
+        <ParameterDeclaration name="Dy" parameterType="double" value="1.0"/>
+      </ParameterDeclarations>
+      <Shape>
+        <Polyline>
+          <Vertex><Position><WorldPosition x="70" y="-5.25"/></Position></Vertex>
+          <Vertex><Position><WorldPosition x="110" y="${-5.25 + $Dy}"/></Position></Vertex>
+          <Vertex><Position><WorldPosition x="150" y="-5.25"/></Position></Vertex>
+        </Polyline>
+      </Shape>
+    </Trajectory>
+""",
+)
+
+_OBJECT_CATALOG = _catalog_file(
+    "objects",
+    """\
+    <MiscObject name="cone" miscObjectCategory="obstacle" mass="5">
+      <BoundingBox><Center x="0" y="0" z="0.4"/><Dimensions width="0.4" length="0.4" height="0.8"/>
+      </BoundingBox>
+      <Properties/>
+    </MiscObject>
+""",
+)
+
+_PEDESTRIAN_CATALOG = _catalog_file(
+    "people",
+    """\
+    <Pedestrian name="walker" pedestrianCategory="pedestrian" mass="80" model3d="walker">
+      <BoundingBox><Center x="0" y="0" z="0.9"/><Dimensions width="0.6" length="0.5" height="1.8"/>
+      </BoundingBox>
+      <Properties/>
+    </Pedestrian>
+""",
+)
+
+_ROUTE_CATALOG = _catalog_file(
+    "routes",
+    """\
+    <Route name="along" closed="false">
+      <ParameterDeclarations>
+        <ParameterDeclaration name="LaneId" parameterType="int" value="-2"/>
+      </ParameterDeclarations>
+      <Waypoint routeStrategy="shortest">
+        <Position><LanePosition roadId="0" laneId="$LaneId" s="60"/></Position>
+      </Waypoint>
+      <Waypoint routeStrategy="shortest">
+        <Position><LanePosition roadId="0" laneId="$LaneId" s="900"/></Position>
+      </Waypoint>
+    </Route>
+""",
+)
+
+
+def catalogs_and_relative_lane_offset(folder: Path) -> Path:
+    """Entries from catalogs with parameters assigned: the target is a catalog car
+    whose ``Performance`` caps the speed it is asked for (``maxSpeed`` 24 m/s of 30)
+    and is assigned a catalog route along its lane, a cone and a walker on the right
+    edge are a misc object's and a pedestrian's entry,
+    the ego follows a catalog trajectory (untimed) swerving 1.5 m left; a third car,
+    two lanes right of the target, moves to 0.5 m left of where the target is
+    (``RelativeTargetLaneOffset``, not continuous; esmini's reading: beside the
+    referenced entity, whichever lane it is in)."""
+    cat = folder / "catalogs"
+    cat.mkdir(exist_ok=True)
+    (cat / "cars.xosc").write_text(_VEHICLE_CATALOG)  # esmini: the file by the name
+    (cat / "paths.xosc").write_text(_TRAJECTORY_CATALOG)
+    (cat / "routes.xosc").write_text(_ROUTE_CATALOG)
+    (cat / "objects.xosc").write_text(_OBJECT_CATALOG)
+    (cat / "people.xosc").write_text(_PEDESTRIAN_CATALOG)
+    init = placed((("Ego", -2, 50.0, 20.0), ("Target", -1, 80.0, 20.0),
+                   ("Third", -3, 90.0, 20.0)))  # fmt: skip
+    entities = xosc.Entities()
+    entities.add_scenario_object("Ego", car())
+    target = xosc.CatalogReference("cars", "car")
+    target.add_parameter_assignment("MaxSpeed", 24.0)
+    target.add_parameter_assignment("Length", 4.5)
+    entities.add_scenario_object("Target", target)
+    entities.add_scenario_object("Third", car())
+    entities.add_scenario_object("Cone", xosc.CatalogReference("objects", "cone"))
+    entities.add_scenario_object("Walker", xosc.CatalogReference("people", "walker"))
+    init.add_init_action("Cone", xosc.TeleportAction(xosc.LanePosition(300.0, -1.2, -3, 0)))
+    init.add_init_action("Walker", xosc.TeleportAction(xosc.LanePosition(320.0, -1.5, -3, 0)))
+    init.add_init_action("Walker", step_speed(1.0))
+    board = xosc.StoryBoard(
+        init,
+        xosc.ValueTrigger(
+            "stop", 0, xosc.ConditionEdge.rising,
+            xosc.SimulationTimeCondition(10.0, xosc.Rule.greaterThan), "stop",
+        ),
+    )  # fmt: skip
+    fast = xosc.TransitionDynamics(xosc.DynamicsShapes.linear, xosc.DynamicsDimension.rate, 3.0)
+    shift = xosc.AbsoluteLaneOffsetAction(0.8, xosc.DynamicsShapes.sinusoidal, 1.0)
+    tgt = xosc.Maneuver("target")
+    tgt.add_event(_event("faster", xosc.AbsoluteSpeedAction(30.0, fast), at_time(0.5)))
+    tgt.add_event(_event("shift", shift, at_time(3.0), xosc.Priority.parallel))
+    route = xosc.CatalogReference("routes", "along")
+    route.add_parameter_assignment("LaneId", -1)
+    tgt.add_event(
+        _event("route", xosc.AssignRouteAction(route), at_time(0.2), xosc.Priority.parallel)
+    )
+    board.add_maneuver(tgt, "Target")
+    keep = xosc.RelativeLaneOffsetAction(
+        0.5, "Target", xosc.DynamicsShapes.sinusoidal, 2.0, continuous=False
+    )
+    third = xosc.Maneuver("third")
+    third.add_event(_event("keep", keep, at_time(1.0)))
+    board.add_maneuver(third, "Third")
+    swerve = (
+        "<PrivateAction><RoutingAction><FollowTrajectoryAction><TrajectoryRef>"
+        '<CatalogReference catalogName="paths" entryName="swerve"><ParameterAssignments>'
+        '<ParameterAssignment parameterRef="Dy" value="1.5"/></ParameterAssignments>'
+        "</CatalogReference></TrajectoryRef><TimeReference><None/></TimeReference>"
+        '<TrajectoryFollowingMode followingMode="position"/></FollowTrajectoryAction>'
+        "</RoutingAction></PrivateAction>"
+    )
+    ego = xosc.Maneuver("ego")
+    ego.add_event(_event("swerve", step_speed(20.0), at_time(0.5)))
+    board.add_maneuver(ego, "Ego")
+    catalog = xosc.Catalog()
+    catalog.add_catalog("VehicleCatalog", str(cat))
+    catalog.add_catalog("TrajectoryCatalog", str(cat))
+    catalog.add_catalog("RouteCatalog", str(cat))
+    catalog.add_catalog("MiscObjectCatalog", str(cat))
+    catalog.add_catalog("PedestrianCatalog", str(cat))
+    scenario = xosc.Scenario(
+        "catalogs", "aldm-gym tests", xosc.ParameterDeclarations(), entities, board,
+        xosc.RoadNetwork(str(straight_road(folder))), catalog,
+    )  # fmt: skip
+    path = folder / "catalogs.xosc"
+    scenario.write_xml(str(path))
+    text = "".join(line.strip() for line in path.read_text().splitlines())
+    # the ego's event carries the catalog trajectory in place of its placeholder speed
+    start = text.index('<Event name="swerve"')
+    a = text.index("<PrivateAction>", start)
+    b = text.index("</PrivateAction>", a) + len("</PrivateAction>")
+    path.write_text(text[:a] + swerve + text[b:])
+    return path
+
+
 CORPUS: dict[str, Callable[[Path], Path]] = {
     f.__name__: f
     for f in (
@@ -869,6 +1240,12 @@ CORPUS: dict[str, Callable[[Path], Path]] = {
         trailers,
         actions_in_document_order,
         relative_speed_before_its_reference,
+        clothoid_spline,
+        object_kinds_and_collision_by_type,
+        parameter_rules_and_reach_position,
+        synchronize_relative_to_master,
+        trailer_by_reference,
+        catalogs_and_relative_lane_offset,
     )
 }
 """The corpus by name."""

@@ -827,3 +827,112 @@ def test_a_route_along_the_lane_chain_is_played_and_another_is_refused(tmp_path:
     )
     with pytest.raises(ScenarioError, match=r"the route leaves the roads 'Target' follows"):
         play(path, 2.0)
+
+
+# ------------------------------------------- elements esmini 3.6 does not play
+def _one_event(name: str, action: object, trigger: object) -> xosc.Event:
+    ev = xosc.Event(name, xosc.Priority.parallel)
+    ev.add_action(f"{name}_action", action)
+    ev.add_trigger(trigger)
+    return ev
+
+
+def test_route_positions_from_road_coordinates_and_from_an_entity(tmp_path: Path) -> None:
+    """``FromRoadCoordinates``: ``pathS`` along the route from its first waypoint, ``t``
+    from the reference line; ``FromCurrentEntity``: where that entity is when the
+    action starts. (esmini 3.6 implements neither: it logs them as not implemented.)"""
+    from aldm_gym.scenario.esmini import player_trace
+
+    route = xosc.Route("lane1")
+    route.add_waypoint(xosc.LanePosition(20.0, 0, -1, 0), xosc.RouteStrategy.shortest)
+    route.add_waypoint(xosc.LanePosition(1500.0, 0, -1, 0), xosc.RouteStrategy.shortest)
+    hop = xosc.TeleportAction(xosc.RoutePositionInRoadCoordinates(route, 140.0, -8.75))
+    onto = xosc.TeleportAction(xosc.RoutePositionOfCurrentEntity(route, "Ego"))
+    path = write(
+        tmp_path,
+        [
+            (
+                "Target",
+                [_one_event("hop", hop, at_time(1.0)), _one_event("onto", onto, at_time(3.0))],
+            )
+        ],
+        target=(1, 50.0, 20.0),
+        stop=5.0,
+    )
+    trace = player_trace(path)
+    k_hop = trace.starts["hop"][0]
+    k_onto = trace.starts["onto"][0]
+    i = int(np.argmin(abs(trace.times - (k_hop + 0.1))))
+    np.testing.assert_allclose(trace.poses["Target"][i, :2], [160.0, -8.75], atol=1e-9)
+    j = int(np.argmin(abs(trace.times - k_onto)))
+    np.testing.assert_allclose(
+        trace.poses["Target"][j + 1, :2], trace.poses["Ego"][j, :2], atol=1e-9
+    )
+
+
+@pytest.mark.parametrize(
+    ("rule", "fires_at"),
+    [('<AddValue value="4"/>', 2.1), ('<MultiplyByValue value="3"/>', 2.1),
+     ('<MultiplyByValue value="2"/>', None)],
+)  # fmt: skip
+def test_a_1_0_parameter_modify_action_adds_or_multiplies(
+    tmp_path: Path, rule: str, fires_at: float | None
+) -> None:
+    """OpenSCENARIO 1.0's ``ParameterAction``/``ModifyAction`` (deprecated, still in the
+    1.3 schema; esmini 3.6 ignores it with a warning): 2 + 4 and 2 · 3 pass 5, 2 · 2
+    does not."""
+    from aldm_gym.scenario.esmini import player_trace
+
+    params = xosc.ParameterDeclarations()
+    params.add_parameter(xosc.Parameter("Gain", xosc.ParameterType.double, "2.0"))
+    gained = xosc.ValueTrigger(
+        "gained", 0.0, xosc.ConditionEdge.none,
+        xosc.ParameterCondition("Gain", 5, xosc.Rule.greaterThan),
+    )  # fmt: skip
+    path = write(
+        tmp_path,
+        [("Target", [_one_event("modify", xosc.VariableSetAction("Gain", 0.0), at_time(2.0)),
+                     _one_event("slow", step_speed(10.0), gained)])],
+        parameters=params,
+        stop=4.0,
+    )  # fmt: skip
+    text = path.read_text()
+    old = '<VariableAction variableRef="Gain"><SetAction value="0.0"/></VariableAction>'
+    compact = "".join(line.strip() for line in text.splitlines())
+    assert old in compact
+    new = (
+        f'<ParameterAction parameterRef="Gain"><ModifyAction><Rule>{rule}</Rule>'
+        "</ModifyAction></ParameterAction>"
+    )
+    path.write_text(compact.replace(old, new))
+    starts = player_trace(path).starts
+    assert starts["modify"] == pytest.approx([2.1])
+    assert starts.get("slow", []) == ([] if fires_at is None else pytest.approx([fires_at]))
+
+
+def test_a_continuous_relative_lane_offset_keeps_beside_its_reference(tmp_path: Path) -> None:
+    """``RelativeTargetLaneOffset`` puts the actor ``value`` left of where the referenced
+    entity is, whichever lane that is (esmini's reading), and a continuous one follows
+    the reference when it shifts (esmini 3.6 keeps the first target)."""
+    from aldm_gym.scenario.esmini import player_trace
+
+    keep = xosc.RelativeLaneOffsetAction(
+        0.5, "Target", xosc.DynamicsShapes.sinusoidal, 6.0, continuous=True
+    )
+    shift = xosc.AbsoluteLaneOffsetAction(0.8, xosc.DynamicsShapes.sinusoidal, 1.0)
+    path = write(
+        tmp_path,
+        [
+            ("Ego", [_one_event("keep", keep, at_time(0.5))]),
+            ("Target", [_one_event("shift", shift, at_time(4.0))]),
+        ],
+        lane_id=-3,
+        target=(2, 0.0, 20.0),  # two lanes left, beside the ego
+        stop=10.0,
+    )
+    trace = player_trace(path)
+    ego_y, target_y = trace.poses["Ego"][:, 1], trace.poses["Target"][:, 1]
+    before = int(np.argmin(abs(trace.times - 3.9)))
+    assert ego_y[before] == pytest.approx(target_y[before] + 0.5, abs=1e-6)  # OpenDRIVE y
+    assert target_y[-1] == pytest.approx(-1.75 + 0.8, abs=1e-6)
+    assert ego_y[-1] == pytest.approx(target_y[-1] + 0.5, abs=1e-6)
