@@ -56,14 +56,14 @@ ELEMENTS: dict[str, tuple[str, str]] = {
     ),
     **_each(
         "played",
-        "catalogs: vehicles, pedestrians, misc objects, trajectories, routes",
+        "catalogs: vehicles, pedestrians, misc objects, trajectories, routes, maneuvers",
         "CatalogLocations Catalog CatalogReference Directory VehicleCatalog "
-        "PedestrianCatalog MiscObjectCatalog TrajectoryCatalog RouteCatalog",
+        "PedestrianCatalog MiscObjectCatalog TrajectoryCatalog RouteCatalog ManeuverCatalog",
     ),
     **_each(
         "ignored",
-        "the catalog location is accepted; its entries are refused where referenced",
-        "ControllerCatalog EnvironmentCatalog ManeuverCatalog",
+        "the catalog location is accepted; controllers and environments have no meaning here",
+        "ControllerCatalog EnvironmentCatalog",
     ),
     # ---------------------------------------------------------------- variations
     **_each(

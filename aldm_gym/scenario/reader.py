@@ -1592,16 +1592,19 @@ class _Reader(ElementReader):
                 n for r in actors_el.findall("EntityRef") for n in self._entity_refs(r, "entityRef")
             )
         )
-        if el.find("CatalogReference") is not None:
-            raise self.error(
-                el.find("CatalogReference"), "maneuvers from catalogs are not supported"
-            )
         maneuvers = []
-        for m in el.findall("Maneuver"):
-            self.kids(m, ("ParameterDeclarations", "Event"))
-            inner = self.scoped(m)
+        for m in el:  # catalog references and maneuvers, in document order
+            if m.tag == "CatalogReference":
+                m, inner = self.from_catalog(m)  # its parameters bound to the assignments
+                if m.tag != "Maneuver":
+                    raise inner.error(m, f"the catalog entry is a <{m.tag}>, not a <Maneuver>")
+            elif m.tag == "Maneuver":
+                inner = self.scoped(m)
+            else:
+                continue
+            inner.kids(m, ("ParameterDeclarations", "Event"))
             events = [inner._event(e) for e in m.findall("Event")]
-            maneuvers.append(Maneuver(self.attr(m, "name"), self.where(m), events))
+            maneuvers.append(Maneuver(inner.attr(m, "name"), inner.where(m), events))
         maximum = self.integer(el, "maximumExecutionCount", 1)
         return ManeuverGroup(
             self.attr(el, "name"), self.where(el), actors, maneuvers, max(maximum, 1)

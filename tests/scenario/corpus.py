@@ -1122,12 +1122,38 @@ _ROUTE_CATALOG = _catalog_file(
 """,
 )
 
+_MANEUVER_CATALOG = _catalog_file(
+    "maneuvers",
+    """\
+    <Maneuver name="slow_down">
+      <ParameterDeclarations>
+        <ParameterDeclaration name="Speed" parameterType="double" value="5"/>
+        <ParameterDeclaration name="At" parameterType="double" value="1"/>
+      </ParameterDeclarations>
+      <Event name="slow" priority="override">
+        <Action name="slow_action">
+          <PrivateAction><LongitudinalAction><SpeedAction>
+            <SpeedActionDynamics dynamicsShape="linear" value="2" dynamicsDimension="rate"/>
+            <SpeedActionTarget><AbsoluteTargetSpeed value="$Speed"/></SpeedActionTarget>
+          </SpeedAction></LongitudinalAction></PrivateAction>
+        </Action>
+        <StartTrigger><ConditionGroup>
+          <Condition name="at" delay="0" conditionEdge="none"><ByValueCondition>
+            <SimulationTimeCondition value="$At" rule="greaterThan"/>
+          </ByValueCondition></Condition>
+        </ConditionGroup></StartTrigger>
+      </Event>
+    </Maneuver>
+""",
+)
+
 
 def catalogs_and_relative_lane_offset(folder: Path) -> Path:
     """Entries from catalogs with parameters assigned: the target is a catalog car
     whose ``Performance`` caps the speed it is asked for (``maxSpeed`` 24 m/s of 30)
     and is assigned a catalog route along its lane, a cone and a walker on the right
-    edge are a misc object's and a pedestrian's entry,
+    edge are a misc object's and a pedestrian's entry, the third car slows down by a
+    catalog maneuver,
     the ego follows a catalog trajectory (untimed) swerving 1.5 m left; a third car,
     two lanes right of the target, moves to 0.5 m left of where the target is
     (``RelativeTargetLaneOffset``, not continuous; esmini's reading: beside the
@@ -1139,6 +1165,7 @@ def catalogs_and_relative_lane_offset(folder: Path) -> Path:
     (cat / "routes.xosc").write_text(_ROUTE_CATALOG)
     (cat / "objects.xosc").write_text(_OBJECT_CATALOG)
     (cat / "people.xosc").write_text(_PEDESTRIAN_CATALOG)
+    (cat / "maneuvers.xosc").write_text(_MANEUVER_CATALOG)
     init = placed((("Ego", -2, 50.0, 20.0), ("Target", -1, 80.0, 20.0),
                    ("Third", -3, 90.0, 20.0)))  # fmt: skip
     entities = xosc.Entities()
@@ -1194,6 +1221,7 @@ def catalogs_and_relative_lane_offset(folder: Path) -> Path:
     catalog.add_catalog("RouteCatalog", str(cat))
     catalog.add_catalog("MiscObjectCatalog", str(cat))
     catalog.add_catalog("PedestrianCatalog", str(cat))
+    catalog.add_catalog("ManeuverCatalog", str(cat))
     scenario = xosc.Scenario(
         "catalogs", "aldm-gym tests", xosc.ParameterDeclarations(), entities, board,
         xosc.RoadNetwork(str(straight_road(folder))), catalog,
@@ -1205,7 +1233,17 @@ def catalogs_and_relative_lane_offset(folder: Path) -> Path:
     start = text.index('<Event name="swerve"')
     a = text.index("<PrivateAction>", start)
     b = text.index("</PrivateAction>", a) + len("</PrivateAction>")
-    path.write_text(text[:a] + swerve + text[b:])
+    text = text[:a] + swerve + text[b:]
+    # the third car's maneuver group also plays a catalog maneuver, 15 m/s at 6 s
+    group = '<ManeuverGroup name="maneuvuergroup_third"'  # scenariogeneration's name
+    a = text.index("</Actors>", text.index(group)) + len("</Actors>")
+    slow = (
+        '<CatalogReference catalogName="maneuvers" entryName="slow_down"><ParameterAssignments>'
+        '<ParameterAssignment parameterRef="Speed" value="15"/>'
+        '<ParameterAssignment parameterRef="At" value="6"/></ParameterAssignments>'
+        "</CatalogReference>"
+    )
+    path.write_text(text[:a] + slow + text[a:])
     return path
 
 

@@ -936,3 +936,20 @@ def test_a_continuous_relative_lane_offset_keeps_beside_its_reference(tmp_path: 
     assert ego_y[before] == pytest.approx(target_y[before] + 0.5, abs=1e-6)  # OpenDRIVE y
     assert target_y[-1] == pytest.approx(-1.75 + 0.8, abs=1e-6)
     assert ego_y[-1] == pytest.approx(target_y[-1] + 0.5, abs=1e-6)
+
+
+def test_a_catalog_maneuver_that_is_no_maneuver_is_named(tmp_path: Path) -> None:
+    from tests.scenario.corpus import catalogs_and_relative_lane_offset
+
+    path = catalogs_and_relative_lane_offset(tmp_path)
+    text = path.read_text()
+    good = (
+        '<CatalogReference catalogName="maneuvers" entryName="slow_down"><ParameterAssignments>'
+        '<ParameterAssignment parameterRef="Speed" value="15"/>'
+        '<ParameterAssignment parameterRef="At" value="6"/></ParameterAssignments>'
+        "</CatalogReference>"
+    )
+    assert good in text
+    path.write_text(text.replace(good, '<CatalogReference catalogName="cars" entryName="car"/>'))
+    with pytest.raises(ScenarioError, match=r"cars.xosc.*is a <Vehicle>, not a <Maneuver>"):
+        read_scenario(path)
