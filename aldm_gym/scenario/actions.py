@@ -1518,6 +1518,10 @@ class FollowTrajectory(Instance):
         _override(entity, "trajectory", self)
         # The actor is put on the path by the first step (as esmini, which steps a new
         # action in the frame it starts in: its first logged pose is a step along).
+        if not world.running and not entity.placed:
+            # in Init, an actor nothing placed starts where the path does (as esmini)
+            i, x = self._at_time(world.time) if self.timed else self._at_length(self.along)
+            self._place(world, entity, i, x)
 
     def _at_time(self, t: float) -> tuple[int, float]:
         """Segment and fraction along it at time ``t`` [s] (timed)."""

@@ -26,6 +26,7 @@ from aldm_gym.scenario.expressions import (
     NUMBER_PATTERN,
     ParamValue,
     format_value,
+    parameter_name,
     place_prefix,
     resolve,
     to_float,
@@ -123,7 +124,7 @@ def declarations_from_xml(element: etree._Element | None) -> list[ParameterDecla
     for child in children(element):
         if child.tag != "ParameterDeclaration":
             raise r.unexpected(child, ["ParameterDeclaration"])
-        name = r.required(child, "name")
+        name = parameter_name(r.required(child, "name"))
         if not NAME_PATTERN.fullmatch(name):
             raise r.error(child, f"invalid parameter name {name!r} (letters, digits, _)")
         ptype = r.required(child, "parameterType")

@@ -23,7 +23,7 @@ from lxml import etree
 
 from aldm_gym.errors import InputError, ScenarioError
 from aldm_gym.scenario.declarations import ParameterDeclaration, bind, violations
-from aldm_gym.scenario.expressions import format_value, resolve_number
+from aldm_gym.scenario.expressions import format_value, parameter_name, resolve_number
 from aldm_gym.xmlfile import ElementReader, children, parse_xml
 
 __all__ = ["MAX_RUNS", "ConcreteRun", "expand_variation", "filter_runs"]
@@ -103,7 +103,7 @@ def _value_sets(r: _Reader, el: etree._Element) -> list[dict[str, str]]:
     for value_set in r.many(r.one(el, ["ValueSetDistribution"]), "ParameterValueSet"):
         assignment: dict[str, str] = {}
         for item in r.many(value_set, "ParameterAssignment"):
-            name = r.required(item, "parameterRef")
+            name = parameter_name(r.required(item, "parameterRef"))
             if name in assignment:
                 raise r.error(item, f"parameter {name} is assigned twice in one set")
             assignment[name] = r.required(item, "value")
@@ -119,7 +119,7 @@ def _deterministic(r: _Reader, el: etree._Element) -> list[dict[str, str]]:
     owner: dict[str, int | None] = {}
     for child in children(el):
         if child.tag == "DeterministicSingleParameterDistribution":
-            name = r.required(child, "parameterName")
+            name = parameter_name(r.required(child, "parameterName"))
             factor = [{name: value} for value in _single(r, child)]
         elif child.tag == "DeterministicMultiParameterDistribution":
             factor = _value_sets(r, child)
@@ -269,7 +269,7 @@ def _stochastic(r: _Reader, el: etree._Element) -> list[dict[str, str]]:
         raise r.error(el, f"randomSeed must be a whole number >= 0, got {format_value(seed)}")
     distributions: dict[str, _Stochastic] = {}
     for child in r.many(el, "StochasticDistribution"):
-        name = r.required(child, "parameterName")
+        name = parameter_name(r.required(child, "parameterName"))
         if name in distributions:
             raise r.error(child, f"parameter {name} has two distributions")
         distributions[name] = _stochastic_distribution(r, child)

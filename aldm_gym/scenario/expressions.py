@@ -68,6 +68,7 @@ __all__ = [
     "ParamValue",
     "evaluate",
     "format_value",
+    "parameter_name",
     "place_prefix",
     "resolve",
     "resolve_number",
@@ -79,6 +80,19 @@ ParamValue: TypeAlias = bool | int | float | str
 
 NAME_PATTERN = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 """A parameter's name (``fullmatch``)."""
+
+
+def parameter_name(raw: str) -> str:
+    """A parameter's name as a file writes it where a name (not a value) is meant: a
+    declaration's ``name``, a ``parameterRef``, a distribution's ``parameterName``.
+    OpenSCENARIO 1.0's own examples (and scenariogeneration's output) write these with
+    the ``$`` of a reference (``name="$owner"``), as esmini accepts; the name is the
+    rest. Anything else is returned as it is (and checked where it is used)."""
+    if raw.startswith("$") and NAME_PATTERN.fullmatch(raw[1:]):
+        return raw[1:]
+    return raw
+
+
 NUMBER_PATTERN = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?")
 """A decimal number literal (``fullmatch``)."""
 INTEGER_PATTERN = re.compile(r"[+-]?\d+")

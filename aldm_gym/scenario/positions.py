@@ -28,6 +28,7 @@ from aldm_gym.scenario.world import Entity, World, wrap_angle
 
 __all__ = [
     "LanePos",
+    "NotPlacedYet",
     "Orientation",
     "Position",
     "RelativeLanePos",
@@ -83,6 +84,30 @@ class Position:
 
     def _error(self, exc: Exception) -> ScenarioError:
         return ScenarioError(f"{self.where}: the position is not on the map: {exc}")
+
+    def _reference(self, world: World) -> Entity:
+        """The entity this position is relative to (its ``entity`` field).
+
+        :raises NotPlacedYet: nothing has placed it yet (in ``Init``, whose actions may
+            name an entity that a later one places).
+        """
+        ref: Entity = world.entities[self.entity]  # type: ignore[attr-defined]
+        if not ref.placed:
+            raise NotPlacedYet(
+                f"{self.where}: {ref.name!r}, which the position is relative to, has no "
+                "position yet",
+                ref.name,
+            )
+        return ref
+
+
+class NotPlacedYet(ScenarioError):
+    """A position relative to an entity that nothing has placed yet."""
+
+    def __init__(self, message: str, entity: str) -> None:
+        """``entity``: the one not placed."""
+        super().__init__(message)
+        self.entity = entity
 
 
 def lane_step(lane_id: int, steps: int) -> int:
@@ -202,7 +227,7 @@ class RelativeLanePos(Position):
 
     def resolve(self, world: World) -> Where:
         """See :class:`Position`."""
-        ref = world.entities[self.entity]
+        ref = self._reference(world)
         c = world.coordinates(ref)
         lane_id = lane_step(c.lane_id, self.d_lane)
         try:
@@ -230,7 +255,7 @@ class RelativeObjectPos(Position):
 
     def resolve(self, world: World) -> Where:
         """See :class:`Position`."""
-        ref: Entity = world.entities[self.entity]
+        ref: Entity = self._reference(world)
         point = ref.reference_point() + self.dx * ref.forward() + self.dy * ref.left()
         return _relative_to(ref, point, self.orientation)
 
@@ -248,7 +273,7 @@ class RelativeRoadPos(Position):
 
     def resolve(self, world: World) -> Where:
         """See :class:`Position`."""
-        ref = world.entities[self.entity]
+        ref = self._reference(world)
         c = world.coordinates(ref)
         road = RoadPos(c.road_id, c.s + self.ds, world.road_t(ref) + self.dt, self.orientation)
         return replace(road, where=self.where).resolve(world)
@@ -267,7 +292,7 @@ class RelativeWorldPos(Position):
 
     def resolve(self, world: World) -> Where:
         """See :class:`Position` (an orientation relative to the entity's heading)."""
-        ref: Entity = world.entities[self.entity]
+        ref: Entity = self._reference(world)
         point = ref.reference_point() + np.array([self.dx, -self.dy])
         return _relative_to(ref, point, self.orientation)
 
@@ -336,7 +361,7 @@ class RoutePos(Position):
     def resolve(self, world: World) -> Where:
         """See :class:`Position`."""
         if self.mode == "entity":
-            ref: Entity = world.entities[self.entity]
+            ref: Entity = self._reference(world)
             return _relative_to(ref, ref.reference_point(), self.orientation)
         start = self.waypoints[0].resolve(world)
         road = world.road

@@ -30,7 +30,13 @@ from aldm_gym.scenario import actions as A
 from aldm_gym.scenario import conditions as C
 from aldm_gym.scenario import shapes as S
 from aldm_gym.scenario.declarations import bind, declarations_from_xml
-from aldm_gym.scenario.expressions import ParamValue, format_value, resolve, resolve_number
+from aldm_gym.scenario.expressions import (
+    ParamValue,
+    format_value,
+    parameter_name,
+    resolve,
+    resolve_number,
+)
 from aldm_gym.scenario.positions import (
     LanePos,
     Orientation,
@@ -326,6 +332,13 @@ class _Reader(ElementReader):
             return default
         return str(resolve(raw, self.params, self.where(el, name)))
 
+    def required_raw(self, el: Any, name: str) -> str:
+        """An attribute as written (a name, not a value: no parameter is resolved)."""
+        raw = el.get(name)
+        if raw is None:
+            raise self.error(el, f"missing attribute {name!r}")
+        return str(raw)
+
     def num(self, el: Any, name: str, default: Any = _MISSING) -> float:
         """A finite number attribute."""
         raw = el.get(name)
@@ -461,7 +474,7 @@ class _Reader(ElementReader):
             )
         element, file = catalogs[name][entry]
         assigned = {
-            self.attr(a, "parameterRef"): self.attr(a, "value")
+            parameter_name(self.required_raw(a, "parameterRef")): self.attr(a, "value")
             for a in ref.findall("ParameterAssignments/ParameterAssignment")
         }
         decls = declarations_from_xml(element.find("ParameterDeclarations"))
@@ -510,18 +523,30 @@ class _Reader(ElementReader):
             body, reader = self.from_catalog(body)
         if body.tag not in ("Vehicle", "Pedestrian", "MiscObject"):
             raise self.unsupported(body, ("Vehicle", "Pedestrian", "MiscObject"))
-        spec = reader._entity(name, body, obj.find("ObjectController") is not None, self.where(obj))
+        controlled = obj.find("ObjectController") is not None
+        return reader._object_and_trailers(name, body, controlled, self.where(obj))
+
+    def _object_and_trailers(
+        self, name: str, body: Any, controlled: bool, where: str
+    ) -> list[EntitySpec]:
+        """The spec of the object ``body`` defines, then those of the trailers defined
+        inside it."""
+        spec = self._entity(name, body, controlled, where)
         out = [spec]
         towed = body.find("Trailer") if body.tag == "Vehicle" else None
         if towed is not None:
-            # esmini's own catalogs write <EntityRef> for <TrailerRef>, and leave its
-            # entityRef empty for "no trailer"
-            inner = reader.one(towed, ("Trailer", "TrailerRef", "EntityRef"))
-            if inner.tag != "Trailer":
-                trailer = reader.attr(inner, "entityRef") or None
-            else:  # a trailer defined here: a scenario object of its own
-                out += reader._scenario_object(inner)
+            # esmini's own catalogs write <EntityRef> for <TrailerRef> (its entityRef
+            # empty for "no trailer"), and a trailer's <Vehicle> without its
+            # <Trailer> scenario object around it
+            inner = self.one(towed, ("Trailer", "TrailerRef", "EntityRef", "Vehicle"))
+            if inner.tag == "Trailer":  # a trailer defined here: a scenario object
+                out += self._scenario_object(inner)
+                trailer: str | None = out[1].name
+            elif inner.tag == "Vehicle":  # named after its tractor, as esmini names it
+                out += self._object_and_trailers(f"{name}+", inner, False, self.where(inner))
                 trailer = out[1].name
+            else:
+                trailer = self.attr(inner, "entityRef") or None
             out[0] = dataclasses.replace(spec, trailer=trailer)
         return out
 
@@ -889,7 +914,7 @@ class _Reader(ElementReader):
         if decls is None:
             return out
         for d in self.kids(decls, ("VariableDeclaration",)):
-            name = self.attr(d, "name")
+            name = parameter_name(self.required_raw(d, "name"))
             kind = self.choice(
                 d,
                 "variableType",
@@ -912,7 +937,7 @@ class _Reader(ElementReader):
     def _store_change(self, body: Any, store: str) -> Callable[[Entity | None], A.Instance]:
         """``ParameterAction`` or ``VariableAction``: set or modify a value at run time."""
         ref_attr = "parameterRef" if store == "parameters" else "variableRef"
-        name = self.attr(body, ref_attr)
+        name = parameter_name(self.required_raw(body, ref_attr))
         known = self.params if store == "parameters" else self.variables()
         if name not in known:
             raise self.error(
@@ -1290,7 +1315,7 @@ class _Reader(ElementReader):
         dyn_el = self.child(body, "LaneOffsetActionDynamics")
         shape = self.choice(dyn_el, "dynamicsShape", A.SHAPES)
         acc = self.num(dyn_el, "maxLateralAcc", None)
-        continuous = self.flag(body, "continuous")
+        continuous = self.flag(body, "continuous", False)  # LENIENT: esmini's default
         t = self.one(
             self.child(body, "LaneOffsetTarget"),
             ("AbsoluteTargetLaneOffset", "RelativeTargetLaneOffset"),
@@ -1680,7 +1705,7 @@ class _Reader(ElementReader):
         if c.tag in ("ParameterCondition", "VariableCondition"):
             store = "parameters" if c.tag == "ParameterCondition" else "variables"
             ref_attr = "parameterRef" if store == "parameters" else "variableRef"
-            name = self.attr(c, ref_attr)
+            name = parameter_name(self.required_raw(c, ref_attr))
             known = self.params if store == "parameters" else self.variables()
             if name not in known:
                 raise self.error(

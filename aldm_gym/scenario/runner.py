@@ -104,6 +104,46 @@ class ScenarioRunner:
         """Whether the storyboard's stop trigger has fired."""
         return self.storyboard.finished
 
+    def _play_init(self) -> None:
+        """Start ``Init``'s actions in document order, but an action placing its actor
+        relative to an entity that a later action places waits, with the actor's later
+        actions, until that entity has its place (as esmini plays the ASAM examples
+        that put the ego relative to a vehicle placed after it).
+
+        :raises ScenarioError: an action that fails, or positions relative to each
+            other in a cycle (naming the first).
+        """
+        from aldm_gym.scenario.positions import NotPlacedYet
+
+        pending = list(self.init_actions)
+        while pending:
+            waiting: list[Any] = []
+            held: set[str] = set()  # actors whose earlier action waits
+            failure: NotPlacedYet | None = None
+            for action in pending:
+                actor = getattr(action.entity, "name", None)
+                if actor is not None and actor in held:
+                    waiting.append(action)
+                    continue
+                try:
+                    action.start(self)
+                except NotPlacedYet as exc:
+                    failure = failure or exc
+                    waiting.append(action)
+                    if actor is not None:
+                        held.add(actor)
+                except ScenarioError:
+                    raise
+                except InputError as exc:  # a value that puts an entity outside the world
+                    raise ScenarioError(f"{action.where}: {exc}") from None
+            if len(waiting) == len(pending):  # no progress: a cycle, or never placed
+                assert failure is not None
+                raise ScenarioError(
+                    f"{failure} (in Init, positions relative to each other in a circle, or "
+                    "to an entity no action places)"
+                ) from None
+            pending = waiting
+
     def populate(
         self,
         traffic: Any,
@@ -137,13 +177,7 @@ class ScenarioRunner:
             v.LENGTH, v.WIDTH = entity.box.length, entity.box.width
             v.diagonal = float(np.hypot(v.LENGTH, v.WIDTH))
             entity.vehicle = v
-        for action in self.init_actions:
-            try:
-                action.start(self)
-            except ScenarioError:
-                raise
-            except InputError as exc:  # a value that puts an entity outside the world
-                raise ScenarioError(f"{action.where}: {exc}") from None
+        self._play_init()
         self._couple()
         for entity in self.world.entities.values():
             if not entity.placed and entity.name in self.scenario.added:

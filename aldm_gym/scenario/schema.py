@@ -657,6 +657,7 @@ LENIENT: dict[tuple[str, str], str] = {
     ("RelativeObjectPosition", "dy"): "0",
     ("RelativeTargetSpeed", "speedTargetValueType"): "delta",
     ("Condition", "conditionEdge"): "none",
+    ("LaneOffsetAction", "continuous"): "false",
 }
 """Required attributes that files written for esmini leave out (its own examples do),
 with the value the player takes, as esmini does. Every other missing required

@@ -1247,6 +1247,24 @@ def catalogs_and_relative_lane_offset(folder: Path) -> Path:
     return path
 
 
+def init_relative_to_a_later_entity(folder: Path) -> Path:
+    """``Init`` puts the ego 30 m behind the target, one lane right, before the
+    target's own teleport (the order of ASAM's SlowPrecedingVehicle example); the ego
+    then speeds up."""
+    init = xosc.Init()
+    behind = xosc.RelativeLanePosition(lane_id=-1, entity="Target", ds=-30.0)
+    init.add_init_action("Ego", xosc.TeleportAction(behind))
+    init.add_init_action("Ego", step_speed(20.0))
+    init.add_init_action("Target", xosc.TeleportAction(xosc.LanePosition(120.0, 0, -1, 0)))
+    init.add_init_action("Target", step_speed(15.0))
+    entities, board = cars_and_board(("Ego", "Target"), init, 8.0)
+    ego = xosc.Maneuver("ego")
+    dyn = xosc.TransitionDynamics(xosc.DynamicsShapes.linear, xosc.DynamicsDimension.rate, 2.0)
+    ego.add_event(_event("faster", xosc.AbsoluteSpeedAction(26.0, dyn), at_time(1.0)))
+    board.add_maneuver(ego, "Ego")
+    return save(folder, "init_order.xosc", entities, board)
+
+
 CORPUS: dict[str, Callable[[Path], Path]] = {
     f.__name__: f
     for f in (
@@ -1284,6 +1302,7 @@ CORPUS: dict[str, Callable[[Path], Path]] = {
         synchronize_relative_to_master,
         trailer_by_reference,
         catalogs_and_relative_lane_offset,
+        init_relative_to_a_later_entity,
     )
 }
 """The corpus by name."""

@@ -953,3 +953,17 @@ def test_a_catalog_maneuver_that_is_no_maneuver_is_named(tmp_path: Path) -> None
     path.write_text(text.replace(good, '<CatalogReference catalogName="cars" entryName="car"/>'))
     with pytest.raises(ScenarioError, match=r"cars.xosc.*is a <Vehicle>, not a <Maneuver>"):
         read_scenario(path)
+
+
+def test_init_positions_relative_to_each_other_in_a_cycle_are_named(tmp_path: Path) -> None:
+    from tests.scenario.corpus import init_relative_to_a_later_entity
+
+    path = init_relative_to_a_later_entity(tmp_path)
+    text = path.read_text()
+    placed_at = '<LanePosition roadId="0" laneId="-1" s="120.0" offset="0.0"/>'
+    assert placed_at in text
+    path.write_text(
+        text.replace(placed_at, '<RelativeLanePosition entityRef="Ego" ds="30.0" dLane="1"/>')
+    )
+    with pytest.raises(ScenarioError, match=r"'Target', which the position is relative to.*circle"):
+        play(path, seconds=1.0)
