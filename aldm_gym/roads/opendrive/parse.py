@@ -629,7 +629,10 @@ def _lane(r: _Reader, el: etree._Element) -> Lane:
         else:
             marks.append(_road_mark(r, child))
     if lane_id == 0 and (widths or borders):
-        raise r.error(el, "the centre lane (id 0) must not have width or border records")
+        # OpenDRIVE gives the centre lane no width; files that do (esmini's own maps
+        # among them) mean nothing by it, and esmini ignores it: so does the reader
+        r.skipped["center/lane/width" if widths else "center/lane/border"] += 1
+        widths, borders = [], []
     level = r.text(el, "level", "false").lower() in ("true", "1")
     return Lane(
         id=lane_id,

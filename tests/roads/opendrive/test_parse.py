@@ -245,3 +245,23 @@ def test_two_files_with_one_content_name_themselves(tmp_path: Path) -> None:
     for name in ("first.xodr", "second.xodr"):
         with pytest.raises(MapError, match=rf"{name}: no driving lane"):
             OpenDriveRoad.from_file(write_xodr(tmp_path / name, road))
+
+
+def test_a_centre_lane_width_is_skipped_with_a_warning(tmp_path: Path) -> None:
+    """OpenDRIVE gives the centre lane no width; a file that does (esmini's own maps) is
+    read as without it, with the skip in the one warning."""
+    plain = section_xml(right=lane_xml(-1) + lane_xml(-2))
+    width = '<width sOffset="0" a="0.2" b="0" c="0" d="0"/>'
+    wide = plain.replace(
+        '<lane id="0" type="none" level="false">', f'<lane id="0" type="none" level="false">{width}'
+    )
+    assert wide != plain
+    geometry = geometry_xml("<line/>", 50.0)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        parsed = parse_file(write_xodr(tmp_path / "wide.xodr", road_xml("1", geometry, 50.0, wide)))
+    assert any("center/lane/width x1" in str(w.message) for w in caught)
+    reference = parse_file(
+        write_xodr(tmp_path / "plain.xodr", road_xml("1", geometry, 50.0, plain))
+    )
+    assert parsed.roads[0].sections == reference.roads[0].sections
