@@ -1257,12 +1257,41 @@ class LaneChange(Instance):
 
     def offset_after(self, world: World, entity: Entity, dt: float) -> float:
         """The offset [m] (driver's left) after ``dt`` [s]."""
+        # the shape's rate where the step begins: in time (and rate) dimensions it
+        # turns the heading and splits the speed between the two motions (esmini)
+        self.rate = 0.0
+        if self.T > 0.0 and self.dynamics.dimension != "distance":
+            x0 = self.elapsed / self.T
+            self.rate = (self.t1 - self.t0) / self.T * shape_slope(self.dynamics.shape, x0)
         self.elapsed += dt
         x = self.elapsed / self.T if self.T > 0.0 else 1.0
         if x >= 1.0:
             self._complete()
             return self.t1
         return self.t0 + (self.t1 - self.t0) * shape_value(self.dynamics.shape, x)
+
+    rate: float | None = None
+    """The lateral speed [m/s] (driver's left) where the last step began (None: the
+    step's own move, in the distance dimension)."""
+
+    def heading_rate(self) -> float | None:
+        """The lateral speed that turns the heading: 0 in the step the change arrives
+        (esmini straightens the entity along its lane then, whatever the shape), else
+        the shape's rate where the step began (None in the distance dimension: the
+        step's move)."""
+        if self.done:
+            return 0.0
+        if self.dynamics.dimension == "distance":
+            return None
+        return self.rate
+
+    def step_lateral(self, dt: float) -> float | None:
+        """The lateral motion [m] that takes its share of a step's travel: the shape's
+        rate where the step began times ``dt`` (esmini), None in the distance
+        dimension (the step's own move)."""
+        if self.rate is None or self.dynamics.dimension == "distance":
+            return None
+        return abs(self.rate) * dt
 
 
 LATERAL_DONE = 0.01

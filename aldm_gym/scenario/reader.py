@@ -1322,7 +1322,10 @@ class _Reader(ElementReader):
         )
         value = self.num(t, "value")
         if t.tag == "AbsoluteTargetLaneOffset":
-            offset_target: Callable[[Any, Entity], float] = lambda world, actor: value  # noqa: E731
+
+            def offset_target(world: Any, actor: Entity, value: float = value) -> float:
+                return float(world.offset_in_lane(actor, value))
+
         else:
             ref = self._entity_ref(t, "entityRef")
 

@@ -411,6 +411,17 @@ class World:
         )
         return coordinates, pos
 
+    def offset_in_lane(self, entity: Entity, value: float) -> float:
+        """The offset [m] from the centre of the lane ``entity`` moves by, along the
+        road's ``t``, of the place ``value`` [m] (along ``t``) from the centre of the
+        lane that holds its reference point: the two differ after a lane change onto a
+        lane of the other driving direction (the entity moves by its own lane)."""
+        c = self.coordinates(entity)
+        if c.lane == entity.lane:
+            return value
+        direction = self.road.lane_record(entity.lane).direction
+        return entity.t * direction - c.offset + value
+
     def offset_beside(self, entity: Entity, ref: Entity, value: float) -> float:
         """The offset [m] from the centre of ``entity``'s lane, along the road's ``t`` (a
         ``LanePosition``'s sense), that puts ``entity`` ``value`` [m] beside ``ref``:
@@ -639,7 +650,10 @@ class World:
         lateral = 0.0 if jumped else entity.t - t_before
         along = step
         if getattr(entity.last_lateral, "speed_along_heading", False):
-            along = math.sqrt(step * step - lateral * lateral) if abs(lateral) < step else 0.0
+            share = getattr(entity.last_lateral, "step_lateral", None)
+            split = share(dt) if share is not None else None
+            split = abs(lateral) if split is None else split
+            along = math.sqrt(step * step - split * split) if split < step else 0.0
         entity.traveled += math.hypot(along, lateral)
         mean_t = 0.5 * (entity.t + t_before)
         if settles:
@@ -828,10 +842,13 @@ class World:
 def _heading_speed(motion: Any, moved: float, dt: float) -> float:
     """The lateral speed [m/s] that turns the heading in a step of ``dt`` [s] in which
     the lateral ``motion`` moved the entity by ``moved`` [m]: the motion's own
-    ``heading_rate`` where it has one (a lane offset), else the speed of the move."""
+    ``heading_rate`` where it gives one (a lane offset; a lane change in the step it
+    arrives), else the speed of the move."""
     rate = getattr(motion, "heading_rate", None)
     if rate is not None:
-        return float(rate())
+        got = rate()
+        if got is not None:
+            return float(got)
     return moved / dt if dt > 0 else 0.0
 
 
