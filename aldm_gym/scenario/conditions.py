@@ -24,7 +24,7 @@ A distance is a magnitude (>= 0). ``TimeHeadwayCondition`` divides the distance 
 the triggering entity to the referenced one by the triggering entity's speed (inf when
 it stands still), and counts only a referenced entity ahead; ``TimeToCollision``
 divides the distance by the closing speed along the line of sight (inf when the two
-do not close).
+do not close). An inf value is undefined: the condition holds for no rule (as esmini).
 """
 
 from __future__ import annotations

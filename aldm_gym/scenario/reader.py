@@ -199,6 +199,13 @@ class Scenario:
         return out
 
 
+def _defined(rule: Callable[[Any, Any], bool], value: float, given: float) -> bool:
+    """``rule(value, given)`` for a time headway or a time to collision [s], False
+    where it is undefined (inf: the other entity behind, standing still, not closing),
+    whatever the rule (as esmini: ``greaterThan`` does not hold for a car behind)."""
+    return math.isfinite(value) and bool(rule(value, given))
+
+
 def read_scenario(path: str | Path, parameters: Mapping[str, Any] | None = None) -> Scenario:
     """Read a concrete scenario with ``parameters`` overriding its declarations.
 
@@ -1914,7 +1921,9 @@ class _Reader(ElementReader):
 
             def head(runner: Any, e: Entity) -> bool:
                 w = runner.world
-                return rule(C.headway(w, e, w.entities[ref], freespace, system, kind), value)
+                return _defined(
+                    rule, C.headway(w, e, w.entities[ref], freespace, system, kind), value
+                )
 
             return head
         if c.tag == "TimeToCollisionCondition":
@@ -1930,11 +1939,14 @@ class _Reader(ElementReader):
             )
             if target.tag == "Position":
                 pos = self.position(target)
-                return lambda runner, e: rule(
-                    C.time_to_point(runner.world, e, _point(runner.world, pos), freespace), value
+                return lambda runner, e: _defined(
+                    rule,
+                    C.time_to_point(runner.world, e, _point(runner.world, pos), freespace),
+                    value,
                 )
             ref = self._entity_ref(target, "entityRef")
-            return lambda runner, e: rule(
+            return lambda runner, e: _defined(
+                rule,
                 C.time_to_collision(
                     runner.world, e, runner.world.entities[ref], freespace, system, kind
                 ),

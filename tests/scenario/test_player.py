@@ -967,3 +967,30 @@ def test_init_positions_relative_to_each_other_in_a_cycle_are_named(tmp_path: Pa
     )
     with pytest.raises(ScenarioError, match=r"'Target', which the position is relative to.*circle"):
         play(path, seconds=1.0)
+
+
+@pytest.mark.parametrize("rule", [xosc.Rule.greaterThan, xosc.Rule.lessThan])
+def test_a_time_headway_to_an_entity_behind_holds_for_no_rule(tmp_path: Path, rule: object) -> None:
+    """The headway to an entity behind is undefined, and so is a time to collision
+    that does not close: the condition holds for no rule (esmini: ``greaterThan``
+    does not fire for a car behind). Once the faster target is 10 m ahead of the ego
+    (0.5 s at 20 m/s) a headway above 0.5 s holds."""
+    from aldm_gym.scenario.esmini import player_trace
+
+    headway = xosc.TimeHeadwayCondition(
+        "Target", 0.5, rule, alongroute=False, freespace=False,
+        distance_type=xosc.RelativeDistanceType.longitudinal,
+        coordinate_system=xosc.CoordinateSystem.entity,
+    )  # fmt: skip
+    trigger = xosc.EntityTrigger("behind", 0, xosc.ConditionEdge.none, headway, "Ego")
+    path = write(
+        tmp_path,
+        [("Ego", [_one_event("slow", step_speed(15.0), trigger)])],
+        target=(1, -30.0, 30.0),  # one lane left, 30 m behind, 10 m/s faster
+        stop=8.0,
+    )
+    starts = player_trace(path).starts.get("slow", [])
+    if rule == xosc.Rule.lessThan:  # ahead by 0 to 10 m: 3.0 to 4.0 s
+        assert len(starts) == 1 and 3.0 < starts[0] <= 4.1
+    else:  # ahead by more than 10 m: after 4.0 s, never while it is behind
+        assert len(starts) == 1 and 4.0 < starts[0] <= 4.2
