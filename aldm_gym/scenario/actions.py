@@ -1413,6 +1413,9 @@ class LaneOffset(Instance):
 
     slot = "lateral"
     domains = ("lateral",)
+    moves_along = False
+    """It sets the offset only: the entity travels after every action, at the speed
+    they left (esmini's lane offset does not move the entity on, a lane change does)."""
 
     @property
     def jumps(self) -> bool:

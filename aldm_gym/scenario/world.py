@@ -622,10 +622,12 @@ class World:
         # a rigid distance places the actor once everyone has moved (settle)
         settles = getattr(longitudinal, "rigid", False)
         # A lane change moves the entity itself, before a speed action written after it
-        # has changed the speed (esmini steps actions in document order)
+        # has changed the speed (esmini steps actions in document order); a lane
+        # offset only sets the offset, and the entity travels at the new speed
         travel_speed = entity.speed
         if (
             entity.lateral is not None
+            and getattr(entity.lateral, "moves_along", True)
             and longitudinal is not None
             and longitudinal.rank > entity.lateral.rank
         ):

@@ -1265,6 +1265,34 @@ def init_relative_to_a_later_entity(folder: Path) -> Path:
     return save(folder, "init_order.xosc", entities, board)
 
 
+def braking_during_a_lane_offset(folder: Path) -> Path:
+    """A continuous lane offset towards the ego's lane (relative to the ego, esmini's
+    cut-in_simple) and a brake written after it that starts while it runs: the
+    offset sets the offset only, and the target travels at the braked speed."""
+    offset = xosc.RelativeLaneOffsetAction(
+        0.0, "Ego", xosc.DynamicsShapes.sinusoidal, 1.0, continuous=True
+    )
+    brake = xosc.TransitionDynamics(xosc.DynamicsShapes.linear, xosc.DynamicsDimension.rate, 5.0)
+    return write(
+        folder,
+        [
+            (
+                "Target",
+                [
+                    _event("cut_in", offset, at_time(1.0)),
+                    _event(
+                        "brake", xosc.AbsoluteSpeedAction(0.0, brake), at_time(2.0),
+                        xosc.Priority.parallel,
+                    ),
+                ],
+            )
+        ],
+        target=(1, 20.0, 25.0),
+        stop=8.0,
+        name="brake_in_offset.xosc",
+    )  # fmt: skip
+
+
 CORPUS: dict[str, Callable[[Path], Path]] = {
     f.__name__: f
     for f in (
@@ -1303,6 +1331,7 @@ CORPUS: dict[str, Callable[[Path], Path]] = {
         trailer_by_reference,
         catalogs_and_relative_lane_offset,
         init_relative_to_a_later_entity,
+        braking_during_a_lane_offset,
     )
 }
 """The corpus by name."""
