@@ -44,7 +44,7 @@ import numpy as np
 
 from aldm_gym.errors import InputError, MapError, OffRoadError, ScenarioError
 from aldm_gym.scenario.positions import Position, Where
-from aldm_gym.scenario.shapes import Shape
+from aldm_gym.scenario.shapes import Polyline, Shape
 from aldm_gym.scenario.world import Entity, World, wrap_angle
 
 __all__ = [
@@ -1495,8 +1495,11 @@ class FollowTrajectory(Instance):
     ``ClothoidSpline``, ``Nurbs``: :mod:`~aldm_gym.scenario.shapes`).
 
     With vertex times (``TimeReference/Timing``) the trajectory drives both domains:
-    the actor's reference point moves linearly between the vertices in time, at the
-    speed that takes; ``followingMode`` ``follow`` is played as ``position``. Without
+    with ``followingMode`` ``position`` the actor's reference point moves linearly
+    between the vertices in time, at the speed that takes; with ``follow`` a polyline's
+    speed changes at a constant acceleration along each segment from the actor's
+    speed on (esmini's plan: every vertex at its time, the speed continuous). After
+    the last time it goes on at the speed of its last step. Without
     them (``TimeReference/None``) it drives the lateral domain only: the actor moves
     along the polyline at its own speed, which the longitudinal domain keeps setting
     (a ``SpeedAction`` during the trajectory changes the speed and leaves the path,
@@ -1514,15 +1517,19 @@ class FollowTrajectory(Instance):
         shape: Shape,
         timing: tuple[bool, float, float] | None,
         initial: float = 0.0,
+        follow: bool = False,
     ) -> None:
         """``shape``: the path (:mod:`~aldm_gym.scenario.shapes`); ``timing``:
         ``(absolute, scale, offset [s])`` of ``TimeReference/Timing``, None without
         timing (the shape's times, if any, are then not used); ``initial``: where
-        along the path an untimed one begins [m] (``initialDistanceOffset``)."""
+        along the path an untimed one begins [m] (``initialDistanceOffset``);
+        ``follow``: ``followingMode="follow"`` (a timed polyline's speed changes
+        smoothly, :meth:`_vertex_speeds`)."""
         super().__init__(entity, where)
         self.shape = shape
         self.timing = timing
         self.initial = initial
+        self.follow = follow
         self.timed = False
 
     def start(self, runner: Any) -> None:
@@ -1547,6 +1554,9 @@ class FollowTrajectory(Instance):
             if np.any(np.diff(ts) < 0) or not np.all(np.isfinite(ts)):
                 raise ScenarioError(f"{self.where}: the trajectory's times decrease")
             self.times = ts
+            polyline = self.follow and isinstance(self.shape, Polyline)
+            self.vertex_speeds = self._vertex_speeds(None if polyline else path, entity.speed)
+            self.timed_along = 0.0
         _override(entity, "trajectory", self)
         # The actor is put on the path by the first step (as esmini, which steps a new
         # action in the frame it starts in: its first logged pose is a step along).
@@ -1554,6 +1564,45 @@ class FollowTrajectory(Instance):
             # in Init, an actor nothing placed starts where the path does (as esmini)
             i, x = self._at_time(world.time) if self.timed else self._at_length(self.along)
             self._place(world, entity, i, x)
+
+    def _vertex_speeds(self, sampled: Any, speed: float) -> np.ndarray | None:
+        """A timed polyline's speed [m/s] at each vertex with ``followingMode="follow"``,
+        as esmini plans it: the actor's ``speed`` at the first, then each segment at a
+        constant acceleration that covers its length in its time (``v[i+1] = 2 L / T -
+        v[i]``). None with ``position`` (each segment at its mean speed, where every
+        vertex is at its time) and for a sampled curve (``sampled``: clothoids, NURBS)."""
+        if sampled is not None:
+            return None
+        lengths = np.diff(self.arc)
+        spans = np.diff(self.times)
+        v = np.empty(len(self.arc))
+        v[0] = speed
+        for k in range(len(lengths)):
+            v[k + 1] = 2.0 * lengths[k] / spans[k] - v[k] if spans[k] > 0.0 else v[k]
+        return v
+
+    def _along_at_time(self, t: float) -> float:
+        """Arc length [m] along the path at time ``t`` [s] (timed): each segment at the
+        constant acceleration between its vertices' speeds (a polyline), else at its
+        mean speed; the start before the first time, the end after the last."""
+        ts, arc = self.times, self.arc
+        if t <= ts[0]:
+            return float(arc[0])
+        if t >= ts[-1]:
+            return float(arc[-1])
+        i = int(np.searchsorted(ts, t, side="right")) - 1
+        span = ts[i + 1] - ts[i]
+        length = arc[i + 1] - arc[i]
+        tau = t - ts[i]
+        v = self.vertex_speeds
+        if span <= 0.0:
+            return float(arc[i + 1])
+        if v is None:
+            return float(arc[i] + length * tau / span)
+        return float(arc[i] + v[i] * tau + (v[i + 1] - v[i]) * tau * tau / (2.0 * span))
+
+    vertex_speeds: np.ndarray | None = None
+    """A timed polyline's speed [m/s] at each vertex (:meth:`_vertex_speeds`)."""
 
     def _at_time(self, t: float) -> tuple[int, float]:
         """Segment and fraction along it at time ``t`` [s] (timed)."""
@@ -1588,12 +1637,14 @@ class FollowTrajectory(Instance):
         """Move along the polyline by ``dt`` [s]: to the world's time + ``dt``
         (timed), or by the actor's speed (untimed, after its longitudinal motion)."""
         if self.timed:
+            # the place at the step's end time; the speed is the step's travel over
+            # its time while the trajectory runs (esmini), and is kept after its end
             t = world.time + dt
-            i, x = self._at_time(t)
-            span = self.times[i + 1] - self.times[i]
-            length = self.arc[i + 1] - self.arc[i]
-            if span > 0:
-                entity.speed = float(length / span)
+            along = self._along_at_time(t)
+            if dt > 0.0 and t < self.times[-1] + _TIME_EPS:
+                entity.speed = abs(along - self.timed_along) / dt
+            self.timed_along = along
+            i, x = self._at_length(along)
             finished = t >= self.times[-1]
         else:
             # The speed that moves the actor: the one before this step's longitudinal
@@ -1616,9 +1667,13 @@ class FollowTrajectory(Instance):
         self._place(world, entity, i, x)
         if finished:
             self._complete()
+            rest = 0.0
             if not self.timed and self.along > self.arc[-1]:
-                # the rest of the step's travel goes on along the end heading (as esmini)
                 rest = self.along - float(self.arc[-1])
+            elif self.timed:
+                rest = (world.time + dt - float(self.times[-1])) * entity.speed
+            if rest > 0.0:
+                # the rest of the step's travel goes on along the end heading (as esmini)
                 h = entity.heading
                 end = entity.reference_point() + rest * np.array([math.cos(h), math.sin(h)])
                 world.place_world(entity, end, h)

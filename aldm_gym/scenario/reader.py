@@ -1444,11 +1444,12 @@ class _Reader(ElementReader):
         elif body.find("TimeReference/None") is not None:
             timing = None
         mode = body.find("TrajectoryFollowingMode")
-        if mode is not None:
-            self.choice(mode, "followingMode", ("position", "follow"))
+        follow = mode is not None and (
+            self.choice(mode, "followingMode", ("position", "follow")) == "follow"
+        )
         if initial and timing is not None and body.find("TimeReference/Timing") is not None:
             raise self.error(body, "initialDistanceOffset with timing is not supported")
-        return lambda actor: A.FollowTrajectory(actor, where, shape, timing, initial)
+        return lambda actor: A.FollowTrajectory(actor, where, shape, timing, initial, follow)
 
     def _inline_or_catalog(self, holder: Any, tag: str) -> tuple[Any, _Reader]:
         """The ``tag`` element that ``holder`` gives inline or by a ``CatalogReference``,

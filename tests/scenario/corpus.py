@@ -1293,6 +1293,48 @@ def braking_during_a_lane_offset(folder: Path) -> Path:
     )  # fmt: skip
 
 
+def timed_polylines_follow_and_position(folder: Path) -> Path:
+    """Timed polylines, relative timing: the target brakes along its lane by one
+    written for 10 then 6 m/s² (``followingMode="follow"``: the speed changes at a
+    constant acceleration along each segment, from the target's speed on); the ego
+    swerves by one in ``position`` mode (each segment at its mean speed). Both go on
+    at their last speed after the last vertex."""
+
+    def timed(actor: str, points: list[tuple[float, float, float]], mode: object) -> object:
+        poly = xosc.Polyline(
+            [t for t, _, _ in points],
+            [xosc.RelativeLanePosition(lane_id=0, entity=actor, ds=ds, offset=off)
+             for _, ds, off in points],
+        )  # fmt: skip
+        traj = xosc.Trajectory(f"{actor}_path", False)
+        traj.add_shape(poly)
+        return xosc.FollowTrajectoryAction(traj, mode, xosc.ReferenceContext.relative, 1, 0)
+
+    v1, v2, a1, a2 = 25.0, 12.0, -10.0, -6.0
+    t1, t2 = (v2 - v1) / a1, (0.0 - v2) / a2
+    d1, d2 = v1 * t1 + 0.5 * a1 * t1 * t1, v2 * t2 + 0.5 * a2 * t2 * t2
+    brake = timed(
+        "Target", [(0.0, 0.0, 0.0), (t1, d1, 0.0), (t1 + t2, d1 + d2, 0.0)],
+        xosc.FollowingMode.follow,
+    )  # fmt: skip
+    swerve = timed(
+        "Ego", [(0.0, 0.0, 0.0), (1.0, 21.0, 0.8), (2.0, 40.0, 0.0), (3.0, 60.0, -0.5)],
+        xosc.FollowingMode.position,
+    )  # fmt: skip
+    path = write(
+        folder,
+        [
+            ("Target", [_event("brake", brake, at_time(1.0))]),
+            ("Ego", [_event("swerve", swerve, at_time(2.0))]),
+        ],
+        target=(1, 40.0, 25.0),
+        stop=9.0,
+        name="timed_polylines.xosc",
+    )
+    assert path.read_text().count("followingMode=") == 2
+    return path
+
+
 CORPUS: dict[str, Callable[[Path], Path]] = {
     f.__name__: f
     for f in (
@@ -1332,6 +1374,7 @@ CORPUS: dict[str, Callable[[Path], Path]] = {
         catalogs_and_relative_lane_offset,
         init_relative_to_a_later_entity,
         braking_during_a_lane_offset,
+        timed_polylines_follow_and_position,
     )
 }
 """The corpus by name."""
