@@ -82,6 +82,12 @@ class Position:
         """
         raise NotImplementedError
 
+    def resolve_point(self, world: World) -> Where:
+        """:meth:`resolve` where only the place matters (a synchronisation's target, a
+        condition's position): a lane position may then lie on a lane of any type
+        (a shoulder, a border), where a teleport needs a driving lane."""
+        return self.resolve(world)
+
     def _error(self, exc: Exception) -> ScenarioError:
         return ScenarioError(f"{self.where}: the position is not on the map: {exc}")
 
@@ -152,6 +158,22 @@ class LanePos(Position):
             )
         except MapError as exc:
             raise self._error(exc) from None
+
+    def resolve_point(self, world: World) -> Where:
+        """See :meth:`Position.resolve_point`: off the driving lanes, the point on the
+        lane's centre at ``s``, ``offset`` along the road's ``t``, heading along it."""
+        try:
+            return self.resolve(world)
+        except ScenarioError:
+            road = world.road
+            try:
+                x, y, h = road.map.lane_pose(self.road_id, self.lane_id, self.s)
+                _, _, ref_h = road.map.plan_views[self.road_id].position(np.array([self.s]))
+            except (MapError, KeyError) as exc:
+                raise self._error(exc) from None
+            n = float(ref_h[0]) + 0.5 * math.pi  # the road's t axis (OpenDRIVE's frame)
+            point = np.array([x + self.offset * math.cos(n), -(y + self.offset * math.sin(n))])
+            return Where(point=point, heading=-float(h))
 
 
 @dataclass(frozen=True)

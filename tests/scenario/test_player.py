@@ -994,3 +994,39 @@ def test_a_time_headway_to_an_entity_behind_holds_for_no_rule(tmp_path: Path, ru
         assert len(starts) == 1 and 3.0 < starts[0] <= 4.1
     else:  # ahead by more than 10 m: after 4.0 s, never while it is behind
         assert len(starts) == 1 and 4.0 < starts[0] <= 4.2
+
+
+def test_a_synchronisation_target_may_lie_on_a_lane_that_is_not_driven(tmp_path: Path) -> None:
+    """Only the place of a ``SynchronizeAction``'s targets matters: a lane position on
+    a border lane is its point there (scenariogeneration's own example), where a
+    teleport needs a driving lane."""
+    import re
+
+    from tests.scenario._build import straight_road
+
+    road = straight_road(tmp_path)
+    text = road.read_text()
+    text, n = re.subn(r'(<lane id="-3" type=")driving(")', r"\1border\2", text)
+    assert n == 1
+    road.write_text(text)
+    sync = xosc.SynchronizeAction(
+        "Ego",
+        xosc.LanePosition(300.0, 0, -3, 0),  # the border lane
+        xosc.LanePosition(300.0, 0, -1, 0),
+        1.0,
+        1.0,
+        xosc.AbsoluteSpeed(15.0),
+    )
+    path = write(
+        tmp_path, [("Target", [_one_event("sync", sync, at_time(0.5))])], stop=14.0, road=road
+    )
+    from aldm_gym.scenario.esmini import player_trace
+
+    trace = player_trace(path)
+    ego_x, target_x = trace.poses["Ego"][:, 0], trace.poses["Target"][:, 0]
+    k = int(np.argmax(ego_x >= 300.0))  # the ego (the master) arrives
+    assert ego_x[k] >= 300.0 and abs(target_x[k] - 300.0) < 2.0
+    bad = path.read_text().replace('laneId="-3" s="300.0"', 'laneId="-3" s="3000.0"')
+    path.write_text(bad)
+    with pytest.raises(ScenarioError, match="not on the map"):
+        player_trace(path)
