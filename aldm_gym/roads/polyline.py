@@ -78,9 +78,11 @@ class PolylineMarkings:
     """
 
     def __init__(self, curves: Sequence[MarkingCurve]) -> None:
-        if not curves:
-            raise InputError("a road needs at least one marking")
-        xys, us, paints = [], [], []
+        """``curves``: the markings (none for a road without paint: the sensor then
+        sees nothing)."""
+        xys: list[FloatArray] = [np.zeros((0, 2))]
+        us: list[FloatArray] = [np.zeros(0)]
+        paints: list[FloatArray] = [np.zeros((0, 2))]
         for j, c in enumerate(curves):
             xy = np.asarray(c.xy, dtype=np.float64)
             if xy.ndim != 2 or xy.shape[0] < 2 or xy.shape[1] != 2:
@@ -101,9 +103,9 @@ class PolylineMarkings:
         self.curves = tuple(curves)
         self.xy = np.ascontiguousarray(np.concatenate(xys))
         self.u = np.concatenate(us)
-        self.start = np.concatenate([[0], np.cumsum([len(x) for x in xys])]).astype(np.int64)
+        self.start = np.concatenate([[0], np.cumsum([len(x) for x in xys[1:]])]).astype(np.int64)
         self.paint = np.ascontiguousarray(np.concatenate(paints).reshape(-1, 2))
-        self.paint_start = np.concatenate([[0], np.cumsum([len(p) for p in paints])]).astype(
+        self.paint_start = np.concatenate([[0], np.cumsum([len(p) for p in paints[1:]])]).astype(
             np.int64
         )
         self._build_chunks()
@@ -114,7 +116,9 @@ class PolylineMarkings:
     def _build_chunks(self) -> None:
         # Chunks of CHUNK segments per marking (consecutive chunks share a vertex): their
         # bounding box's centre and the farthest vertex from it, all markings at once.
-        i0_parts, i1_parts, mark_parts = [], [], []
+        i0_parts = [np.zeros(0, dtype=np.int64)]
+        i1_parts = [np.zeros(0, dtype=np.int64)]
+        mark_parts = [np.zeros(0, dtype=np.int64)]
         for j in range(len(self.curves)):
             a, b = int(self.start[j]), int(self.start[j + 1])
             c0 = np.arange(a, b - 1, CHUNK, dtype=np.int64)
@@ -129,6 +133,11 @@ class PolylineMarkings:
         index = np.arange(int(lengths.sum())) - np.repeat(np.cumsum(lengths) - lengths, lengths)
         pts = self.xy[np.repeat(i0, lengths) + index]
         starts = np.cumsum(lengths) - lengths
+        if len(starts) == 0:  # no marking
+            self.chunk_mark, self.chunk_i0, self.chunk_i1 = i0, i0, i1
+            self.chunk_centre = np.zeros((0, 2))
+            self.chunk_radius = np.zeros(0)
+            return
         lo = np.minimum.reduceat(pts, starts, axis=0)
         hi = np.maximum.reduceat(pts, starts, axis=0)
         centre = 0.5 * (lo + hi)

@@ -279,7 +279,11 @@ def read_scenario(path: str | Path, parameters: Mapping[str, Any] | None = None)
         )
     map_path = (path.parent / reader.attr(logic, "filepath")).resolve()
     if not map_path.is_file():
-        raise ScenarioError(f"{reader.where(logic)}: the map {map_path} does not exist")
+        raise ScenarioError(
+            f"{reader.where(logic)}: the map {map_path} does not exist (a relative path is "
+            "read from the scenario's folder; esmini's own examples count on its working "
+            "directory being its bin folder)"
+        )
     scenario = Scenario(
         path=path,
         version=version,
@@ -454,7 +458,11 @@ class _Reader(ElementReader):
             for directory in self.root.findall("CatalogLocations/*/Directory"):
                 folder = (self.path.parent / self.attr(directory, "path")).resolve()
                 if not folder.is_dir():
-                    raise self.error(directory, f"the catalog folder {folder} does not exist")
+                    raise self.error(
+                        directory,
+                        f"the catalog folder {folder} does not exist (a relative path is read "
+                        "from the scenario's folder)",
+                    )
                 for file in sorted(folder.glob("*.xosc")):
                     croot = parse_xml(file).getroot()
                     check_structure(croot, file.name)

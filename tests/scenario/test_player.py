@@ -1030,3 +1030,24 @@ def test_a_synchronisation_target_may_lie_on_a_lane_that_is_not_driven(tmp_path:
     path.write_text(bad)
     with pytest.raises(ScenarioError, match="not on the map"):
         player_trace(path)
+
+
+def test_a_map_without_road_marks_plays_and_the_sensor_sees_nothing(tmp_path: Path) -> None:
+    """Test-track maps often carry no road marks (Euro NCAP's straight road): the
+    scenario plays, and the line sensor finds no line to measure."""
+    import re
+
+    from tests.scenario._build import straight_road
+
+    road = straight_road(tmp_path)
+    text, n = re.subn(
+        r"<roadMark[^>]*/>|<roadMark[^>]*>.*?</roadMark>", "", road.read_text(), flags=re.S
+    )
+    assert n > 0 and "roadMark" not in text
+    road.write_text(text)
+    path = write(tmp_path, [], road=road, stop=2.0)
+    env, records = play(path, seconds=1.0)
+    assert len(records) == 11 and not records[-1]["done"]
+    assert records[-1]["Target"][1] > records[0]["Target"][1] + 15.0  # it drove on
+    frame = env.perception.frame
+    assert frame is not None and len(frame.all_points) == 0 and len(frame.line_type) == 0
