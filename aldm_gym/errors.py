@@ -44,6 +44,7 @@ __all__ = [
     "MissingOSIDependencies",
     "MissingRLDependencies",
     "MissingRayDependencies",
+    "NotDrivenError",
     "NumbaCacheWarning",
     "OffRoadError",
     "OutputLocked",
@@ -86,6 +87,11 @@ class TraceError(InputError):
 class MapError(AldmGymError, ValueError):
     """An OpenDRIVE file cannot be read or driven on: malformed XML, a record that
     cannot be evaluated, no driving lane (naming file, road, element and line)."""
+
+
+class NotDrivenError(MapError):
+    """A lane of the map exists there but is not a driving lane (a shoulder, a
+    border): a place on it is a point beside the driving lanes."""
 
 
 class MapNotFoundError(AldmGymError, FileNotFoundError):

@@ -32,7 +32,7 @@ from typing import TYPE_CHECKING, Any
 import numba
 import numpy as np
 
-from aldm_gym.errors import InputError, MapError, OffRoadError
+from aldm_gym.errors import InputError, MapError, NotDrivenError, OffRoadError
 from aldm_gym.roads.cache import LRUCache
 from aldm_gym.roads.opendrive import OpenDriveMap
 from aldm_gym.roads.opendrive.map import LaneKey, LaneRecord
@@ -594,7 +594,7 @@ class OpenDriveRoad(PolylineRoad):
         for s0, s1, key in sections:
             if s0 - 1e-9 <= s <= s1 + 1e-9:
                 if key not in self._key_index:
-                    raise MapError(
+                    raise NotDrivenError(
                         f"{self.map.path}: lane {lane_id} of road {road_id!r} at s = {s:g} m "
                         f"is of type {self.map.lanes[key].type!r}, not a driving lane"
                     )

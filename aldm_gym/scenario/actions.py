@@ -894,8 +894,8 @@ class Synchronize(_Measured):
         """Resolve both targets now."""
         entity = self._scripted(runner)
         world = runner.world
-        self.where_master = self.target_master.resolve_point(world)
-        self.where_target = self.target.resolve_point(world)
+        self.where_master = self.target_master.resolve(world)
+        self.where_target = self.target.resolve(world)
         self.mode = "none"
         self.submode = "none"
         self.last = (math.inf, math.inf)

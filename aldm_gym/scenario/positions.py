@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from aldm_gym.errors import MapError, OffRoadError, ScenarioError
+from aldm_gym.errors import MapError, NotDrivenError, OffRoadError, ScenarioError
 from aldm_gym.scenario.world import Entity, World, wrap_angle
 
 __all__ = [
@@ -81,12 +81,6 @@ class Position:
         :raises ScenarioError: naming the element, when the position is off the map.
         """
         raise NotImplementedError
-
-    def resolve_point(self, world: World) -> Where:
-        """:meth:`resolve` where only the place matters (a synchronisation's target, a
-        condition's position): a lane position may then lie on a lane of any type
-        (a shoulder, a border), where a teleport needs a driving lane."""
-        return self.resolve(world)
 
     def _error(self, exc: Exception) -> ScenarioError:
         return ScenarioError(f"{self.where}: the position is not on the map: {exc}")
@@ -151,29 +145,33 @@ class LanePos(Position):
     where: str = ""
 
     def resolve(self, world: World) -> Where:
-        """See :class:`Position`."""
+        """See :class:`Position`. On a lane that is not driven (a shoulder, a border),
+        the world point on its centre at ``s``, ``offset`` along the road's ``t``,
+        heading along it (an entity placed there moves beside the nearest driving
+        lane)."""
         try:
             return _lane_where(
                 world, self.road_id, self.lane_id, self.s, self.offset, self.orientation
             )
+        except NotDrivenError:
+            return self._beside(world)
         except MapError as exc:
             raise self._error(exc) from None
 
-    def resolve_point(self, world: World) -> Where:
-        """See :meth:`Position.resolve_point`: off the driving lanes, the point on the
-        lane's centre at ``s``, ``offset`` along the road's ``t``, heading along it."""
+    def _beside(self, world: World) -> Where:
+        road = world.road
         try:
-            return self.resolve(world)
-        except ScenarioError:
-            road = world.road
-            try:
-                x, y, h = road.map.lane_pose(self.road_id, self.lane_id, self.s)
-                _, _, ref_h = road.map.plan_views[self.road_id].position(np.array([self.s]))
-            except (MapError, KeyError) as exc:
-                raise self._error(exc) from None
-            n = float(ref_h[0]) + 0.5 * math.pi  # the road's t axis (OpenDRIVE's frame)
-            point = np.array([x + self.offset * math.cos(n), -(y + self.offset * math.sin(n))])
-            return Where(point=point, heading=-float(h))
+            x, y, h = road.map.lane_pose(self.road_id, self.lane_id, self.s)
+            _, _, ref_h = road.map.plan_views[self.road_id].position(np.array([self.s]))
+        except (MapError, KeyError) as exc:
+            raise self._error(exc) from None
+        n = float(ref_h[0]) + 0.5 * math.pi  # the road's t axis (OpenDRIVE's frame)
+        point = np.array([x + self.offset * math.cos(n), -(y + self.offset * math.sin(n))])
+        heading = -float(h)  # highway-env's frame
+        o = self.orientation
+        if o is not None:
+            heading = heading - o.h if o.relative else -o.h
+        return Where(point=point, heading=heading, heading_given=o is not None)
 
 
 @dataclass(frozen=True)

@@ -2027,9 +2027,8 @@ def _collides(world: Any, e: Entity, others: Any) -> bool:
 
 
 def _point(world: Any, pos: Position) -> Any:
-    """World point of a position (lane positions on their lane's centre + offset, on a
-    lane of any type)."""
-    w = pos.resolve_point(world)
+    """World point of a position (lane positions on their lane's centre + offset)."""
+    w = pos.resolve(world)
     if w.lane is not None:
         return world.pose(w.lane, w.u, w.t)[0]
     return w.point

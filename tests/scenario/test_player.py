@@ -996,10 +996,10 @@ def test_a_time_headway_to_an_entity_behind_holds_for_no_rule(tmp_path: Path, ru
         assert len(starts) == 1 and 4.0 < starts[0] <= 4.2
 
 
-def test_a_synchronisation_target_may_lie_on_a_lane_that_is_not_driven(tmp_path: Path) -> None:
-    """Only the place of a ``SynchronizeAction``'s targets matters: a lane position on
-    a border lane is its point there (scenariogeneration's own example), where a
-    teleport needs a driving lane."""
+def test_a_lane_position_on_a_lane_not_driven_is_a_point_there(tmp_path: Path) -> None:
+    """A lane position on a lane that is not driven (a border lane here) is the point
+    on its centre: a ``SynchronizeAction``'s target (scenariogeneration's own
+    example), or where an entity is placed, which then moves beside the driving lanes."""
     import re
 
     from tests.scenario._build import straight_road
@@ -1026,6 +1026,14 @@ def test_a_synchronisation_target_may_lie_on_a_lane_that_is_not_driven(tmp_path:
     ego_x, target_x = trace.poses["Ego"][:, 0], trace.poses["Target"][:, 0]
     k = int(np.argmax(ego_x >= 300.0))  # the ego (the master) arrives
     assert ego_x[k] >= 300.0 and abs(target_x[k] - 300.0) < 2.0
+    # an entity placed on the border lane moves beside the driving lanes, on its centre
+    text = path.read_text()
+    placed = '<LanePosition roadId="0" laneId="-2" s="50.0" offset="0.0"/>'
+    assert placed in text
+    path.write_text(text.replace(placed, placed.replace('laneId="-2"', 'laneId="-3"')))
+    ego = player_trace(path).poses["Ego"]
+    np.testing.assert_allclose(ego[:, 1], -8.75, atol=1e-9)  # OpenDRIVE y: lane -3's centre
+    assert ego[-1, 0] > ego[0, 0] + 100.0
     bad = path.read_text().replace('laneId="-3" s="300.0"', 'laneId="-3" s="3000.0"')
     path.write_text(bad)
     with pytest.raises(ScenarioError, match="not on the map"):
