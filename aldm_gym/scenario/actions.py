@@ -42,7 +42,7 @@ from typing import Any
 
 import numpy as np
 
-from aldm_gym.errors import InputError, MapError, OffRoadError, ScenarioError
+from aldm_gym.errors import InputError, MapError, NotDrivenError, OffRoadError, ScenarioError
 from aldm_gym.scenario.positions import Position, Where
 from aldm_gym.scenario.shapes import Polyline, Shape
 from aldm_gym.scenario.world import Entity, World, wrap_angle
@@ -1230,20 +1230,29 @@ class LaneChange(Instance):
         world = runner.world
         c = world.coordinates(entity)
         lane_id = int(self.target(world, entity))
+        key = None
         try:
             key, _, _ = world.locate(c.road_id, lane_id, c.s, 0.0)
+            rec = world.road.lane_record(key)
+            same = rec.direction == c.direction
+        except NotDrivenError:  # a shoulder, a border: its centre, beside the road
+            try:
+                x, y, _ = world.road.map.lane_pose(c.road_id, lane_id, c.s)
+            except MapError as exc:
+                raise ScenarioError(f"{self.where}: no target lane {lane_id} here: {exc}") from None
+            point, same = np.array([x, -y]), False
         except Exception as exc:
             raise ScenarioError(f"{self.where}: no target lane {lane_id} here: {exc}") from None
-        rec = world.road.lane_record(key)
-        if rec.direction == c.direction:
+        if same and key is not None:
             world.change_lane(entity, key)
             self.t1 = self.target_offset * rec.direction
         else:
-            # A lane of the other driving direction: a lane change is a lateral
-            # transition, the entity keeps its direction of travel. It goes on moving
-            # by its own lane, towards the target lane's centre (+ the offset) measured
-            # across it.
-            point, _ = world.pose(key, world.road.lane_u(key, c.s), 0.0)
+            # A lane of the other driving direction, or one not driven: a lane change
+            # is a lateral transition, the entity keeps its direction of travel. It
+            # goes on moving by its own lane, towards the target lane's centre (+ the
+            # offset) measured across it.
+            if key is not None:
+                point, _ = world.pose(key, world.road.lane_u(key, c.s), 0.0)
             _, right = world._lane(entity.lane).local_coordinates(point)
             self.t1 = -float(right) + self.target_offset * c.direction
         self.t0 = entity.t

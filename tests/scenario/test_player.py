@@ -1059,3 +1059,25 @@ def test_a_map_without_road_marks_plays_and_the_sensor_sees_nothing(tmp_path: Pa
     assert records[-1]["Target"][1] > records[0]["Target"][1] + 15.0  # it drove on
     frame = env.perception.frame
     assert frame is not None and len(frame.all_points) == 0 and len(frame.line_type) == 0
+
+
+def test_a_lane_change_onto_a_lane_not_driven_ends_on_its_centre(tmp_path: Path) -> None:
+    """A lane change onto a border lane (esmini's lane_change_variable) is a lateral
+    move to that lane's centre; the entity keeps moving beside the driving lanes."""
+    import re
+
+    from aldm_gym.scenario.esmini import player_trace
+    from tests.scenario._build import straight_road
+
+    road = straight_road(tmp_path)
+    text, n = re.subn(r'(<lane id="-3" type=")driving(")', r"\1border\2", road.read_text())
+    assert n == 1
+    road.write_text(text)
+    dyn = xosc.TransitionDynamics(xosc.DynamicsShapes.sinusoidal, xosc.DynamicsDimension.time, 2.0)
+    change = xosc.AbsoluteLaneChangeAction(-3, dyn)
+    path = write(
+        tmp_path, [("Ego", [_one_event("out", change, at_time(1.0))])], stop=6.0, road=road
+    )
+    ego = player_trace(path).poses["Ego"]
+    assert ego[0, 1] == pytest.approx(-5.25)
+    np.testing.assert_allclose(ego[-10:, 1], -8.75, atol=1e-6)
