@@ -124,8 +124,8 @@ ELEMENTS: dict[str, tuple[str, str]] = {
     ),
     **_each(
         "refused",
-        "entities defined in another tool or by a template are not played",
-        "ExternalObjectReference ScenarioObjectTemplate",
+        "an entity defined in another tool (its state is that tool's) is not played",
+        "ExternalObjectReference",
     ),
     **_each(
         "played",
@@ -187,8 +187,8 @@ ELEMENTS: dict[str, tuple[str, str]] = {
     ),
     **_each(
         "refused",
-        "geographic positions and the road cursors and areas of generated traffic are not played",
-        "GeoPosition RoadCursor RoadRange Lane Polygon",
+        "geographic positions are not played (the env's world has no geodetic reference)",
+        "GeoPosition",
     ),
     # ---------------------------------------------------------------- private actions
     **_each(
@@ -271,11 +271,12 @@ ELEMENTS: dict[str, tuple[str, str]] = {
         "VehicleRoleDistributionEntry",
     ),
     **_each(
-        "refused",
-        "traffic areas (1.3) and traffic drawn from entity templates are not played "
-        "(the templates are not either)",
+        "played",
+        "generated traffic (1.3): a traffic area on road ranges or in a polygon, and "
+        "vehicles drawn from entity templates (their category and bounding box)",
         "TrafficAreaAction TrafficArea TrafficDistribution TrafficDistributionEntry "
-        "EntityDistribution EntityDistributionEntry",
+        "EntityDistribution EntityDistributionEntry ScenarioObjectTemplate RoadRange "
+        "RoadCursor Lane Polygon",
     ),
     # 1.0 spelling of the root in some writers' schemas
     **_each("played", "the file", "OpenScenario"),

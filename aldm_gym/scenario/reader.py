@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import itertools
 import math
 import warnings
 from collections.abc import Callable, Mapping
@@ -1021,6 +1022,7 @@ class _Reader(ElementReader):
                 "TrafficSourceAction",
                 "TrafficSinkAction",
                 "TrafficStopAction",
+                "TrafficAreaAction",
             ),
         )
         if kind.tag == "TrafficStopAction":
@@ -1040,6 +1042,8 @@ class _Reader(ElementReader):
                 )
             speed_range = (lo, hi)
         speed = self._traffic_speed(kind, "velocity", None)
+        if kind.tag == "TrafficAreaAction":
+            return self._traffic_area(kind, name, definition, where)
         if kind.tag == "TrafficSwarmAction":
             self.kids(
                 kind,
@@ -1047,6 +1051,7 @@ class _Reader(ElementReader):
                     "CentralObject",
                     "CentralSwarmObject",
                     "TrafficDefinition",
+                    "TrafficDistribution",
                     "InitialSpeedRange",
                     "DirectionOfTravelDistribution",
                 ),
@@ -1087,7 +1092,7 @@ class _Reader(ElementReader):
                 "same_share": same_share,
             }
             return lambda actor: A.GenerateTraffic(actor, where, lambda runner: T.Swarm(**swarm))
-        self.kids(kind, ("Position", "TrafficDefinition"))
+        self.kids(kind, ("Position", "TrafficDefinition", "TrafficDistribution"))
         position = self.position(self.child(kind, "Position"))
         radius = self.num(kind, "radius")
         if radius < 0.0:
@@ -1140,11 +1145,14 @@ class _Reader(ElementReader):
         controllers and roles are the env's traffic's: ignored, one warning)."""
         from aldm_gym.scenario.traffic import CATEGORY_SIZES, TrafficDefinition
 
+        distribution = kind.find("TrafficDistribution")
+        if distribution is not None:
+            return self._traffic_distribution(distribution)
         el = kind.find("TrafficDefinition")
         if el is None:
             if kind.tag == "TrafficSinkAction":
                 return TrafficDefinition()
-            raise self.error(kind, "missing <TrafficDefinition>")
+            raise self.error(kind, "missing <TrafficDefinition> (or 1.3's <TrafficDistribution>)")
         parts = self.kids(
             el,
             ("VehicleCategoryDistribution", "ControllerDistribution", "VehicleRoleDistribution"),
@@ -1166,6 +1174,124 @@ class _Reader(ElementReader):
                 raise self.error(el, "no vehicle category has a weight above 0")
             return TrafficDefinition()
         return TrafficDefinition(tuple(categories))
+
+    def _traffic_distribution(self, el: Any) -> Any:
+        """A 1.3 ``TrafficDistribution``: entity templates drawn by the product of the
+        entry's and the template's weight (within its ``EntityDistribution``); each a
+        vehicle with its category and bounding box (controllers and properties are
+        the env's traffic's: ignored, one warning)."""
+        from aldm_gym.scenario.traffic import TrafficDefinition
+
+        categories: list[tuple[str, float]] = []
+        sizes: list[tuple[float, float]] = []
+        for entry in self.kids(el, ("TrafficDistributionEntry",)):
+            self.kids(entry, ("EntityDistribution", "Properties"))
+            weight = self.num(entry, "weight")
+            if weight < 0.0:
+                raise self.error(entry, f"weight must be >= 0, got {weight:g}")
+            inner = self.kids(self.child(entry, "EntityDistribution"), ("EntityDistributionEntry",))
+            weights = [self.num(e, "weight") for e in inner]
+            if any(w < 0.0 for w in weights):
+                raise self.error(entry, "an EntityDistributionEntry weight is below 0")
+            total = sum(weights)
+            for e, w in zip(inner, weights, strict=True):
+                if weight <= 0.0 or w <= 0.0:
+                    continue
+                template = self.child(e, "ScenarioObjectTemplate")
+                parts = self.kids(
+                    template, ("Vehicle", "Pedestrian", "MiscObject", "CatalogReference",
+                               "ObjectController")
+                )  # fmt: skip
+                body = next((p for p in parts if p.tag != "ObjectController"), None)
+                if body is None:
+                    raise self.error(template, "expects a Vehicle (or a CatalogReference)")
+                if any(p.tag == "ObjectController" for p in parts):
+                    self.ignore(template, _GENERATED_DRIVERS)
+                reader: _Reader = self
+                if body.tag == "CatalogReference":
+                    body, reader = self.from_catalog(body)
+                if body.tag != "Vehicle":
+                    raise reader.error(
+                        body, f"generated traffic is vehicles here, not a <{body.tag}>"
+                    )
+                spec = reader._entity("template", body, False, reader.where(body))
+                categories.append((spec.category, weight * w / total))
+                sizes.append((spec.box.length, spec.box.width))
+        if not categories:
+            raise self.error(el, "no entity template has a weight above 0")
+        return TrafficDefinition(tuple(categories), tuple(sizes))
+
+    def _traffic_area(
+        self, kind: Any, name: str, definition: Any, where: str
+    ) -> Callable[[Entity | None], A.Instance]:
+        """``TrafficAreaAction`` (1.3): road ranges or a polygon."""
+        from aldm_gym.scenario import traffic as T
+
+        self.kids(kind, ("TrafficDistribution", "TrafficArea"))
+        if kind.find("TrafficDistribution") is None:
+            raise self.error(kind, "missing <TrafficDistribution>")
+        count = self.integer(kind, "numberOfEntities")
+        if not 0 <= count <= T.MAX_GENERATED:
+            raise self.error(
+                kind, f"numberOfEntities must be in [0, {T.MAX_GENERATED}], got {count}"
+            )
+        continuous = self.flag(kind, "continuous")
+        area = self.child(kind, "TrafficArea")
+        shapes = self.kids(area, ("Polygon", "RoadRange"))
+        if not shapes:
+            raise self.error(area, "expects a <Polygon> or <RoadRange>s")
+        if shapes[0].tag == "Polygon":
+            if len(shapes) > 1:
+                raise self.error(area, "expects one <Polygon>, or <RoadRange>s")
+            corners = [self.position(p) for p in self.kids(shapes[0], ("Position",))]
+            if len(corners) < 3:
+                raise self.error(shapes[0], f"a polygon needs >= 3 positions, has {len(corners)}")
+
+            def make(runner: Any) -> Any:
+                world = runner.world
+                polygon = [world.point_of(c.resolve(world)) for c in corners]
+                return T.Area(
+                    name=name, definition=definition, count=count, continuous=continuous,
+                    polygon=polygon,
+                )  # fmt: skip
+
+            return lambda actor: A.GenerateTraffic(actor, where, make)
+        ranges: list[tuple[str, float, float, tuple[int, ...]]] = []
+        for rr in shapes:
+            if rr.tag != "RoadRange":
+                raise self.error(rr, "expects one <Polygon>, or <RoadRange>s")
+            cursors = self.kids(rr, ("RoadCursor",))
+            if len(cursors) < 2:
+                raise self.error(rr, f"a road range needs >= 2 road cursors, has {len(cursors)}")
+            limit = self.num(rr, "length", math.inf)
+            if not limit > 0.0:
+                raise self.error(rr, f"length must be > 0, got {limit:g}")
+            points = []
+            for c in cursors:
+                lanes = tuple(self.integer(lane, "id") for lane in self.kids(c, ("Lane",)))
+                points.append((self.attr(c, "roadId"), self.num(c, "s", 0.0), lanes))
+            covered = 0.0
+            for (r0, s0, ids), (r1, s1, _) in itertools.pairwise(points):
+                if r0 != r1:
+                    raise self.error(
+                        rr, "road cursors on different roads are not supported (one road per "
+                        "pair of cursors)",
+                    )  # fmt: skip
+                lo, hi = min(s0, s1), max(s0, s1)
+                hi = min(hi, lo + max(limit - covered, 0.0))
+                covered += hi - lo
+                if hi > lo:
+                    ranges.append((r0, lo, hi, ids))
+        if not ranges:
+            raise self.error(area, "the road ranges cover no road")
+
+        def make_ranges(runner: Any) -> Any:
+            return T.Area(
+                name=name, definition=definition, count=count, continuous=continuous,
+                ranges=tuple(ranges),
+            )  # fmt: skip
+
+        return lambda actor: A.GenerateTraffic(actor, where, make_ranges)
 
     def dynamics(self, el: Any) -> A.Dynamics:
         """``*Dynamics`` with shape, dimension, value."""

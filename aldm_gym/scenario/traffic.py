@@ -1,5 +1,5 @@
 """Generated traffic: ``TrafficSwarmAction``, ``TrafficSourceAction``,
-``TrafficSinkAction`` and ``TrafficStopAction``.
+``TrafficSinkAction``, ``TrafficAreaAction`` and ``TrafficStopAction``.
 
 OpenSCENARIO leaves the generated vehicles' behaviour to the tool ("controlled by the
 simulator's default traffic"): here they are the env's own map traffic (the runner's
@@ -21,6 +21,10 @@ they are vehicles of the road, which the function under test senses and can hit.
   seconds (a blocked place is tried again the next step), :data:`MAX_GENERATED` in all.
 * A **sink** removes the generated vehicles within ``radius`` of its position, at most
   ``rate`` per second (all, without ``rate``). Scenario objects are never removed.
+* An **area** (1.3) keeps ``numberOfEntities`` vehicles on its road ranges (a road's
+  ``s`` span between consecutive road cursors, on the cursor's lanes or all driving
+  lanes) or in its polygon: ``continuous``, those that leave are removed and
+  replaced; else that many are placed once.
 * **TrafficStopAction** ends the traffic action of its ``trafficName``; the vehicles it
   generated drive on.
 
@@ -28,7 +32,9 @@ A generating action runs until the storyboard stops it (as esmini plays swarms).
 The speed of a new vehicle: uniform in ``InitialSpeedRange``, else the action's
 ``velocity`` (``speed`` of a source), else 70-80 % of the lane's speed limit (as the
 env's map traffic). Its size: its category's (``VehicleCategoryDistribution``, drawn
-by weight; :data:`CATEGORY_SIZES`).
+by weight; :data:`CATEGORY_SIZES`), or its entity template's (a 1.3
+``TrafficDistribution``: the template's ``vehicleCategory`` and bounding box, drawn
+by the product of the two weights).
 """
 
 from __future__ import annotations
@@ -45,6 +51,7 @@ __all__ = [
     "CATEGORY_SIZES",
     "MAX_GENERATED",
     "MAX_SPEED",
+    "Area",
     "Sink",
     "Source",
     "Swarm",
@@ -91,18 +98,24 @@ def _in_unit_disc(rng: np.random.Generator) -> tuple[float, float]:
 
 @dataclass(frozen=True)
 class TrafficDefinition:
-    """``TrafficDefinition``: the vehicle categories to draw, with their weights.
+    """The vehicles to draw, with their weights: a ``TrafficDefinition``'s categories,
+    or a ``TrafficDistribution``'s entity templates (1.3) with their own sizes.
 
     :ivar categories: ``(vehicleCategory, weight)`` pairs, weights > 0.
+    :ivar sizes: per category entry its ``(length, width)`` [m]; empty: the
+        category's (:data:`CATEGORY_SIZES`).
     """
 
     categories: tuple[tuple[str, float], ...] = (("car", 1.0),)
+    sizes: tuple[tuple[float, float], ...] = ()
 
-    def draw(self, rng: np.random.Generator) -> str:
-        """One category, drawn by weight."""
+    def draw(self, rng: np.random.Generator) -> tuple[str, float, float]:
+        """One vehicle, drawn by weight: ``(category, length [m], width [m])``."""
         weights = np.array([w for _, w in self.categories], dtype=float)
         i = int(rng.choice(len(weights), p=weights / weights.sum()))
-        return self.categories[i][0]
+        category = self.categories[i][0]
+        length, width = self.sizes[i] if self.sizes else CATEGORY_SIZES[category]
+        return category, length, width
 
 
 @dataclass
@@ -116,7 +129,8 @@ class _Generator:
 
     def __post_init__(self) -> None:
         self.vehicles: list[Any] = []
-        self.pending: str | None = None  # the next vehicle's category, kept until placed
+        # the next vehicle (category, length, width), kept until placed
+        self.pending: tuple[str, float, float] | None = None
 
     def _speed(self, rng: np.random.Generator, lane: Any) -> float:
         if self.speed_range is not None:
@@ -158,8 +172,7 @@ class _Generator:
                 return False
         if self.pending is None:
             self.pending = self.definition.draw(rng)
-        category = self.pending
-        length, width = CATEGORY_SIZES[category]
+        category, length, width = self.pending
         speed = self._speed(rng, lane)
         where = np.asarray(lane.position(u, 0.0), dtype=float)
         road = runner.traffic
@@ -306,3 +319,92 @@ class Sink(_Generator):
             if float(np.hypot(*(np.asarray(v.position, dtype=float) - centre))) <= self.radius:
                 road.vehicles.remove(v)
                 self.budget -= 1.0
+
+
+@dataclass
+class Area(_Generator):
+    """``TrafficAreaAction`` (1.3): ``count`` vehicles in an area, placed where they
+    keep their gaps; ``continuous``: the vehicles that leave the area are removed and
+    replaced for as long as the action runs, else ``count`` are placed once and drive
+    on.
+
+    :ivar ranges: the area as road ranges: ``(road id, s from, s to [m], lane ids or
+        () for every driving lane)``.
+    :ivar polygon: or as a polygon's corners ``(K, 2)`` (highway-env's frame) [m].
+    """
+
+    count: int = 0
+    continuous: bool = False
+    ranges: tuple[tuple[str, float, float, tuple[int, ...]], ...] = ()
+    polygon: Any = None
+    placed: int = 0
+
+    def _inside(self, runner: Any, point: np.ndarray) -> bool:
+        if self.polygon is not None:
+            return _in_polygon(np.asarray(self.polygon, dtype=float), point)
+        road = runner.world.road
+        try:
+            pos = road.lane_position(point)
+        except InputError:
+            return False
+        rec = road.lane_record(pos.lane)
+        s = road.reference_s(pos.lane, pos.s - road.chain_start(pos.lane))
+        return any(
+            rec.road_id == rid and lo - 1e-6 <= s <= hi + 1e-6 and (not ids or rec.lane_id in ids)
+            for rid, lo, hi, ids in self.ranges
+        )
+
+    def _sample(self, runner: Any, rng: np.random.Generator) -> np.ndarray | None:
+        world = runner.world
+        if self.polygon is not None:
+            corners = np.asarray(self.polygon, dtype=float)
+            lo, hi = corners.min(axis=0), corners.max(axis=0)
+            point = lo + rng.uniform(size=2) * (hi - lo)
+            return point if _in_polygon(corners, point) else None
+        spans = np.array([hi - lo for _, lo, hi, _ in self.ranges], dtype=float)
+        k = int(rng.choice(len(spans), p=spans / spans.sum())) if spans.sum() > 0 else 0
+        road_id, lo, hi, ids = self.ranges[k]
+        s = float(rng.uniform(lo, hi))
+        road = world.road
+        keys = []
+        for key in road.lanes:  # the driving lanes there (of the ids given)
+            rec = road.lane_record(key)
+            if rec.road_id == road_id and rec.s0 - 1e-9 <= s <= rec.s1 + 1e-9:
+                if not ids or rec.lane_id in ids:
+                    keys.append(key)
+        if not keys:
+            return None
+        key = keys[int(rng.integers(len(keys)))]
+        point, _ = world.pose(key, road.lane_u(key, s), 0.0)
+        return np.asarray(point, dtype=float)
+
+    def step(self, runner: Any, rng: np.random.Generator, dt: float) -> None:
+        """Continuous: remove the vehicles outside the area; place up to ``count``."""
+        self._forget_gone(runner)
+        road = runner.traffic
+        if self.continuous:
+            for v in list(self.vehicles):
+                if not self._inside(runner, np.asarray(v.position, dtype=float)):
+                    road.vehicles.remove(v)
+                    self.vehicles.remove(v)
+        for _ in range(TRIES_PER_STEP):
+            if len(self.vehicles) >= self.count or (
+                not self.continuous and self.placed >= self.count
+            ):
+                break
+            point = self._sample(runner, rng)
+            if point is not None and self._place(runner, rng, point):
+                self.placed += 1
+
+
+def _in_polygon(corners: np.ndarray, point: np.ndarray) -> bool:
+    """Whether ``point`` lies inside the polygon of ``corners`` ``(K, 2)`` (even-odd)."""
+    x, y = float(point[0]), float(point[1])
+    inside = False
+    k = len(corners)
+    for i in range(k):
+        x0, y0 = corners[i]
+        x1, y1 = corners[(i + 1) % k]
+        if (y0 > y) != (y1 > y) and x < x0 + (y - y0) * (x1 - x0) / (y1 - y0):
+            inside = not inside
+    return inside

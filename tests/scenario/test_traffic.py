@@ -199,15 +199,108 @@ def test_a_stop_without_a_name_is_refused(tmp_path: Path) -> None:
         read_scenario(path)
 
 
-def test_a_traffic_area_is_refused_by_name(tmp_path: Path) -> None:
-    path = write(tmp_path, [("Ego", [_global("stop", xosc.TrafficStopAction("x"))])], target=None)
-    text = path.read_text().replace(
-        "<TrafficStopAction/>",
-        '<TrafficAreaAction continuous="true" numberOfEntities="3"/>',
+TEMPLATES = (
+    "<TrafficDistribution>"
+    '<TrafficDistributionEntry weight="3"><EntityDistribution>'
+    '<EntityDistributionEntry weight="1"><ScenarioObjectTemplate>'
+    '<Vehicle name="van" vehicleCategory="van"><BoundingBox><Center x="1.5" y="0" z="1"/>'
+    '<Dimensions width="2.1" length="6.0" height="2.4"/></BoundingBox>'
+    '<Performance maxSpeed="40" maxAcceleration="4" maxDeceleration="8"/>'
+    '<Axles><FrontAxle maxSteering="0.5" wheelDiameter="0.7" trackWidth="1.8" positionX="3" '
+    'positionZ="0.35"/><RearAxle maxSteering="0" wheelDiameter="0.7" trackWidth="1.8" '
+    'positionX="0" positionZ="0.35"/></Axles><Properties/></Vehicle>'
+    "</ScenarioObjectTemplate></EntityDistributionEntry>"
+    "</EntityDistribution></TrafficDistributionEntry>"
+    "</TrafficDistribution>"
+)
+"""1.3's spelling: vehicles drawn from an entity template (a 6 m x 2.1 m van)."""
+
+
+def _area(shape: str, count: int = 4, continuous: bool = True) -> str:
+    return (
+        f'<TrafficAreaAction continuous="{str(continuous).lower()}" '
+        f'numberOfEntities="{count}">{TEMPLATES}<TrafficArea>{shape}</TrafficArea>'
+        "</TrafficAreaAction>"
     )
-    path.write_text(text)
-    with pytest.raises(ScenarioError, match="TrafficAreaAction"):
+
+
+ROAD_RANGE = (
+    '<RoadRange><RoadCursor roadId="0" s="150"><Lane id="-1"/><Lane id="-3"/></RoadCursor>'
+    '<RoadCursor roadId="0" s="450"/></RoadRange>'
+)
+"""Lanes -1 and -3 of road 0 from s = 150 to 450 m."""
+
+
+def test_a_traffic_area_keeps_its_count_on_its_road_range(tmp_path: Path) -> None:
+    """``TrafficAreaAction`` (1.3), continuous: ``numberOfEntities`` vehicles from the
+    distribution's template, on the range's lanes; those that leave are replaced."""
+    events = [_global("area", xosc.TrafficStopAction("area"))]
+    path = write(tmp_path, [("Ego", events)], target=None, stop=30.0)
+    _with_traffic(path, {"area": _area(ROAD_RANGE)})
+    env, frames = _run(path, 25.0)
+    assert frames[2] == []  # it starts at 0.5 s
+    assert len(frames[-1]) == 4
+    road = env.scenario.world.road
+    for _, category, x, y, _ in frames[-1]:
+        assert category == "van"
+        pos = road.lane_position(np.array([x, y]))
+        assert road.lane_record(pos.lane).lane_id in (-1, -3)
+        assert 150.0 - 1e-6 <= pos.s <= 450.0 + 1e-6
+    vans = [v for v in env.road.vehicles if getattr(v, "generated_by", None) == "area"]
+    assert {(v.LENGTH, v.WIDTH) for v in vans} == {(6.0, 2.1)}
+    # at 70-80 % of the speed limit the first ones left the 300 m range long ago: these
+    # replaced them
+    _, again = _run(path, 25.0)
+    assert again == frames  # the same seed, the same traffic
+
+
+def test_a_traffic_area_in_a_polygon_placed_once(tmp_path: Path) -> None:
+    """Not continuous: the vehicles are placed once in the polygon and drive on."""
+    corners = "".join(
+        f'<Position><WorldPosition x="{x}" y="{y}"/></Position>'
+        for x, y in ((100, 0), (300, 0), (300, -11), (100, -11))
+    )
+    events = [_global("area", xosc.TrafficStopAction("area"))]
+    path = write(tmp_path, [("Ego", events)], target=None, stop=30.0)
+    _with_traffic(path, {"area": _area(f"<Polygon>{corners}</Polygon>", 3, False)})
+    _, frames = _run(path, 20.0)
+    first = next(f for f in frames if f)
+    assert all(100.0 <= x <= 300.0 for _, _, x, _, _ in first)
+    assert len(frames[-1]) == 3
+    assert max(x for _, _, x, _, _ in frames[-1]) > 300.0  # they drove out, none new
+
+
+@pytest.mark.parametrize(
+    ("body", "message"),
+    [
+        (_area(ROAD_RANGE).replace("<Vehicle", "<Pedestrian").replace("</Vehicle>",
+         "</Pedestrian>"), None),
+        (_area('<RoadRange><RoadCursor roadId="0" s="10"/></RoadRange>'), "needs >= 2 road"),
+        (_area('<RoadRange><RoadCursor roadId="0" s="10"/><RoadCursor roadId="1" s="5"/>'
+               "</RoadRange>"), "different roads"),
+        (_area(ROAD_RANGE, count=500), "numberOfEntities must be in"),
+    ],
+)  # fmt: skip
+def test_bad_traffic_areas_are_refused_by_name(
+    tmp_path: Path, body: str, message: str | None
+) -> None:
+    path = write(tmp_path, [("Ego", [_global("area", xosc.TrafficStopAction("area"))])])
+    _with_traffic(path, {"area": body})
+    with pytest.raises(ScenarioError, match=message or "Pedestrian"):
         read_scenario(path)
+
+
+def test_a_1_3_swarm_draws_from_a_traffic_distribution(tmp_path: Path) -> None:
+    swarm = (
+        '<TrafficSwarmAction semiMajorAxis="150" semiMinorAxis="12" innerRadius="30" '
+        f'offset="20" numberOfVehicles="3"><CentralObject entityRef="Ego"/>{TEMPLATES}'
+        "</TrafficSwarmAction>"
+    )
+    events = [_global("swarm", xosc.TrafficStopAction("swarm"))]
+    path = write(tmp_path, [("Ego", events)], target=None, stop=20.0)
+    _with_traffic(path, {"swarm": swarm})
+    _, frames = _run(path, 8.0)
+    assert len(frames[-1]) == 3 and {c for _, c, *_ in frames[-1]} == {"van"}
 
 
 def test_the_verdict_sees_a_generated_vehicle_ahead(tmp_path: Path) -> None:
