@@ -95,6 +95,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     )
     add_env_argument(run, "for the run; the scenario's map and traffic take precedence")
     add_function_argument(run)
+    _add_handover(run)
     run.add_argument("--detector", choices=DETECTOR_CHOICES, default="aldm")
     run.add_argument("--marking-model", choices=MARKING_CHOICES, default="per_dash")
     run.add_argument("--video", type=gif_file, help="an animated GIF of the run (e.g. run.gif)")
@@ -129,13 +130,25 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     )
     add_env_argument(suite, "for every run; the scenario's map and traffic take precedence")
     add_function_argument(suite)
+    _add_handover(suite)
     suite.add_argument("--out", type=output_dir, default=Path("scenario_results"))
     suite.add_argument("--no-progress", action="store_true", help="no progress bar")
     suite.set_defaults(func=run_suite)
     return parser
 
 
-def scenario_env(pairs: list[tuple[str, Any]]) -> Any:
+def _add_handover(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--handover",
+        choices=("action", "init"),
+        default="action",
+        help="when the function under test takes the ego: at the scenario's "
+        "ActivateControllerAction (action, the default), or from the start (init: test "
+        "protocols without a controller, as Euro NCAP's files)",
+    )
+
+
+def scenario_env(pairs: list[tuple[str, Any]], handover: str = "action") -> Any:
     """``--env`` pairs as the env settings of a scenario run, checked as the env checks
     them (:class:`BadArgument` naming the key and the allowed ones). Settings the
     command has arguments for are refused; those the scenario decides (its map and
@@ -147,6 +160,8 @@ def scenario_env(pairs: list[tuple[str, Any]]) -> Any:
         if key in OWN_FLAGS:
             raise BadArgument("--env", f"{key} is set by {OWN_FLAGS[key]}, not --env")
     dropped = [key for key in overrides if key in SCENARIO_OWNS]
+    if handover != "action":
+        overrides["scenario"] = {"handover": handover}
     checked = check_env(overrides)
     if dropped:
         print(
@@ -176,7 +191,7 @@ def run_one(args: argparse.Namespace) -> int:
     from aldm_gym.harness.criteria import run_scenario
 
     frames: list[Any] | None = [] if args.video is not None else None
-    config = scenario_env(args.env)
+    config = scenario_env(args.env, args.handover)
     if args.osi is not None:
         config = config.merged({"osi": {"trace": str(args.osi)}})
     function = function_spec(args)
@@ -265,7 +280,7 @@ def run_suite(args: argparse.Namespace) -> int:
     from aldm_gym.errors import InputError
     from aldm_gym.harness.suite import plan_suite, play_suite, summarise, write_outputs
 
-    config = scenario_env(args.env)
+    config = scenario_env(args.env, args.handover)
     from aldm_gym.function import close_function
 
     close_function(function_spec(args))  # loaded once here: a bad SPEC stops the suite now

@@ -277,9 +277,12 @@ class ScenarioScene(MapScene):
 
         self.runner = ScenarioRunner(self.scenario, self.map, self.ego_name)
         dt = 1.0 / float(self.settings.simulation_frequency)
-        return self.runner.populate(
+        ego = self.runner.populate(
             traffic, make_ego, dt, rng=rng, traffic_vehicle=self.traffic_class()
         )
+        if self.settings.scenario.handover == "init" and not self.runner.active:
+            self.runner.control(True, True)  # the function drives from the start
+        return ego
 
 
 def make_scene(settings: EnvConfig, map_road: OpenDriveRoad | None, scenario: Any = None) -> Scene:

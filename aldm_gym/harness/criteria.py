@@ -261,7 +261,11 @@ def run_scenario(
         "policy_frequency": 10,
         "simulation_frequency": 10,
     }
-    cfg.update(dict(config or {}))
+    extra = dict(config or {})
+    section = extra.pop("scenario", None)  # its other settings (the hand-over, ...)
+    cfg.update(extra)
+    if section:
+        cfg["scenario"] = {**dict(section), "xosc": str(xosc), "parameters": params}
     cfg = env_for(fn, cfg, given=set(config or {}))
     name = Path(xosc).name
     result = RunResult(

@@ -26,6 +26,11 @@ class ScenarioConfig:
     :ivar max_time: the episode is truncated at this simulation time [s] if the
         storyboard's stop trigger has not fired (``duration`` does not apply to a
         scenario).
+    :ivar handover: when the function under test takes the ego: ``"action"``, at the
+        scenario's ``ActivateControllerAction`` (never without one); ``"init"``, in
+        both domains from the start, once ``Init`` has placed it (test protocols that
+        name the vehicle under test and carry no controller, as Euro NCAP's files);
+        an ``ActivateControllerAction`` later still changes the domains.
 
     With a scenario the map is its ``RoadNetwork/LogicFile`` (``road.xodr`` must not
     be set), its objects are the only traffic (``vehicles_count`` does not apply) and
@@ -38,6 +43,7 @@ class ScenarioConfig:
     )
     ego: str = setting("", kind="str")
     max_time: float = setting(600.0, lo=0.0, lo_open=True, hi=100_000.0)
+    handover: str = setting("action", choices=("action", "init"))
 
     def __post_init__(self) -> None:
         validate(self, "scenario")

@@ -1081,3 +1081,22 @@ def test_a_lane_change_onto_a_lane_not_driven_ends_on_its_centre(tmp_path: Path)
     ego = player_trace(path).poses["Ego"]
     assert ego[0, 1] == pytest.approx(-5.25)
     np.testing.assert_allclose(ego[-10:, 1], -8.75, atol=1e-6)
+
+
+def test_handover_at_init_lets_the_function_drive_a_file_without_a_controller(
+    tmp_path: Path,
+) -> None:
+    """Test protocols that name the vehicle under test and carry no controller (Euro
+    NCAP's files): with ``scenario.handover="init"`` the function drives from the
+    start; by default it never does, and the ego runs into the slower car as scripted."""
+    from aldm_gym.cli.scenario import scenario_env
+    from aldm_gym.harness.criteria import run_scenario
+
+    path = write(tmp_path, [], target=(0, 40.0, 10.0), ego_speed=20.0, stop=8.0)
+    scripted = run_scenario(path, detector="ground_truth")
+    assert not scripted.passed and "before the function was activated" in scripted.error
+    config = scenario_env([], "init")
+    assert dict(config["scenario"]) == {"handover": "init"}
+    driven = run_scenario(path, detector="ground_truth", config=config)
+    assert driven.judged and driven.finished and not driven.collision
+    assert driven.min_time_gap_s > 0.5  # the ACC followed the slower car
