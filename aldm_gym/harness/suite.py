@@ -320,7 +320,11 @@ def _plot(rows: Sequence[dict[str, Any]], path: Path) -> None:
     )
     ax.set_ylabel("runs passing every R157 criterion [%]")
     ax.set_ylim(0, 105)
-    ax.legend(fontsize=8, ncol=3, loc="lower left")
+    # above the axes: inside, it would hide the low bars it is meant to explain
+    ax.legend(
+        fontsize=8, ncol=min(len(keys), 6), loc="lower center", bbox_to_anchor=(0.5, 1.0),
+        frameon=False,
+    )  # fmt: skip
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
