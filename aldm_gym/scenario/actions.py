@@ -1254,7 +1254,8 @@ class LaneChange(Instance):
             if key is not None:
                 point, _ = world.pose(key, world.road.lane_u(key, c.s), 0.0)
             _, right = world._lane(entity.lane).local_coordinates(point)
-            self.t1 = -float(right) + self.target_offset * c.direction
+            own = world.road.lane_record(entity.lane).direction
+            self.t1 = -float(right) + self.target_offset * own
         self.t0 = entity.t
         self.elapsed = 0.0
         self.T = self.dynamics.duration(self.t1 - self.t0, entity.speed)
@@ -1565,14 +1566,14 @@ class FollowTrajectory(Instance):
             self.times = ts
             polyline = self.follow and isinstance(self.shape, Polyline)
             self.vertex_speeds = self._vertex_speeds(None if polyline else path, entity.speed)
-            self.timed_along = 0.0
+            self.timed_along = self._along_at_time(world.time)
         _override(entity, "trajectory", self)
         # The actor is put on the path by the first step (as esmini, which steps a new
         # action in the frame it starts in: its first logged pose is a step along).
         if not world.running and not entity.placed:
             # in Init, an actor nothing placed starts where the path does (as esmini)
-            i, x = self._at_time(world.time) if self.timed else self._at_length(self.along)
-            self._place(world, entity, i, x)
+            along = self._along_at_time(world.time) if self.timed else self.along
+            self._place(world, entity, *self._at_length(along))
 
     def _vertex_speeds(self, sampled: Any, speed: float) -> np.ndarray | None:
         """A timed polyline's speed [m/s] at each vertex with ``followingMode="follow"``,
@@ -1679,8 +1680,8 @@ class FollowTrajectory(Instance):
             rest = 0.0
             if not self.timed and self.along > self.arc[-1]:
                 rest = self.along - float(self.arc[-1])
-            elif self.timed:
-                rest = (world.time + dt - float(self.times[-1])) * entity.speed
+            elif self.timed:  # the part of this step after the last time
+                rest = min(world.time + dt - float(self.times[-1]), dt) * entity.speed
             if rest > 0.0:
                 # the rest of the step's travel goes on along the end heading (as esmini)
                 h = entity.heading

@@ -192,14 +192,15 @@ def _resolve_expressions(source: Path, root: Any, overrides: Mapping[str, Any]) 
     triggers at the very distance its numbers reach breaks the tie by that rounding.
     The copy gives both players the same doubles."""
     from aldm_gym.scenario.declarations import bind, declarations_from_xml
-    from aldm_gym.scenario.expressions import format_value, resolve
+    from aldm_gym.scenario.expressions import format_value, parameter_name, resolve
 
     top = root.find("ParameterDeclarations")
     values = bind(declarations_from_xml(top), dict(overrides), source.name)
     for decl in top if top is not None else ():
-        if isinstance(decl.tag, str) and decl.get("name") in values:
-            if "${" in (decl.get("value") or "") or decl.get("name") in overrides:
-                decl.set("value", format_value(values[decl.get("name")]))
+        name = parameter_name(decl.get("name") or "") if isinstance(decl.tag, str) else ""
+        if name in values:
+            if "${" in (decl.get("value") or "") or name in overrides:
+                decl.set("value", format_value(values[name]))
     for el in root.iter():
         if not isinstance(el.tag, str) or el.tag == "ParameterDeclaration":
             continue

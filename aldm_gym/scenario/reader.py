@@ -495,8 +495,11 @@ class _Reader(ElementReader):
         }
         decls = declarations_from_xml(element.find("ParameterDeclarations"))
         values = bind(decls, assigned, file.name) if decls or assigned else {}
-        reader = _Reader(file, {**self.params, **values}, self.root, self.runtime)
-        reader._catalogs = self._catalogs
+        # a reader of the entry's file and parameters that shares everything else
+        # (storyboard names and pending checks, entities added, elements ignored)
+        reader = copy.copy(self)
+        reader.path = file
+        reader.params = {**self.params, **values}
         return element, reader
 
     def entities(self) -> list[EntitySpec]:

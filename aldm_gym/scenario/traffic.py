@@ -34,7 +34,7 @@ The speed of a new vehicle: uniform in ``InitialSpeedRange``, else the action's
 env's map traffic). Its size: its category's (``VehicleCategoryDistribution``, drawn
 by weight; :data:`CATEGORY_SIZES`), or its entity template's (a 1.3
 ``TrafficDistribution``: the template's ``vehicleCategory`` and bounding box, drawn
-by the product of the two weights).
+by the entry's weight times the template's share of its ``EntityDistribution``).
 """
 
 from __future__ import annotations
@@ -360,7 +360,13 @@ class Area(_Generator):
             corners = np.asarray(self.polygon, dtype=float)
             lo, hi = corners.min(axis=0), corners.max(axis=0)
             point = lo + rng.uniform(size=2) * (hi - lo)
-            return point if _in_polygon(corners, point) else None
+            try:  # where the vehicle would stand: on the nearest lane's centre
+                pos = world.road.lane_position(point)
+            except InputError:
+                return None
+            u = pos.s - world.road.chain_start(pos.lane)
+            centre, _ = world.pose(pos.lane, u, 0.0)
+            return point if _in_polygon(corners, np.asarray(centre, dtype=float)) else None
         spans = np.array([hi - lo for _, lo, hi, _ in self.ranges], dtype=float)
         k = int(rng.choice(len(spans), p=spans / spans.sum())) if spans.sum() > 0 else 0
         road_id, lo, hi, ids = self.ranges[k]

@@ -417,9 +417,9 @@ class World:
         lane that holds its reference point: the two differ after a lane change onto a
         lane of the other driving direction (the entity moves by its own lane)."""
         c = self.coordinates(entity)
-        if c.lane == entity.lane:
-            return value
         direction = self.road.lane_record(entity.lane).direction
+        if c.lane == entity.lane or c.direction == direction:
+            return value  # its own lane, or one beside it driven the same way
         return entity.t * direction - c.offset + value
 
     def offset_beside(self, entity: Entity, ref: Entity, value: float) -> float:

@@ -1100,3 +1100,65 @@ def test_handover_at_init_lets_the_function_drive_a_file_without_a_controller(
     driven = run_scenario(path, detector="ground_truth", config=config)
     assert driven.judged and driven.finished and not driven.collision
     assert driven.min_time_gap_s > 0.5  # the ACC followed the slower car
+
+
+def test_files_as_esmini_and_asam_1_0_examples_write_them(tmp_path: Path) -> None:
+    """What public files write and esmini accepts: a parameter declared and assigned
+    with its ``$``, a ``LaneOffsetAction`` without ``continuous``, a trailer's
+    ``<Vehicle>`` straight inside ``<Trailer>`` (named after its tractor and a ``+``),
+    and an entity that ``Init`` puts on a trajectory without a teleport."""
+    from aldm_gym.scenario.esmini import player_trace
+
+    params = xosc.ParameterDeclarations()
+    params.add_parameter(xosc.Parameter("Speed", xosc.ParameterType.double, "12.0"))
+    shift = xosc.AbsoluteLaneOffsetAction(0.5, xosc.DynamicsShapes.step, 1.0)
+    path = write(
+        tmp_path,
+        [("Target", [_one_event("fast", step_speed("$Speed"), at_time(0.5)),
+                     _one_event("shift", shift, at_time(1.0))])],
+        parameters=params,
+        stop=3.0,
+    )  # fmt: skip
+    text = path.read_text()
+    assert text.count('name="Speed"') == 1 and text.count('continuous="true"') == 1
+    text = text.replace('name="Speed"', 'name="$Speed"').replace(' continuous="true"', "")
+    path.write_text(text)
+    read_scenario(path)
+    trace = player_trace(path)
+    assert trace.poses["Target"][-1, 3] == pytest.approx(12.0)
+    # a trailer's Vehicle inside <Trailer>, as esmini's vehicle catalog writes it
+    rig = write(tmp_path, [], name="rig.xosc", stop=2.0)
+    text = rig.read_text()
+    inner = (
+        '<Trailer><Vehicle name="box" vehicleCategory="trailer"><BoundingBox>'
+        '<Center x="3" y="0" z="1.5"/><Dimensions width="2.5" length="10" height="3"/>'
+        '</BoundingBox><Performance maxSpeed="40" maxAcceleration="3" maxDeceleration="6"/>'
+        '<Axles><FrontAxle maxSteering="0" wheelDiameter="0.8" trackWidth="2.3" '
+        'positionX="8" positionZ="0.5"/><RearAxle maxSteering="0" wheelDiameter="0.8" '
+        'trackWidth="2.3" positionX="0" positionZ="0.5"/></Axles><TrailerCoupler dx="8"/>'
+        "<Properties/></Vehicle></Trailer>"
+    )
+    start = text.index('<ScenarioObject name="Target">')
+    end = text.index("</Vehicle>", start)
+    text = text[:end] + '<TrailerHitch dx="0.5"/>' + inner + text[end:]
+    rig.write_text(text)
+    names = [e.name for e in read_scenario(rig).entities]
+    assert names == ["Ego", "Target", "Target+"]
+    # an entity that Init puts on a trajectory, with no teleport, starts on it
+    poly = xosc.Polyline([], [xosc.WorldPosition(150.0, -1.75), xosc.WorldPosition(250.0, -1.75)])
+    traj = xosc.Trajectory("path", False)
+    traj.add_shape(poly)
+    onto = write(tmp_path, [], name="onto.xosc", stop=2.0)
+    text = onto.read_text()
+    teleport = text[text.index('<Private entityRef="Target">') :]
+    teleport = teleport[teleport.index("<PrivateAction>") : teleport.index("</PrivateAction>") + 16]
+    assert "TeleportAction" in teleport
+    follow = xosc.FollowTrajectoryAction(traj, xosc.FollowingMode.position)
+    init = xosc.Init()
+    init.add_init_action("Target", follow)
+    element = init.get_element().find(".//PrivateAction")
+    from xml.etree import ElementTree
+
+    onto.write_text(text.replace(teleport, ElementTree.tostring(element, encoding="unicode")))
+    first = player_trace(onto).poses["Target"][0]
+    assert first[0] == pytest.approx(150.0) and first[1] == pytest.approx(-1.75)
