@@ -1237,10 +1237,10 @@ class LaneChange(Instance):
             same = rec.direction == c.direction
         except NotDrivenError:  # a shoulder, a border: its centre, beside the road
             try:
-                x, y, _ = world.road.map.lane_pose(c.road_id, lane_id, c.s)
+                x, y, _ = world.road.lane_pose(c.road_id, lane_id, c.s)
             except MapError as exc:
                 raise ScenarioError(f"{self.where}: no target lane {lane_id} here: {exc}") from None
-            point, same = np.array([x, -y]), False
+            point, same = np.array([x, y]), False
         except Exception as exc:
             raise ScenarioError(f"{self.where}: no target lane {lane_id} here: {exc}") from None
         if same and key is not None:
@@ -1565,7 +1565,7 @@ class FollowTrajectory(Instance):
                 raise ScenarioError(f"{self.where}: the trajectory's times decrease")
             self.times = ts
             polyline = self.follow and isinstance(self.shape, Polyline)
-            self.vertex_speeds = self._vertex_speeds(None if polyline else path, entity.speed)
+            self.vertex_speeds = self._vertex_speeds(entity.speed) if polyline else None
             self.timed_along = self._along_at_time(world.time)
         _override(entity, "trajectory", self)
         # The actor is put on the path by the first step (as esmini, which steps a new
@@ -1575,14 +1575,12 @@ class FollowTrajectory(Instance):
             along = self._along_at_time(world.time) if self.timed else self.along
             self._place(world, entity, *self._at_length(along))
 
-    def _vertex_speeds(self, sampled: Any, speed: float) -> np.ndarray | None:
+    def _vertex_speeds(self, speed: float) -> np.ndarray:
         """A timed polyline's speed [m/s] at each vertex with ``followingMode="follow"``,
         as esmini plans it: the actor's ``speed`` at the first, then each segment at a
         constant acceleration that covers its length in its time (``v[i+1] = 2 L / T -
-        v[i]``). None with ``position`` (each segment at its mean speed, where every
-        vertex is at its time) and for a sampled curve (``sampled``: clothoids, NURBS)."""
-        if sampled is not None:
-            return None
+        v[i]``). With ``position``, and on a sampled curve (clothoids, NURBS), there are
+        none: each segment moves at its mean speed, every vertex at its time."""
         lengths = np.diff(self.arc)
         spans = np.diff(self.times)
         v = np.empty(len(self.arc))
@@ -1613,17 +1611,6 @@ class FollowTrajectory(Instance):
 
     vertex_speeds: np.ndarray | None = None
     """A timed polyline's speed [m/s] at each vertex (:meth:`_vertex_speeds`)."""
-
-    def _at_time(self, t: float) -> tuple[int, float]:
-        """Segment and fraction along it at time ``t`` [s] (timed)."""
-        ts = self.times
-        if t <= ts[0]:
-            return 0, 0.0
-        if t >= ts[-1]:
-            return len(ts) - 2, 1.0
-        i = int(np.searchsorted(ts, t, side="right")) - 1
-        span = ts[i + 1] - ts[i]
-        return i, 1.0 if span <= 0 else (t - ts[i]) / span
 
     def _at_length(self, s: float) -> tuple[int, float]:
         """Segment and fraction along it at arc length ``s`` [m]."""

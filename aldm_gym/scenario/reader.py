@@ -1032,6 +1032,8 @@ class _Reader(ElementReader):
             if body.get("trafficName") is None:
                 raise self.error(body, "a TrafficStopAction needs the trafficName to stop")
             return lambda actor: A.StopTraffic(actor, where, name)
+        if kind.tag == "TrafficAreaAction":
+            return self._traffic_area(kind, name, where)
         definition = self._traffic_definition(kind)
         speed_range = None
         if kind.find("InitialSpeedRange") is not None:
@@ -1045,8 +1047,6 @@ class _Reader(ElementReader):
                 )
             speed_range = (lo, hi)
         speed = self._traffic_speed(kind, "velocity", None)
-        if kind.tag == "TrafficAreaAction":
-            return self._traffic_area(kind, name, definition, where)
         if kind.tag == "TrafficSwarmAction":
             self.kids(
                 kind,
@@ -1225,7 +1225,7 @@ class _Reader(ElementReader):
         return TrafficDefinition(tuple(categories), tuple(sizes))
 
     def _traffic_area(
-        self, kind: Any, name: str, definition: Any, where: str
+        self, kind: Any, name: str, where: str
     ) -> Callable[[Entity | None], A.Instance]:
         """``TrafficAreaAction`` (1.3): road ranges or a polygon."""
         from aldm_gym.scenario import traffic as T
@@ -1233,6 +1233,7 @@ class _Reader(ElementReader):
         self.kids(kind, ("TrafficDistribution", "TrafficArea"))
         if kind.find("TrafficDistribution") is None:
             raise self.error(kind, "missing <TrafficDistribution>")
+        definition = self._traffic_distribution(kind.find("TrafficDistribution"))
         count = self.integer(kind, "numberOfEntities")
         if not 0 <= count <= T.MAX_GENERATED:
             raise self.error(
