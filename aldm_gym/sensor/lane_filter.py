@@ -31,7 +31,12 @@ Each frame:
    iteratively re-weighted least squares with Tukey's biweight (``tukey`` standard
    deviations: a redescending M-estimator, so points beyond it, a tar seam beside a
    dashed line, an old marking, get no weight at all) against clutter inside the
-   gate.
+   gate. A second hypothesis, *the curvature jumped somewhere in view* (a straight
+   meeting an arc with no transition curve, as OpenDRIVE allows), is updated beside
+   it from the same prediction with the shape's covariance grown by a random walk of
+   ``jump_curvature`` per node step; it replaces the nominal update when it explains
+   more of the frame's points on at least two lines (:data:`JUMP_MARGIN`,
+   :data:`JUMP_LINE_GAIN`): a multiple-model filter with a hard decision.
 4. **Existence.** A line whose points' robust weights sum to at least
    :data:`MIN_SUPPORT` in the frame is *hit*: its confidence ``p`` rises,
    ``p += hit_gain (1 - p)``; otherwise it falls, ``p -= miss_loss p``. A line
@@ -82,6 +87,9 @@ from aldm_gym.config import build_config, check_keys, setting, validate
 from aldm_gym.errors import ConfigError
 from aldm_gym.sensor.aldm import ALDMParams, as_points, detect_lanes_checked, make_params
 from aldm_gym.sensor.aldm_kernels.model import (
+    _C,
+    _S,
+    _X,
     N_GEOMETRY,
     N_NODES,
     NODE_STEP,
@@ -132,8 +140,40 @@ START_ITERATIONS = 4
 """Gauss-Newton iterations of the start's update (from a straight prior to an R 100 m
 bend the foot points settle in three)."""
 
+JUMP_MARGIN = 3.0
+"""The curvature-jump hypothesis replaces the nominal update when its points' robust
+weights sum to more than this above the nominal update's ..."""
+
+JUMP_LINE_GAIN = 2.0
+"""... and at least :data:`JUMP_LINES` lines gain this much support each: the road
+bends every marking, clutter one."""
+
+JUMP_LINES = 2
+"""See :data:`JUMP_LINE_GAIN`."""
+
 MIN_EXTENT = 10.0
 """A line shorter than this in x [m] is not drawn."""
+
+
+def _steep_x(tab: FloatArray, offset: float, max_slope: float) -> float:
+    """The x [m] where the line at ``offset`` [m] from the reference curve tabulated in
+    ``tab`` first gets steeper than ``max_slope`` in the sensor frame (inf: nowhere in
+    the table). A line is a function y(x): beyond that, a small error along the
+    normal is a large one in y, and the single-frame ALDM stops its traces there
+    (its ``max_slope``)."""
+    c, sn = tab[:, _C], tab[:, _S]
+    steep = np.flatnonzero((c <= 0.0) | (np.abs(sn) > max_slope * c))
+    if len(steep) == 0:
+        return math.inf
+    k = int(steep[0])
+    if k == 0:
+        return 0.0
+    # the line's x at the last row within the limit and at the first beyond it,
+    # interpolated by the slope
+    xs = tab[k - 1 : k + 1, _X] - offset * sn[k - 1 : k + 1]
+    slope = np.abs(sn[k - 1 : k + 1]) / np.maximum(c[k - 1 : k + 1], 1e-9)
+    t = (max_slope - slope[0]) / max(slope[1] - slope[0], 1e-12)
+    return float(xs[0] + min(max(t, 0.0), 1.0) * (xs[1] - xs[0]))
 
 
 def shape_covariance(heading: float, curvature: float, curvature_rate: float) -> FloatArray:
@@ -212,6 +252,9 @@ class FilterParams:
     :ivar recede_length: when a confirmed line hit in a frame has its farthest point
         this much short of that of its last hit (carried by the odometry), the model
         competes with a fresh start on the frame (0: never).
+    :ivar jump_curvature: the curvature-jump hypothesis: the standard deviation of
+        the change of curvature per node step [1/m] added to the prediction's shape
+        covariance (0: no such hypothesis; 0.005 follows a step to R 100 m).
     """
 
     model_range: float = setting(90.0, lo=20.0, hi=1000.0)
@@ -240,6 +283,7 @@ class FilterParams:
     max_offset: float = setting(12.0, lo=1.0, hi=100.0)
     reseat_length: float = setting(10.0, lo=0.0, hi=1.0e4)
     recede_length: float = setting(20.0, lo=0.0, hi=1000.0)
+    jump_curvature: float = setting(0.005, lo=0.0, hi=1.0)
 
     def __post_init__(self) -> None:
         validate(self, "filter")
@@ -409,6 +453,11 @@ class LaneModelFilter:
         self.path_range = path_range
         fp = self.filter
         self._q_shape = shape_covariance(fp.q_heading, fp.q_curvature, fp.q_curvature_rate)
+        self._q_jump = (
+            shape_covariance(0.0, 0.0, fp.jump_curvature / NODE_STEP)
+            if fp.jump_curvature > 0.0
+            else None
+        )
         self.reset()
 
     def __copy__(self) -> LaneModelFilter:
@@ -438,6 +487,8 @@ class LaneModelFilter:
         self.n_starts = 0
         """Times the model was started from the single-frame ALDM since the reset."""
         self.n_restarts = 0
+        self.n_jumps = 0
+        """Frames whose update came from the curvature-jump hypothesis since the reset."""
         """Of those, fresh starts that replaced a model whose lines receded (its shape
         laid fewer of the frame's points on parallel lines)."""
 
@@ -670,8 +721,22 @@ class LaneModelFilter:
         (:func:`~aldm_gym.sensor.aldm_kernels.model.associate_update`): each point's
         line (-1: free, also for associated points given no weight), each line's
         support (the sum of its points' robust weights) and farthest point's x
-        (-inf: none)."""
+        (-inf: none). The curvature-jump hypothesis (the prediction's shape covariance
+        grown by ``jump_curvature``) is updated too and wins when its support is more
+        than :data:`JUMP_MARGIN` higher, gained on at least :data:`JUMP_LINES` lines
+        by :data:`JUMP_LINE_GAIN` each."""
         state, cov, line, support, far, _ok = self._associate_update(x, y, self._x, self._p)
+        if self._q_jump is not None:
+            jump = self._p.copy()
+            jump[:N_GEOMETRY, :N_GEOMETRY] += self._q_jump
+            alt = self._associate_update(x, y, self._x, jump)
+            gain = alt[3] - support
+            if (
+                float(gain.sum()) > JUMP_MARGIN
+                and np.count_nonzero(gain >= JUMP_LINE_GAIN) >= JUMP_LINES
+            ):
+                state, cov, line, support, far, _ok = alt
+                self.n_jumps += 1
         self._x, self._p = state, cov
         self.n_used = int(np.count_nonzero(line >= 0))
         return line, support, far
@@ -838,7 +903,8 @@ class LaneModelFilter:
 
     def _detection(self, near: float, tab: FloatArray | None = None) -> ModelLaneDetection:
         """The model drawn as a detection: 13 points per line (``n_points`` of the
-        ALDM's parameters) from ``near`` to the line's far end, on the reference curve
+        ALDM's parameters) from ``near`` to the line's far end (and no farther than
+        where it gets steeper than the ALDM's ``max_slope``), on the reference curve
         tabulated in ``tab`` (None: tabulated here)."""
         fp = self.filter
         if tab is None:
@@ -859,6 +925,7 @@ class LaneModelFilter:
                 continue
             own = float(self._far[i])
             far = min(fp.model_range, max(own, min(shared, own + fp.extend_length)))
+            far = min(far, _steep_x(tab, float(self._x[N_GEOMETRY + i]), self.params.max_slope))
             if far - near >= MIN_EXTENT:
                 drawn.append((r, i, far))
         if drawn:
@@ -922,6 +989,9 @@ class LaneModelFilter:
 
 __all__ = [
     "FILTER_KEYS",
+    "JUMP_LINES",
+    "JUMP_LINE_GAIN",
+    "JUMP_MARGIN",
     "MIN_SUPPORT",
     "FilterParams",
     "LaneModelFilter",

@@ -25,6 +25,7 @@ from aldm_gym.sensor.drives import (
     path_poses,
     traffic,
 )
+from aldm_gym.sensor.lane_filter import FilterParams
 
 CURVATURE_STEP = Path(__file__).resolve().parents[2] / "benchmarks" / "data" / "curvature_step.xodr"
 
@@ -81,6 +82,34 @@ def test_a_short_drive_scores_every_detector_and_repeats_bit_for_bit() -> None:
     assert {k: vars(v) for k, v in runs[0].items()} == {k: vars(v) for k, v in runs[1].items()}
     # a car ahead hides the ego's lines: no detector is always right with it
     assert min(sc.share for sc in runs[0].values()) < 1.0
+
+
+def test_the_filter_follows_a_curvature_step() -> None:
+    """Into the curvature-step map's first arc (a straight, then R 100 m with no
+    transition curve), ideal sensor: the curvature-jump hypothesis bends the model
+    where the arc comes into view. Without it (``jump_curvature=0``) the nominal
+    model's gates and robust weights keep the straight far out, and its lines are
+    wrong for longer."""
+    road = OpenDriveRoad.from_file(CURVATURE_STEP, marking_model="per_dash")
+    start = drive_starts(road)[0]
+
+    def run(jump: float) -> dict[str, DriveScore]:
+        params = {"filter": {"filt": FilterParams(jump_curvature=jump)}}
+        return drive(
+            road,
+            start,
+            CONDITIONS["ideal"],
+            max_frames=180,
+            detectors=("single_frame", "filter"),
+            detector_params=params,
+        )
+
+    with_jump, without = run(0.005), run(0.0)
+    assert with_jump["filter"].frames == 180
+    assert with_jump["filter"].share >= 0.95
+    assert with_jump["filter"].share > without["filter"].share
+    assert with_jump["filter"].longest_wrong < without["filter"].longest_wrong
+    assert with_jump["filter"].share > with_jump["single_frame"].share
 
 
 def test_drive_score_counts_runs_and_misses() -> None:
