@@ -1346,6 +1346,10 @@ class _Reader(ElementReader):
         gap = self.num(body, "timeGap", None)
         if (distance is None) == (gap is None):
             raise self.error(body, "give one of distance and timeGap")
+        if distance is not None and distance < 0.0:
+            distance = self._magnitude(body, "distance", distance, "m")
+        if gap is not None and gap < 0.0:
+            gap = self._magnitude(body, "timeGap", gap, "s")
         freespace = self.flag(body, "freespace")
         system = self.choice(body, "coordinateSystem", ("entity", "road", "lane"), "entity")
         displacement = self.choice(
@@ -1363,6 +1367,20 @@ class _Reader(ElementReader):
         return lambda actor: A.LongitudinalDistance(
             actor, where, ref, distance, gap, freespace, leading, continuous, limits, system
         )
+
+    def _magnitude(self, el: Any, name: str, value: float, unit: str) -> float:
+        """A negative ``distance`` or ``timeGap`` of a ``LongitudinalDistanceAction``
+        (the schema's range is 0 and up; ``displacement`` gives the side): read as its
+        magnitude, as esmini reads it (scenariogeneration's one_action_example writes
+        ``distance="-4.0"``), with a warning naming the file and line."""
+        warnings.warn(
+            f"{self.where(el, name)}: {value:g} {unit} is outside the schema's range "
+            f"(0 and up); read as {-value:g} {unit}, as esmini reads it (displacement "
+            "gives the side)",
+            ScenarioWarning,
+            stacklevel=2,
+        )
+        return -value
 
     def _synchronize(self, body: Any) -> Callable[[Entity | None], A.Instance]:
         """``SynchronizeAction``: arrive when the master arrives."""

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from scenariogeneration import xosc
 
-from aldm_gym.errors import ScenarioError
+from aldm_gym.errors import ScenarioError, ScenarioWarning
 from aldm_gym.scenario import read_scenario
 from tests.scenario._build import at, at_time, play, step_speed, write
 
@@ -538,6 +538,35 @@ def test_longitudinal_distance_places_the_actor_at_the_time_gap(tmp_path: Path) 
     placed = at(rec, 0.7)
     assert placed["Target"][1] - placed["Ego"][1] == pytest.approx(45.0)
     assert placed["Target"][3] == pytest.approx(20.0)
+
+
+@pytest.mark.parametrize("attr", ["distance", "timeGap"])
+def test_a_negative_longitudinal_distance_warns_and_plays_as_its_magnitude(
+    tmp_path: Path, attr: str
+) -> None:
+    """The schema's range is 0 and up; scenariogeneration's one_action_example writes
+    ``distance="-4.0"`` and esmini plays it as 4 m (the side is ``displacement``'s)."""
+    traces = []
+    for sign in (1.0, -1.0):
+        action = xosc.LongitudinalDistanceAction(
+            "Ego",
+            freespace=True,
+            continuous=False,
+            displacement=xosc.LongitudinalDisplacement.leadingReferencedEntity,
+            **{attr: sign * (12.0 if attr == "distance" else 1.5)},
+        )
+        ev = _event("gap", action, at_time(0.5))
+        folder = tmp_path / f"s{sign:+.0f}"
+        folder.mkdir()
+        path = write(folder, [("Target", [ev])], target=(0, 90.0, 12.0))
+        if sign < 0:
+            with pytest.warns(ScenarioWarning, match=rf"{attr}: -1?[0-9.]+ .* read as "):
+                read_scenario(path)
+        traces.append(play(path, 2.0)[1])
+    for t in (0.7, 1.5, 2.0):
+        assert at(traces[1], t)["Target"] == at(traces[0], t)["Target"]
+    placed = at(traces[0], 0.7)
+    assert placed["Target"][1] > placed["Ego"][1] + 5.0
 
 
 def test_relative_speed_continuous_follows_its_entity(tmp_path: Path) -> None:
