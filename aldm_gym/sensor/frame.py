@@ -125,6 +125,12 @@ class SensorFrame:
     :ivar max_lateral: the sensor's extra lateral limit [m] (``inf``: none).
     :ivar axis_y: y of the car's middle axis in the sensor frame [m] (``-mount_y`` for
         a forward sensor); sides and relevant lines are judged against it.
+    :ivar occluders: *ground truth*: ``(V, 6)`` world footprints ``(x, y, heading,
+        length, width, height)`` [m, rad] of the vehicles the sensor's occlusion model
+        hid points behind, in highway-env's world frame as ``origin`` and ``yaw``
+        (``(0, 6)``: occlusion off, or no vehicle). The stand-in for the object list
+        of the car's object fusion: the lane-model filter reads it to tell a line
+        hidden by a vehicle from one that is no longer there.
     """
 
     timestamp: float
@@ -152,6 +158,7 @@ class SensorFrame:
     fov_half_angle: float = 0.5 * np.pi
     max_lateral: float = np.inf
     axis_y: float = 0.0
+    occluders: FloatArray = field(default_factory=lambda: np.zeros((0, 6)))
 
     @property
     def n_lines(self) -> int:

@@ -41,12 +41,18 @@ Each frame:
    :data:`MIN_SUPPORT` in the frame is *hit*: its confidence ``p`` rises,
    ``p += hit_gain (1 - p)``; otherwise it falls, ``p -= miss_loss p``. A line
    without a hit for ``drop_length`` metres of travel is dropped; of two lines
-   closer than ``min_spacing`` the less confident one is dropped.
+   closer than ``min_spacing`` the less confident one is dropped. A line a vehicle
+   hides (the frame's ``occluders``, through the line sensor's own sight model:
+   :data:`HIDDEN_LENGTH`) is not missed: its confidence and miss length hold, and it
+   is drawn through the shadow as far as the model is sure of it
+   (:data:`CARRY_STD`).
 5. **Birth.** Points no line took (outside every gate, or given no weight), up to
    ``birth_range``, are put in the reference curve's frame (their ``l``); a cluster
    of at least ``birth_points`` of them within ``birth_width`` laterally, spanning
    ``birth_span`` in x and at least ``min_spacing`` from every line, is a new line
-   (a lane opening, the lane a lane change brings into view). A cluster closer to a
+   (a lane opening, the lane a lane change brings into view). Where the lines'
+   spacing puts a line the model lacks, one dash is enough
+   (:data:`SHORT_BIRTH_POINTS`, :data:`SHORT_BIRTH_SPAN`). A cluster closer to a
    line that has had no hit for ``reseat_length`` of travel *re-seats* that line
    when that makes the lane widths more regular: its offset is set there (id and
    role kept), its uncertainty reset (a line started on clutter, or lost; not a
@@ -104,6 +110,8 @@ from aldm_gym.sensor.aldm_kernels.model import (
     project_on,
     receded,
 )
+from aldm_gym.sensor.conditions import _occlude
+from aldm_gym.sensor.frame import SensorFrame
 from aldm_gym.sensor.lane_detection import LINE_NAMES, LaneDetection
 from aldm_gym.sensor.tracking import TRACKER_KEYS, EgoMotion, TrackerParams, split_params
 from aldm_gym.sensor.trajectory import DEFAULT_LANE_WIDTH, PATH_STEP, driving_trajectory, fit_reach
@@ -150,6 +158,30 @@ bends every marking, clutter one."""
 
 JUMP_LINES = 2
 """See :data:`JUMP_LINE_GAIN`."""
+
+HIDDEN_LENGTH = 20.0
+"""A line is *hidden* in a frame when a vehicle (the frame's ``occluders``) blocks
+the sight of part of it and less than this much of it [m], from ``fov_start`` to
+``model_range``, is left in view: a dashed line (6 m dashes, 12 m gaps) shows a whole
+dash, enough points for a hit, in any 18 m. A hidden line's miss is no evidence that
+it is gone."""
+
+SHORT_BIRTH_POINTS = 3
+"""Where the lines' spacing puts a line the model lacks, a cluster of this many free
+points ..."""
+
+SHORT_BIRTH_SPAN = 4.0
+"""... spanning this much in x [m] (one 6 m dash sampled every 2 m) is a new line:
+a line lost while a car hid all but its near dashes comes back from them."""
+
+CARRY_STD = 0.1
+"""A line a vehicle hides beyond where it was seen is drawn on past where any line is
+seen only while its drawn points' lateral standard deviation (the model's
+covariance) stays at most this [m]: a third of the score's 0.3 m."""
+
+OCCLUSION_STEP = 2.0
+"""The x step [m] at which the lines are checked for occlusion (the line sensor's
+sampling)."""
 
 MIN_EXTENT = 10.0
 """A line shorter than this in x [m] is not drawn."""
@@ -475,6 +507,7 @@ class LaneModelFilter:
         self._far = np.zeros(0)
         self._confirmed = np.zeros(0, dtype=bool)
         self._span = np.zeros((0, 2))
+        self._shadow = np.zeros(0)
         self._next_id = 0
         self._last_ids: tuple[int, ...] = (-1,) * len(LINE_NAMES)
         self.n_used = 0
@@ -488,6 +521,9 @@ class LaneModelFilter:
         """Times the model was started from the single-frame ALDM since the reset."""
         self.n_restarts = 0
         self.n_jumps = 0
+        self.n_reborn = 0
+        """Of the lines born, those born from short evidence (one dash) where the lines'
+        spacing puts one, since the reset."""
         """Frames whose update came from the curvature-jump hypothesis since the reset."""
         """Of those, fresh starts that replaced a model whose lines receded (its shape
         laid fewer of the frame's points on parallel lines)."""
@@ -575,7 +611,8 @@ class LaneModelFilter:
                 travel = 0.0
                 line, support, far = self._correct(x, y)
             self._span = _spans(x, line, support, len(self._ids))
-            self._existence(support, far, travel)
+            hidden, self._shadow = self._occlusion(points)
+            self._existence(support, far, travel, hidden)
         # the reference curve after the update (births and drawing move no shape)
         tab = curve_table(self._x, fp.model_range)
         if line is not None and len(self._ids):
@@ -645,6 +682,7 @@ class LaneModelFilter:
         self._far = np.array([float(v[-1, 0]) for v in kept])
         self._confirmed = np.ones(n, dtype=bool)
         self._span = np.full((n, 2), np.nan)
+        self._shadow = np.full(n, math.inf)
         self.n_starts += 1
         return True
 
@@ -749,9 +787,59 @@ class LaneModelFilter:
         :data:`START_ITERATIONS` times)."""
         return fit(x, y, line, x0, p0, self._sigma(x), self.filter.tukey, START_ITERATIONS)
 
-    def _existence(self, support: FloatArray, far: FloatArray, travel: float) -> None:
-        """Hits and misses, the lines' far ends (``far``: the farthest point of each
-        line in the frame [m]), and the lines dropped
+    def _occlusion(self, points: Any) -> tuple[np.ndarray, FloatArray]:
+        """Which lines a vehicle hides in this frame (:data:`HIDDEN_LENGTH`), and
+        where each line's first point hidden by one lies [m] (inf: none), from the
+        frame's ``occluders`` and the sensor's own sight model (the line sensor's
+        occlusion, on the model's lines every :data:`OCCLUSION_STEP` within the field
+        of view). A frame given as bare points, or without occluders, hides nothing."""
+        n = len(self._ids)
+        hidden = np.zeros(n, dtype=bool)
+        shadow = np.full(n, math.inf)
+        if not isinstance(points, SensorFrame) or len(points.occluders) == 0 or n == 0:
+            return hidden, shadow
+        x0 = float(points.fov_start)
+        x1 = min(self.filter.model_range, float(points.range))
+        k = int((x1 - x0) / OCCLUSION_STEP) + 1
+        if k < 2:
+            return hidden, shadow
+        x1 = x0 + (k - 1) * OCCLUSION_STEP
+        tab = curve_table(self._x, self.filter.model_range)
+        pts = draw_on(tab, self._x, np.arange(n, dtype=np.int64), x0, np.full(n, x1), k)
+        xs = np.ascontiguousarray(pts[0, :, 0])
+        ys = np.ascontiguousarray(pts[:, :, 1])
+        lateral = np.abs(ys)
+        in_view = (
+            np.isfinite(ys)
+            & (lateral <= xs * math.tan(points.fov_half_angle))
+            & (lateral <= points.max_lateral)
+        )
+        seen = ys.copy()
+        _occlude(
+            xs,
+            seen,
+            np.zeros(n),
+            np.ascontiguousarray(points.occluders, dtype=np.float64),
+            float(points.origin[0]),
+            float(points.origin[1]),
+            float(points.yaw),
+            x1 + 10.0,
+            float(points.mount_position[2]),
+        )
+        blocked = in_view & np.isnan(seen)
+        visible = in_view & ~blocked
+        hidden = blocked.any(axis=1) & (visible.sum(axis=1) * OCCLUSION_STEP < HIDDEN_LENGTH)
+        first = np.where(blocked.any(axis=1), np.argmax(blocked, axis=1), -1)
+        shadow = np.where(first >= 0, xs[np.maximum(first, 0)], math.inf)
+        return hidden, shadow
+
+    def _existence(
+        self, support: FloatArray, far: FloatArray, travel: float, hidden: np.ndarray
+    ) -> None:
+        """Hits and misses (a missed line a vehicle hides, ``hidden``, neither loses
+        confidence nor counts travel towards ``drop_length``), the lines' far ends
+        (``far``: the farthest point of each line in the frame [m]), and the lines
+        dropped
         (:func:`~aldm_gym.sensor.aldm_kernels.model.existence`)."""
         fp = self.filter
         keep = existence(
@@ -763,6 +851,7 @@ class LaneModelFilter:
             self._confirmed,
             self._ids,
             self._x[N_GEOMETRY:],
+            hidden,
             travel,
             fp.hit_gain,
             fp.miss_loss,
@@ -784,13 +873,18 @@ class LaneModelFilter:
         self._miss, self._far = self._miss[keep], self._far[keep]
         self._confirmed = self._confirmed[keep]
         self._span = self._span[keep]
+        self._shadow = self._shadow[keep]
 
     def _birth(self, x: FloatArray, y: FloatArray, line: np.ndarray, tab: FloatArray) -> None:
         """New lines from clusters of the points no line took, by their distance to
-        the reference curve tabulated in ``tab``: at most one per frame."""
+        the reference curve tabulated in ``tab``: at most one per frame. A cluster of
+        ``birth_points`` spanning ``birth_span``, or, where the lines' spacing puts a
+        line the model lacks (:meth:`_expected_lines`), of :data:`SHORT_BIRTH_POINTS`
+        spanning :data:`SHORT_BIRTH_SPAN` (one dash), confirmed at once (the lane's
+        structure corroborates it)."""
         fp = self.filter
         free = (line < 0) & (x <= fp.birth_range)
-        if np.count_nonzero(free) < fp.birth_points:
+        if np.count_nonzero(free) < min(fp.birth_points, SHORT_BIRTH_POINTS):
             return
         fx = x[free]
         _s, off, _g = project_on(tab, fx, y[free])
@@ -800,25 +894,60 @@ class LaneModelFilter:
         end = np.searchsorted(off, off + fp.birth_width, side="right")
         count = end - np.arange(len(off))
         lines = self._x[N_GEOMETRY:]
+        expected = self._expected_lines()
         for i in np.argsort(-count, kind="stable"):
-            if count[i] < fp.birth_points:
+            if count[i] < min(fp.birth_points, SHORT_BIRTH_POINTS):
                 return
             members = slice(i, end[i])
             centre = float(np.median(off[members]))
             span = float(np.ptp(fx[members]))
-            if span < fp.birth_span or abs(centre) > fp.max_offset:
-                continue
-            if len(lines):
-                j = int(np.argmin(np.abs(lines - centre)))
-                if abs(lines[j] - centre) < fp.min_spacing:
-                    if 0.0 < fp.reseat_length <= self._miss[j] and self._regular(j, centre):
-                        self._reseat(j, centre, float(np.max(fx[members])))
-                        self._span[j] = (float(np.min(fx[members])), float(np.max(fx[members])))
-                        return
+            extent = (float(np.min(fx[members])), float(np.max(fx[members])))
+            if count[i] >= fp.birth_points and span >= fp.birth_span:
+                if abs(centre) > fp.max_offset:
                     continue
-            self._add_line(centre, float(np.max(fx[members])))
-            self._span[-1] = (float(np.min(fx[members])), float(np.max(fx[members])))
+                if len(lines):
+                    j = int(np.argmin(np.abs(lines - centre)))
+                    if abs(lines[j] - centre) < fp.min_spacing:
+                        if 0.0 < fp.reseat_length <= self._miss[j] and self._regular(j, centre):
+                            self._reseat(j, centre, extent[1])
+                            self._span[j] = extent
+                            return
+                        continue
+            elif not (
+                count[i] >= SHORT_BIRTH_POINTS
+                and span >= SHORT_BIRTH_SPAN
+                and len(expected)
+                and float(np.min(np.abs(expected - centre))) <= fp.birth_width
+            ):
+                continue
+            else:
+                # the lane's structure corroborates it: confirmed at once
+                self._add_line(centre, extent[1])
+                self._span[-1] = extent
+                self._conf[-1] = max(fp.birth_confidence, fp.min_confidence)
+                self._confirmed[-1] = True
+                self.n_reborn += 1
+                return
+            self._add_line(centre, extent[1])
+            self._span[-1] = extent
             return
+
+    def _expected_lines(self) -> FloatArray:
+        """Offsets [m] where the confirmed lines' spacing puts a line the model lacks:
+        one median spacing (:data:`~aldm_gym.sensor.trajectory.DEFAULT_LANE_WIDTH`
+        with fewer than two lines) beside each confirmed line, at least
+        ``min_spacing`` from every line and within ``max_offset``."""
+        fp = self.filter
+        lines = self._x[N_GEOMETRY:]
+        shown = np.sort(lines[self._confirmed])
+        if len(shown) == 0:
+            return np.zeros(0)
+        gaps = np.diff(shown)
+        gaps = gaps[gaps < 1.5 * self.params.max_lane_width]
+        ref = float(np.median(gaps)) if len(gaps) else DEFAULT_LANE_WIDTH
+        cand = np.concatenate((shown - ref, shown + ref))
+        far_from_all = np.min(np.abs(cand[:, None] - lines[None, :]), axis=1) >= fp.min_spacing
+        return cand[far_from_all & (np.abs(cand) <= fp.max_offset)]
 
     def _regular(self, j: int, offset: float) -> bool:
         """Whether line ``j`` at ``offset`` [m] makes the lane widths more regular than
@@ -871,6 +1000,7 @@ class LaneModelFilter:
         self._far = np.append(self._far, far)
         self._confirmed = np.append(self._confirmed, False)
         self._span = np.vstack((self._span, np.full((1, 2), np.nan)))
+        self._shadow = np.append(self._shadow, math.inf)
         self.n_born += 1
 
     # -- output ------------------------------------------------------------------------
@@ -913,18 +1043,28 @@ class LaneModelFilter:
         roles = self._roles()
         seen = self._far[self._confirmed & (self._miss == 0.0)]
         shared = float(np.max(seen)) if len(seen) else -math.inf
+        # where any confirmed line was last seen, carried by the odometry
+        carried = self._far[self._confirmed]
+        last_seen = float(np.max(carried)) if len(carried) else -math.inf
         fields: dict[str, FloatArray] = {}
         conf = np.zeros(len(LINE_NAMES))
         ids = [-1] * len(LINE_NAMES)
         measured = np.full((len(LINE_NAMES), 2), np.nan)
         lateral_std = np.full((len(LINE_NAMES), n_points), np.nan)
         drawn: list[tuple[int, int, float]] = []
+        carried_from: dict[int, float] = {}
         for r in range(len(LINE_NAMES)):
             i = roles[r]
             if i < 0:
                 continue
             own = float(self._far[i])
-            far = min(fp.model_range, max(own, min(shared, own + fp.extend_length)))
+            if self._shadow[i] <= max(own, near) + HIDDEN_LENGTH:
+                # a vehicle hides the line beyond where it was last seen: it goes on
+                # as far as any line is seen, or was last seen
+                far = fp.model_range
+                carried_from[i] = max(own, shared, last_seen)
+            else:
+                far = min(fp.model_range, max(own, min(shared, own + fp.extend_length)))
             far = min(far, _steep_x(tab, float(self._x[N_GEOMETRY + i]), self.params.max_slope))
             if far - near >= MIN_EXTENT:
                 drawn.append((r, i, far))
@@ -934,6 +1074,20 @@ class LaneModelFilter:
             fars = np.array([far for *_, far in drawn])
             pts = draw_on(tab, self._x, idx, near, fars, n_points)
             std = self._lateral_std(tab, pts, idx)
+            cut = False
+            for c, (_r, i, _f) in enumerate(drawn):
+                if i not in carried_from:
+                    continue
+                # a hidden line is carried past where any line was seen only as far as
+                # the model is sure of it
+                unsure = (pts[c, :, 0] > carried_from[i]) & (std[c] > CARRY_STD)
+                if unsure.any():
+                    k = int(np.argmax(unsure))
+                    fars[c] = max(float(pts[c, max(k - 1, 0), 0]), carried_from[i])
+                    cut = True
+            if cut:
+                pts = draw_on(tab, self._x, idx, near, fars, n_points)
+                std = self._lateral_std(tab, pts, idx)
             for c, (r, i, _) in enumerate(drawn):
                 fields[LINE_NAMES[r]] = pts[c]
                 conf[r] = self._conf[i]
@@ -988,11 +1142,16 @@ class LaneModelFilter:
 
 
 __all__ = [
+    "CARRY_STD",
     "FILTER_KEYS",
+    "HIDDEN_LENGTH",
     "JUMP_LINES",
     "JUMP_LINE_GAIN",
     "JUMP_MARGIN",
     "MIN_SUPPORT",
+    "OCCLUSION_STEP",
+    "SHORT_BIRTH_POINTS",
+    "SHORT_BIRTH_SPAN",
     "FilterParams",
     "LaneModelFilter",
     "ModelLaneDetection",

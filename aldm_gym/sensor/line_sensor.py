@@ -486,6 +486,11 @@ class LineSensor:
             fov_half_angle=c.fov_half_angle,
             max_lateral=self._max_lateral,
             axis_y=axis_y,
+            occluders=(
+                cond.occluder_array(occluders).copy()
+                if c.occlusion and occluders is not None
+                else np.zeros((0, 6))
+            ),
         )
 
     def _conditions(

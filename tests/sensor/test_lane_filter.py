@@ -4,6 +4,7 @@ bad input, determinism, settings, the env."""
 from __future__ import annotations
 
 import copy
+import dataclasses
 import math
 import pickle
 
@@ -14,12 +15,15 @@ import pytest
 
 import aldm_gym  # noqa: F401  (registers the env)
 from aldm_gym.errors import ConfigError, InputError
-from aldm_gym.roads import shipped_map
+from aldm_gym.roads import OpenDriveRoad, shipped_map
 from aldm_gym.sensor import detect_lanes
 from aldm_gym.sensor.aldm import ALDMParams
 from aldm_gym.sensor.aldm_kernels import model as M
 from aldm_gym.sensor.aldm_kernels.model import N_GEOMETRY, SCALE
 from aldm_gym.sensor.detectors import ModelALDMDetector, TrackingALDMDetector, make_detector
+from aldm_gym.sensor.drives import DT as DRIVE_DT
+from aldm_gym.sensor.drives import drive_starts, lane_path, path_poses, traffic
+from aldm_gym.sensor.ground_truth import score_detection
 from aldm_gym.sensor.lane_detection import LINE_NAMES
 from aldm_gym.sensor.lane_filter import (
     FILTER_KEYS,
@@ -29,7 +33,8 @@ from aldm_gym.sensor.lane_filter import (
     shape_covariance,
     split_filter_params,
 )
-from aldm_gym.sensor.tracking import TRACKER_KEYS, EgoMotion
+from aldm_gym.sensor.line_sensor import LineSensor
+from aldm_gym.sensor.tracking import TRACKER_KEYS, EgoMotion, odometry
 
 SPEED = 25.0
 DT = 0.1
@@ -144,6 +149,66 @@ def test_occluded_line_is_carried_through() -> None:
         assert np.all(det.lateral_std < 0.3), k
     assert conf[17] < 0.5 * conf[9] and conf[-1] > 0.6
     assert sum(seen_again) >= len(seen_again) // 2
+
+
+def test_a_lost_line_is_reborn_from_one_dash_where_the_spacing_puts_it() -> None:
+    """The ego-left line hidden whole for 35 frames (87 m of travel, past
+    ``drop_length``: bare points say nothing of why), then seen only up to 12 m, one
+    dash at a time (3 points over 4 m, never the 6 over 12 m a birth anywhere
+    needs): it is born again from that dash, at the lane's width from its
+    neighbours, and drawn within 10 cm."""
+
+    def hide(k: int, road: S.SynthRoad, pts: np.ndarray) -> np.ndarray:
+        near = road.lateral_error(road.ego_left, pts[:, :2]) < 0.3
+        if 5 <= k < 40:
+            return pts[~near]
+        if k >= 40:
+            return pts[~(near & (pts[:, 0] > 12.0))]
+        return pts
+
+    back = None
+    filt = None
+    for k, road, _pts, det, filt in _drive(math.inf, frames=60, hide=hide, noise=0.01):  # noqa: B007
+        if k == 39:
+            assert not det.found("ego_left")  # dropped
+        if k >= 40 and back is None and det.found("ego_left"):
+            back = k
+        if back is not None and k >= back + 2:
+            assert _err(road, road.ego_left, det.ego_left) < 0.1, k
+    assert back is not None and back <= 48
+    assert filt.n_reborn >= 1
+
+
+def test_a_line_a_vehicle_hides_is_kept_and_drawn_through() -> None:
+    """The middle lane of the motorway map behind a truck, with cars beside (the
+    line sensor's occlusion): given the frames, whose ``occluders`` say what hides
+    the lines, the filter keeps the ego lines through the shadow and draws them to a
+    60 m preview in all 200 frames; given the same points without the occluders, it
+    lets them recede and drop, and is wrong for a run of frames."""
+    road = OpenDriveRoad.from_file(shipped_map("motorway"), marking_model="per_dash")
+    start = drive_starts(road)[1]
+    xy = lane_path(road, start)
+    u = np.arange(200) * SPEED * DRIVE_DT
+    poses = path_poses(xy, u)
+    boxes = traffic(xy, u, 3.75, 4, 0.3, 0)
+    sensor = LineSensor({"occlusion": True}, seed=0)
+    filters = {"frames": LaneModelFilter(), "points": LaneModelFilter()}
+    correct = dict.fromkeys(filters, 0)
+    last = None
+    for k in range(len(u)):
+        pose = tuple(float(v) for v in poses[k])
+        motion = odometry(last, pose, DRIVE_DT)  # type: ignore[arg-type]
+        last = pose
+        frame = sensor.measure(road, pose, occluders=boxes[k])
+        assert len(frame.occluders) == 4
+        lane = road.lane_position(poses[k, :2]).lane
+        inputs = {"frames": frame, "points": dataclasses.replace(frame, occluders=np.zeros((0, 6)))}
+        for name, filt in filters.items():
+            det = filt.update(inputs[name], motion)
+            sc = score_detection(det, road, frame, lane, ("ego_left", "ego_right"))
+            correct[name] += sc["ego_left"].correct and sc["ego_right"].correct
+    assert correct["frames"] == 200
+    assert correct["points"] < 190
 
 
 def test_worn_line_keeps_its_role() -> None:
@@ -272,7 +337,8 @@ def test_no_two_lines_stay_closer_than_min_spacing() -> None:
     filt._far = np.full(3, 50.0)
     filt._confirmed = np.ones(3, dtype=bool)
     filt._span = np.full((3, 2), np.nan)
-    filt._existence(np.full(3, 5.0), np.full(3, 50.0), 0.0)
+    filt._shadow = np.full(3, np.inf)
+    filt._existence(np.full(3, 5.0), np.full(3, 50.0), 0.0, np.zeros(3, dtype=bool))
     assert list(filt._ids) == [7]
     assert np.all(np.diff(np.sort(filt.offsets)) >= filt.filter.min_spacing)
 
@@ -710,6 +776,7 @@ def test_kernels_match_plain_python() -> None:
         np.zeros(4, dtype=bool),
         np.array([0, 1, 2, 3]),
         np.array([5.6, 1.9, -1.9, -3.0]),
+        np.zeros(4, dtype=bool),
         2.5,
         0.3,
         0.1,
@@ -730,6 +797,15 @@ def test_kernels_match_plain_python() -> None:
     np.testing.assert_array_equal(miss, [0.0, 60.5, 0.0, 0.0])
     np.testing.assert_array_equal(far_old, [70.0, 30.0, 60.0, 50.0])
     assert confirmed.tolist() == [True, True, True, True]
+    # a missed line a vehicle hides keeps its confidence and its miss length
+    hidden = list(args)
+    hidden[0] = np.zeros(4)  # every line missed
+    hidden[8] = np.array([False, True, False, True])
+    for kernel in (M.existence, M.existence_py):
+        call = [a.copy() if isinstance(a, np.ndarray) else a for a in hidden]
+        kernel(*call)
+        np.testing.assert_allclose(call[2], [0.45, 0.9, 0.72, 0.6])
+        np.testing.assert_array_equal(call[3], [2.5, 58.0, 2.5, 0.0])
     # measurements: finite rows ahead within range and the road band, in order
     pts = np.array(
         [

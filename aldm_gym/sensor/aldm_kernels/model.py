@@ -690,6 +690,7 @@ def existence_py(
     confirmed,
     ids,
     offsets,
+    hidden,
     travel,
     hit_gain,
     miss_loss,
@@ -703,8 +704,9 @@ def existence_py(
 
     A line whose support reaches ``min_support`` is hit: its confidence gains
     ``hit_gain`` of what it lacks to 1, its miss length is reset and its far end set to
-    ``far``; otherwise it loses ``miss_loss`` of its confidence and its miss length
-    grows by ``travel`` [m]. A line is confirmed once its confidence reaches
+    ``far``; otherwise, unless ``hidden`` (a vehicle hides it: no evidence either way),
+    it loses ``miss_loss`` of its confidence and its miss length grows by ``travel``
+    [m]. A line is confirmed once its confidence reaches
     ``min_confidence``. Kept: lines missed for at most ``drop_length`` [m] and within
     ``max_offset`` [m] of the sensor; of two kept lines closer than ``min_spacing``
     [m], the less confident goes (on a tie the younger, the larger id), each compared
@@ -719,7 +721,7 @@ def existence_py(
             conf[i] += hit_gain * (1.0 - conf[i])
             miss[i] = 0.0
             far_old[i] = far[i]
-        else:
+        elif not hidden[i]:
             conf[i] *= 1.0 - miss_loss
             miss[i] += travel
         if conf[i] >= min_confidence:
