@@ -10,7 +10,9 @@ the height above the road surface (paint ~0, barriers > 0).
 
 Fields marked *ground truth* are known only in simulation (which painted marking
 and which dash an object comes from). Detectors must not use them; metrics and
-plots may.
+plots may. One exception: the lane-model filter reads ``occluders`` (with ``origin``
+and ``yaw``) as the object list of a car's object fusion, to tell a line a vehicle
+hides from one that is gone.
 """
 
 from __future__ import annotations

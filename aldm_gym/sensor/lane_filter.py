@@ -90,7 +90,7 @@ from typing import Any
 import numpy as np
 
 from aldm_gym.config import build_config, check_keys, setting, validate
-from aldm_gym.errors import ConfigError
+from aldm_gym.errors import ConfigError, InputError
 from aldm_gym.sensor.aldm import ALDMParams, as_points, detect_lanes_checked, make_params
 from aldm_gym.sensor.aldm_kernels.model import (
     _C,
@@ -110,7 +110,7 @@ from aldm_gym.sensor.aldm_kernels.model import (
     project_on,
     receded,
 )
-from aldm_gym.sensor.conditions import _occlude
+from aldm_gym.sensor.conditions import _occlude, occluder_array
 from aldm_gym.sensor.frame import SensorFrame
 from aldm_gym.sensor.lane_detection import LINE_NAMES, LaneDetection
 from aldm_gym.sensor.tracking import TRACKER_KEYS, EgoMotion, TrackerParams, split_params
@@ -187,25 +187,37 @@ MIN_EXTENT = 10.0
 """A line shorter than this in x [m] is not drawn."""
 
 
-def _steep_x(tab: FloatArray, offset: float, max_slope: float) -> float:
-    """The x [m] where the line at ``offset`` [m] from the reference curve tabulated in
-    ``tab`` first gets steeper than ``max_slope`` in the sensor frame (inf: nowhere in
-    the table). A line is a function y(x): beyond that, a small error along the
+def _steep_row(tab: FloatArray, max_slope: float) -> tuple[int, float] | None:
+    """Where the reference curve tabulated in ``tab`` first gets steeper than
+    ``max_slope`` in the sensor frame: the first row ``k`` beyond the limit and the
+    fraction ``t`` of the step from row ``k - 1`` at which the slope reaches it (the
+    same for every line: parallel curves share their tangent); ``None``: nowhere in
+    the table. A line is a function y(x): beyond that, a small error along the
     normal is a large one in y, and the single-frame ALDM stops its traces there
     (its ``max_slope``)."""
     c, sn = tab[:, _C], tab[:, _S]
     steep = np.flatnonzero((c <= 0.0) | (np.abs(sn) > max_slope * c))
     if len(steep) == 0:
-        return math.inf
+        return None
     k = int(steep[0])
     if k == 0:
-        return 0.0
-    # the line's x at the last row within the limit and at the first beyond it,
-    # interpolated by the slope
-    xs = tab[k - 1 : k + 1, _X] - offset * sn[k - 1 : k + 1]
+        return 0, 0.0
     slope = np.abs(sn[k - 1 : k + 1]) / np.maximum(c[k - 1 : k + 1], 1e-9)
     t = (max_slope - slope[0]) / max(slope[1] - slope[0], 1e-12)
-    return float(xs[0] + min(max(t, 0.0), 1.0) * (xs[1] - xs[0]))
+    return k, min(max(float(t), 0.0), 1.0)
+
+
+def _steep_x(tab: FloatArray, row: tuple[int, float] | None, offset: float) -> float:
+    """The x [m] where the line at ``offset`` [m] from the reference curve tabulated
+    in ``tab`` gets too steep (:func:`_steep_row`'s ``row``; inf: nowhere)."""
+    if row is None:
+        return math.inf
+    k, t = row
+    if k == 0:
+        return 0.0
+    x0 = float(tab[k - 1, _X] - offset * tab[k - 1, _S])
+    x1 = float(tab[k, _X] - offset * tab[k, _S])
+    return x0 + t * (x1 - x0)
 
 
 def shape_covariance(heading: float, curvature: float, curvature_rate: float) -> FloatArray:
@@ -520,13 +532,13 @@ class LaneModelFilter:
         self.n_starts = 0
         """Times the model was started from the single-frame ALDM since the reset."""
         self.n_restarts = 0
+        """Of those, fresh starts that replaced a model whose lines receded (its shape
+        laid fewer of the frame's points on parallel lines)."""
         self.n_jumps = 0
+        """Frames whose update came from the curvature-jump hypothesis since the reset."""
         self.n_reborn = 0
         """Of the lines born, those born from short evidence (one dash) where the lines'
         spacing puts one, since the reset."""
-        """Frames whose update came from the curvature-jump hypothesis since the reset."""
-        """Of those, fresh starts that replaced a model whose lines receded (its shape
-        laid fewer of the frame's points on parallel lines)."""
 
     # -- the state in SI units ---------------------------------------------------------
 
@@ -611,12 +623,14 @@ class LaneModelFilter:
                 travel = 0.0
                 line, support, far = self._correct(x, y)
             self._span = _spans(x, line, support, len(self._ids))
-            hidden, self._shadow = self._occlusion(points)
+            hidden, _ = self._occlusion(points)
             self._existence(support, far, travel, hidden)
         # the reference curve after the update (births and drawing move no shape)
         tab = curve_table(self._x, fp.model_range)
         if line is not None and len(self._ids):
             self._birth(x, y, line, tab)
+        # where a vehicle hides each line of the final model, beyond where it was seen
+        _, self._shadow = self._occlusion(points, beyond=self._far - OCCLUSION_STEP)
         return self._detection(near, tab)
 
     def _start(
@@ -764,7 +778,9 @@ class LaneModelFilter:
         than :data:`JUMP_MARGIN` higher, gained on at least :data:`JUMP_LINES` lines
         by :data:`JUMP_LINE_GAIN` each."""
         state, cov, line, support, far, _ok = self._associate_update(x, y, self._x, self._p)
-        if self._q_jump is not None:
+        if self._q_jump is not None and np.count_nonzero(line < 0) >= JUMP_LINES * JUMP_LINE_GAIN:
+            # the nominal update left points unexplained (outside every gate, or given
+            # no weight): try the jump
             jump = self._p.copy()
             jump[:N_GEOMETRY, :N_GEOMETRY] += self._q_jump
             alt = self._associate_update(x, y, self._x, jump)
@@ -787,17 +803,36 @@ class LaneModelFilter:
         :data:`START_ITERATIONS` times)."""
         return fit(x, y, line, x0, p0, self._sigma(x), self.filter.tukey, START_ITERATIONS)
 
-    def _occlusion(self, points: Any) -> tuple[np.ndarray, FloatArray]:
+    def _occlusion(
+        self, points: Any, beyond: FloatArray | None = None
+    ) -> tuple[np.ndarray, FloatArray]:
         """Which lines a vehicle hides in this frame (:data:`HIDDEN_LENGTH`), and
-        where each line's first point hidden by one lies [m] (inf: none), from the
-        frame's ``occluders`` and the sensor's own sight model (the line sensor's
-        occlusion, on the model's lines every :data:`OCCLUSION_STEP` within the field
-        of view). A frame given as bare points, or without occluders, hides nothing."""
+        where each line's first point hidden by one lies [m] (inf: none; with
+        ``beyond``, the first at or beyond that x [m] per line), from the frame's
+        ``occluders`` and the sensor's own sight model (the line sensor's occlusion,
+        on the model's lines every :data:`OCCLUSION_STEP` within the field of view).
+        A frame given as bare points, or without occluders, hides nothing."""
         n = len(self._ids)
         hidden = np.zeros(n, dtype=bool)
         shadow = np.full(n, math.inf)
-        if not isinstance(points, SensorFrame) or len(points.occluders) == 0 or n == 0:
+        if not isinstance(points, SensorFrame) or n == 0:
             return hidden, shadow
+        world = occluder_array(np.asarray(points.occluders, dtype=np.float64))
+        if len(world) == 0:
+            return hidden, shadow
+        pose = (*np.ravel(points.origin)[:2], points.yaw, points.mount_position[2])
+        if not (
+            len(np.ravel(points.origin)) == 2
+            and np.isfinite(pose).all()
+            and math.isfinite(points.fov_start)
+            and math.isfinite(points.range)
+            and points.range > points.fov_start >= 0.0
+        ):
+            raise InputError(
+                "a frame with occluders needs a finite origin (2,), yaw, mount height and "
+                f"0 <= fov_start < range, got origin {points.origin}, yaw {points.yaw}, "
+                f"fov_start {points.fov_start}, range {points.range}"
+            )
         x0 = float(points.fov_start)
         x1 = min(self.filter.model_range, float(points.range))
         k = int((x1 - x0) / OCCLUSION_STEP) + 1
@@ -819,7 +854,7 @@ class LaneModelFilter:
             xs,
             seen,
             np.zeros(n),
-            np.ascontiguousarray(points.occluders, dtype=np.float64),
+            np.ascontiguousarray(world),
             float(points.origin[0]),
             float(points.origin[1]),
             float(points.yaw),
@@ -829,6 +864,8 @@ class LaneModelFilter:
         blocked = in_view & np.isnan(seen)
         visible = in_view & ~blocked
         hidden = blocked.any(axis=1) & (visible.sum(axis=1) * OCCLUSION_STEP < HIDDEN_LENGTH)
+        if beyond is not None:
+            blocked &= xs[None, :] >= np.asarray(beyond)[:, None]
         first = np.where(blocked.any(axis=1), np.argmax(blocked, axis=1), -1)
         shadow = np.where(first >= 0, xs[np.maximum(first, 0)], math.inf)
         return hidden, shadow
@@ -894,15 +931,26 @@ class LaneModelFilter:
         end = np.searchsorted(off, off + fp.birth_width, side="right")
         count = end - np.arange(len(off))
         lines = self._x[N_GEOMETRY:]
-        expected = self._expected_lines()
+        expected: FloatArray | None = None
         for i in np.argsort(-count, kind="stable"):
             if count[i] < min(fp.birth_points, SHORT_BIRTH_POINTS):
                 return
             members = slice(i, end[i])
+            full = count[i] >= fp.birth_points
+            if not full:
+                # a short cluster counts only near where a line is expected
+                if expected is None:
+                    expected = self._expected_lines()
+                mid = 0.5 * (off[i] + off[end[i] - 1])
+                if (
+                    not len(expected)
+                    or float(np.min(np.abs(expected - mid))) > 2.0 * fp.birth_width
+                ):
+                    continue
             centre = float(np.median(off[members]))
             span = float(np.ptp(fx[members]))
             extent = (float(np.min(fx[members])), float(np.max(fx[members])))
-            if count[i] >= fp.birth_points and span >= fp.birth_span:
+            if full and span >= fp.birth_span:
                 if abs(centre) > fp.max_offset:
                     continue
                 if len(lines):
@@ -913,14 +961,18 @@ class LaneModelFilter:
                             self._span[j] = extent
                             return
                         continue
-            elif not (
-                count[i] >= SHORT_BIRTH_POINTS
-                and span >= SHORT_BIRTH_SPAN
-                and len(expected)
-                and float(np.min(np.abs(expected - centre))) <= fp.birth_width
-            ):
-                continue
             else:
+                # short evidence where the lines' spacing puts a line the model lacks
+                if count[i] < SHORT_BIRTH_POINTS or span < SHORT_BIRTH_SPAN:
+                    continue
+                if abs(centre) > fp.max_offset or (
+                    len(lines) and float(np.min(np.abs(lines - centre))) < fp.min_spacing
+                ):
+                    continue
+                if expected is None:
+                    expected = self._expected_lines()
+                if float(np.min(np.abs(expected - centre))) > fp.birth_width:
+                    continue
                 # the lane's structure corroborates it: confirmed at once
                 self._add_line(centre, extent[1])
                 self._span[-1] = extent
@@ -1041,6 +1093,7 @@ class LaneModelFilter:
             tab = curve_table(self._x, fp.model_range)
         n_points = self.params.n_points if self.params.n_points >= 2 else 13
         roles = self._roles()
+        steep = _steep_row(tab, self.params.max_slope)
         seen = self._far[self._confirmed & (self._miss == 0.0)]
         shared = float(np.max(seen)) if len(seen) else -math.inf
         # where any confirmed line was last seen, carried by the odometry
@@ -1065,7 +1118,7 @@ class LaneModelFilter:
                 carried_from[i] = max(own, shared, last_seen)
             else:
                 far = min(fp.model_range, max(own, min(shared, own + fp.extend_length)))
-            far = min(far, _steep_x(tab, float(self._x[N_GEOMETRY + i]), self.params.max_slope))
+            far = min(far, _steep_x(tab, steep, float(self._x[N_GEOMETRY + i])))
             if far - near >= MIN_EXTENT:
                 drawn.append((r, i, far))
         if drawn:
@@ -1086,6 +1139,10 @@ class LaneModelFilter:
                     fars[c] = max(float(pts[c, max(k - 1, 0), 0]), carried_from[i])
                     cut = True
             if cut:
+                # a line cut shorter than MIN_EXTENT is not drawn
+                long = fars - near >= MIN_EXTENT
+                drawn = [d for d, ok in zip(drawn, long.tolist(), strict=True) if ok]
+                idx, fars = idx[long], fars[long]
                 pts = draw_on(tab, self._x, idx, near, fars, n_points)
                 std = self._lateral_std(tab, pts, idx)
             for c, (r, i, _) in enumerate(drawn):

@@ -520,6 +520,42 @@ def test_bad_input() -> None:
         a.update(pts, (25.0, 0.0, 0.1))  # type: ignore[arg-type]
 
 
+@pytest.mark.parametrize(
+    ("change", "match"),
+    [
+        ({"occluders": np.zeros((2, 5))}, r"\(V, 6\) array"),
+        ({"occluders": np.full((1, 6), np.nan)}, r"\(V, 6\) array"),
+        ({"occluders": None}, r"\(V, 6\) array"),
+        ({"origin": np.array([np.nan, 0.0])}, "finite origin"),
+        ({"fov_start": -1.0}, "fov_start"),
+    ],
+)
+def test_a_frame_with_bad_occluders_is_refused_by_name(change: dict, match: str) -> None:
+    """A user-built frame whose occluders or pose the occlusion check cannot use: a
+    clear error, not a crash in the compiled sight model."""
+    road = OpenDriveRoad.from_file(shipped_map("motorway"), marking_model="per_dash")
+    xy = lane_path(road, drive_starts(road)[0])
+    pose = tuple(float(v) for v in path_poses(xy, np.array([100.0]))[0])
+    box = np.array(
+        [
+            [
+                pose[0] + 20.0 * math.cos(pose[2]),
+                pose[1] + 20.0 * math.sin(pose[2]),
+                pose[2],
+                4.5,
+                1.8,
+                1.5,
+            ]
+        ]
+    )
+    frame = LineSensor({"occlusion": True}, seed=0).measure(road, pose, occluders=box)
+    filt = LaneModelFilter()
+    filt.update(frame, None)
+    motion = EgoMotion(SPEED, 0.0, DT)
+    with pytest.raises(InputError, match=match):
+        filt.update(dataclasses.replace(frame, **change), motion)
+
+
 def test_deterministic_reset_and_pickle() -> None:
     runs = [[det for *_, det, _f in _drive(-500.0, frames=12)] for _ in (0, 1)]
     for a, b in zip(*runs, strict=True):
