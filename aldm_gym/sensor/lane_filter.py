@@ -932,6 +932,7 @@ class LaneModelFilter:
         count = end - np.arange(len(off))
         lines = self._x[N_GEOMETRY:]
         expected: FloatArray | None = None
+        near_expected = np.zeros(0, dtype=bool)
         for i in np.argsort(-count, kind="stable"):
             if count[i] < min(fp.birth_points, SHORT_BIRTH_POINTS):
                 return
@@ -940,12 +941,10 @@ class LaneModelFilter:
             if not full:
                 # a short cluster counts only near where a line is expected
                 if expected is None:
-                    expected = self._expected_lines()
-                mid = 0.5 * (off[i] + off[end[i] - 1])
-                if (
-                    not len(expected)
-                    or float(np.min(np.abs(expected - mid))) > 2.0 * fp.birth_width
-                ):
+                    expected, near_expected = self._near_expected(off, end)
+                if not len(expected):
+                    return  # the rest are short too
+                if not near_expected[i]:
                     continue
             centre = float(np.median(off[members]))
             span = float(np.ptp(fx[members]))
@@ -970,8 +969,8 @@ class LaneModelFilter:
                 ):
                     continue
                 if expected is None:
-                    expected = self._expected_lines()
-                if float(np.min(np.abs(expected - centre))) > fp.birth_width:
+                    expected, near_expected = self._near_expected(off, end)
+                if not len(expected) or float(np.min(np.abs(expected - centre))) > fp.birth_width:
                     continue
                 # the lane's structure corroborates it: confirmed at once
                 self._add_line(centre, extent[1])
@@ -983,6 +982,17 @@ class LaneModelFilter:
             self._add_line(centre, extent[1])
             self._span[-1] = extent
             return
+
+    def _near_expected(self, off: FloatArray, end: np.ndarray) -> tuple[FloatArray, np.ndarray]:
+        """:meth:`_expected_lines`, and for each cluster window ``off[i:end[i]]`` of
+        the sorted free offsets ``off`` [m] whether its middle lies within twice
+        ``birth_width`` of one (a cheap first test before its median)."""
+        expected = self._expected_lines()
+        if not len(expected) or not len(off):
+            return expected, np.zeros(len(off), dtype=bool)
+        mids = 0.5 * (off + off[end - 1])
+        gap = np.min(np.abs(mids[:, None] - expected[None, :]), axis=1)
+        return expected, gap <= 2.0 * self.filter.birth_width
 
     def _expected_lines(self) -> FloatArray:
         """Offsets [m] where the confirmed lines' spacing puts a line the model lacks:
