@@ -1390,8 +1390,8 @@ class _Reader(ElementReader):
         target_master = self.position(self.child(body, "TargetPositionMaster"))
         target = self.position(self.child(body, "TargetPosition"))
         tolerances = (
-            self.num(body, "targetToleranceMaster", 1.0),
-            self.num(body, "targetTolerance", 1.0),
+            self.num(body, "targetToleranceMaster", 0.0),
+            self.num(body, "targetTolerance", 0.0),
         )
         if min(tolerances) < 0:
             raise self.error(body, "the target tolerances must be >= 0")

@@ -1001,6 +1001,34 @@ def synchronize_relative_to_master(folder: Path) -> Path:
     )
 
 
+def synchronize_from_standstill(folder: Path) -> Path:
+    """The target, standing 30 m behind the ego in the next lane, arrives at s = 230 m
+    of its lane at the ego's speed when the ego arrives at s = 250 m of its own: it
+    rushes (accelerates, then brakes to the ego's speed). Without
+    ``targetToleranceMaster`` and ``targetTolerance`` (optional, no default in the
+    standard; esmini plays them as 0 m)."""
+    sync = xosc.SynchronizeAction(
+        "Ego",
+        xosc.LanePosition(250.0, 0, -2, 0),
+        xosc.LanePosition(230.0, 0, -1, 0),
+        1.0,
+        1.0,
+        final_speed=xosc.RelativeSpeedToMaster(0.0, xosc.SpeedTargetValueType.delta),
+    )
+    path = write(
+        folder,
+        [("Target", [_event("sync", sync, at_time(0.0))])],
+        target=(1, -30.0, 0.0),
+        stop=14.0,
+        name="sync_standstill.xosc",
+    )
+    text = path.read_text()
+    attributes = 'targetToleranceMaster="1.0" targetTolerance="1.0"'
+    assert attributes in text
+    path.write_text(text.replace(attributes, ""))
+    return path
+
+
 def trailer_by_reference(folder: Path) -> Path:
     """A truck towing a trailer that is an entity of its own (``TrailerRef``), from the
     start (``Init`` places the truck only), through a lane change in an arc of
@@ -1370,6 +1398,7 @@ CORPUS: dict[str, Callable[[Path], Path]] = {
         object_kinds_and_collision_by_type,
         parameter_rules_and_reach_position,
         synchronize_relative_to_master,
+        synchronize_from_standstill,
         trailer_by_reference,
         catalogs_and_relative_lane_offset,
         init_relative_to_a_later_entity,
