@@ -683,9 +683,13 @@ class LaneModelFilter:
             candidates.append((straight, cov))
             # each start's support: how many of the frame's points its shape lays on
             # parallel lines (the lines the ALDM found and any other)
-            scores = [self._parallel_support(st, x, y) for st, _ in candidates]
-            k = int(np.argmax(scores))
-            if incumbent and scores[k] <= self._parallel_support(self._x, x, y):
+            # scored on the same points: those near any of the shapes (and the
+            # incumbent's), so that a shape bent to take in one more line gains
+            # nothing the right shape would not count too
+            states = [st for st, _ in candidates] + ([self._x] if incumbent else [])
+            scores = self._parallel_supports(states, x, y)
+            k = int(np.argmax(scores[: len(candidates)]))
+            if incumbent and scores[k] <= scores[-1]:
                 return False
             best = candidates[k]
         self._x, self._p = best
@@ -721,18 +725,34 @@ class LaneModelFilter:
         the curve count: the lines of the ego's lane and its neighbours, not those of
         an exit lane or another carriageway, which a shape bent onto them would
         gather."""
+        return self._parallel_supports([state], x, y)[0]
+
+    def _parallel_supports(
+        self, states: list[FloatArray], x: FloatArray, y: FloatArray
+    ) -> list[int]:
+        """:meth:`_parallel_support` of each of ``states``, all counted on the same
+        points: those within :data:`SCORE_REACH` of any of the curves. A shape bent
+        far out can reach a line beyond the others' reach; counted on its own points
+        it would gain that line, while the right shape lays it on a parallel line too
+        once it counts it."""
         fp = self.filter
         if len(x) == 0:
-            return 0
-        _s, off, _g = project_on(curve_table(state, fp.model_range), x, y)
-        off = np.sort(off[np.abs(off) <= SCORE_REACH])
-        end = np.searchsorted(off, off + fp.birth_width, side="right")
-        # mark every point inside a window of enough points (a difference array)
-        full = np.flatnonzero(end - np.arange(len(off)) >= fp.birth_points)
-        cover = np.zeros(len(off) + 1, dtype=np.int64)
-        np.add.at(cover, full, 1)
-        np.add.at(cover, end[full], -1)
-        return int(np.count_nonzero(np.cumsum(cover)[:-1]))
+            return [0] * len(states)
+        offs = [project_on(curve_table(st, fp.model_range), x, y)[1] for st in states]
+        near = np.zeros(len(x), dtype=bool)
+        for off in offs:
+            near |= np.abs(off) <= SCORE_REACH
+        scores = []
+        for off in offs:
+            off = np.sort(off[near])
+            end = np.searchsorted(off, off + fp.birth_width, side="right")
+            # mark every point inside a window of enough points (a difference array)
+            full = np.flatnonzero(end - np.arange(len(off)) >= fp.birth_points)
+            cover = np.zeros(len(off) + 1, dtype=np.int64)
+            np.add.at(cover, full, 1)
+            np.add.at(cover, end[full], -1)
+            scores.append(int(np.count_nonzero(np.cumsum(cover)[:-1])))
+        return scores
 
     def _associate_update(
         self, x: FloatArray, y: FloatArray, state: FloatArray, cov: FloatArray

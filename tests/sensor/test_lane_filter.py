@@ -890,3 +890,22 @@ def test_parallel_support_counts_the_points_a_shape_lays_on_parallel_lines() -> 
     assert scores["straight"][0] > 2 * scores["straight"][1]
     assert scores["bend"][1] > 2 * scores["bend"][0]
     assert filt._parallel_support(straight, np.zeros(0), np.zeros(0)) == 0
+
+
+def test_shapes_competing_for_a_start_are_scored_on_the_same_points() -> None:
+    """A shape turned to the left reaches a line beyond the straight shape's two lane
+    widths; scored together, the straight shape counts that line too (its points lie
+    on a line parallel to it), so the turned shape gains nothing by reaching it."""
+    filt = LaneModelFilter()
+    x = np.tile(np.arange(2.0, 90.0, 2.0), 6)
+    y = np.repeat([-5.25, -1.75, 1.75, 5.25, 8.75, 12.25], len(x) // 6)
+    straight = np.zeros(N_GEOMETRY + 1)
+    turned = straight.copy()
+    turned[0] = 0.05 * SCALE  # 0.05 rad to the left: the 8.75 m line in reach beyond 25 m
+    alone = filt._parallel_support(straight, x, y)
+    assert alone == np.count_nonzero(np.abs(y) <= 7.5)
+    both = filt._parallel_supports([straight, turned], x, y)
+    reached = (np.abs(y - 8.75) < 1e-9) & (x > 25.0)
+    assert both[0] == alone + np.count_nonzero(reached)
+    assert both[0] > both[1]
+    assert filt._parallel_supports([straight, turned], np.zeros(0), np.zeros(0)) == [0, 0]
