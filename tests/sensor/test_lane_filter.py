@@ -453,7 +453,11 @@ def test_on_the_maps_under_the_camera_preset_the_car_keeps_its_lane(name: str, s
     seed 4: with the lines seen only near, far clutter bent the far curvature, the far
     points left the gates and the shape bent on (a receding model, now restarted).
     ``motorway`` seed 9: at an exit a restart preferred the exit lane's two diverging
-    lines to the ego's road until only lines within two lane widths were scored."""
+    lines to the ego's road until only lines within two lane widths were scored.
+    ``motorway`` seed 4 again with five curvature nodes: a restart (one line seen only
+    at 6 m) replaced the right model by a start turned 0.055 rad out that scored one
+    point more of 65 (2 departures), until a start had to score more than
+    ``RESTART_MARGIN`` above the model."""
     config = {
         "marking_model": "per_dash",
         "detector_params": {"tracking": "model"},
@@ -471,10 +475,11 @@ def test_on_the_maps_under_the_camera_preset_the_car_keeps_its_lane(name: str, s
 
 
 def test_a_model_bent_off_the_road_far_out_is_started_anew() -> None:
-    """A model whose far curvature left the road (set here to R 100 m from 30 m on, as
-    far clutter bent it when the camera saw the lines only near): its gates miss the
-    lines' far points, the lines recede, and a fresh start, which lays more of the
-    frame's points on parallel lines, replaces it in the same frame. On the roads of
+    """A model whose far curvature left the road (set here to R 100 m from the second
+    node on, as far clutter bent it when the camera saw the lines only near): its
+    gates miss the lines' far points, the lines recede, and a fresh start, which lays
+    more of the frame's points on parallel lines, replaces it in the same frame (its
+    curvature that of R 500 m or more; the road is straight). On the roads of
     :func:`test_straight_and_curved_roads` no line recedes, so the model is never
     restarted there (its ids stay)."""
     for k, road, _pts, det, filt in _drive(math.inf, frames=12):
@@ -483,7 +488,7 @@ def test_a_model_bent_off_the_road_far_out_is_started_anew() -> None:
             before = set(filt.line_ids)
         if k == 7:
             assert (filt.n_starts, filt.n_restarts) == (2, 1)
-            assert np.all(np.abs(filt.node_curvatures) < 1e-3)
+            assert np.all(np.abs(filt.node_curvatures) < 2e-3)
             assert -1 not in det.ids and before.isdisjoint(det.ids)  # new lines
         if k >= 7:
             for name in LINE_NAMES:
@@ -689,12 +694,13 @@ def test_reference_curve_geometry(radius: float) -> None:
 
 
 def test_reference_curve_through_a_transition() -> None:
-    """Curvature ramping from 0 to 1/100 m over 60 m and held (nodes 0, 0.005, 0.01,
-    0.01 1/m): the table and the foot points agree with a fine integration of the
-    curve to a few millimetres (the table's circles miss the ramp's change over a
-    4 m step)."""
+    """Curvature ramping from 0 towards 1/100 m over 60 m and held (each node's
+    curvature that ramp's at the node): the table and the foot points agree with a
+    fine integration of the curve to a few millimetres (the table's circles miss the
+    ramp's change over a 4 m step)."""
     state = np.zeros(M.N_GEOMETRY)
-    state[1:] = np.array([0.0, 0.005, 0.01, 0.01]) * M.SCALE**2
+    nodes = np.arange(M.N_NODES) * M.NODE_STEP
+    state[1:] = 0.01 * np.minimum(nodes / 60.0, 1.0) * M.SCALE**2
     ds = 0.005
     s = np.arange(0.0, 200.0 + ds, ds)
     phi = np.empty(M.N_GEOMETRY)
@@ -712,7 +718,7 @@ def test_reference_curve_through_a_transition() -> None:
     px = x[k] - d * np.sin(theta[k])
     py = y[k] + d * np.cos(theta[k])
     got_s, got_l, _g = M.project(state, px, py)
-    np.testing.assert_allclose(got_s, s[k], atol=5e-3)
+    np.testing.assert_allclose(got_s, s[k], atol=6e-3)
     np.testing.assert_allclose(got_l, d, atol=3e-3)
 
 
