@@ -144,7 +144,9 @@ RESTART_MARGIN = 0.03
 model only when the start's score is more than this share above the model's: a model
 that left the road scores far below a start, while one point more or less is the
 frame's noise (on ``motorway`` under the camera preset, seed 4, a start turned
-0.055 rad out scored 66 against the right model's 65, and the car left its lane)."""
+0.055 rad out scored 66 against the right model's 65, and the car left its lane).
+On a model's score below 34 points the margin is under one point: any point more
+replaces it."""
 
 START_RANGE = 50.0
 """The start fits the single-frame ALDM's lines up to this x [m]: farther out a trace
@@ -526,7 +528,6 @@ class LaneModelFilter:
         self._far = np.zeros(0)
         self._confirmed = np.zeros(0, dtype=bool)
         self._span = np.zeros((0, 2))
-        self._shadow = np.zeros(0)
         self._next_id = 0
         self._last_ids: tuple[int, ...] = (-1,) * len(LINE_NAMES)
         self.n_used = 0
@@ -637,8 +638,8 @@ class LaneModelFilter:
         if line is not None and len(self._ids):
             self._birth(x, y, line, tab)
         # where a vehicle hides each line of the final model, beyond where it was seen
-        _, self._shadow = self._occlusion(points, beyond=self._far - OCCLUSION_STEP)
-        return self._detection(near, tab)
+        _, shadow = self._occlusion(points, beyond=self._far - OCCLUSION_STEP)
+        return self._detection(near, shadow, tab)
 
     def _start(
         self, pts: FloatArray, x: FloatArray, y: FloatArray, incumbent: bool = False
@@ -653,7 +654,7 @@ class LaneModelFilter:
 
         :param incumbent: the current model competes too (its shape, as updated with
             this frame, scored on the same points); it is kept, and nothing changes,
-            unless a new start scores higher.
+            unless a new start scores more than :data:`RESTART_MARGIN` higher.
         :return: whether the model was started anew.
         """
         fp = self.filter
@@ -666,7 +667,8 @@ class LaneModelFilter:
             return False
         x0 = np.concatenate((np.zeros(N_GEOMETRY), [float(v[0, 1]) for v in kept]))
         # a flat prior: headings of +-0.3, radii down to ~100 m, curvature changing by
-        # 0.005 1/m per node step (R 100 m reached over 60 m), offsets +-2 m
+        # 0.005 1/m per node step (R 100 m reached over two steps, 45 m; chosen with
+        # 30 m steps), offsets +-2 m
         p0 = np.zeros((N_GEOMETRY + n, N_GEOMETRY + n))
         p0[:N_GEOMETRY, :N_GEOMETRY] = shape_covariance(0.3, 0.01, 0.005 / NODE_STEP)
         p0[N_GEOMETRY:, N_GEOMETRY:] = np.diag(np.full(n, 2.0**2))
@@ -707,7 +709,6 @@ class LaneModelFilter:
         self._far = np.array([float(v[-1, 0]) for v in kept])
         self._confirmed = np.ones(n, dtype=bool)
         self._span = np.full((n, 2), np.nan)
-        self._shadow = np.full(n, math.inf)
         self.n_starts += 1
         return True
 
@@ -937,7 +938,6 @@ class LaneModelFilter:
         self._miss, self._far = self._miss[keep], self._far[keep]
         self._confirmed = self._confirmed[keep]
         self._span = self._span[keep]
-        self._shadow = self._shadow[keep]
 
     def _birth(self, x: FloatArray, y: FloatArray, line: np.ndarray, tab: FloatArray) -> None:
         """New lines from clusters of the points no line took, by their distance to
@@ -1089,7 +1089,6 @@ class LaneModelFilter:
         self._far = np.append(self._far, far)
         self._confirmed = np.append(self._confirmed, False)
         self._span = np.vstack((self._span, np.full((1, 2), np.nan)))
-        self._shadow = np.append(self._shadow, math.inf)
         self.n_born += 1
 
     # -- output ------------------------------------------------------------------------
@@ -1120,12 +1119,18 @@ class LaneModelFilter:
             pick[3] = right[1]
         return pick
 
-    def _detection(self, near: float, tab: FloatArray | None = None) -> ModelLaneDetection:
+    def _detection(
+        self, near: float, shadow: FloatArray | None = None, tab: FloatArray | None = None
+    ) -> ModelLaneDetection:
         """The model drawn as a detection: 13 points per line (``n_points`` of the
         ALDM's parameters) from ``near`` to the line's far end (and no farther than
-        where it gets steeper than the ALDM's ``max_slope``), on the reference curve
+        where it gets steeper than the ALDM's ``max_slope``; a line a vehicle hides
+        from ``shadow`` [m] on, beyond where it was seen, farther: see
+        :data:`CARRY_STD`; None: no vehicle hides any), on the reference curve
         tabulated in ``tab`` (None: tabulated here)."""
         fp = self.filter
+        if shadow is None:
+            shadow = np.full(len(self._ids), math.inf)
         if tab is None:
             tab = curve_table(self._x, fp.model_range)
         n_points = self.params.n_points if self.params.n_points >= 2 else 13
@@ -1148,7 +1153,7 @@ class LaneModelFilter:
             if i < 0:
                 continue
             own = float(self._far[i])
-            if self._shadow[i] <= max(own, near) + HIDDEN_LENGTH:
+            if shadow[i] <= max(own, near) + HIDDEN_LENGTH:
                 # a vehicle hides the line beyond where it was last seen: it goes on
                 # as far as any line is seen, or was last seen
                 far = fp.model_range

@@ -569,6 +569,35 @@ def test_a_negative_longitudinal_distance_warns_and_plays_as_its_magnitude(
     assert placed["Target"][1] > placed["Ego"][1] + 5.0
 
 
+def test_a_synchronize_action_without_tolerances_plays_them_as_zero(tmp_path: Path) -> None:
+    """``targetToleranceMaster`` and ``targetTolerance`` are optional without a default
+    in the standard; esmini 3.6 plays them as 0 m. The target, from standing, rushes to
+    its position at the master's speed: without the attributes it moves as with both
+    written as 0, and not as with both 1 m (a plan for 1 m short of both targets)."""
+    from tests.scenario.corpus import synchronize_from_standstill
+
+    path = synchronize_from_standstill(tmp_path)
+    text = path.read_text()
+    tag = '<SynchronizeAction masterEntityRef="Ego" '
+    assert tag in text
+    runs = {}
+    for tol in (None, "0.0", "1.0"):
+        variant = (
+            text
+            if tol is None
+            else text.replace(tag, f'{tag}targetToleranceMaster="{tol}" targetTolerance="{tol}" ')
+        )
+        file = tmp_path / f"sync_{tol}.xosc"
+        file.write_text(variant)
+        runs[tol] = play(file, 10.5)[1]
+    times = np.arange(0.1, 10.45, 0.1)
+    target = {k: np.array([at(r, t)["Target"][1] for t in times]) for k, r in runs.items()}
+    np.testing.assert_array_equal(target[None], target["0.0"])
+    assert np.max(np.abs(target[None] - target["1.0"])) > 0.3
+    lane, s, _t, v = at(runs[None], 10.0)["Target"]
+    assert (lane, s, v) == (-1, pytest.approx(230.0, abs=0.05), pytest.approx(20.0))
+
+
 def test_relative_speed_continuous_follows_its_entity(tmp_path: Path) -> None:
     dyn = xosc.TransitionDynamics(xosc.DynamicsShapes.step, xosc.DynamicsDimension.time, 0)
     follow = _event(

@@ -12,8 +12,9 @@ Gauss-Newton update. A frame of the filter is six kernel calls and a little
 bookkeeping.
 
 The state is the shared shape (:data:`N_GEOMETRY` entries) followed by one offset per
-line; a point on line ``j`` has the measurement row ``(g_0 .. g_4, e_j)``. The information matrix is
-small (5 + lines, about fifteen at most) and symmetric positive definite: it is solved and
+line; a point on line ``j`` has the measurement row ``(g_0 .. g_N, e_j)`` (``N =
+N_NODES``). The information matrix is small (:data:`N_GEOMETRY` + lines, about
+sixteen at most) and symmetric positive definite: it is solved and
 inverted by its Cholesky factor, written out rather than taken from LAPACK
 (``np.linalg.cholesky`` in numba), whose kernels pick their SIMD paths at run time:
 the kernels' sums run in the order written (numba compiles without fast-math, so no
