@@ -139,6 +139,10 @@ SCORE_REACH = 7.5
 this far from its reference curve [m]: two lane widths, the ego's lines and the
 adjacent ones."""
 
+STATE_LAYOUT = (N_NODES, NODE_STEP)
+"""The shape's layout, ``(curvature nodes, node step [m])``, that a pickled filter
+carries and must match to be restored (:meth:`LaneModelFilter.__setstate__`)."""
+
 RESTART_MARGIN = 0.03
 """A restart (a receded model competing with a fresh start on the frame) replaces the
 model only when the start's score is more than this share above the model's: a model
@@ -517,6 +521,26 @@ class LaneModelFilter:
         """A whole copy (the bookkeeping arrays are updated in place each frame, so a
         shallow copy would share them)."""
         return copy.deepcopy(self)
+
+    def __getstate__(self) -> dict[str, Any]:
+        """The filter's state, with the layout of its shape (:data:`STATE_LAYOUT`)."""
+        return {**self.__dict__, "_layout": STATE_LAYOUT}
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        """Restore a pickled filter; one pickled with another shape layout (an older
+        aldm-gym, another number of curvature nodes) cannot be carried on.
+
+        :raises InputError: the pickle's layout is not :data:`STATE_LAYOUT`.
+        """
+        layout = state.pop("_layout", None)
+        if layout != STATE_LAYOUT:
+            raise InputError(
+                "this LaneModelFilter was pickled with another state layout "
+                f"({layout if layout is not None else 'an aldm-gym before 2026-11-30'}; "
+                f"this one: {STATE_LAYOUT}, (curvature nodes, node step [m])): its model "
+                "cannot be carried on; start the filter (or the episode) anew"
+            )
+        self.__dict__.update(state)
 
     def reset(self) -> None:
         """Forget the model and the lines' ids (the next frame starts a new model)."""
@@ -1252,6 +1276,7 @@ __all__ = [
     "RESTART_MARGIN",
     "SHORT_BIRTH_POINTS",
     "SHORT_BIRTH_SPAN",
+    "STATE_LAYOUT",
     "FilterParams",
     "LaneModelFilter",
     "ModelLaneDetection",

@@ -602,6 +602,12 @@ def test_deterministic_reset_and_pickle() -> None:
     before = filt.confidences
     np.testing.assert_array_equal(shallow.update(pts, motion).ego_left, want.ego_left)
     np.testing.assert_array_equal(filt.confidences, before)
+    # a filter pickled with another layout (an older aldm-gym) is refused, not misread
+    state = filt.__getstate__()
+    for layout in (None, (4, 30.0)):
+        old = LaneModelFilter.__new__(LaneModelFilter)
+        with pytest.raises(InputError, match="another state layout"):
+            old.__setstate__({**state, "_layout": layout} if layout else dict(filt.__dict__))
     fresh = LaneModelFilter().update(pts, None)
     filt.reset()
     again = filt.update(pts, None)
