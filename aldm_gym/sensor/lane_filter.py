@@ -1000,24 +1000,21 @@ class LaneModelFilter:
             centre = float(np.median(off[members]))
             span = float(np.ptp(fx[members]))
             extent = (float(np.min(fx[members])), float(np.max(fx[members])))
+            if abs(centre) > fp.max_offset:
+                continue
+            # the nearest line, and whether the cluster is closer to it than min_spacing
+            j = int(np.argmin(np.abs(lines - centre))) if len(lines) else -1
+            crowded = j >= 0 and abs(lines[j] - centre) < fp.min_spacing
             if full and span >= fp.birth_span:
-                if abs(centre) > fp.max_offset:
+                if crowded:
+                    if 0.0 < fp.reseat_length <= self._miss[j] and self._regular(j, centre):
+                        self._reseat(j, centre, extent[1])
+                        self._span[j] = extent
+                        return
                     continue
-                if len(lines):
-                    j = int(np.argmin(np.abs(lines - centre)))
-                    if abs(lines[j] - centre) < fp.min_spacing:
-                        if 0.0 < fp.reseat_length <= self._miss[j] and self._regular(j, centre):
-                            self._reseat(j, centre, extent[1])
-                            self._span[j] = extent
-                            return
-                        continue
             else:
                 # short evidence where the lines' spacing puts a line the model lacks
-                if count[i] < SHORT_BIRTH_POINTS or span < SHORT_BIRTH_SPAN:
-                    continue
-                if abs(centre) > fp.max_offset or (
-                    len(lines) and float(np.min(np.abs(lines - centre))) < fp.min_spacing
-                ):
+                if count[i] < SHORT_BIRTH_POINTS or span < SHORT_BIRTH_SPAN or crowded:
                     continue
                 if expected is None:
                     expected, near_expected = self._near_expected(off, end)
