@@ -31,15 +31,17 @@ from __future__ import annotations
 
 import math
 import operator
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
 
+from aldm_gym.errors import OffRoadError
 from aldm_gym.scenario.world import Entity, World, wrap_angle
 
 __all__ = [
     "RULES",
+    "ByEntity",
     "angle",
     "angle_within",
     "distance",
@@ -66,6 +68,43 @@ def _numbers(a: Any, b: Any) -> bool:
 def rule(name: str) -> Callable[[Any, Any], bool]:
     """The comparison of a ``rule`` attribute (KeyError for an unknown one)."""
     return RULES[name]
+
+
+class ByEntity:
+    """A ``ByEntityCondition``'s value: its condition on each triggering entity,
+    combined by ``triggeringEntitiesRule``.
+
+    Every triggering entity is evaluated (no short cut), so that :attr:`fulfilled`
+    names those the condition holds on: ``selectTriggeringEntities`` makes them actors.
+    An entity on no lane (:class:`~aldm_gym.errors.OffRoadError`) does not fulfil it.
+
+    :param names: the triggering entities, in document order.
+    :param every: ``triggeringEntitiesRule="all"`` (else ``any``).
+    :param holds: ``holds(runner, name) -> bool``, the condition on one entity.
+    """
+
+    def __init__(
+        self, names: Sequence[str], every: bool, holds: Callable[[Any, str], bool]
+    ) -> None:
+        """See the class docstring."""
+        self.names = tuple(names)
+        self.every = every
+        self.holds = holds
+        self.fulfilled: tuple[str, ...] = ()
+        """The triggering entities the condition held on at the last evaluation."""
+
+    def _one(self, runner: Any, name: str) -> bool:
+        try:
+            return bool(self.holds(runner, name))
+        except OffRoadError:
+            return False
+
+    def __call__(self, runner: Any) -> bool:
+        """The condition's value now (and :attr:`fulfilled` updated)."""
+        self.fulfilled = tuple(n for n in self.names if self._one(runner, n))
+        if self.every:
+            return len(self.fulfilled) == len(self.names)
+        return bool(self.fulfilled)
 
 
 def _extent(entity: Entity, axis: np.ndarray) -> tuple[float, float]:
@@ -326,12 +365,16 @@ def lanes_clear(
 def speed(entity: Entity, other: Entity | None, direction: str | None) -> float:
     """The entity's speed [m/s] (``other``: relative to that entity's), total or along
     the entity's ``longitudinal``, ``lateral`` or ``vertical`` axis (OpenSCENARIO 1.3's
-    ``direction``); an entity moves along its heading, the world is planar."""
+    ``direction``); an entity moves along its heading, the world is planar.
+
+    A scripted entity's speed is its script's now (:attr:`Entity.current_speed`): a
+    step ``SpeedAction`` that started earlier in this update shows at once, as in
+    esmini, where actions set an object's speed as they start."""
     if direction is None:  # the total speeds (their difference)
-        return entity.velocity - (0.0 if other is None else other.velocity)
-    velocity = entity.velocity * entity.forward()
+        return entity.current_speed - (0.0 if other is None else other.current_speed)
+    velocity = entity.current_speed * entity.forward()
     if other is not None:
-        velocity = velocity - other.velocity * other.forward()
+        velocity = velocity - other.current_speed * other.forward()
     if direction == "vertical":
         return 0.0
     axis = entity.forward() if direction == "longitudinal" else entity.left()

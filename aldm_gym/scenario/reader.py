@@ -1777,8 +1777,7 @@ class _Reader(ElementReader):
         self.kids(el, ("Actors", "CatalogReference", "Maneuver"))
         actors_el = self.child(el, "Actors")
         self.kids(actors_el, ("EntityRef",))
-        if self.flag(actors_el, "selectTriggeringEntities", False):
-            raise self.error(actors_el, "selectTriggeringEntities='true' is not supported")
+        select = self.flag(actors_el, "selectTriggeringEntities", False)
         actors = list(
             dict.fromkeys(
                 n for r in actors_el.findall("EntityRef") for n in self._entity_refs(r, "entityRef")
@@ -1799,7 +1798,7 @@ class _Reader(ElementReader):
             maneuvers.append(Maneuver(inner.attr(m, "name"), inner.where(m), events))
         maximum = self.integer(el, "maximumExecutionCount", 1)
         return ManeuverGroup(
-            self.attr(el, "name"), self.where(el), actors, maneuvers, max(maximum, 1)
+            self.attr(el, "name"), self.where(el), actors, maneuvers, max(maximum, 1), select
         )
 
     def _event(self, el: Any) -> Event:
@@ -1934,7 +1933,6 @@ class _Reader(ElementReader):
         mark = len(self.refs)
         one = self._entity_condition(c)
         named = tuple(dict.fromkeys(self.refs[mark:]))
-        combine = any if mode == "any" else all
 
         def holds(runner: Any, name: str) -> bool:
             # no condition holds on an entity that is not in the scenario (deleted)
@@ -1942,7 +1940,7 @@ class _Reader(ElementReader):
             e = entities[name]
             return e.present and all(entities[n].present for n in named) and one(runner, e)
 
-        return lambda runner: combine(holds(runner, n) for n in triggering)
+        return C.ByEntity(triggering, mode == "all", holds)
 
     def _state_condition(self, c: Any) -> Callable[[Any, Entity], bool] | None:
         """Conditions on one entity's state: collisions, standing still, acceleration,

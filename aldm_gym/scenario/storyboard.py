@@ -119,7 +119,11 @@ class Element:
 class Condition:
     """One ``Condition``: a value function with its edge and delay.
 
-    :ivar evaluate: ``evaluate(runner) -> bool``, the condition's value now.
+    :ivar evaluate: ``evaluate(runner) -> bool``, the condition's value now; a
+        by-entity condition's also names the triggering entities it held on
+        (``evaluate.fulfilled``, see :class:`~aldm_gym.scenario.conditions.ByEntity`).
+    :ivar fulfilled: the triggering entities that fulfilled the condition's last value
+        (empty when it is false, or for a by-value condition).
     """
 
     name: str
@@ -127,8 +131,9 @@ class Condition:
     edge: str = "none"
     delay: float = 0.0
     where: str = ""
+    fulfilled: tuple[str, ...] = ()
     _previous: bool | None = None
-    _history: list[tuple[float, bool]] = field(default_factory=list)
+    _history: list[tuple[float, bool, tuple[str, ...]]] = field(default_factory=list)
 
     def value(self, runner: Any, time: float) -> bool:
         """The condition's value at ``time`` [s] (edge and delay applied)."""
@@ -136,6 +141,7 @@ class Condition:
             now = bool(self.evaluate(runner))
         except OffRoadError:  # an entity on no lane (the function drove it off): false
             now = False
+        names: tuple[str, ...] = getattr(self.evaluate, "fulfilled", ()) if now else ()
         before, self._previous = self._previous, now
         if self.edge == "none":
             edged = now
@@ -148,12 +154,13 @@ class Condition:
         else:  # risingOrFalling
             edged = now != before
         if self.delay <= 0.0:
+            self.fulfilled = names if edged else ()
             return edged
-        self._history.append((time, edged))
+        self._history.append((time, edged, names if edged else ()))
         cutoff = time - self.delay + 1e-9
-        value = False
+        value, self.fulfilled = False, ()
         while self._history and self._history[0][0] <= cutoff:
-            _, value = self._history.pop(0)
+            _, value, self.fulfilled = self._history.pop(0)
             if value:
                 return True
         return value
@@ -167,14 +174,26 @@ class Trigger:
 
     groups: list[list[Condition]]
     empty: bool
+    _held: list[bool] = field(default_factory=list)
 
     def fires(self, runner: Any, time: float) -> bool:
         """Whether the trigger fires now (every condition is evaluated, so that edges
         and delays see every time step)."""
         if not self.groups:
             return self.empty
-        results = [all([c.value(runner, time) for c in group]) for group in self.groups]
-        return any(results)
+        self._held = [all([c.value(runner, time) for c in group]) for group in self.groups]
+        return any(self._held)
+
+    def fulfilled(self) -> list[str]:
+        """The triggering entities of the last :meth:`fires`: those that fulfilled a
+        condition of a group that held, in document order (the standard's triggering
+        entities, which ``selectTriggeringEntities`` makes actors)."""
+        names: dict[str, None] = {}
+        for group, held in zip(self.groups, self._held, strict=False):
+            if held:
+                for c in group:
+                    names.update(dict.fromkeys(c.fulfilled))
+        return list(names)
 
 
 class ActionElement(Element):
@@ -226,18 +245,33 @@ class Maneuver(Element):
 
 
 class ManeuverGroup(Element):
-    """A ``ManeuverGroup``: actors, maneuvers and ``maximumExecutionCount``."""
+    """A ``ManeuverGroup``: actors, maneuvers and ``maximumExecutionCount``.
+
+    :ivar actors: the entities named by ``EntityRef``.
+    :ivar select: ``selectTriggeringEntities``: when the act starts, the triggering
+        entities of its start trigger join the actors (:attr:`cast`).
+    :ivar cast: the actors the maneuvers act on: :attr:`actors`, and with
+        :attr:`select` the act's triggering entities after them.
+    """
 
     kind = "maneuverGroup"
 
     def __init__(
-        self, name: str, where: str, actors: list[str], maneuvers: list[Maneuver], maximum: int
+        self,
+        name: str,
+        where: str,
+        actors: list[str],
+        maneuvers: list[Maneuver],
+        maximum: int,
+        select: bool = False,
     ) -> None:
         """See the module docstring."""
         super().__init__(name, where)
         self.actors = actors
         self.maneuvers = maneuvers
         self.maximum = maximum
+        self.select = select
+        self.cast = list(actors)
 
 
 class Act(Element):
@@ -351,6 +385,8 @@ class Storyboard:
             for group in act.groups:
                 group._move("startTransition", "runningState", tick)
                 group.runs = 1
+                if group.select:  # the union with the act's triggering entities
+                    group.cast = list(dict.fromkeys(group.actors + act.start.fulfilled()))
         if act.state != "runningState":
             return
         if act.stop.groups and act.stop.fires(runner, time):
@@ -396,7 +432,7 @@ class Storyboard:
             event._move("startTransition", "runningState", tick)
             for action in event.actions:
                 action._move("startTransition", "runningState", tick)
-                action.instances = [action.make(runner, actor) for actor in group.actors or [None]]
+                action.instances = [action.make(runner, actor) for actor in group.cast or [None]]
                 for k, instance in enumerate(action.instances):
                     instance.rank = (*action.rank, k)
                     instance.start(runner)

@@ -839,6 +839,46 @@ def relative_speed_before_its_reference(folder: Path) -> Path:
     return write(folder, events, target=(1, 30.0, 25.0), name="relative_speed.xosc")
 
 
+def _story(name: str, actor: str, event: xosc.Event, start: object = None) -> xosc.Story:
+    """A story of one act (started by ``start``, at once without) of one event."""
+    man = xosc.Maneuver(f"{name}_maneuver")
+    man.add_event(event)
+    group = xosc.ManeuverGroup(f"{name}_group")
+    group.add_actor(actor)
+    group.add_maneuver(man)
+    act = xosc.Act(f"{name}_act", start)
+    act.add_maneuver_group(group)
+    story = xosc.Story(name)
+    story.add_act(act)
+    return story
+
+
+def speed_condition_in_the_update_of_a_step(folder: Path) -> Path:
+    """A ``SpeedCondition`` on the target, whose step ``SpeedAction`` starts at 1 s: an
+    act in a story before the target's sees the new speed one update later (its
+    condition was evaluated before the action started), an act in a story after it
+    in the same update (esmini sets the speed as the action starts)."""
+
+    def fast(name: str) -> xosc.EntityTrigger:
+        rule = xosc.Rule.greaterThan
+        return xosc.EntityTrigger(
+            name, 0, xosc.ConditionEdge.none, xosc.SpeedCondition(25.0, rule), "Target"
+        )
+
+    shift = _event(
+        "shift",
+        xosc.AbsoluteLaneOffsetAction(0.5, xosc.DynamicsShapes.sinusoidal, 1.0),
+        at_time(0.0, name="now"),
+    )
+    slow = _event("slow_down", step_speed(10.0), at_time(0.0, name="now"))
+    stories = [
+        _story("before", "Ego", shift, fast("fast_before")),
+        _story("speed_up", "Target", _event("speed_up", step_speed(30.0), at_time(1.0))),
+        _story("after", "Ego", slow, fast("fast_after")),
+    ]
+    return write(folder, stories=stories, stop=6.0, name="speed_condition_in_the_update.xosc")
+
+
 def clothoid_spline(folder: Path) -> Path:
     """``ClothoidSpline`` (1.3): the target, untimed, along three segments from a start
     position (a bend left and back, the second segment turned by ``hOffset``); the
@@ -1394,6 +1434,7 @@ CORPUS: dict[str, Callable[[Path], Path]] = {
         trailers,
         actions_in_document_order,
         relative_speed_before_its_reference,
+        speed_condition_in_the_update_of_a_step,
         clothoid_spline,
         object_kinds_and_collision_by_type,
         parameter_rules_and_reach_position,

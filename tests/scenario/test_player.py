@@ -598,6 +598,80 @@ def test_a_synchronize_action_without_tolerances_plays_them_as_zero(tmp_path: Pa
     assert (lane, s, v) == (-1, pytest.approx(230.0, abs=0.05), pytest.approx(20.0))
 
 
+def _selecting_story(refs: tuple[str, ...], rule: object, delay: float = 0.0) -> xosc.Story:
+    """An act that starts when the ego or the target drives faster than 25 m/s, with a
+    maneuver group (``selectTriggeringEntities``, actors ``refs``) that sets 10 m/s."""
+    trigger = xosc.EntityTrigger(
+        "fast",
+        delay,
+        xosc.ConditionEdge.none,
+        xosc.SpeedCondition(25.0, xosc.Rule.greaterThan),
+        "Ego",
+        triggeringrule=rule,
+    )
+    trigger.add_triggering_entity("Target")
+    man = xosc.Maneuver("m")
+    man.add_event(_event("slow", step_speed(10.0), at_time(0.0, name="now")))
+    group = xosc.ManeuverGroup("g", selecttriggeringentities=True)
+    for ref in refs:
+        group.add_actor(ref)
+    group.add_maneuver(man)
+    act = xosc.Act("act_fast", trigger)
+    act.add_maneuver_group(group)
+    story = xosc.Story("selecting")
+    story.add_act(act)
+    return story
+
+
+@pytest.mark.parametrize(
+    ("refs", "rule", "delay", "slowed", "at_s"),
+    [
+        ((), xosc.TriggeringEntitiesRule.any, 0.0, {"Target"}, 1.1),
+        (("Ego",), xosc.TriggeringEntitiesRule.any, 0.0, {"Ego", "Target"}, 1.1),
+        ((), xosc.TriggeringEntitiesRule.any, 0.5, {"Target"}, 1.6),
+        ((), xosc.TriggeringEntitiesRule.all, 0.0, {"Ego", "Target"}, 2.1),
+    ],
+)
+def test_select_triggering_entities_adds_those_that_started_the_act(
+    tmp_path: Path, refs: tuple[str, ...], rule: object, delay: float, slowed: set, at_s: float
+) -> None:
+    """OpenSCENARIO 1.3 §7.3.1: with ``selectTriggeringEntities`` the entities whose
+    states fulfilled the conditions of a condition group that held in the act's start
+    trigger become actors, in union with the ``EntityRef`` ones. The target speeds up
+    at 1.1 s, the ego at 2.1 s (time conditions ``greaterThan``); the act starts in the
+    same update when any (or all) of them is faster than 25 m/s (after ``delay``), and
+    sets 10 m/s on its actors."""
+    events = [
+        ("Target", [_event("speed_up", step_speed(30.0), at_time(1.0))]),
+        ("Ego", [_event("ego_up", step_speed(30.0), at_time(2.0))]),
+    ]
+    story = _selecting_story(refs, rule, delay)
+    path = write(tmp_path, events, stories=[story], target=(1, 60.0, 20.0))
+    runner, rec = play(path, 4.0)
+    starts = runner.scenario.storyboard.starts("act")["act_fast"]
+    assert starts == [pytest.approx(at_s)]
+    after = at(rec, at_s + 0.2)
+    unslowed = {"Target": 30.0, "Ego": 30.0 if at_s > 2.0 else 20.0}
+    for name in ("Ego", "Target"):
+        assert after[name][3] == (10.0 if name in slowed else unslowed[name]), name
+
+
+def test_select_triggering_entities_without_any_actor_is_a_clear_error(tmp_path: Path) -> None:
+    """An act started by a time condition has no triggering entities: a private action
+    of a group with neither ``EntityRef`` nor triggering entities has no actor."""
+    man = xosc.Maneuver("m")
+    man.add_event(_event("slow", step_speed(10.0), at_time(0.0, name="now")))
+    group = xosc.ManeuverGroup("g", selecttriggeringentities=True)
+    group.add_maneuver(man)
+    act = xosc.Act("timed", at_time(1.0))
+    act.add_maneuver_group(group)
+    story = xosc.Story("selecting")
+    story.add_act(act)
+    path = write(tmp_path, stories=[story])
+    with pytest.raises(ScenarioError, match="needs an actor"):
+        play(path, 2.0)
+
+
 def test_relative_speed_continuous_follows_its_entity(tmp_path: Path) -> None:
     dyn = xosc.TransitionDynamics(xosc.DynamicsShapes.step, xosc.DynamicsDimension.time, 0)
     follow = _event(
