@@ -4,6 +4,15 @@ Used as the upper bound in comparisons (``detector="ground_truth"``) and to scor
 every detector. A line is *correct* when every returned point lies within
 ``tol`` (0.3 m) of the true marking, it starts within ``start_max`` (25 m) and
 reaches at least ``preview_min`` (60 m, the paper's minimum preview) ahead.
+
+A border painted as a double line (OpenDRIVE's ``solid broken``, ``solid solid``, or
+a mark's own ``<line>`` elements) has two stripes a stripe's width or two from each
+other. The true line is the stripe nearest the lane (the road's
+``boundary_markings``; what the perfect detector reports), but a detected point on
+the other stripe is on the same border's paint: a point's error is its distance to
+the nearest marking that runs within :data:`PAIR_GAP` of the true line at every x of
+the detected line where both are (a line that only leaves or joins it, at a lane's
+opening or end, does not count).
 """
 
 from __future__ import annotations
@@ -17,6 +26,11 @@ from aldm_gym.roads.protocol import Road
 from aldm_gym.sensor.frame import SensorFrame
 from aldm_gym.sensor.lane_detection import LINE_NAMES, LaneDetection, line_preview
 from aldm_gym.types import FloatArray
+
+PAIR_GAP = 0.4
+"""Markings closer than this to the true line [m] are the other stripes of its double
+line (the stripes of one are at most a stripe's width and a gap apart, about 0.3 m;
+the next border is a lane width away)."""
 
 Boundary = int | tuple[int, ...]
 """A true line: one marking index, or the chain of markings that bound a lane one after
@@ -145,15 +159,24 @@ def score_line(
 
     :param markings_y: every marking's true y at the line's x
         (:func:`true_markings`), if already sampled.
+
+    A point's error is its distance to the nearest stripe of the true line's paint
+    (module docstring: the other stripe of a double line counts).
     """
     if len(line) < 2 or marking is None:
         return LineScore(len(line) >= 2, False, float("nan"), float("nan"), 0.0)
-    if markings_y is None:
-        truth = true_line(road, frame, marking, line[:, 0])
-    else:
-        truth = boundary_y(markings_y, marking)
+    rows = true_markings(road, frame, line[:, 0]) if markings_y is None else markings_y
+    truth = boundary_y(rows, marking)
     err = np.abs(line[:, 1] - truth)  # NaN where the marking does not reach: counts as wrong
     err = np.where(np.isnan(err), np.inf, err)
+    # or the distance to a marking beside the true line all along the detected one
+    # (the other stripe of a double line; not a line that merely crosses or leaves it)
+    with np.errstate(invalid="ignore"):
+        gap = np.abs(rows - truth)
+        both = np.isfinite(gap)
+        beside = np.all(~both | (gap <= PAIR_GAP), axis=1) & both.any(axis=1)
+        alt = np.where(both & beside[:, None], np.abs(line[:, 1] - rows), np.inf)
+    err = np.minimum(err, alt.min(axis=0))
     near = line[:, 0] <= preview_min
     mean = float(np.mean(err[near])) if near.any() else float("nan")
     preview = line_preview(line)

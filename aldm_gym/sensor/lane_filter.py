@@ -280,6 +280,12 @@ class FilterParams:
         (:func:`shape_covariance`: node ``k`` is node 0 plus ``k`` independent steps;
         the road's clothoids begin and end, and the last node sees new road every
         frame: 2e-6 lets the model follow an R 100 m transition, 5e-7 did not).
+    :ivar q_far_curvature_rate: the road's curvature rate where the model extrapolates
+        [1/m^2]: each frame the last node moves onto road it had not seen and holds
+        the curvature of the old last node; it gets ``(q_far_curvature_rate * d)^2``
+        more variance for the ``d`` metres it moved, so that a clothoid coming into
+        view bends it at once rather than a node step late. Only while points reach
+        the last node step (else nothing would measure it). 0: none.
 
     Existence:
 
@@ -326,6 +332,7 @@ class FilterParams:
     q_heading: float = setting(0.002, lo=0.0, hi=1.0)
     q_curvature: float = setting(2.0e-5, lo=0.0, hi=1.0)
     q_curvature_rate: float = setting(2.0e-6, lo=0.0, hi=1.0)
+    q_far_curvature_rate: float = setting(0.0, lo=0.0, hi=1.0)
     hit_gain: float = setting(0.3, lo=0.0, lo_open=True, hi=1.0)
     miss_loss: float = setting(0.1, lo=0.0, hi=1.0)
     min_confidence: float = setting(0.5, lo=0.0, hi=1.0)
@@ -811,8 +818,23 @@ class LaneModelFilter:
         the old x and ``dy`` along the old y [m], the axes turn by ``dpsi`` [rad]
         (:func:`~aldm_gym.sensor.aldm_kernels.model.predict`)."""
         fp = self.filter
+        # new road enters the view at the far end: its curvature is unknown only where
+        # points reach the last node step (else nothing measures it, and the hidden
+        # lines carried on would only lose their certainty)
+        seen = self._far[self._confirmed & (self._miss == 0.0)]
+        measured = len(seen) and float(np.max(seen)) >= (N_NODES - 2) * NODE_STEP
+        q_far = fp.q_far_curvature_rate if measured else 0.0
         self._x, self._p = predict(
-            self._x, self._p, dx, dy, dpsi, travel, self._q_shape, fp.q_offset, fp.q_width
+            self._x,
+            self._p,
+            dx,
+            dy,
+            dpsi,
+            travel,
+            self._q_shape,
+            fp.q_offset,
+            fp.q_width,
+            q_far,
         )
         self._far = self._far - dx
 

@@ -112,6 +112,28 @@ def test_the_filter_follows_a_curvature_step() -> None:
     assert with_jump["filter"].share > with_jump["single_frame"].share
 
 
+def test_far_curvature_noise_bends_the_model_where_a_transition_comes_into_view() -> None:
+    """On the curvature-step map's lane -2 (its arcs' ends come into view at the far
+    end), ideal sensor: the last node's extrapolation variance
+    (``q_far_curvature_rate``) lets the model bend as the road does out there; held
+    without it, the far end lags and lines are wrong for some frames."""
+    road = OpenDriveRoad.from_file(CURVATURE_STEP, marking_model="per_dash")
+    start = drive_starts(road)[1]
+
+    def run(q_far: float) -> DriveScore:
+        params = {"filter": {"filt": FilterParams(q_far_curvature_rate=q_far)}}
+        scores = drive(
+            road, start, CONDITIONS["ideal"], max_frames=300, detectors=("filter",),
+            detector_params=params,
+        )  # fmt: skip
+        return scores["filter"]
+
+    far, held = run(7e-4), run(0.0)
+    assert far.frames == held.frames == 300
+    assert far.share == 1.0
+    assert held.share < 1.0 and held.longest_wrong > 0
+
+
 def test_drive_score_counts_runs_and_misses() -> None:
     sc = DriveScore()
     for ok in (True, False, False, True, False):

@@ -389,7 +389,7 @@ def project_py(state, x, y):
 project = numba.njit(cache=True)(project_py)
 
 
-def predict_py(state, cov, dx, dy, dpsi, travel, q_shape, q_offset, q_width):
+def predict_py(state, cov, dx, dy, dpsi, travel, q_shape, q_offset, q_width, q_far):
     """The filter's predict step: the model moved into the new sensor frame.
 
     The origin advances ``dx`` along the old x and ``dy`` along the old y [m], the
@@ -410,6 +410,9 @@ def predict_py(state, cov, dx, dy, dpsi, travel, q_shape, q_offset, q_width):
         entries (as the state holds them) per metre of travel.
     :param q_offset: of the lines' common offset [m / sqrt(m)].
     :param q_width: of each line's own offset [m / sqrt(m)].
+    :param q_far: the road's curvature rate where the curve is extrapolated [1/m^2]:
+        a node moved a distance ``d`` beyond the old last node (new road entering the
+        view) gets the variance ``(q_far d)^2`` on top of its held curvature.
     :return: ``(state, cov)`` predicted (new arrays; ``cov`` symmetric).
     """
     n = state.shape[0]
@@ -464,6 +467,10 @@ def predict_py(state, cov, dx, dy, dpsi, travel, q_shape, q_offset, q_width):
                 acc += fp[i, k] * f[j, k]
             if i < N_GEOMETRY and j < N_GEOMETRY:
                 acc += q_shape[i, j] * travel
+                if i == j and i >= 1:
+                    beyond = s_e + (i - 1) * NODE_STEP - (N_NODES - 1) * NODE_STEP
+                    if beyond > 0.0:
+                        acc += (q_far * beyond * SCALE * SCALE) ** 2
             elif i >= N_GEOMETRY and j >= N_GEOMETRY:
                 q = q_offset * q_offset
                 if i == j:

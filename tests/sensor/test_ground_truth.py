@@ -1,0 +1,92 @@
+"""Scoring against the true markings (:mod:`aldm_gym.sensor.ground_truth`)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from aldm_gym.roads import OpenDriveRoad, shipped_map
+from aldm_gym.sensor import LineSensor
+from aldm_gym.sensor.ground_truth import PAIR_GAP, line_markings, score_line, true_markings
+
+
+@pytest.fixture(scope="module")
+def double_line() -> tuple:
+    """The ``features`` map's lane -1 on its first straight: its left border is the
+    centre lane's ``solid broken`` mark, a solid stripe 0.12 m left of the border and
+    a broken one 0.12 m right of it (nearer the lane)."""
+    road = OpenDriveRoad.from_file(shipped_map("features"), marking_model="per_dash")
+    frame = LineSensor().measure(road, road.lane_pose("1", -1, 5.0))
+    lane = road.lane_position(frame.origin).lane
+    return road, frame, lane
+
+
+def _line(y: float) -> np.ndarray:
+    x = np.linspace(5.0, 80.0, 13)
+    return np.column_stack([x, np.full_like(x, y)])
+
+
+def test_the_true_line_of_a_double_line_is_the_stripe_nearest_the_lane(double_line) -> None:
+    road, frame, lane = double_line
+    xs = np.array([10.0, 50.0])
+    rows = true_markings(road, frame, xs)
+    left = line_markings(road, lane, frame.origin)["ego_left"]
+    truth = rows[left]
+    assert truth == pytest.approx([1.75 - 0.12] * 2, abs=1e-6)
+    beside = np.abs(rows - truth) <= PAIR_GAP
+    # the true stripe and the other one, 0.24 m further left; nothing else that near
+    assert np.count_nonzero(beside[:, 0]) == 2
+    assert sorted(rows[beside[:, 0], 0]) == pytest.approx([1.63, 1.87], abs=1e-6)
+
+
+@pytest.mark.parametrize(
+    ("y", "correct"),
+    [
+        (1.63, True),  # the broken stripe, the true line
+        (1.87, True),  # the solid stripe of the same border
+        (2.15, True),  # within 0.3 m of the solid stripe
+        (2.2, False),  # 0.33 m beyond the solid stripe
+        (1.35, True),  # within 0.3 m of the broken stripe
+        (1.3, False),  # 0.33 m inside it
+    ],
+)
+def test_a_line_on_either_stripe_of_a_double_line_is_correct(
+    double_line, y: float, correct: bool
+) -> None:
+    road, frame, lane = double_line
+    left = line_markings(road, lane, frame.origin)["ego_left"]
+    score = score_line(_line(y), road, frame, left)
+    assert score.correct is correct
+    near = min(abs(y - 1.63), abs(y - 1.87))
+    assert score.max_abs_error == pytest.approx(near, abs=1e-6)
+
+
+def test_a_line_that_leaves_the_true_one_is_not_its_paint() -> None:
+    """At a lane's opening the new lane's line leaves the true line: near the split it
+    is within ``PAIR_GAP``, farther on it is not, so a detection following it is
+    wrong where it is more than 0.3 m off the true line; a stripe beside the true line
+    all along counts."""
+    x = np.linspace(5.0, 80.0, 13)
+    truth = np.full_like(x, 1.6)
+    leaving = 1.6 + 0.02 * (x - 5.0)  # 1.5 m off at 80 m
+    stripe = truth + 0.24
+    rows = np.stack([truth, leaving, stripe])
+    on = {name: np.column_stack([x, y]) for name, y in (("leaving", leaving), ("stripe", stripe))}
+    follows_leaving = score_line(on["leaving"], None, None, 0, markings_y=rows)  # type: ignore[arg-type]
+    assert not follows_leaving.correct
+    assert follows_leaving.max_abs_error == pytest.approx(1.5 - 0.24)  # to the stripe
+    follows_stripe = score_line(on["stripe"], None, None, 0, markings_y=rows)  # type: ignore[arg-type]
+    assert follows_stripe.correct and follows_stripe.max_abs_error == 0.0
+
+
+def test_a_chain_of_markings_scores_each_part_where_it_is_the_true_line() -> None:
+    """A border whose marking changes (a chain): the second marking runs elsewhere
+    before it takes over, so it is not beside the true line all along; the true line
+    itself is still scored at every x."""
+    x = np.linspace(5.0, 80.0, 13)
+    first = np.where(x < 40.0, 1.6, np.nan)
+    second = np.where(x < 40.0, 5.0, 1.6)
+    rows = np.stack([first, second])
+    line = np.column_stack([x, np.full_like(x, 1.65)])
+    score = score_line(line, None, None, (0, 1), markings_y=rows)  # type: ignore[arg-type]
+    assert score.correct and score.max_abs_error == pytest.approx(0.05)
