@@ -1361,6 +1361,29 @@ def braking_during_a_lane_offset(folder: Path) -> Path:
     )  # fmt: skip
 
 
+def lane_offset_relative_to_an_oncoming_entity(folder: Path) -> Path:
+    """``RelativeTargetLaneOffset`` to an oncoming car: the target, in the ego's lane
+    ahead, moves to 3 m left of where the car on the lane driven the other way is, as
+    that car faces (its left is towards the target's lane), so 0.5 m left of its own
+    lane's centre."""
+    road = straight_road(folder, left_lanes=2)
+    init = placed(
+        (("Ego", -1, 50.0, 20.0), ("Target", -1, 90.0, 20.0), ("Oncoming", 1, 400.0, 15.0))
+    )
+    entities, board = cars_and_board(("Ego", "Target", "Oncoming"), init, 8.0)
+    offset = xosc.RelativeLaneOffsetAction(3.0, "Oncoming", xosc.DynamicsShapes.sinusoidal, 1.0)
+    man = xosc.Maneuver("m_target")
+    man.add_event(_event("beside", offset, at_time(1.0)))
+    board.add_maneuver(man, "Target")
+    scenario = xosc.Scenario(
+        "oncoming_offset", "aldm-gym tests", xosc.ParameterDeclarations(), entities, board,
+        xosc.RoadNetwork(str(road)), xosc.Catalog(),
+    )  # fmt: skip
+    path = folder / "oncoming_offset.xosc"
+    scenario.write_xml(str(path))
+    return path
+
+
 def timed_polylines_follow_and_position(folder: Path) -> Path:
     """Timed polylines, relative timing: the target brakes along its lane by one
     written for 10 then 6 m/s² (``followingMode="follow"``: the speed changes at a
@@ -1444,6 +1467,7 @@ CORPUS: dict[str, Callable[[Path], Path]] = {
         catalogs_and_relative_lane_offset,
         init_relative_to_a_later_entity,
         braking_during_a_lane_offset,
+        lane_offset_relative_to_an_oncoming_entity,
         timed_polylines_follow_and_position,
     )
 }
