@@ -388,6 +388,14 @@ class OpenDriveRoad(PolylineRoad):
         """The first driving lane continuing ``lane`` in its direction, or ``None``."""
         return self._succ.get(lane)
 
+    def successors(self, lane: LaneKey) -> list[LaneKey]:
+        """Every driving lane continuing ``lane`` in its direction (more than one where
+        the lane splits in a junction; :meth:`successor` is the first)."""
+        if lane not in self._key_index:
+            raise InputError(f"unknown driving lane {lane!r}")
+        odr = self.map
+        return [n for n in odr.successors(lane[0], lane[2], lane[1]) if n in self._key_index]
+
     def predecessor(self, lane: LaneKey) -> LaneKey | None:
         """A driving lane that ``lane`` continues (whose :meth:`successor` it is), or
         ``None``: the way back for an entity driving against its lane."""

@@ -36,13 +36,21 @@ from __future__ import annotations
 
 import itertools
 import math
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from aldm_gym.errors import InputError, MapError, NotDrivenError, OffRoadError, ScenarioError
+from aldm_gym.errors import (
+    InputError,
+    MapError,
+    NotDrivenError,
+    OffRoadError,
+    ScenarioError,
+    ScenarioWarning,
+)
 from aldm_gym.scenario.positions import Position, Where
 from aldm_gym.scenario.shapes import Polyline, Shape
 from aldm_gym.scenario.world import Entity, World, wrap_angle
@@ -1680,8 +1688,12 @@ class FollowTrajectory(Instance):
 class AssignRoute(Instance):
     """``AssignRouteAction``: the actor's route. A scripted object follows its lane's
     chain of successors (the first successor where a lane splits), so a route is
-    played when every waypoint lies on a road of that chain, and completes at once;
-    a route that would need another choice at a split is an error, not ignored."""
+    played when every waypoint lies on a road of that chain, and completes at once.
+    A waypoint the actor can reach only by another branch at a split is an error, not
+    ignored. One it cannot reach along its lanes at all (an exit ramp from a through
+    lane: a lane change would be needed, which a route does not make) is passed by,
+    as esmini plays it: the actor follows its lane, with a
+    :class:`~aldm_gym.errors.ScenarioWarning`."""
 
     def __init__(self, entity: Entity | None, where: str, waypoints: list[Position]) -> None:
         """``waypoints`` in order."""
@@ -1698,16 +1710,41 @@ class AssignRoute(Instance):
             seen.add(key)
             roads.add(road.lane_record(key).road_id)
             key = road.successor(key)
+        branches = _reachable_roads(road, entity.lane)
         for pos in self.waypoints:
             w = pos.resolve(world)
             lane = w.lane if w.lane is not None else road.lane_position(w.point).lane
-            if road.lane_record(lane).road_id not in roads:
+            road_id = road.lane_record(lane).road_id
+            if road_id in roads:
+                continue
+            if road_id in branches:
                 raise ScenarioError(
-                    f"{pos.where}: the route leaves the roads {entity.name!r} follows along "
-                    "its lane's successors; routes that choose another branch are not "
+                    f"{pos.where}: the route takes another branch than {entity.name!r}'s "
+                    "lane follows where it splits; routes that choose a branch are not "
                     "supported"
                 )
+            warnings.warn(
+                f"{pos.where}: {entity.name!r} cannot reach road {road_id!r} along its "
+                "lanes without a lane change, which a route does not make: it follows its "
+                "lane (as esmini plays it)",
+                ScenarioWarning,
+                stacklevel=2,
+            )
         self.done = True
+
+
+def _reachable_roads(road: Any, lane: Any, limit: int = 10_000) -> set[str]:
+    """The roads reachable from ``lane`` along every branch of its successors."""
+    out: set[str] = set()
+    todo, seen = [lane], {lane}
+    while todo and len(seen) < limit:
+        key = todo.pop()
+        out.add(road.lane_record(key).road_id)
+        for nxt in road.successors(key):
+            if nxt not in seen:
+                seen.add(nxt)
+                todo.append(nxt)
+    return out
 
 
 # ---------------------------------------------------------------------- controller

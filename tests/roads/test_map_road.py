@@ -132,3 +132,19 @@ def test_boundary_markings(curved_map: Path) -> None:
 def test_missing_file_is_named(tmp_path: Path) -> None:
     with pytest.raises(FileNotFoundError, match=r"nope\.xodr"):
         OpenDriveRoad.from_file(tmp_path / "nope.xodr")
+
+
+def test_successors_list_every_continuing_lane_and_the_first_is_the_successor() -> None:
+    """On the shipped motorway the exit lane (road 5, lane -4) continues onto the ramp
+    (road 7) and the through lanes onto road 6; no lane splits there."""
+    from aldm_gym.errors import InputError
+    from aldm_gym.roads import shipped_map
+
+    road = OpenDriveRoad.from_file(shipped_map("motorway"))
+    assert road.successors(("5", 2, -4)) == [("7", 0, -1)]
+    assert road.successors(("5", 2, -3)) == [("6", 0, -3)]
+    for lane in road.lanes:
+        following = road.successors(lane)
+        assert road.successor(lane) == (following[0] if following else None), lane
+    with pytest.raises(InputError, match="unknown driving lane"):
+        road.successors(("5", 2, -9))

@@ -1384,6 +1384,33 @@ def lane_offset_relative_to_an_oncoming_entity(folder: Path) -> Path:
     return path
 
 
+def route_to_an_exit_from_a_through_lane(folder: Path) -> Path:
+    """On the shipped motorway, the target drives the rightmost through lane (road 5,
+    lane -3) with a route whose second waypoint is on the exit ramp (road 7), which
+    only lane -4 leads onto: a route makes no lane change, so the target follows its
+    lane past the exit (as esmini plays it; the player warns)."""
+    from aldm_gym.roads import shipped_map
+
+    init = xosc.Init()
+    for name, lane, s in (("Ego", -1, 100.0), ("Target", -3, 150.0)):
+        init.add_init_action(name, xosc.TeleportAction(xosc.LanePosition(s, 0, lane, 5)))
+        init.add_init_action(name, step_speed(25.0))
+    entities, board = cars_and_board(("Ego", "Target"), init, 30.0)
+    route = xosc.Route("exit")
+    route.add_waypoint(xosc.LanePosition(160.0, 0, -3, 5), xosc.RouteStrategy.shortest)
+    route.add_waypoint(xosc.LanePosition(100.0, 0, -1, 7), xosc.RouteStrategy.shortest)
+    man = xosc.Maneuver("m_target")
+    man.add_event(_event("route", xosc.AssignRouteAction(route), at_time(0.5)))
+    board.add_maneuver(man, "Target")
+    scenario = xosc.Scenario(
+        "exit_route", "aldm-gym tests", xosc.ParameterDeclarations(), entities, board,
+        xosc.RoadNetwork(str(shipped_map("motorway"))), xosc.Catalog(),
+    )  # fmt: skip
+    path = folder / "exit_route.xosc"
+    scenario.write_xml(str(path))
+    return path
+
+
 def timed_polylines_follow_and_position(folder: Path) -> Path:
     """Timed polylines, relative timing: the target brakes along its lane by one
     written for 10 then 6 m/s² (``followingMode="follow"``: the speed changes at a
@@ -1468,6 +1495,7 @@ CORPUS: dict[str, Callable[[Path], Path]] = {
         init_relative_to_a_later_entity,
         braking_during_a_lane_offset,
         lane_offset_relative_to_an_oncoming_entity,
+        route_to_an_exit_from_a_through_lane,
         timed_polylines_follow_and_position,
     )
 }
