@@ -105,10 +105,12 @@ from aldm_gym.sensor.aldm_kernels.model import (
     draw_on,
     existence,
     fit,
+    lateral_std,
     measurements,
     predict,
     project_on,
     receded,
+    spans,
 )
 from aldm_gym.sensor.conditions import _occlude, occluder_array
 from aldm_gym.sensor.frame import SensorFrame
@@ -468,20 +470,9 @@ class ModelLaneDetection(LaneDetection):
 def _spans(x: FloatArray, line: np.ndarray, support: FloatArray, n_lines: int) -> FloatArray:
     """``(n_lines, 2)`` per line, the x range ``[from, to]`` [m] of the points ``x``
     that updated it (``line``: each point's line, -1: none), NaN for a line without a
-    hit (robust weights summing to less than :data:`MIN_SUPPORT`)."""
-    out = np.full((n_lines, 2), np.nan)
-    if n_lines == 0 or len(x) == 0:
-        return out
-    taken = line >= 0
-    lines, xs = line[taken], x[taken]
-    lo = np.full(n_lines, np.inf)
-    hi = np.full(n_lines, -np.inf)
-    np.minimum.at(lo, lines, xs)
-    np.maximum.at(hi, lines, xs)
-    hit = (support >= MIN_SUPPORT) & np.isfinite(lo)
-    out[hit, 0] = lo[hit]
-    out[hit, 1] = hi[hit]
-    return out
+    hit (robust weights summing to less than :data:`MIN_SUPPORT`;
+    :func:`~aldm_gym.sensor.aldm_kernels.model.spans`)."""
+    return spans(x, line, support, n_lines, MIN_SUPPORT)
 
 
 class LaneModelFilter:
@@ -821,9 +812,11 @@ class LaneModelFilter:
         # new road enters the view at the far end: its curvature is unknown only where
         # points reach the last node step (else nothing measures it, and the hidden
         # lines carried on would only lose their certainty)
-        seen = self._far[self._confirmed & (self._miss == 0.0)]
-        measured = len(seen) and float(np.max(seen)) >= (N_NODES - 2) * NODE_STEP
-        q_far = fp.q_far_curvature_rate if measured else 0.0
+        q_far = fp.q_far_curvature_rate
+        if q_far > 0.0:
+            seen = self._far[self._confirmed & (self._miss == 0.0)]
+            if not (len(seen) and float(np.max(seen)) >= (N_NODES - 2) * NODE_STEP):
+                q_far = 0.0
         self._x, self._p = predict(
             self._x,
             self._p,
@@ -1264,16 +1257,9 @@ class LaneModelFilter:
         drawn points ``pts`` (``(lines, n, 2)``) of the model lines ``idx``: a point of
         line ``i`` is where ``l = y0_i``, so its variance is that of ``y0_i - l`` by the
         state's covariance (the measurement row of a point on the line)."""
-        lines, n = pts.shape[0], pts.shape[1]
-        _s, _l, g = project_on(tab, pts[:, :, 0].ravel(), pts[:, :, 1].ravel())
-        g = g.reshape(lines, n, N_GEOMETRY)
-        cov = self._p
-        shape = cov[:N_GEOMETRY, :N_GEOMETRY]
-        j = N_GEOMETRY + idx
-        gpg = np.einsum("lna,ab,lnb->ln", g, shape, g)
-        cross = np.einsum("lna,al->ln", g, cov[:N_GEOMETRY, j])
-        var = gpg + 2.0 * cross + cov[j, j][:, None]
-        return np.sqrt(np.maximum(var, 0.0))
+        x = np.ascontiguousarray(pts[:, :, 0])
+        y = np.ascontiguousarray(pts[:, :, 1])
+        return lateral_std(tab, x, y, np.asarray(idx, dtype=np.int64), self._p)
 
     @property
     def ids(self) -> tuple[int, ...]:

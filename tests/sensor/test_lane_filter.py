@@ -835,6 +835,25 @@ def test_kernels_match_plain_python() -> None:
     np.testing.assert_allclose(np.diff(drawn[1, :, 0]), 74.5 / 12, rtol=1e-12)
     tab = M.curve_table(new_state, 90.0)
     np.testing.assert_array_equal(tab, M.curve_table_py(new_state, 90.0))
+    # each drawn point's standard deviation: compiled as plain Python, and the
+    # quadratic form of its measurement row (g, e_line) under the covariance
+    px, py = drawn[:, :, 0].copy(), drawn[:, :, 1].copy()
+    std = M.lateral_std(tab, px, py, lines, new_cov)
+    np.testing.assert_array_equal(std, M.lateral_std_py(tab, px, py, lines, new_cov))
+    _s, _l, g = M.project_on(tab, px.ravel(), py.ravel())
+    rows = np.zeros((g.shape[0], new_cov.shape[0]))
+    rows[:, : M.N_GEOMETRY] = g
+    rows[np.arange(len(rows)), M.N_GEOMETRY + np.repeat(lines, 13)] = 1.0
+    want_std = np.sqrt(np.einsum("ka,ab,kb->k", rows, new_cov, rows)).reshape(2, 13)
+    np.testing.assert_allclose(std, want_std, rtol=1e-9)
+    # where each line was measured: its points' x range, NaN without enough support
+    got = M.spans(x, line, support, len(support), 2.5)
+    np.testing.assert_array_equal(got, M.spans_py(x, line, support, len(support), 2.5))
+    for j in range(len(support)):
+        if support[j] >= 2.5:
+            assert tuple(got[j]) == (x[line == j].min(), x[line == j].max())
+        else:
+            assert np.isnan(got[j]).all()
     # existence: line 0 hit, 1 missed long enough to go, 2 and 3 too close (3 weaker)
     args = (
         np.array([5.0, 0.0, 4.0, 3.0]),

@@ -6,10 +6,11 @@ length, signed distance). :func:`predict` moves the model by the odometry;
 :func:`associate_update` is the rest of a frame's estimation: the gating of every
 point, and the measurement update with the associated points, in information form,
 re-weighted by Tukey's biweight (:func:`robust_update`); :func:`existence` keeps the
-lines' hits and misses; :func:`draw_on` draws lines of the model as points;
-:func:`measurements` picks a frame's valid rows; :func:`fit` is the start's
-Gauss-Newton update. A frame of the filter is six kernel calls and a little
-bookkeeping.
+lines' hits and misses; :func:`draw_on` draws lines of the model as points and
+:func:`lateral_std` gives each drawn point's standard deviation; :func:`spans` is
+where each line was measured; :func:`measurements` picks a frame's valid rows;
+:func:`fit` is the start's Gauss-Newton update. A frame of the filter is eight kernel
+calls and a little bookkeeping.
 
 The state is the shared shape (:data:`N_GEOMETRY` entries) followed by one offset per
 line; a point on line ``j`` has the measurement row ``(g_0 .. g_N, e_j)`` (``N =
@@ -682,6 +683,54 @@ def draw_on_py(tab, state, lines, near, far, n_points):
 
 
 draw_on = numba.njit(cache=True)(draw_on_py)
+
+
+def lateral_std_py(tab, x, y, lines, cov):
+    """``(L, n)`` the standard deviation [m] of the lateral position of drawn points
+    ``(x, y)`` (each ``(L, n)``) of the model lines ``lines`` (``(L,)``, 0-based among
+    the lines) on the reference curve tabulated in ``tab``: a point of line ``i`` is
+    where ``l = y0_i``, so its variance is that of ``y0_i - l`` under the state's
+    covariance ``cov`` (the point's measurement row ``(g, e_i)``)."""
+    n_lines, n = x.shape
+    out = np.zeros((n_lines, n))
+    g = np.empty(N_GEOMETRY)
+    for c in range(n_lines):
+        j = N_GEOMETRY + lines[c]
+        for k in range(n):
+            _locate(tab, x[c, k], y[c, k], g)
+            var = cov[j, j]
+            for a in range(N_GEOMETRY):
+                acc = 0.0
+                for b in range(N_GEOMETRY):
+                    acc += cov[a, b] * g[b]
+                var += g[a] * acc + 2.0 * g[a] * cov[a, j]
+            out[c, k] = math.sqrt(max(var, 0.0))
+    return out
+
+
+lateral_std = numba.njit(cache=True)(lateral_std_py)
+
+
+def spans_py(x, line, support, n_lines, min_support):
+    """``(n_lines, 2)`` per line, the x range ``[from, to]`` [m] of the points ``x``
+    that updated it (``line``: each point's line, -1: none), NaN for a line without a
+    hit (robust weights summing to less than ``min_support``)."""
+    out = np.full((n_lines, 2), np.nan)
+    lo = np.full(n_lines, np.inf)
+    hi = np.full(n_lines, -np.inf)
+    for p in range(x.shape[0]):
+        i = line[p]
+        if i >= 0:
+            lo[i] = min(lo[i], x[p])
+            hi[i] = max(hi[i], x[p])
+    for i in range(n_lines):
+        if support[i] >= min_support and lo[i] < np.inf:
+            out[i, 0] = lo[i]
+            out[i, 1] = hi[i]
+    return out
+
+
+spans = numba.njit(cache=True)(spans_py)
 
 
 def draw_py(state, lines, near, far, n_points):
