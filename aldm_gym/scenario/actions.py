@@ -1690,10 +1690,11 @@ class AssignRoute(Instance):
     chain of successors (the first successor where a lane splits), so a route is
     played when every waypoint lies on a road of that chain, and completes at once.
     A waypoint the actor can reach only by another branch at a split is an error, not
-    ignored. One it cannot reach along its lanes at all (an exit ramp from a through
-    lane: a lane change would be needed, which a route does not make) is passed by,
-    as esmini plays it: the actor follows its lane, with a
-    :class:`~aldm_gym.errors.ScenarioWarning`."""
+    ignored. One it can reach only from a lane beside its own (an exit ramp from a
+    through lane: a lane change would be needed, which a route does not make) is
+    passed by, as esmini plays it: the actor follows its lane, with a
+    :class:`~aldm_gym.errors.ScenarioWarning`. One on a road it cannot reach either
+    way (behind it, the other carriageway) is an error."""
 
     def __init__(self, entity: Entity | None, where: str, waypoints: list[Position]) -> None:
         """``waypoints`` in order."""
@@ -1703,14 +1704,18 @@ class AssignRoute(Instance):
     def start(self, runner: Any) -> None:
         """Check the route against the actor's lane chain."""
         entity = self._scripted(runner)
+        if entity.lane is None:
+            raise ScenarioError(f"{self.where}: {entity.name!r} is on no lane to route from")
         world = runner.world
         road = world.road
-        roads, key, seen = set(), entity.lane, set()
-        while key is not None and key not in seen:
-            seen.add(key)
-            roads.add(road.lane_record(key).road_id)
+        chain, key = [], entity.lane
+        while key is not None and key not in chain:
+            chain.append(key)
             key = road.successor(key)
-        branches = _reachable_roads(road, entity.lane)
+        roads = {road.lane_record(k).road_id for k in chain}
+        branches = _reachable_roads(road, [entity.lane])
+        # the lanes beside the chain, driven the same way: where a lane change leads
+        beside = _reachable_roads(road, [m for k in chain for m in _siblings(road, k)])
         for pos in self.waypoints:
             w = pos.resolve(world)
             lane = w.lane if w.lane is not None else road.lane_position(w.point).lane
@@ -1723,6 +1728,11 @@ class AssignRoute(Instance):
                     "lane follows where it splits; routes that choose a branch are not "
                     "supported"
                 )
+            if road_id not in beside:
+                raise ScenarioError(
+                    f"{pos.where}: the route leaves the roads {entity.name!r} can reach "
+                    f"(road {road_id!r} is on none of them, nor on a lane beside its own)"
+                )
             warnings.warn(
                 f"{pos.where}: {entity.name!r} cannot reach road {road_id!r} along its "
                 "lanes without a lane change, which a route does not make: it follows its "
@@ -1733,10 +1743,18 @@ class AssignRoute(Instance):
         self.done = True
 
 
-def _reachable_roads(road: Any, lane: Any, limit: int = 10_000) -> set[str]:
-    """The roads reachable from ``lane`` along every branch of its successors."""
+def _siblings(road: Any, lane: Any) -> list[Any]:
+    """The driving lanes of ``lane``'s road section driven the same way."""
+    direction = road.lane_record(lane).direction
+    return [
+        m for m in road.lanes if m[:2] == lane[:2] and road.lane_record(m).direction == direction
+    ]
+
+
+def _reachable_roads(road: Any, lanes: list[Any], limit: int = 10_000) -> set[str]:
+    """The roads reachable from ``lanes`` along every branch of their successors."""
     out: set[str] = set()
-    todo, seen = [lane], {lane}
+    todo, seen = list(lanes), set(lanes)
     while todo and len(seen) < limit:
         key = todo.pop()
         out.add(road.lane_record(key).road_id)

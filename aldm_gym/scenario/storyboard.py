@@ -123,7 +123,8 @@ class Condition:
         by-entity condition's also names the triggering entities it held on
         (``evaluate.fulfilled``, see :class:`~aldm_gym.scenario.conditions.ByEntity`).
     :ivar fulfilled: the triggering entities that fulfilled the condition's last value
-        (empty when it is false, or for a by-value condition).
+        (empty when it is false, or for a by-value condition); on a falling edge, those
+        that fulfilled it until then.
     """
 
     name: str
@@ -133,6 +134,7 @@ class Condition:
     where: str = ""
     fulfilled: tuple[str, ...] = ()
     _previous: bool | None = None
+    _previous_names: tuple[str, ...] = ()
     _history: list[tuple[float, bool, tuple[str, ...]]] = field(default_factory=list)
 
     def value(self, runner: Any, time: float) -> bool:
@@ -141,8 +143,11 @@ class Condition:
             now = bool(self.evaluate(runner))
         except OffRoadError:  # an entity on no lane (the function drove it off): false
             now = False
-        names: tuple[str, ...] = getattr(self.evaluate, "fulfilled", ()) if now else ()
+        held: tuple[str, ...] = getattr(self.evaluate, "fulfilled", ()) if now else ()
         before, self._previous = self._previous, now
+        held_before, self._previous_names = self._previous_names, held
+        # a falling edge is made by the entities that fulfilled the condition until now
+        names = held if now else held_before
         if self.edge == "none":
             edged = now
         elif before is None:

@@ -2,7 +2,8 @@
 
 Used as the upper bound in comparisons (``detector="ground_truth"``) and to score
 every detector. A line is *correct* when every returned point lies within
-``tol`` (0.3 m) of the true marking, it starts within ``start_max`` (25 m) and
+``tol`` (0.3 m) of the true marking (or of the other stripe of its double line,
+below), it starts within ``start_max`` (25 m) and
 reaches at least ``preview_min`` (60 m, the paper's minimum preview) ahead.
 
 A border painted as a double line (OpenDRIVE's ``solid broken``, ``solid solid``, or
@@ -11,8 +12,8 @@ other. The true line is the stripe nearest the lane (the road's
 ``boundary_markings``; what the perfect detector reports), but a detected point on
 the other stripe is on the same border's paint: a point's error is its distance to
 the nearest marking that runs within :data:`PAIR_GAP` of the true line at every x of
-the detected line where both are (a line that only leaves or joins it, at a lane's
-opening or end, does not count).
+the detected line where both are (a line that leaves or joins it by more than that
+within the detected line's reach, at a lane's opening or end, does not count).
 """
 
 from __future__ import annotations

@@ -8,7 +8,9 @@ one covers. Each matched pair is judged at two thresholds:
 
 - **strict**, this project's headline rule (:func:`~aldm_gym.sensor.ground_truth.score_line`):
   every detected point within 0.3 m of the true marking, the first point within 25 m and
-  the line's :func:`preview` at least 60 m (the paper's minimum preview, §ALDM);
+  the line's :func:`preview` at least 60 m (the paper's minimum preview, §ALDM); here
+  against the true line alone (``score_line`` also takes the other stripe of a double
+  line, ``ground_truth.PAIR_GAP``);
 - **loose**, the 3D-lane metric of Gen-LaneNet (Guo et al., ECCV 2020), which OpenLane
   adopts: both lines sampled at the sensor's x grid (every 2 m from the field-of-view
   start to the end of the view, the range or a shorter visibility; a line covers the

@@ -598,13 +598,16 @@ def test_a_synchronize_action_without_tolerances_plays_them_as_zero(tmp_path: Pa
     assert (lane, s, v) == (-1, pytest.approx(230.0, abs=0.05), pytest.approx(20.0))
 
 
-def _selecting_story(refs: tuple[str, ...], rule: object, delay: float = 0.0) -> xosc.Story:
-    """An act that starts when the ego or the target drives faster than 25 m/s, with a
-    maneuver group (``selectTriggeringEntities``, actors ``refs``) that sets 10 m/s."""
+def _selecting_story(
+    refs: tuple[str, ...], rule: object, delay: float = 0.0, edge: object = None
+) -> xosc.Story:
+    """An act that starts when the ego or the target drives faster than 25 m/s (with
+    ``edge``), with a maneuver group (``selectTriggeringEntities``, actors ``refs``)
+    that sets 10 m/s."""
     trigger = xosc.EntityTrigger(
         "fast",
         delay,
-        xosc.ConditionEdge.none,
+        edge or xosc.ConditionEdge.none,
         xosc.SpeedCondition(25.0, xosc.Rule.greaterThan),
         "Ego",
         triggeringrule=rule,
@@ -654,6 +657,31 @@ def test_select_triggering_entities_adds_those_that_started_the_act(
     unslowed = {"Target": 30.0, "Ego": 30.0 if at_s > 2.0 else 20.0}
     for name in ("Ego", "Target"):
         assert after[name][3] == (10.0 if name in slowed else unslowed[name]), name
+
+
+def test_select_triggering_entities_of_a_falling_edge_are_those_that_fulfilled_it(
+    tmp_path: Path,
+) -> None:
+    """A falling edge is made by the entities that fulfilled the condition until then:
+    the target, faster than 25 m/s from 1.1 s, slows to 20 m/s at 3.1 s; the act
+    starts then and slows it to 10 m/s; the ego, never that fast, is no actor."""
+    events = [
+        (
+            "Target",
+            [
+                _event("speed_up", step_speed(30.0), at_time(1.0)),
+                _event(
+                    "ease", step_speed(20.0), at_time(3.0, name="later"), xosc.Priority.parallel
+                ),
+            ],
+        ),
+    ]
+    story = _selecting_story((), xosc.TriggeringEntitiesRule.any, edge=xosc.ConditionEdge.falling)
+    path = write(tmp_path, events, stories=[story], target=(1, 60.0, 20.0))
+    env, rec = play(path, 4.0)
+    assert env.scenario.storyboard.starts("act")["act_fast"] == [pytest.approx(3.1)]
+    after = at(rec, 3.5)
+    assert after["Target"][3] == 10.0 and after["Ego"][3] == 20.0
 
 
 def test_select_triggering_entities_without_any_actor_is_a_clear_error(tmp_path: Path) -> None:
@@ -949,20 +977,32 @@ def test_a_route_along_the_lane_chain_is_played_and_a_ramp_is_passed_by(tmp_path
         "startTransition",
         "endTransition",
     ]
-    elsewhere = xosc.Route("elsewhere")
+
+    def on_motorway(name: str, road_id: int, *waypoints: tuple[float, int]) -> Path:
+        """The target's route through lane -1 of ``(s, road)`` waypoints, on the
+        motorway from road ``road_id``."""
+        route = xosc.Route(name)
+        for s, road in waypoints:
+            route.add_waypoint(xosc.LanePosition(s, 0.0, -1, road), xosc.RouteStrategy.shortest)
+        ev = _event("route", xosc.AssignRouteAction(route), at_time(0.5))
+        return write(
+            tmp_path, [("Target", [ev])], road=MOTORWAY, road_id=road_id, ego_s=100.0,
+            name=f"{name}.xosc",
+        )  # fmt: skip
+
     # on the motorway the target's lanes run through roads 1-6; road 7 is a ramp
-    elsewhere.add_waypoint(xosc.LanePosition(200.0, 0.0, -1, 1), xosc.RouteStrategy.shortest)
-    elsewhere.add_waypoint(xosc.LanePosition(100.0, 0.0, -1, 7), xosc.RouteStrategy.shortest)
-    ev = _event("route", xosc.AssignRouteAction(elsewhere), at_time(0.5))
-    path = write(
-        tmp_path, [("Target", [ev])], road=MOTORWAY, road_id=1, ego_s=100.0, name="away.xosc"
-    )
+    path = on_motorway("away", 1, (200.0, 1), (100.0, 7))
     # the ramp is reached only by a lane change, which a route does not make: the
     # target follows its lane, as esmini plays it (corpus file
     # route_to_an_exit_from_a_through_lane), and the player says so
     with pytest.warns(ScenarioWarning, match=r"'Target' cannot reach road '7' along its lanes"):
-        _, rec = play(path, 2.0)
+        env, rec = play(path, 2.0)
     assert at(rec, 2.0)["Target"][3] == pytest.approx(20.0)
+    assert env.scenario.world.entities["Target"].lane[0] == "1"  # still on its road
+    # a waypoint behind the target is on no road it can reach: an error, not a warning
+    path = on_motorway("behind", 3, (300.0, 3), (100.0, 1))
+    with pytest.raises(ScenarioError, match=r"the route leaves the roads 'Target' can reach"):
+        play(path, 2.0)
 
 
 # ------------------------------------------- elements esmini 3.6 does not play

@@ -9,8 +9,8 @@ re-weighted by Tukey's biweight (:func:`robust_update`); :func:`existence` keeps
 lines' hits and misses; :func:`draw_on` draws lines of the model as points and
 :func:`lateral_std` gives each drawn point's standard deviation; :func:`spans` is
 where each line was measured; :func:`measurements` picks a frame's valid rows;
-:func:`fit` is the start's Gauss-Newton update. A frame of the filter is eight kernel
-calls and a little bookkeeping.
+:func:`receded` checks the far ends; :func:`fit` is the start's Gauss-Newton update.
+A frame of the filter is a handful of kernel calls and a little bookkeeping.
 
 The state is the shared shape (:data:`N_GEOMETRY` entries) followed by one offset per
 line; a point on line ``j`` has the measurement row ``(g_0 .. g_N, e_j)`` (``N =
