@@ -20,6 +20,10 @@ systems:
   (a pedestrian crossing the road spans its width along ``s``) and the box centre need
   not be the reference point. Euclidean distances are the same in every system.
 
+Speeds are the entities' speeds now (:attr:`~aldm_gym.scenario.world.Entity.current_speed`:
+a scripted entity's script's, so a step ``SpeedAction`` that started earlier in the
+same update shows at once, as in esmini).
+
 A distance is a magnitude (>= 0). ``TimeHeadwayCondition`` divides the distance from
 the triggering entity to the referenced one by the triggering entity's speed (inf when
 it stands still), and counts only a referenced entity ahead; ``TimeToCollision``
@@ -217,7 +221,7 @@ def headway(
     if ahead <= 0.0:
         return math.inf
     d = relative_distance(world, source, target, kind, freespace, system)
-    v = source.velocity
+    v = source.current_speed
     return math.inf if v <= 0.0 else d / v
 
 
@@ -243,7 +247,7 @@ def time_to_collision(
             forward = np.array([math.cos(h), math.sin(h)])
             axis = forward if kind == "longitudinal" else np.array([forward[1], -forward[0]])
         side = float((target.position - source.position) @ axis)
-        relative = source.velocity * source.forward() - target.velocity * target.forward()
+        relative = source.current_speed * source.forward() - target.current_speed * target.forward()
         closing = float(relative @ axis) * (1.0 if side >= 0 else -1.0)
         if closing <= 0.0:
             return math.inf
@@ -253,8 +257,8 @@ def time_to_collision(
     if norm == 0.0:
         return 0.0
     los = los / norm
-    vs = source.velocity * source.forward()
-    vt = target.velocity * target.forward()
+    vs = source.current_speed * source.forward()
+    vt = target.current_speed * target.forward()
     closing = float((vs - vt) @ los)
     if closing <= 0.0:
         return math.inf
@@ -269,7 +273,7 @@ def time_to_point(world: World, source: Entity, point: np.ndarray, freespace: bo
     norm = float(np.hypot(*los))
     if norm == 0.0:
         return 0.0
-    closing = float(source.velocity * source.forward() @ (los / norm))
+    closing = float(source.current_speed * source.forward() @ (los / norm))
     if closing <= 0.0:
         return math.inf
     return distance(world, source, point, freespace) / closing

@@ -853,6 +853,25 @@ def _story(name: str, actor: str, event: xosc.Event, start: object = None) -> xo
     return story
 
 
+def _around_a_step(
+    trigger: Callable[[str], xosc.EntityTrigger], watcher: str, stepper: str, speed: float
+) -> list[xosc.Story]:
+    """Stories around a step ``SpeedAction`` of ``stepper`` (to ``speed`` [m/s] at 1 s):
+    one before it, whose act (started by ``trigger(name)``) shifts ``watcher`` 0.5 m
+    in its lane, and one after it, whose act sets ``watcher`` to 10 m/s."""
+    shift = _event(
+        "shift",
+        xosc.AbsoluteLaneOffsetAction(0.5, xosc.DynamicsShapes.sinusoidal, 1.0),
+        at_time(0.0, name="now"),
+    )
+    slow = _event("slow_down", step_speed(10.0), at_time(0.0, name="now"))
+    return [
+        _story("before", watcher, shift, trigger("c_before")),
+        _story("speed_up", stepper, _event("speed_up", step_speed(speed), at_time(1.0))),
+        _story("after", watcher, slow, trigger("c_after")),
+    ]
+
+
 def speed_condition_in_the_update_of_a_step(folder: Path) -> Path:
     """A ``SpeedCondition`` on the target, whose step ``SpeedAction`` starts at 1 s: an
     act in a story before the target's sees the new speed one update later (its
@@ -865,18 +884,21 @@ def speed_condition_in_the_update_of_a_step(folder: Path) -> Path:
             name, 0, xosc.ConditionEdge.none, xosc.SpeedCondition(25.0, rule), "Target"
         )
 
-    shift = _event(
-        "shift",
-        xosc.AbsoluteLaneOffsetAction(0.5, xosc.DynamicsShapes.sinusoidal, 1.0),
-        at_time(0.0, name="now"),
-    )
-    slow = _event("slow_down", step_speed(10.0), at_time(0.0, name="now"))
-    stories = [
-        _story("before", "Ego", shift, fast("fast_before")),
-        _story("speed_up", "Target", _event("speed_up", step_speed(30.0), at_time(1.0))),
-        _story("after", "Ego", slow, fast("fast_after")),
-    ]
+    stories = _around_a_step(fast, "Ego", "Target", 30.0)
     return write(folder, stories=stories, stop=6.0, name="speed_condition_in_the_update.xosc")
+
+
+def headway_condition_in_the_update_of_a_step(folder: Path) -> Path:
+    """A ``TimeHeadwayCondition`` (< 2 s) from the ego to the target 60 m ahead, whose
+    speed a step ``SpeedAction`` raises from 20 to 40 m/s at 1 s: an act in a story
+    after it starts in the same update, one in a story before it an update later."""
+
+    def close(name: str) -> xosc.EntityTrigger:
+        headway = xosc.TimeHeadwayCondition("Target", 2.0, xosc.Rule.lessThan, freespace=False)
+        return xosc.EntityTrigger(name, 0, xosc.ConditionEdge.none, headway, "Ego")
+
+    stories = _around_a_step(close, "Target", "Ego", 40.0)
+    return write(folder, stories=stories, stop=6.0, target=(0, 60.0, 20.0), name="headway.xosc")
 
 
 def clothoid_spline(folder: Path) -> Path:
@@ -1485,6 +1507,7 @@ CORPUS: dict[str, Callable[[Path], Path]] = {
         actions_in_document_order,
         relative_speed_before_its_reference,
         speed_condition_in_the_update_of_a_step,
+        headway_condition_in_the_update_of_a_step,
         clothoid_spline,
         object_kinds_and_collision_by_type,
         parameter_rules_and_reach_position,
