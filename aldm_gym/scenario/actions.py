@@ -1715,7 +1715,7 @@ class AssignRoute(Instance):
         roads = {road.lane_record(k).road_id for k in chain}
         branches = _reachable_roads(road, [entity.lane])
         # the lanes beside the chain, driven the same way: where a lane change leads
-        beside = _reachable_roads(road, [m for k in chain for m in _siblings(road, k)])
+        beside = _reachable_roads(road, [m for k in chain for m in road.siblings(k)])
         for pos in self.waypoints:
             w = pos.resolve(world)
             lane = w.lane if w.lane is not None else road.lane_position(w.point).lane
@@ -1741,14 +1741,6 @@ class AssignRoute(Instance):
                 stacklevel=2,
             )
         self.done = True
-
-
-def _siblings(road: Any, lane: Any) -> list[Any]:
-    """The driving lanes of ``lane``'s road section driven the same way."""
-    direction = road.lane_record(lane).direction
-    return [
-        m for m in road.lanes if m[:2] == lane[:2] and road.lane_record(m).direction == direction
-    ]
 
 
 def _reachable_roads(road: Any, lanes: list[Any], limit: int = 10_000) -> set[str]:

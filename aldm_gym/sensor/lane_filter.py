@@ -467,14 +467,6 @@ class ModelLaneDetection(LaneDetection):
         return (line[:, 0] >= lo) & (line[:, 0] <= hi)
 
 
-def _spans(x: FloatArray, line: np.ndarray, support: FloatArray, n_lines: int) -> FloatArray:
-    """``(n_lines, 2)`` per line, the x range ``[from, to]`` [m] of the points ``x``
-    that updated it (``line``: each point's line, -1: none), NaN for a line without a
-    hit (robust weights summing to less than :data:`MIN_SUPPORT`;
-    :func:`~aldm_gym.sensor.aldm_kernels.model.spans`)."""
-    return spans(x, line, support, n_lines, MIN_SUPPORT)
-
-
 class LaneModelFilter:
     """One clothoid-spline model of all lines, carried from frame to frame by a Kalman
     filter.
@@ -652,7 +644,8 @@ class LaneModelFilter:
                 self.n_restarts += 1
                 travel = 0.0
                 line, support, far = self._correct(x, y)
-            self._span = _spans(x, line, support, len(self._ids))
+            # where each line was measured (NaN without MIN_SUPPORT)
+            self._span = spans(x, line, support, len(self._ids), MIN_SUPPORT)
             hidden, _ = self._occlusion(points)
             self._existence(support, far, travel, hidden)
         # the reference curve after the update (births and drawing move no shape)
@@ -813,10 +806,8 @@ class LaneModelFilter:
         # points reach the last node step (else nothing measures it, and the hidden
         # lines carried on would only lose their certainty)
         q_far = fp.q_far_curvature_rate
-        if q_far > 0.0:
-            seen = self._far[self._confirmed & (self._miss == 0.0)]
-            if not (len(seen) and float(np.max(seen)) >= (N_NODES - 2) * NODE_STEP):
-                q_far = 0.0
+        if q_far > 0.0 and self._reach() < (N_NODES - 2) * NODE_STEP:
+            q_far = 0.0
         self._x, self._p = predict(
             self._x,
             self._p,
@@ -830,6 +821,12 @@ class LaneModelFilter:
             q_far,
         )
         self._far = self._far - dx
+
+    def _reach(self) -> float:
+        """The farthest x [m] a confirmed line hit in the last update was seen at
+        (-inf: none)."""
+        seen = self._far[self._confirmed & (self._miss == 0.0)]
+        return float(np.max(seen)) if len(seen) else -math.inf
 
     def _sigma(self, x: FloatArray) -> FloatArray:
         """A point's lateral standard deviation at ``x`` [m]."""
@@ -1172,8 +1169,7 @@ class LaneModelFilter:
         n_points = self.params.n_points if self.params.n_points >= 2 else 13
         roles = self._roles()
         steep = _steep_row(tab, self.params.max_slope)
-        seen = self._far[self._confirmed & (self._miss == 0.0)]
-        shared = float(np.max(seen)) if len(seen) else -math.inf
+        shared = self._reach()
         # where any confirmed line was last seen, carried by the odometry
         carried = self._far[self._confirmed]
         last_seen = float(np.max(carried)) if len(carried) else -math.inf
