@@ -331,7 +331,7 @@ class MapNetwork(RoadNetwork):
         key = self.key_of.get(current_index)
         if key is None:
             return current_index
-        nxt = [n for n in self.road.map.successors(key[0], key[2], key[1]) if n in self.index_of]
+        nxt = [n for n in self.road.successors(key) if n in self.index_of]
         if not nxt:
             return current_index
         pick = nxt[0] if len(nxt) == 1 else nxt[int(np_random.integers(len(nxt)))]

@@ -187,11 +187,14 @@ class OpenDriveRoad(PolylineRoad):
             for i, k in enumerate(self.lanes)
         }
         succ: dict[LaneKey, LaneKey | None] = {}
+        every: dict[LaneKey, tuple[LaneKey, ...]] = {}
         has_pred: set[LaneKey] = set()
         for k in self.lanes:
             nxt = [n for n in odr.successors(k[0], k[2], k[1]) if n in self._key_index]
-            succ[k] = nxt[0] if nxt else None
+            every[k] = tuple(nxt)
+            succ[k] = self._straightest(k, nxt) if nxt else None
             has_pred.update(nxt)
+        self._every_succ = every
         start: dict[LaneKey, float] = {}
         for k in [k for k in self.lanes if k not in has_pred] + list(self.lanes):
             if k in start:
@@ -213,6 +216,23 @@ class OpenDriveRoad(PolylineRoad):
                 cur = succ[cur]
             end[k] = total
         self._start, self._end, self._succ = start, end, succ
+
+    def _end_heading(self, lane: LaneKey) -> float:
+        """Heading [rad] of ``lane``'s centre line at its end (driving direction)."""
+        row = self._key_index[lane]
+        c = self._centres
+        a, b = c.xy[c.start[row + 1] - 2], c.xy[c.start[row + 1] - 1]
+        return math.atan2(float(b[1] - a[1]), float(b[0] - a[0]))
+
+    def _straightest(self, lane: LaneKey, options: list[LaneKey]) -> LaneKey:
+        """Of the lanes continuing ``lane``, the one whose end heading turns least from
+        ``lane``'s own (the first of a tie): straight on where a lane splits, as esmini
+        chooses at its first junction."""
+        if len(options) == 1:
+            return options[0]
+        h = self._end_heading(lane)
+        turns = [abs(math.remainder(self._end_heading(n) - h, 2.0 * math.pi)) for n in options]
+        return options[int(np.argmin(turns))]
 
     def chain_start(self, lane: LaneKey) -> float:
         """Arc length ``s`` [m] where ``lane`` starts along its chain (``LanePosition.s``)."""
@@ -385,16 +405,17 @@ class OpenDriveRoad(PolylineRoad):
         return MapNetwork(self)
 
     def successor(self, lane: LaneKey) -> LaneKey | None:
-        """The first driving lane continuing ``lane`` in its direction, or ``None``."""
+        """The driving lane continuing ``lane`` in its direction, or ``None``; where the
+        lane splits, the straightest of :meth:`successors` (the one whose end heading
+        turns least from ``lane``'s, the first of a tie)."""
         return self._succ.get(lane)
 
     def successors(self, lane: LaneKey) -> list[LaneKey]:
         """Every driving lane continuing ``lane`` in its direction (more than one where
-        the lane splits in a junction; :meth:`successor` is the first)."""
+        the lane splits in a junction), in the map's order."""
         if lane not in self._key_index:
             raise InputError(f"unknown driving lane {lane!r}")
-        odr = self.map
-        return [n for n in odr.successors(lane[0], lane[2], lane[1]) if n in self._key_index]
+        return list(self._every_succ[lane])
 
     def predecessor(self, lane: LaneKey) -> LaneKey | None:
         """A driving lane that ``lane`` continues (whose :meth:`successor` it is), or

@@ -52,6 +52,8 @@ from aldm_gym.errors import (
     ScenarioWarning,
 )
 from aldm_gym.scenario.positions import Position, Where
+from aldm_gym.scenario.routes import RandomRoute as RandomRouteChooser
+from aldm_gym.scenario.routes import RoutePlan, reachable_lanes, reachable_roads
 from aldm_gym.scenario.shapes import Polyline, Shape
 from aldm_gym.scenario.world import Entity, World, wrap_angle
 
@@ -67,6 +69,7 @@ __all__ = [
     "LaneOffset",
     "LateralDistance",
     "LongitudinalDistance",
+    "RandomRoute",
     "SpeedChange",
     "SpeedProfile",
     "StopTraffic",
@@ -1686,12 +1689,11 @@ class FollowTrajectory(Instance):
 
 # ---------------------------------------------------------------------- route
 class AssignRoute(Instance):
-    """``AssignRouteAction``: the actor's route. A scripted object follows its lane's
-    chain of successors (the first successor where a lane splits), so a route is
-    played when every waypoint lies on a road of that chain, and completes at once.
-    A waypoint the actor can reach only by another branch at a split is an error, not
-    ignored. One it can reach only from a lane beside its own (an exit ramp from a
-    through lane: a lane change would be needed, which a route does not make) is
+    """``AssignRouteAction`` (and ``AcquirePositionAction``, a route to one position):
+    the actor's route, which chooses its branch where its lane splits
+    (:class:`~aldm_gym.scenario.routes.RoutePlan`); the action completes at once.
+    A waypoint the actor can reach only from a lane beside its own (an exit ramp from
+    a through lane: a lane change would be needed, which a route does not make) is
     passed by, as esmini plays it: the actor follows its lane, with a
     :class:`~aldm_gym.errors.ScenarioWarning`. One on a road it cannot reach either
     way (behind it, the other carriageway) is an error."""
@@ -1702,33 +1704,23 @@ class AssignRoute(Instance):
         self.waypoints = waypoints
 
     def start(self, runner: Any) -> None:
-        """Check the route against the actor's lane chain."""
+        """Check the route against the lanes the actor can reach, and assign it."""
         entity = self._scripted(runner)
         if entity.lane is None:
             raise ScenarioError(f"{self.where}: {entity.name!r} is on no lane to route from")
-        world = runner.world
-        road = world.road
-        chain, key = [], entity.lane
-        while key is not None and key not in chain:
-            chain.append(key)
-            key = road.successor(key)
-        roads = {road.lane_record(k).road_id for k in chain}
-        branches = _reachable_roads(road, [entity.lane])
-        # the lanes beside the chain, driven the same way: where a lane change leads
-        beside = _reachable_roads(road, [m for k in chain for m in road.siblings(k)])
+        road = runner.world.road
+        roads, here = [], [entity.lane]
         for pos in self.waypoints:
-            w = pos.resolve(world)
+            w = pos.resolve(runner.world)
             lane = w.lane if w.lane is not None else road.lane_position(w.point).lane
             road_id = road.lane_record(lane).road_id
-            if road_id in roads:
+            roads.append(road_id)
+            if road_id in reachable_roads(road, here):
+                here = [lane]
                 continue
-            if road_id in branches:
-                raise ScenarioError(
-                    f"{pos.where}: the route takes another branch than {entity.name!r}'s "
-                    "lane follows where it splits; routes that choose a branch are not "
-                    "supported"
-                )
-            if road_id not in beside:
+            # the lanes beside those it can reach, driven the same way
+            beside = [m for k in reachable_lanes(road, here) for m in road.siblings(k)]
+            if road_id not in reachable_roads(road, beside):
                 raise ScenarioError(
                     f"{pos.where}: the route leaves the roads {entity.name!r} can reach "
                     f"(road {road_id!r} is on none of them, nor on a lane beside its own)"
@@ -1740,21 +1732,22 @@ class AssignRoute(Instance):
                 ScenarioWarning,
                 stacklevel=2,
             )
+        entity.route = RoutePlan(roads)
         self.done = True
 
 
-def _reachable_roads(road: Any, lanes: list[Any], limit: int = 10_000) -> set[str]:
-    """The roads reachable from ``lanes`` along every branch of their successors."""
-    out: set[str] = set()
-    todo, seen = list(lanes), set(lanes)
-    while todo and len(seen) < limit:
-        key = todo.pop()
-        out.add(road.lane_record(key).road_id)
-        for nxt in road.successors(key):
-            if nxt not in seen:
-                seen.add(nxt)
-                todo.append(nxt)
-    return out
+class RandomRoute(Instance):
+    """``RandomRouteAction``: at every split of its lanes from now on, the actor takes
+    a branch drawn with equal chances (:class:`~aldm_gym.scenario.routes.RandomRoute`),
+    from a generator seeded by the episode's (the same seed, the same branches). The
+    action completes at once."""
+
+    def start(self, runner: Any) -> None:
+        """Assign the random route."""
+        entity = self._scripted(runner)
+        seed = int(runner.rng.integers(2**63))
+        entity.route = RandomRouteChooser(np.random.default_rng(seed))
+        self.done = True
 
 
 # ---------------------------------------------------------------------- controller

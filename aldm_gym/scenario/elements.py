@@ -228,7 +228,11 @@ ELEMENTS: dict[str, tuple[str, str]] = {
         "SynchronizeAction TargetPositionMaster TargetPosition FinalSpeed AbsoluteSpeed "
         "RelativeSpeedToMaster TargetDistanceSteadyState TargetTimeSteadyState",
     ),
-    **_each("refused", "a random route is not played", "RandomRouteAction"),
+    **_each(
+        "played",
+        "a random branch at every split of the actor's lanes (the episode's seed)",
+        "RandomRouteAction",
+    ),
     # ---------------------------------------------------------------- global actions
     **_each(
         "played",

@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from aldm_gym.errors import MapError, NotDrivenError, OffRoadError, ScenarioError
+from aldm_gym.scenario.routes import RoutePlan, next_lane
 from aldm_gym.scenario.world import Entity, World, wrap_angle
 
 __all__ = [
@@ -361,9 +362,17 @@ class TrajectoryPos(Position):
         return Where(point=point, heading=heading)
 
 
+def _road_of(world: World, where: Where) -> str:
+    """The road id of the lane at ``where``."""
+    road = world.road
+    lane = where.lane if where.lane is not None else road.lane_position(where.point).lane
+    return str(road.lane_record(lane).road_id)
+
+
 @dataclass(frozen=True)
 class RoutePos(Position):
-    """``RoutePosition``: on a route (its waypoints' lane chain), from an entity's
+    """``RoutePosition``: on a route (the lanes from its first waypoint on, taking
+    the branch towards its next waypoint where a lane splits), from an entity's
     current position (``FromCurrentEntity``), or ``path_s`` [m] along the route from its
     first waypoint, then ``t`` [m] from the reference line (``FromRoadCoordinates``) or
     ``lane_offset`` [m] from the centre of lane ``lane_id`` (``FromLaneCoordinates``)."""
@@ -393,8 +402,9 @@ class RoutePos(Position):
                 pos = road.lane_position(start.point)
                 key, u = pos.lane, pos.s - road.chain_start(pos.lane)
             u += self.path_s
+            plan = RoutePlan([_road_of(world, w.resolve(world)) for w in self.waypoints[1:]])
             while u > road.lane_length(key):
-                nxt = road.successor(key)
+                nxt = next_lane(road, plan, key)
                 if nxt is None:
                     raise MapError(f"pathS = {self.path_s:g} m runs past the route's end")
                 u -= road.lane_length(key)

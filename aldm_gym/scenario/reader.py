@@ -893,8 +893,16 @@ class _Reader(ElementReader):
             )
         if body.tag == "RoutingAction":
             routing = self.one(
-                body, ("FollowTrajectoryAction", "AssignRouteAction", "AcquirePositionAction")
+                body,
+                (
+                    "FollowTrajectoryAction",
+                    "AssignRouteAction",
+                    "AcquirePositionAction",
+                    "RandomRouteAction",
+                ),
             )
+            if routing.tag == "RandomRouteAction":
+                return lambda actor: A.RandomRoute(actor, where)
             if routing.tag == "AssignRouteAction":
                 return self._route(routing)
             if routing.tag == "AcquirePositionAction":

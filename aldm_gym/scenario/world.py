@@ -28,6 +28,7 @@ import numpy as np
 from highway_env.vehicle.kinematics import Vehicle
 
 from aldm_gym.errors import OffRoadError
+from aldm_gym.scenario.routes import next_lane
 
 if TYPE_CHECKING:
     from aldm_gym.roads.map_road import OpenDriveRoad
@@ -181,6 +182,9 @@ class Entity:
     """Its speed at the start of the step, where its longitudinal action already set
     this step's speed (esmini steps every action before the default moves); None
     otherwise."""
+    route: Any = None
+    """What chooses its branch where its lane splits
+    (:class:`~aldm_gym.scenario.routes.Chooser`); None: the straightest."""
 
     def chain(self) -> list[Entity]:
         """The trailers it tows, nearest first."""
@@ -728,7 +732,7 @@ class World:
         road = self.road
         length = road.lane_length(key)
         while u > length:
-            nxt = road.successor(key)
+            nxt = self.next_lane(entity, key)
             if nxt is None:
                 if halt:  # the lane chain ends: the entity stops at its end
                     entity.ended, entity.ended_steps = True, 0
@@ -744,6 +748,12 @@ class World:
             key = prev
             u += road.lane_length(key)
         return key, u
+
+    def next_lane(self, entity: Entity, key: LaneKey) -> LaneKey | None:
+        """The lane ``entity`` drives onto after lane ``key`` (None: the chain ends):
+        where the lane splits, its route's choice (:mod:`~aldm_gym.scenario.routes`),
+        else the road's straightest successor."""
+        return next_lane(self.road, entity.route, key)
 
     def tow(self, straight: bool = False) -> None:
         """Move every towed trailer after its tractor (tractors first along a chain):

@@ -8,7 +8,7 @@ plays each in both players and compares them step by step.
 from __future__ import annotations
 
 import re
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from scenariogeneration import xodr, xosc
@@ -1475,6 +1475,96 @@ def timed_polylines_follow_and_position(folder: Path) -> Path:
     return path
 
 
+def split_road(folder: Path) -> Path:
+    """A motorway whose right lane splits: road 0 (300 m, three lanes) ends in
+    junction 1, where lane -3 continues both straight on (connecting road 4, 40 m, to
+    road 1: 1000 m, three lanes) and onto an exit (connecting road 3, a 40 m spiral to
+    the right, to road 2: one lane bending away on R 400 m). The exit's connection
+    comes first in the file, so the first successor is not the straightest."""
+    path = folder / "split.xodr"
+    if not path.exists():
+
+        def lanes(plan: object, road_id: int, n: int, kind: int = -1) -> xodr.Road:
+            return xodr.create_road(
+                plan, id=road_id, left_lanes=0, right_lanes=n, lane_width=3.5, road_type=kind
+            )
+
+        main = lanes(xodr.Line(300.0), 0, 3)
+        on = lanes(xodr.Line(1000.0), 1, 3)
+        off = lanes([xodr.Arc(-1 / 400, 100.0), xodr.Line(300.0)], 2, 1)
+        to_off = lanes(xodr.Spiral(-1e-5, -1 / 400, 40.0), 3, 1, kind=1)
+        to_on = lanes(xodr.Line(40.0), 4, 3, kind=1)
+        main.add_successor(xodr.ElementType.junction, 1)
+        on.add_predecessor(xodr.ElementType.junction, 1)
+        off.add_predecessor(xodr.ElementType.junction, 1)
+        to_off.add_predecessor(xodr.ElementType.road, 0, xodr.ContactPoint.end, lane_offset=-2)
+        to_off.add_successor(xodr.ElementType.road, 2, xodr.ContactPoint.start)
+        to_on.add_predecessor(xodr.ElementType.road, 0, xodr.ContactPoint.end)
+        to_on.add_successor(xodr.ElementType.road, 1, xodr.ContactPoint.start)
+        junction = xodr.create_junction([to_off, to_on], 1, [main, on, off])
+        odr = xodr.OpenDrive("split")
+        for r in (main, on, off, to_off, to_on):
+            odr.add_road(r)
+        odr.adjust_roads_and_lanes()
+        odr.add_junction(junction)
+        odr.write_xml(str(path))
+    return path
+
+
+def on_split_road(
+    folder: Path,
+    rows: Sequence[tuple[str, int, int, float]],
+    events: Sequence[tuple[str, xosc.Event]],
+    stop: float,
+    name: str,
+) -> Path:
+    """A scenario on :func:`split_road`: a car per ``(name, road id, lane id, s [m])``
+    at 20 m/s, each ``(actor, event)`` in a maneuver of its own; it stops at ``stop``
+    [s]."""
+    init = xosc.Init()
+    for car_name, road_id, lane, s in rows:
+        init.add_init_action(car_name, xosc.TeleportAction(xosc.LanePosition(s, 0, lane, road_id)))
+        init.add_init_action(car_name, step_speed(20.0))
+    entities, board = cars_and_board([r[0] for r in rows], init, stop)
+    for k, (actor, ev) in enumerate(events):
+        man = xosc.Maneuver(f"m{k}_{actor}")
+        man.add_event(ev)
+        board.add_maneuver(man, actor)
+    scenario = xosc.Scenario(
+        name, "aldm-gym tests", xosc.ParameterDeclarations(), entities, board,
+        xosc.RoadNetwork(str(split_road(folder))), xosc.Catalog(),
+    )  # fmt: skip
+    path = folder / f"{name}.xosc"
+    scenario.write_xml(str(path))
+    return path
+
+
+def routes_at_a_lane_split(folder: Path) -> Path:
+    """Four cars on the right lane of :func:`split_road` and the ego beside them: one
+    routed onto the exit, one routed straight on, one without a route (the
+    straightest branch), one told to acquire a position on the exit road; and a
+    teleport to a ``RoutePosition`` 200 m along a route onto the exit, past the
+    split."""
+    names = ("Ego", "Exit", "Through", "Free", "Acquire")
+    rows = [(n, 0, -1 if n == "Ego" else -3, 200.0 - 25 * k) for k, n in enumerate(names)]
+
+    def route(name: str, road_id: int, lane: int) -> xosc.Route:
+        r = xosc.Route(name)
+        r.add_waypoint(xosc.LanePosition(100.0, 0, -3, 0), xosc.RouteStrategy.shortest)
+        r.add_waypoint(xosc.LanePosition(100.0, 0, lane, road_id), xosc.RouteStrategy.shortest)
+        return r
+
+    acquire = xosc.AcquirePositionAction(xosc.LanePosition(200.0, 0, -1, 2))
+    past = xosc.RoutePositionInLaneCoordinates(route("hop", 2, -1), 200.0, -1, 0.0)
+    events = [
+        ("Exit", _event("to_exit", xosc.AssignRouteAction(route("exit", 2, -1)), at_time(0.5))),
+        ("Through", _event("on", xosc.AssignRouteAction(route("on", 1, -3)), at_time(0.5))),
+        ("Acquire", _event("acquire", acquire, at_time(0.5))),
+        ("Ego", _event("hop", xosc.TeleportAction(past), at_time(12.0))),
+    ]
+    return on_split_road(folder, rows, events, 15.0, "routes_at_a_split")
+
+
 CORPUS: dict[str, Callable[[Path], Path]] = {
     f.__name__: f
     for f in (
@@ -1520,6 +1610,7 @@ CORPUS: dict[str, Callable[[Path], Path]] = {
         lane_offset_relative_to_an_oncoming_entity,
         route_to_an_exit_from_a_through_lane,
         timed_polylines_follow_and_position,
+        routes_at_a_lane_split,
     )
 }
 """The corpus by name."""

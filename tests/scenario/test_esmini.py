@@ -129,6 +129,7 @@ NOT_COMPARED: dict[str, str] = {
     "FromCurrentEntity": "esmini 3.6: not implemented (test_player)",
     "FromRoadCoordinates": "esmini 3.6: not implemented (test_player)",
     "OpenScenario": "the 1.3 schema's second name of the root; files write OpenSCENARIO",
+    "RandomRouteAction": "random: esmini draws from its own generator (test_routes)",
 }
 """By element: why no corpus file compares it with esmini."""
 

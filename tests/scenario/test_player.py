@@ -399,17 +399,15 @@ def _line_of(path: Path, needle: str) -> int:
     return next(i for i, line in enumerate(path.read_text().splitlines(), 1) if needle in line)
 
 
-def test_unsupported_action_names_file_line_and_element(tmp_path: Path) -> None:
+def test_unsupported_element_names_file_line_and_element(tmp_path: Path) -> None:
     path = _patched(
         tmp_path,
         "<TeleportAction>",
-        "<RoutingAction><RandomRouteAction/></RoutingAction></PrivateAction><PrivateAction>"
-        "<TeleportAction>",
+        '<TeleportAction><Position><GeoPosition latitude="0.1" longitude="0.2"/></Position>'
+        "</TeleportAction></PrivateAction><PrivateAction><TeleportAction>",
     )
-    line = _line_of(path, "RoutingAction")
-    with pytest.raises(
-        ScenarioError, match=rf"scenario\.xosc:{line} <RandomRouteAction>.*not supported"
-    ):
+    line = _line_of(path, "GeoPosition")
+    with pytest.raises(ScenarioError, match=rf"scenario\.xosc:{line} <GeoPosition>.*not supported"):
         read_scenario(path)
 
 
