@@ -16,7 +16,11 @@ passing and being passed.
 Each frame is scored as :func:`~aldm_gym.sensor.ground_truth.score_detection` scores
 the env's detections (every point within 0.3 m of the true marking, starting within
 25 m, a preview of 60 m). Frames whose ground-truth detection is not itself correct
-(a line that ends within the preview, the map's end) are not scored. Per detector:
+(a line that ends within the preview, the map's end) are not scored, nor frames where
+the ego's lane is narrower at the sensor than the ALDM's smallest plausible lane
+(:attr:`~aldm_gym.sensor.aldm.ALDMParams.min_lane_width`, 2.5 m): a drive along a
+lane that opens from nothing (a 2+1 road's passing lane) starts at the tip of its
+taper, where no driver is in a lane yet and no detector is asked for one. Per detector:
 the share of frames with both ego lines correct, the longest run of consecutive
 scored frames with either wrong [s], and the share of ego lines missing.
 
@@ -34,7 +38,7 @@ import numpy as np
 
 from aldm_gym.errors import InputError
 from aldm_gym.roads.map_road import OpenDriveRoad
-from aldm_gym.sensor.aldm import detect_lanes
+from aldm_gym.sensor.aldm import ALDMParams, detect_lanes
 from aldm_gym.sensor.ground_truth import ground_truth_detect, score_detection
 from aldm_gym.sensor.lane_filter import LaneModelFilter
 from aldm_gym.sensor.line_sensor import LineSensor
@@ -284,13 +288,15 @@ def drive(
     filt = LaneModelFilter(**params.get("filter", {}))
     tracker = LaneTracker(**params.get("tracker", {}))
     scores = {d: DriveScore() for d in detectors}
+    min_width = ALDMParams().min_lane_width
     last: tuple[float, float, float] | None = None
     for k in range(frames):
         pose = tuple(float(v) for v in poses[k])
         motion = odometry(last, pose, DT)  # type: ignore[arg-type]
         last = pose  # type: ignore[assignment]
         frame = sensor.measure(road, pose, occluders=boxes[k] if condition.vehicles else None)
-        lane = road.lane_position(poses[k, :2]).lane
+        here = road.lane_position(poses[k, :2])
+        lane = here.lane
         out = {}
         if "single_frame" in detectors:
             out["single_frame"] = detect_lanes(frame, **params.get("single_frame", {}))
@@ -298,6 +304,8 @@ def drive(
             out["filter"] = filt.update(frame, motion)
         if "tracker" in detectors:
             out["tracker"] = tracker.update(frame, motion)
+        if here.width < min_width:
+            continue  # the tip of a lane that opens, or the end of one that closes
         ego = ("ego_left", "ego_right")
         truth = score_detection(ground_truth_detect(road, frame, lane), road, frame, lane, ego)
         if not (truth["ego_left"].correct and truth["ego_right"].correct):

@@ -156,3 +156,17 @@ def test_bad_settings_are_refused_by_name() -> None:
         Condition(vehicles=5)
     with pytest.raises(InputError, match="truck_share"):
         Condition(truck_share=1.5)
+
+
+def test_frames_on_a_lane_narrower_than_a_lane_are_not_scored() -> None:
+    """The 2+1 road's passing lane opens from nothing: a drive along it starts at the
+    tip of its taper, where no detector is asked for a lane until it is 2.5 m wide."""
+    road = OpenDriveRoad.from_file(shipped_map("two_plus_one"), marking_model="per_dash")
+    start = ("1", 3, 1)
+    frames = 60
+    poses = path_poses(lane_path(road, start), np.arange(frames) * 2.5)
+    widths = np.array([road.lane_position(p[:2]).width for p in poses])
+    narrow = int(np.sum(widths < 2.5))
+    assert 10 < narrow < frames  # the taper, then the lane
+    scored = drive(road, start, CONDITIONS["ideal"], max_frames=frames, detectors=("filter",))
+    assert 0 < scored["filter"].frames <= frames - narrow
