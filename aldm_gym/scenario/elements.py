@@ -186,8 +186,8 @@ ELEMENTS: dict[str, tuple[str, str]] = {
         "FromLaneCoordinates RouteRef TrajectoryPosition",
     ),
     **_each(
-        "refused",
-        "geographic positions are not played (the env's world has no geodetic reference)",
+        "played",
+        "geographic positions, through the map's <geoReference> (pyproj); the altitude is not used",
         "GeoPosition",
     ),
     # ---------------------------------------------------------------- private actions

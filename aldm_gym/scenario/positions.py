@@ -3,7 +3,7 @@
 Supported: ``LanePosition``, ``RelativeLanePosition`` (``ds`` along the reference line,
 or ``dsLane`` along the referenced entity's lane in the direction it faces),
 ``RoadPosition``, ``WorldPosition`` (OpenDRIVE's inertial frame, mirrored into
-highway-env's as the map is) and
+highway-env's as the map is), ``GeoPosition`` (through the map's ``<geoReference>``) and
 ``RelativeObjectPosition`` (``dx``/``dy`` in the referenced entity's frame). An
 ``Orientation`` is relative to the lane's driving direction for lane and road
 positions and to the referenced entity for relative ones unless its ``type`` says
@@ -28,6 +28,7 @@ from aldm_gym.scenario.routes import RoutePlan, next_lane
 from aldm_gym.scenario.world import Entity, World, wrap_angle
 
 __all__ = [
+    "GeoPos",
     "LanePos",
     "NotPlacedYet",
     "Orientation",
@@ -231,6 +232,83 @@ class WorldPos(Position):
         return Where(
             point=np.array([self.x, -self.y]), heading=-h, heading_given=self.h is not None
         )
+
+
+@dataclass(frozen=True)
+class GeoPos(Position):
+    """``GeoPosition``: ``latitude`` and ``longitude`` [deg] on WGS 84, put into the
+    map's inertial frame through its ``<geoReference>`` (a PROJ string, by pyproj) and
+    its header's ``<offset>``; the altitude is not used (the world is planar). An
+    ``Orientation`` is absolute (OpenDRIVE's heading) or relative to the lane's
+    driving direction there; without one the heading is 0, as a ``WorldPosition``'s."""
+
+    latitude: float
+    longitude: float
+    orientation: Orientation | None = None
+    where: str = ""
+
+    def inertial(self, world: World) -> tuple[float, float]:
+        """``(x, y)`` [m] in OpenDRIVE's inertial frame of the map."""
+        header = world.road.map.header
+        if not header.geo_reference:
+            raise ScenarioError(
+                f"{self.where}: a GeoPosition needs the map's <geoReference> (a PROJ "
+                f"string), and {world.road.map.path} has none"
+            )
+        east, north = _projection(header.geo_reference, self.where)(self.longitude, self.latitude)
+        if not (math.isfinite(east) and math.isfinite(north)):
+            raise ScenarioError(
+                f"{self.where}: latitude {self.latitude:g}, longitude {self.longitude:g} "
+                f"[deg] lie outside the map's projection ({header.geo_reference})"
+            )
+        ox, oy, _oz, hdg = header.offset
+        dx, dy = east - ox, north - oy  # the projection's frame: R(hdg) p + offset
+        c, s = math.cos(hdg), math.sin(hdg)
+        return c * dx + s * dy, -s * dx + c * dy
+
+    def resolve(self, world: World) -> Where:
+        """See :class:`Position`."""
+        x, y = self.inertial(world)
+        o = self.orientation
+        if o is None or not o.relative:
+            return WorldPos(x, y, None if o is None else o.h, self.where).resolve(world)
+        point = np.array([x, -y])
+        try:
+            pos = world.road.lane_position(point)
+        except OffRoadError as exc:
+            raise self._error(exc) from None
+        return Where(point=point, heading=float(pos.heading) - o.h, heading_given=True)
+
+
+def _projection(proj: str, where: str) -> Any:
+    """The transform from WGS 84 (longitude, latitude [deg]) to the projection ``proj``
+    (easting, northing [m]), cached per string."""
+    transform = _PROJECTIONS.get(proj)
+    if transform is None:
+        try:
+            import pyproj
+        except ImportError:  # a dependency of the package; a broken install
+            raise ScenarioError(
+                f"{where}: a GeoPosition needs pyproj (pip install pyproj)"
+            ) from None
+        try:
+            crs = pyproj.CRS.from_user_input(proj)
+        except pyproj.exceptions.CRSError as exc:
+            raise ScenarioError(
+                f"{where}: the map's <geoReference> {proj!r} is not a projection pyproj "
+                f"knows: {exc}"
+            ) from None
+        if not crs.is_projected:
+            raise ScenarioError(
+                f"{where}: the map's <geoReference> {proj!r} is not a projected (metric) "
+                "coordinate system, which an OpenDRIVE inertial frame must be"
+            )
+        transform = pyproj.Transformer.from_crs("EPSG:4326", crs, always_xy=True)
+        _PROJECTIONS[proj] = transform
+    return transform.transform
+
+
+_PROJECTIONS: dict[str, Any] = {}
 
 
 @dataclass(frozen=True)

@@ -39,6 +39,7 @@ from aldm_gym.scenario.expressions import (
     resolve_number,
 )
 from aldm_gym.scenario.positions import (
+    GeoPos,
     LanePos,
     Orientation,
     Position,
@@ -690,6 +691,7 @@ class _Reader(ElementReader):
                 "RelativeWorldPosition",
                 "TrajectoryPosition",
                 "RoutePosition",
+                "GeoPosition",
             ),
         )
         where = self.where(p)
@@ -749,10 +751,27 @@ class _Reader(ElementReader):
             )
         if p.tag == "WorldPosition":
             return WorldPos(self.num(p, "x"), self.num(p, "y"), self.num(p, "h", None), where)
+        if p.tag == "GeoPosition":
+            return self._geo_position(p, orient, where)
         self._entity_ref(p, "entityRef")
         return RelativeObjectPos(
             self.attr(p, "entityRef"), self.num(p, "dx", 0.0), self.num(p, "dy", 0.0), orient, where
         )
+
+    def _geo_position(self, p: Any, orient: Orientation | None, where: str) -> GeoPos:
+        """A ``GeoPosition``: ``latitudeDeg``/``longitudeDeg`` [deg], or 1.0's
+        deprecated ``latitude``/``longitude`` [rad]; the altitude and
+        ``verticalRoadSelection`` are not used (the world is planar)."""
+        if p.get("latitudeDeg") is not None or p.get("longitudeDeg") is not None:
+            lat, lon = self.num(p, "latitudeDeg"), self.num(p, "longitudeDeg")
+        else:
+            lat = math.degrees(self.num(p, "latitude"))
+            lon = math.degrees(self.num(p, "longitude"))
+        if not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0):
+            raise self.error(
+                p, f"latitude {lat:g} and longitude {lon:g} [deg] must lie within +-90 and +-180"
+            )
+        return GeoPos(lat, lon, orient, where)
 
     def selections(self) -> dict[str, list[str]]:
         """The ``EntitySelection``s: name -> the scenario objects they select (a member

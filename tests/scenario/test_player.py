@@ -400,14 +400,15 @@ def _line_of(path: Path, needle: str) -> int:
 
 
 def test_unsupported_element_names_file_line_and_element(tmp_path: Path) -> None:
-    path = _patched(
-        tmp_path,
-        "<TeleportAction>",
-        '<TeleportAction><Position><GeoPosition latitude="0.1" longitude="0.2"/></Position>'
-        "</TeleportAction></PrivateAction><PrivateAction><TeleportAction>",
-    )
-    line = _line_of(path, "GeoPosition")
-    with pytest.raises(ScenarioError, match=rf"scenario\.xosc:{line} <GeoPosition>.*not supported"):
+    path = write(tmp_path)
+    text = path.read_text()
+    start = text.index("<Vehicle", text.index('<ScenarioObject name="Target"'))
+    end = text.index("</Vehicle>", start) + len("</Vehicle>")
+    path.write_text(text[:start] + '<ExternalObjectReference name="elsewhere"/>' + text[end:])
+    line = _line_of(path, "ExternalObjectReference")
+    with pytest.raises(
+        ScenarioError, match=rf"scenario\.xosc:{line} <ExternalObjectReference>.*not supported"
+    ):
         read_scenario(path)
 
 

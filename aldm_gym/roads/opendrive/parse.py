@@ -106,11 +106,18 @@ class Header:
     :ivar rev_major: OpenDRIVE major revision.
     :ivar rev_minor: OpenDRIVE minor revision.
     :ivar name: database name ("" if absent).
+    :ivar geo_reference: the ``<geoReference>`` PROJ string of the projection whose
+        coordinates the inertial frame is ("" if absent).
+    :ivar offset: the ``<offset>`` ``(x [m], y [m], z [m], hdg [rad])``: a point of the
+        inertial frame is at ``R(hdg) p + (x, y, z)`` in the projection's frame
+        (OpenDRIVE 1.6 §2.4, as OSI's ``proj_frame_offset``); zeros if absent.
     """
 
     rev_major: int
     rev_minor: int
     name: str
+    geo_reference: str = ""
+    offset: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
 
 
 @dataclass(frozen=True)
@@ -794,14 +801,21 @@ def parse_file(path: str | os.PathLike[str], *, warn: bool = True) -> OpenDriveF
     junctions: list[Junction] = []
     for child in r.children(root, "OpenDRIVE"):
         if child.tag == "header":
+            geo, offset = "", (0.0, 0.0, 0.0, 0.0)
+            for item in child:
+                if item.tag == "geoReference":
+                    geo = " ".join((item.text or "").split())
+                elif item.tag == "offset":
+                    offset = tuple(r.num(item, k, 0.0) for k in ("x", "y", "z", "hdg"))  # type: ignore[assignment]
+                elif isinstance(item.tag, str):
+                    r.skipped[f"header/{item.tag}"] += 1
             header = Header(
                 rev_major=int(r.num(child, "revMajor", 1.0)),
                 rev_minor=int(r.num(child, "revMinor", 0.0)),
                 name=r.text(child, "name", ""),
+                geo_reference=geo,
+                offset=offset,
             )
-            for item in child:
-                if isinstance(item.tag, str):
-                    r.skipped[f"header/{item.tag}"] += 1
         elif child.tag == "road":
             roads.append(_road(r, child))
         else:
