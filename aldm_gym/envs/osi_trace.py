@@ -76,6 +76,7 @@ class OsiRecorder:
             lines=lines,
             lane_ids={name: self._lane_id(key) for name, key in _lane_keys(lane).items()},
             ids=[self._vehicle_number(v) for v in env.road.vehicles],
+            map_header=getattr(getattr(road, "map", None), "header", None),
         )
         ids = range(BOUNDARY_ID, BOUNDARY_ID + len(road.marking_table["type"]))
         data = sensor_data(

@@ -212,6 +212,7 @@ def sensor_view(
     lane_ids: Mapping[str, int] | None = None,
     reach: float = 300.0,
     ids: Sequence[int] | None = None,
+    map_header: Any = None,
 ) -> Any:
     """One ``osi3.SensorView``: the host and the vehicles within ``reach`` [m], the lane
     boundaries in view (:func:`~aldm_gym.osi.boundaries.sample_boundaries`) and, when
@@ -226,6 +227,11 @@ def sensor_view(
     :param table: the road's ``marking_table`` (type, colour, width, height).
     :param ids: each vehicle's number (its OSI id is ``VEHICLE_ID`` + it; default its
         index), so that a vehicle keeps its id when others leave the traffic.
+    :param map_header: an OpenDRIVE map's header
+        (:class:`~aldm_gym.roads.opendrive.parse.Header`): its ``<geoReference>`` is
+        the ground truth's ``proj_string`` and its ``<offset>`` the
+        ``proj_frame_offset`` (OSI's world frame is the map's inertial one), so that
+        a consumer can put the world on the earth.
     """
     numbers = list(range(len(vehicles))) if ids is None else list(ids)
     if len(numbers) != len(vehicles):
@@ -238,6 +244,13 @@ def sensor_view(
     gt = sv.global_ground_truth
     _version(gt.version)
     _timestamp(gt.timestamp, t)
+    if map_header is not None and map_header.geo_reference:
+        gt.proj_string = map_header.geo_reference
+        ox, oy, oz, hdg = map_header.offset
+        if any(map_header.offset):
+            off = gt.proj_frame_offset
+            off.position.x, off.position.y, off.position.z = ox, oy, oz
+            off.yaw = hdg
     hx, hy = float(host.position[0]), float(host.position[1])
     host_id = None
     for i, v in zip(numbers, vehicles, strict=True):

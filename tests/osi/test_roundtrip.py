@@ -19,8 +19,10 @@ from aldm_gym.osi.messages import (
     sensor_data,
 )
 from aldm_gym.osi.trace import binary_path
+from aldm_gym.roads import shipped_map
 from aldm_gym.sensor.lane_detection import LINE_NAMES
 from tests.osi.conftest import ROADS, record
+from tests.scenario._build import with_geo_reference
 
 
 def _objects(frame, dotted: bool) -> tuple[np.ndarray, list]:
@@ -231,3 +233,31 @@ def test_two_jobs_write_what_one_writes(env_trace, tmp_path: Path) -> None:
     a = [m.SerializeToString() for _, m in _all(one, "SensorData")]
     b = [m.SerializeToString() for _, m in _all(two, "SensorData")]
     assert len(a) == 31 and a == b
+
+
+@pytest.mark.parametrize("offset", [None, (120.0, -30.0, 0.25)])
+def test_a_georeferenced_map_gives_the_ground_truth_its_projection(
+    tmp_path: Path, offset: tuple[float, float, float] | None
+) -> None:
+    """The map's ``<geoReference>`` and ``<offset>`` are the ground truth's
+    ``proj_string`` and ``proj_frame_offset``; a map without them sets neither."""
+    proj = "+proj=utm +zone=32 +ellps=GRS80 +units=m +no_defs"
+    xodr = with_geo_reference(shipped_map("motorway"), tmp_path / "geo.xodr", proj, offset)
+    path = tmp_path / "geo.mcap"
+    record(path, {"road": {"xodr": str(xodr)}}, steps=1)
+    views = [m for _, m in read_messages(path, "SensorView")]
+    assert views
+    for view in views:
+        gt = view.global_ground_truth
+        assert gt.proj_string == proj
+        assert gt.HasField("proj_frame_offset") == (offset is not None)
+        if offset is not None:
+            off = gt.proj_frame_offset
+            assert (off.position.x, off.position.y, off.yaw) == offset
+
+
+def test_a_map_without_a_geo_reference_sets_no_projection(env_trace) -> None:
+    path, _, _ = env_trace
+    for _, view in read_messages(path, "SensorView"):
+        assert view.global_ground_truth.proj_string == ""
+        assert not view.global_ground_truth.HasField("proj_frame_offset")

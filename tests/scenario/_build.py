@@ -36,6 +36,22 @@ def straight_road(folder: Path, length: float = 2000.0, left_lanes: int = 0) -> 
     return path
 
 
+def with_geo_reference(
+    source: Path, target: Path, proj: str, offset: tuple[float, float, float] | None = None
+) -> Path:
+    """``source``'s map written to ``target`` with a header ``<geoReference>`` of
+    ``proj`` and, if given, an ``<offset>`` ``(x [m], y [m], hdg [rad])``."""
+    text = source.read_text()
+    start = text.index("<header")
+    head = text[start : text.index(">", start) + 1]
+    extra = f"<geoReference><![CDATA[{proj}]]></geoReference>"
+    if offset is not None:
+        extra += f'<offset x="{offset[0]}" y="{offset[1]}" z="0" hdg="{offset[2]}"/>'
+    new = head[:-2] + ">" + extra + "</header>" if head.endswith("/>") else head + extra
+    target.write_text(text.replace(head, new, 1))
+    return target
+
+
 car = lane_drop.car
 """A 5 m x 2 m car, reference point at the rear axle (box centre 1.4 m ahead)."""
 

@@ -13,25 +13,14 @@ from scenariogeneration import xosc
 from aldm_gym.errors import ScenarioError
 from aldm_gym.roads.map_road import load_map
 from aldm_gym.scenario import read_scenario
-from tests.scenario._build import at_time, play, straight_road, write
+from tests.scenario._build import at_time, play, straight_road, with_geo_reference, write
 
 PROJ = "+proj=tmerc +lat_0=57.7 +lon_0=11.9 +k=1 +x_0=0 +y_0=0 +datum=WGS84 +units=m +no_defs"
 
 
 def _georeferenced(folder: Path, offset: tuple[float, float, float] | None) -> Path:
-    """The tests' straight road, with a ``<geoReference>`` and an ``<offset>``
-    ``(x, y, hdg)``, written beside the original."""
-    text = straight_road(folder).read_text()
-    start = text.index("<header")
-    end = text.index(">", start)
-    head = text[start : end + 1]
-    extra = f"<geoReference><![CDATA[{PROJ}]]></geoReference>"
-    if offset is not None:
-        extra += f'<offset x="{offset[0]}" y="{offset[1]}" z="0" hdg="{offset[2]}"/>'
-    new = head[:-2] + ">" + extra + "</header>" if head.endswith("/>") else head + extra
-    path = folder / "geo.xodr"
-    path.write_text(text.replace(head, new, 1))
-    return path
+    """The tests' straight road with a ``<geoReference>`` and an ``<offset>``."""
+    return with_geo_reference(straight_road(folder), folder / "geo.xodr", PROJ, offset)
 
 
 def _lat_lon(x: float, y: float, offset: tuple[float, float, float]) -> tuple[float, float]:
