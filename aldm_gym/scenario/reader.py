@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import copy
 import dataclasses
-import itertools
 import math
 import warnings
 from collections.abc import Callable, Mapping
@@ -1287,7 +1286,7 @@ class _Reader(ElementReader):
                 )  # fmt: skip
 
             return lambda actor: A.GenerateTraffic(actor, where, make)
-        ranges: list[tuple[str, float, float, tuple[int, ...]]] = []
+        road_ranges: list[tuple[float, list[tuple[str, float | None, tuple[int, ...]]]]] = []
         for rr in shapes:
             if rr.tag != "RoadRange":
                 raise self.error(rr, "expects one <Polygon>, or <RoadRange>s")
@@ -1300,26 +1299,15 @@ class _Reader(ElementReader):
             points = []
             for c in cursors:
                 lanes = tuple(self.integer(lane, "id") for lane in self.kids(c, ("Lane",)))
-                points.append((self.attr(c, "roadId"), self.num(c, "s", 0.0), lanes))
-            covered = 0.0
-            for (r0, s0, ids), (r1, s1, _) in itertools.pairwise(points):
-                if r0 != r1:
-                    raise self.error(
-                        rr, "road cursors on different roads are not supported (one road per "
-                        "pair of cursors)",
-                    )  # fmt: skip
-                lo, hi = min(s0, s1), max(s0, s1)
-                hi = min(hi, lo + max(limit - covered, 0.0))
-                covered += hi - lo
-                if hi > lo:
-                    ranges.append((r0, lo, hi, ids))
-        if not ranges:
-            raise self.error(area, "the road ranges cover no road")
+                points.append((self.attr(c, "roadId"), self.num(c, "s", None), lanes))
+            road_ranges.append((limit, points))
+        area_where = self.where(area)
 
         def make_ranges(runner: Any) -> Any:
+            ranges = T.road_ranges(runner.world.road, road_ranges, area_where)
             return T.Area(
                 name=name, definition=definition, count=count, continuous=continuous,
-                ranges=tuple(ranges),
+                ranges=ranges,
             )  # fmt: skip
 
         return lambda actor: A.GenerateTraffic(actor, where, make_ranges)

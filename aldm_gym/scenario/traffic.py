@@ -39,13 +39,14 @@ by the entry's weight times the template's share of its ``EntityDistribution``).
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from aldm_gym.errors import InputError
+from aldm_gym.errors import InputError, ScenarioError
 
 __all__ = [
     "CATEGORY_SIZES",
@@ -401,6 +402,114 @@ class Area(_Generator):
             point = self._sample(runner, rng)
             if point is not None and self._place(runner, rng, point):
                 self.placed += 1
+
+
+Cursor = tuple[str, "float | None", tuple[int, ...]]
+"""A ``RoadCursor``: road id, ``s`` [m] (None: not given), lane ids (() for all)."""
+
+
+def road_ranges(
+    road: Any, specs: list[tuple[float, list[Cursor]]], where: str
+) -> tuple[tuple[str, float, float, tuple[int, ...]], ...]:
+    """The ``RoadRange``s of a traffic area as ``(road id, s from, s to [m], lane ids)``
+    pieces on ``road``'s map, each range ``(length [m], cursors)`` cut after ``length``
+    of road.
+
+    Between two cursors on one road the range is the road between their ``s``; between
+    cursors on two roads, it runs from the first along the roads that link them
+    (through lane links, with the traffic or against it) to the second, covering
+    every road in between whole. A cursor without ``s`` is its road's start as a range's first
+    cursor and its road's end as its last (where the range meets it: the end it is
+    entered by, for the last); one in between is where the range enters its road.
+
+    :raises ScenarioError: an unknown road, an ``s`` off its road, two roads no lanes
+        link, or ranges that cover no road.
+    """
+    odr = road.map
+    out: list[tuple[str, float, float, tuple[int, ...]]] = []
+    for limit, cursors in specs:
+        pieces: list[tuple[str, float, float, tuple[int, ...]]] = []
+        for k, ((r0, s0, ids), (r1, s1, _)) in enumerate(itertools.pairwise(cursors)):
+            for rid, s in ((r0, s0), (r1, s1)):
+                length = odr.lengths.get(str(rid))
+                if length is None:
+                    raise ScenarioError(f"{where}: a road cursor names no road {rid!r} of the map")
+                if s is not None and not -1e-9 <= s <= length + 1e-9:
+                    raise ScenarioError(
+                        f"{where}: a road cursor's s = {s:g} m is off road {rid!r} "
+                        f"(0 to {length:g} m)"
+                    )
+            last = k == len(cursors) - 2
+            if r0 == r1:
+                lo = 0.0 if s0 is None else s0
+                hi = odr.lengths[str(r1)] if s1 is None and last else (s1 or 0.0)
+                pieces.append((str(r0), min(lo, hi), max(lo, hi), ids))
+                continue
+            path = _road_path(road, str(r0), str(r1))
+            if path is None:
+                raise ScenarioError(
+                    f"{where}: no lanes link road {r0!r} to road {r1!r}: a road range "
+                    "between them covers nothing"
+                )
+            for j, (rid, forward) in enumerate(path):
+                length = odr.lengths[rid]
+                if j == 0:  # leaving the first cursor's road at its end (or start)
+                    s = (0.0 if forward else length) if s0 is None else s0
+                    lo, hi = (s, length) if forward else (0.0, s)
+                elif j == len(path) - 1:  # entering the second's at its start (or end)
+                    s = (length if forward else 0.0) if s1 is None else s1
+                    if s1 is None and not last:
+                        s = 0.0 if forward else length
+                    lo, hi = (0.0, s) if forward else (s, length)
+                else:
+                    lo, hi = 0.0, length
+                pieces.append((rid, lo, hi, ids))
+        covered = 0.0
+        for rid, lo, hi, ids in pieces:
+            hi = min(hi, lo + max(limit - covered, 0.0))
+            covered += hi - lo
+            if hi > lo:
+                out.append((rid, lo, hi, ids))
+    if not out:
+        raise ScenarioError(f"{where}: the road ranges cover no road")
+    return tuple(out)
+
+
+def _road_path(road: Any, start: str, goal: str) -> list[tuple[str, bool]] | None:
+    """The roads from ``start`` to ``goal`` along lane links, each with whether the
+    path runs along its ``s``: breadth first over the driving lanes, from lane to
+    successor (with the traffic) or else from lane to predecessor (against it), never
+    both (a range does not turn back at a fork); None when no lanes link them."""
+    for ahead in (True, False):
+        lanes = [k for k in road.lanes if k[0] == start]
+        parent: dict[Any, Any] = {k: None for k in lanes}
+        todo = list(lanes)
+        found = None
+        while todo and found is None:
+            key = todo.pop(0)
+            if ahead:
+                steps = road.successors(key)
+            else:
+                prev = road.predecessor(key)
+                steps = [] if prev is None else [prev]
+            for nxt in steps:
+                if nxt not in parent:
+                    parent[nxt] = key
+                    todo.append(nxt)
+                    if nxt[0] == goal:
+                        found = nxt
+                        break
+        if found is None:
+            continue
+        chain = [found]
+        while parent[chain[-1]] is not None:
+            chain.append(parent[chain[-1]])
+        roads: list[tuple[str, bool]] = []
+        for key in reversed(chain):  # with (against) a lane's traffic: along s?
+            if not roads or roads[-1][0] != key[0]:
+                roads.append((key[0], (road.lane_record(key).direction > 0) == ahead))
+        return roads
+    return None
 
 
 def _in_polygon(corners: np.ndarray, point: np.ndarray) -> bool:

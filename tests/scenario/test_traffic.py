@@ -276,8 +276,6 @@ def test_a_traffic_area_in_a_polygon_placed_once(tmp_path: Path) -> None:
         (_area(ROAD_RANGE).replace("<Vehicle", "<Pedestrian").replace("</Vehicle>",
          "</Pedestrian>"), None),
         (_area('<RoadRange><RoadCursor roadId="0" s="10"/></RoadRange>'), "needs >= 2 road"),
-        (_area('<RoadRange><RoadCursor roadId="0" s="10"/><RoadCursor roadId="1" s="5"/>'
-               "</RoadRange>"), "different roads"),
         (_area(ROAD_RANGE, count=500), "numberOfEntities must be in"),
     ],
 )  # fmt: skip
