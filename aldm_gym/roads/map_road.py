@@ -418,15 +418,33 @@ class OpenDriveRoad(PolylineRoad):
         return list(self._every_succ[lane])
 
     def predecessor(self, lane: LaneKey) -> LaneKey | None:
-        """A driving lane that ``lane`` continues (whose :meth:`successor` it is), or
-        ``None``: the way back for an entity driving against its lane."""
+        """A driving lane that ``lane`` continues, or ``None``: the way back for an
+        entity driving against its lane (one whose :meth:`successor` ``lane`` is where
+        there is one; else, on a branch that splits off, the lane it splits from)."""
         pred = getattr(self, "_pred", None)
         if pred is None:
             pred = {}
             for before, after in self._succ.items():
                 pred.setdefault(after, before)
+            for before, afters in self._every_succ.items():
+                for after in afters:
+                    pred.setdefault(after, before)
             self._pred = pred
         return pred.get(lane)
+
+    def predecessors(self, lane: LaneKey) -> list[LaneKey]:
+        """Every driving lane that ``lane`` continues (more than one where lanes merge in
+        a junction), in the map's order."""
+        if lane not in self._key_index:
+            raise InputError(f"unknown driving lane {lane!r}")
+        every = getattr(self, "_every_pred", None)
+        if every is None:
+            every = {}
+            for before, afters in self._every_succ.items():
+                for after in afters:
+                    every.setdefault(after, []).append(before)
+            self._every_pred = every
+        return list(every.get(lane, ()))
 
     def _nearest_lane(self, position: FloatArray, only: int = -1) -> tuple[int, int, float, float]:
         """Nearest driving-lane centre: ``(lane row, segment, offset [m] > 0 left, u [m])``.

@@ -1714,12 +1714,14 @@ class AssignRoute(Instance):
             w = pos.resolve(runner.world)
             lane = w.lane if w.lane is not None else road.lane_position(w.point).lane
             road_id = road.lane_record(lane).road_id
-            roads.append(road_id)
-            if road_id in reachable_roads(road, here):
-                here = [lane]
+            ahead = reachable_lanes(road, here)
+            on_road = [k for k in ahead if road.lane_record(k).road_id == road_id]
+            if on_road:
+                roads.append(road_id)
+                here = on_road  # the lanes of the waypoint's road it can be on
                 continue
             # the lanes beside those it can reach, driven the same way
-            beside = [m for k in reachable_lanes(road, here) for m in road.siblings(k)]
+            beside = [m for k in ahead for m in road.siblings(k)]
             if road_id not in reachable_roads(road, beside):
                 raise ScenarioError(
                     f"{pos.where}: the route leaves the roads {entity.name!r} can reach "

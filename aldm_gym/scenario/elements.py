@@ -187,7 +187,8 @@ ELEMENTS: dict[str, tuple[str, str]] = {
     ),
     **_each(
         "played",
-        "geographic positions, through the map's <geoReference> (pyproj); the altitude is not used",
+        "geographic positions, through the map's `<geoReference>` (pyproj); the altitude "
+        "is not used",
         "GeoPosition",
     ),
     # ---------------------------------------------------------------- private actions

@@ -298,10 +298,11 @@ def _projection(proj: str, where: str) -> Any:
                 f"{where}: the map's <geoReference> {proj!r} is not a projection pyproj "
                 f"knows: {exc}"
             ) from None
-        if not crs.is_projected:
+        units = [a.unit_conversion_factor for a in crs.axis_info[:2]]
+        if not crs.is_projected or any(abs(u - 1.0) > 1e-12 for u in units):
             raise ScenarioError(
-                f"{where}: the map's <geoReference> {proj!r} is not a projected (metric) "
-                "coordinate system, which an OpenDRIVE inertial frame must be"
+                f"{where}: the map's <geoReference> {proj!r} is not a projected coordinate "
+                "system in metres, which an OpenDRIVE inertial frame must be"
             )
         transform = pyproj.Transformer.from_crs("EPSG:4326", crs, always_xy=True)
         _PROJECTIONS[proj] = transform
@@ -452,8 +453,9 @@ class RoutePos(Position):
     """``RoutePosition``: on a route (the lanes from its first waypoint on, taking
     the branch towards its next waypoint where a lane splits), from an entity's
     current position (``FromCurrentEntity``), or ``path_s`` [m] along the route from its
-    first waypoint, then ``t`` [m] from the reference line (``FromRoadCoordinates``) or
-    ``lane_offset`` [m] from the centre of lane ``lane_id`` (``FromLaneCoordinates``)."""
+    first waypoint (in the roads' ``s``, their reference lines' length), then ``t`` [m]
+    from the reference line (``FromRoadCoordinates``) or ``lane_offset`` [m] from the
+    centre of lane ``lane_id`` (``FromLaneCoordinates``)."""
 
     waypoints: tuple[Position, ...]
     mode: str
@@ -479,16 +481,23 @@ class RoutePos(Position):
                 assert start.point is not None
                 pos = road.lane_position(start.point)
                 key, u = pos.lane, pos.s - road.chain_start(pos.lane)
-            u += self.path_s
+            # pathS counts the roads' s (their reference lines, as esmini does), lane
+            # after lane along the route
             plan = RoutePlan([_road_of(world, w.resolve(world)) for w in self.waypoints[1:]])
-            while u > road.lane_length(key):
+            left = self.path_s
+            s = road.reference_s(key, u)
+            while True:
+                end = road.reference_s(key, road.lane_length(key))
+                if left <= abs(end - s):
+                    s += math.copysign(left, end - s)
+                    break
+                left -= abs(end - s)
                 nxt = next_lane(road, plan, key)
                 if nxt is None:
                     raise MapError(f"pathS = {self.path_s:g} m runs past the route's end")
-                u -= road.lane_length(key)
                 key = nxt
+                s = road.reference_s(key, 0.0)
             rec = road.lane_record(key)
-            s = road.reference_s(key, u)
             if self.mode == "road":
                 return RoadPos(rec.road_id, s, self.t, self.orientation, self.where).resolve(world)
             return _lane_where(

@@ -9,9 +9,10 @@ branch (esmini's first choice too). A route decides otherwise:
 - :class:`RoutePlan` (``AssignRouteAction``, ``AcquirePositionAction`` and
   ``RoutePosition``) takes, at each split, the branch with the shortest drive along
   lane successors to the road of its next waypoint not reached yet (a waypoint is
-  reached once the entity is on its road). A waypoint no branch leads to (it needs a
-  lane change, which a route does not make) is passed over for the next one; with
-  none left, it takes the straightest branch.
+  reached once the entity is on its road, and so is every waypoint before it; of two
+  branches as near, the straightest). A waypoint no branch leads to (it needs a lane
+  change, which a route does not make) is passed over for the next one; with none
+  left, it takes the straightest branch.
 - :class:`RandomRoute` (``RandomRouteAction``) takes a branch drawn with equal
   chances at each split, from its own generator (seeded from the episode's, so the
   same seed takes the same branches).
@@ -24,6 +25,17 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
+
+__all__ = [
+    "SEARCH_LIMIT",
+    "Chooser",
+    "RandomRoute",
+    "RoutePlan",
+    "drive_to",
+    "next_lane",
+    "reachable_lanes",
+    "reachable_roads",
+]
 
 LaneKey = Any
 """A driving lane of the map: ``(road id, section index, lane id)``."""
@@ -56,22 +68,25 @@ class RoutePlan(Chooser):
         self._distances: dict[tuple[LaneKey, str], float] = {}
 
     def reached(self, road_id: str) -> None:
-        """Drop the leading waypoints on road ``road_id``."""
-        while self.pending and self.pending[0] == road_id:
-            self.pending.pop(0)
+        """The entity is on road ``road_id``: the waypoints up to the first on it are
+        behind it."""
+        if road_id in self.pending:
+            del self.pending[: self.pending.index(road_id) + 1]
 
     def choose(self, road: Any, lane: LaneKey, options: Sequence[LaneKey]) -> LaneKey:
         """The branch nearest the next waypoint's road; the straightest if none leads
         there or every waypoint is reached."""
+        straight = road.successor(lane)
         for goal in self.pending:  # the first waypoint a branch leads to
-            best, best_d = road.successor(lane), np.inf
+            # the straightest branch unless another is nearer
+            best, best_d = straight, self.distance(road, straight, goal)
             for option in options:
                 d = self.distance(road, option, goal)
                 if d < best_d:
                     best, best_d = option, d
             if best_d < np.inf:
                 return best
-        return road.successor(lane)
+        return straight
 
     def distance(self, road: Any, lane: LaneKey, goal: str) -> float:
         """The drive [m] from the start of ``lane`` along lane successors to the start

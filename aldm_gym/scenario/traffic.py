@@ -21,10 +21,10 @@ they are vehicles of the road, which the function under test senses and can hit.
   seconds (a blocked place is tried again the next step), :data:`MAX_GENERATED` in all.
 * A **sink** removes the generated vehicles within ``radius`` of its position, at most
   ``rate`` per second (all, without ``rate``). Scenario objects are never removed.
-* An **area** (1.3) keeps ``numberOfEntities`` vehicles on its road ranges (a road's
-  ``s`` span between consecutive road cursors, on the cursor's lanes or all driving
-  lanes) or in its polygon: ``continuous``, those that leave are removed and
-  replaced; else that many are placed once.
+* An **area** (1.3) keeps ``numberOfEntities`` vehicles on its road ranges (the roads
+  between consecutive road cursors, :func:`road_ranges`) or in its polygon:
+  ``continuous``, those that leave are removed and replaced; else that many are
+  placed once.
 * **TrafficStopAction** ends the traffic action of its ``trafficName``; the vehicles it
   generated drive on.
 
@@ -53,10 +53,12 @@ __all__ = [
     "MAX_GENERATED",
     "MAX_SPEED",
     "Area",
+    "Cursor",
     "Sink",
     "Source",
     "Swarm",
     "TrafficDefinition",
+    "road_ranges",
 ]
 
 CATEGORY_SIZES: dict[str, tuple[float, float]] = {
@@ -413,25 +415,29 @@ def road_ranges(
 ) -> tuple[tuple[str, float, float, tuple[int, ...]], ...]:
     """The ``RoadRange``s of a traffic area as ``(road id, s from, s to [m], lane ids)``
     pieces on ``road``'s map, each range ``(length [m], cursors)`` cut after ``length``
-    of road.
+    of road (counted from its first cursor, in its direction of travel).
 
-    Between two cursors on one road the range is the road between their ``s``; between
-    cursors on two roads, it runs from the first along the roads that link them
-    (through lane links, with the traffic or against it) to the second, covering
-    every road in between whole. A cursor without ``s`` is its road's start as a range's first
-    cursor and its road's end as its last (where the range meets it: the end it is
-    entered by, for the last); one in between is where the range enters its road.
+    Between two cursors on one road the range is the road between their ``s``, on the
+    first cursor's lanes. Between cursors on two roads it runs from the first along
+    the roads that join them (through lane links, with the traffic or against it,
+    never turning back at a fork) to the second: the first cursor's road from its
+    ``s`` to where the range leaves it, on that cursor's lanes; every road between,
+    and the second's up to its ``s``, whole across (a lane id of one road names
+    another lane on the next). A cursor without ``s`` takes in its whole road. A piece
+    two pairs share is counted once.
 
     :raises ScenarioError: an unknown road, an ``s`` off its road, two roads no lanes
-        link, or ranges that cover no road.
+        join, or ranges that cover no road.
     """
     odr = road.map
     out: list[tuple[str, float, float, tuple[int, ...]]] = []
     for limit, cursors in specs:
-        pieces: list[tuple[str, float, float, tuple[int, ...]]] = []
-        for k, ((r0, s0, ids), (r1, s1, _)) in enumerate(itertools.pairwise(cursors)):
+        # (road id, s from, s to, lanes, along s): the range's travel on each piece
+        pieces: list[tuple[str, float, float, tuple[int, ...], bool]] = []
+        for (r0, s0, ids), (r1, s1, _) in itertools.pairwise(cursors):
+            r0, r1 = str(r0), str(r1)
             for rid, s in ((r0, s0), (r1, s1)):
-                length = odr.lengths.get(str(rid))
+                length = odr.lengths.get(rid)
                 if length is None:
                     raise ScenarioError(f"{where}: a road cursor names no road {rid!r} of the map")
                 if s is not None and not -1e-9 <= s <= length + 1e-9:
@@ -439,34 +445,38 @@ def road_ranges(
                         f"{where}: a road cursor's s = {s:g} m is off road {rid!r} "
                         f"(0 to {length:g} m)"
                     )
-            last = k == len(cursors) - 2
             if r0 == r1:
                 lo = 0.0 if s0 is None else s0
-                hi = odr.lengths[str(r1)] if s1 is None and last else (s1 or 0.0)
-                pieces.append((str(r0), min(lo, hi), max(lo, hi), ids))
+                hi = odr.lengths[r0] if s1 is None else s1
+                pieces.append((r0, min(lo, hi), max(lo, hi), ids, hi >= lo))
                 continue
-            path = _road_path(road, str(r0), str(r1))
+            path = _road_path(road, r0, r1)
             if path is None:
                 raise ScenarioError(
-                    f"{where}: no lanes link road {r0!r} to road {r1!r}: a road range "
+                    f"{where}: no lanes join road {r0!r} and road {r1!r}: a road range "
                     "between them covers nothing"
                 )
             for j, (rid, forward) in enumerate(path):
                 length = odr.lengths[rid]
-                if j == 0:  # leaving the first cursor's road at its end (or start)
-                    s = (0.0 if forward else length) if s0 is None else s0
-                    lo, hi = (s, length) if forward else (0.0, s)
-                elif j == len(path) - 1:  # entering the second's at its start (or end)
-                    s = (length if forward else 0.0) if s1 is None else s1
-                    if s1 is None and not last:
-                        s = 0.0 if forward else length
-                    lo, hi = (0.0, s) if forward else (s, length)
-                else:
-                    lo, hi = 0.0, length
-                pieces.append((rid, lo, hi, ids))
+                lo, hi, lanes = 0.0, length, ()
+                if j == 0:  # from the first cursor to where the range leaves its road
+                    lanes = ids
+                    if s0 is not None:
+                        lo, hi = (s0, length) if forward else (0.0, s0)
+                elif j == len(path) - 1 and s1 is not None:  # to the second cursor
+                    lo, hi = (0.0, s1) if forward else (s1, length)
+                pieces.append((rid, lo, hi, lanes, forward))
         covered = 0.0
-        for rid, lo, hi, ids in pieces:
-            hi = min(hi, lo + max(limit - covered, 0.0))
+        seen: set[tuple[str, float, float, tuple[int, ...]]] = set()
+        for rid, lo, hi, ids, forward in pieces:
+            if (rid, lo, hi, ids) in seen:
+                continue
+            seen.add((rid, lo, hi, ids))
+            room = max(limit - covered, 0.0)
+            if forward:
+                hi = min(hi, lo + room)
+            else:  # travelled against s: the range enters at hi
+                lo = max(lo, hi - room)
             covered += hi - lo
             if hi > lo:
                 out.append((rid, lo, hi, ids))
@@ -487,11 +497,7 @@ def _road_path(road: Any, start: str, goal: str) -> list[tuple[str, bool]] | Non
         found = None
         while todo and found is None:
             key = todo.pop(0)
-            if ahead:
-                steps = road.successors(key)
-            else:
-                prev = road.predecessor(key)
-                steps = [] if prev is None else [prev]
+            steps = road.successors(key) if ahead else road.predecessors(key)
             for nxt in steps:
                 if nxt not in parent:
                     parent[nxt] = key

@@ -28,7 +28,7 @@ import numpy as np
 from highway_env.vehicle.kinematics import Vehicle
 
 from aldm_gym.errors import OffRoadError
-from aldm_gym.scenario.routes import next_lane
+from aldm_gym.scenario.routes import Chooser, next_lane
 
 if TYPE_CHECKING:
     from aldm_gym.roads.map_road import OpenDriveRoad
@@ -182,7 +182,7 @@ class Entity:
     """Its speed at the start of the step, where its longitudinal action already set
     this step's speed (esmini steps every action before the default moves); None
     otherwise."""
-    route: Any = None
+    route: Chooser | None = None
     """What chooses its branch where its lane splits
     (:class:`~aldm_gym.scenario.routes.Chooser`); None: the straightest."""
 

@@ -17,8 +17,8 @@ Each frame is scored as :func:`~aldm_gym.sensor.ground_truth.score_detection` sc
 the env's detections (every point within 0.3 m of the true marking, starting within
 25 m, a preview of 60 m). Frames whose ground-truth detection is not itself correct
 (a line that ends within the preview, the map's end) are not scored, nor frames where
-the ego's lane is narrower at the sensor than the ALDM's smallest plausible lane
-(:attr:`~aldm_gym.sensor.aldm.ALDMParams.min_lane_width`, 2.5 m): a drive along a
+the ego's lane is narrower where the ego is than the ALDM's default smallest plausible
+lane (:attr:`~aldm_gym.sensor.aldm.ALDMParams.min_lane_width`, 2.5 m): a drive along a
 lane that opens from nothing (a 2+1 road's passing lane) starts at the tip of its
 taper, where no driver is in a lane yet and no detector is asked for one. Per detector:
 the share of frames with both ego lines correct, the longest run of consecutive

@@ -1543,8 +1543,8 @@ def routes_at_a_lane_split(folder: Path) -> Path:
     """Four cars on the right lane of :func:`split_road` and the ego beside them: one
     routed onto the exit, one routed straight on, one without a route (the
     straightest branch), one told to acquire a position on the exit road; and a
-    teleport to a ``RoutePosition`` 200 m along a route onto the exit, past the
-    split."""
+    teleport to a ``RoutePosition`` 250 m along a route onto the exit (10 m onto the
+    exit road, past the split)."""
     names = ("Ego", "Exit", "Through", "Free", "Acquire")
     rows = [(n, 0, -1 if n == "Ego" else -3, 200.0 - 25 * k) for k, n in enumerate(names)]
 
@@ -1555,7 +1555,7 @@ def routes_at_a_lane_split(folder: Path) -> Path:
         return r
 
     acquire = xosc.AcquirePositionAction(xosc.LanePosition(200.0, 0, -1, 2))
-    past = xosc.RoutePositionInLaneCoordinates(route("hop", 2, -1), 200.0, -1, 0.0)
+    past = xosc.RoutePositionInLaneCoordinates(route("hop", 2, -1), 250.0, -1, 0.0)
     events = [
         ("Exit", _event("to_exit", xosc.AssignRouteAction(route("exit", 2, -1)), at_time(0.5))),
         ("Through", _event("on", xosc.AssignRouteAction(route("on", 1, -3)), at_time(0.5))),

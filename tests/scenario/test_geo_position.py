@@ -107,5 +107,6 @@ def test_a_geo_reference_that_is_not_a_projection_is_a_clear_error() -> None:
 
     with pytest.raises(ScenarioError, match=r"x\.xosc:3: .*'garbage' is not a projection"):
         _projection("garbage", "x.xosc:3")
-    with pytest.raises(ScenarioError, match=r"not a projected \(metric\) coordinate system"):
-        _projection("+proj=longlat +datum=WGS84", "x.xosc:3")
+    for proj in ("+proj=longlat +datum=WGS84", "+proj=utm +zone=32 +ellps=GRS80 +units=us-ft"):
+        with pytest.raises(ScenarioError, match=r"not a projected coordinate system in metres"):
+            _projection(proj, "x.xosc:3")

@@ -39,9 +39,18 @@ def test_cursors_on_linked_roads_cover_the_roads_between(motorway: OpenDriveRoad
     # the other way round: against s, the same roads
     back = [(1e9, [("4", 40.0, ()), ("1", 500.0, ())])]
     assert sorted(road_ranges(motorway, back, "f:1")) == sorted(road_ranges(motorway, spec, "f:1"))
-    # the range's length cuts it: 100 m of road 1, then 50 m of road 2
+    # the range's length cuts it from its first cursor on: 100 m of road 1, then 50 m
+    # of road 2; against s, 40 m of road 4 and the last 110 m of road 3
     short = [(150.0, [("1", 500.0, ()), ("4", 40.0, ())])]
     assert road_ranges(motorway, short, "f:1") == (("1", 500.0, 600.0, ()), ("2", 0.0, 50.0, ()))
+    back = [(150.0, [("4", 40.0, ()), ("1", 500.0, ())])]
+    assert road_ranges(motorway, back, "f:1") == (("4", 0.0, 40.0, ()), ("3", 790.0, 900.0, ()))
+    # the first cursor's lanes on its own road only; a cursor without s: its whole road
+    lanes = [(1e9, [("1", 500.0, (-1,)), ("2", None, ())])]
+    assert road_ranges(motorway, lanes, "f:1") == (
+        ("1", 500.0, 600.0, (-1,)),
+        ("2", 0.0, 1000.0000000000003, ()),
+    )
 
 
 def test_cursors_through_a_junction(tmp_path: Path) -> None:
@@ -70,7 +79,11 @@ def test_bad_road_ranges_are_clear_errors(
 def test_roads_no_lane_links_are_refused(tmp_path: Path) -> None:
     road = OpenDriveRoad.from_file(split_road(tmp_path))
     # road 1 (straight on) and road 2 (the exit) are both reached from road 0, but
-    # neither leads to the other
+    # neither leads to the other without turning back at the fork
     spec = [(1e9, [("1", 10.0, ()), ("2", 10.0, ())])]
-    with pytest.raises(ScenarioError, match=r"no lanes link road '1' to road '2'"):
+    with pytest.raises(ScenarioError, match=r"no lanes join road '1' and road '2'"):
         road_ranges(road, spec, "f:1")
+    # against the traffic from the exit back onto road 0: through the exit's branch
+    back = road_ranges(road, [(1e9, [("2", 60.0, ()), ("0", 250.0, ())])], "f:1")
+    assert [p[0] for p in back] == ["2", "3", "0"]
+    assert back[0][1:3] == (0.0, 60.0) and back[-1][1:3] == (250.0, 300.0)
