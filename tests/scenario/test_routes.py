@@ -11,7 +11,7 @@ import pytest
 from scenariogeneration import xosc
 
 import aldm_gym  # noqa: F401
-from aldm_gym.errors import ScenarioError
+from aldm_gym.errors import ScenarioError, ScenarioWarning
 from aldm_gym.roads.map_road import OpenDriveRoad, load_map
 from aldm_gym.scenario.routes import RoutePlan, drive_to, next_lane
 from tests.scenario._build import at_time
@@ -101,3 +101,25 @@ def test_a_route_to_a_road_no_lane_reaches_is_an_error(tmp_path: Path) -> None:
     path = on_split_road(tmp_path, rows, [("Target", event)], 3.0, "back")
     with pytest.raises(ScenarioError, match=r"road '2' is on none of them"):
         _target_road_after(path, 0, 2.0)
+
+
+def test_reaching_a_waypoint_passes_those_before_it() -> None:
+    plan = RoutePlan(["0", "9", "2", "1"])
+    plan.reached("2")  # "0" and "9" (one no branch led to) are behind it now
+    assert plan.pending == ["1"]
+    plan.reached("7")  # on no waypoint's road: nothing changes
+    assert plan.pending == ["1"]
+
+
+def test_a_route_checks_each_waypoint_from_the_lanes_it_can_be_on(tmp_path: Path) -> None:
+    """A first waypoint on the actor's road but another lane, a second on the exit:
+    the actor is on the splitting lane, so it reaches both (no warning) and exits."""
+    route = xosc.Route("exit")
+    route.add_waypoint(xosc.LanePosition(250.0, 0, -1, 0), xosc.RouteStrategy.shortest)
+    route.add_waypoint(xosc.LanePosition(100.0, 0, -1, 2), xosc.RouteStrategy.shortest)
+    event = _event("route", xosc.AssignRouteAction(route))
+    rows = [("Ego", 0, -1, 200.0), ("Target", 0, -3, 200.0)]
+    path = on_split_road(tmp_path, rows, [("Target", event)], 12.0, "exit")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ScenarioWarning)
+        assert _target_road_after(path, 0) == "2"
