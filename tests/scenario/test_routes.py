@@ -90,15 +90,27 @@ def test_a_random_route_draws_its_branch_from_the_episode_seed(tmp_path: Path) -
         assert _target_road_after(path, seed) == roads[seed]  # the same seed, the same branch
 
 
+def _routed(
+    folder: Path,
+    name: str,
+    rows: list[tuple[str, int, int, float]],
+    *waypoints: tuple[float, int, int],
+    stop: float = 3.0,
+) -> Path:
+    """The target given a route through ``(s, lane id, road id)`` waypoints at 0.5 s,
+    on the split road with the cars of ``rows``."""
+    route = xosc.Route(name)
+    for s, lane, road_id in waypoints:
+        route.add_waypoint(xosc.LanePosition(s, 0, lane, road_id), xosc.RouteStrategy.shortest)
+    event = _event("route", xosc.AssignRouteAction(route))
+    return on_split_road(folder, rows, [("Target", event)], stop, name)
+
+
 def test_a_route_to_a_road_no_lane_reaches_is_an_error(tmp_path: Path) -> None:
     """A waypoint on the exit road seen from the through road's lanes: no branch, and
     no lane beside them, leads back there."""
-    route = xosc.Route("back")
-    route.add_waypoint(xosc.LanePosition(60.0, 0, -3, 1), xosc.RouteStrategy.shortest)
-    route.add_waypoint(xosc.LanePosition(100.0, 0, -1, 2), xosc.RouteStrategy.shortest)
-    event = _event("route", xosc.AssignRouteAction(route))
     rows = [("Ego", 1, -1, 50.0), ("Target", 1, -3, 50.0)]
-    path = on_split_road(tmp_path, rows, [("Target", event)], 3.0, "back")
+    path = _routed(tmp_path, "back", rows, (60.0, -3, 1), (100.0, -1, 2))
     with pytest.raises(ScenarioError, match=r"road '2' is on none of them"):
         _target_road_after(path, 0, 2.0)
 
@@ -114,12 +126,8 @@ def test_reaching_a_waypoint_passes_those_before_it() -> None:
 def test_a_route_checks_each_waypoint_from_the_lanes_it_can_be_on(tmp_path: Path) -> None:
     """A first waypoint on the actor's road but another lane, a second on the exit:
     the actor is on the splitting lane, so it reaches both (no warning) and exits."""
-    route = xosc.Route("exit")
-    route.add_waypoint(xosc.LanePosition(250.0, 0, -1, 0), xosc.RouteStrategy.shortest)
-    route.add_waypoint(xosc.LanePosition(100.0, 0, -1, 2), xosc.RouteStrategy.shortest)
-    event = _event("route", xosc.AssignRouteAction(route))
     rows = [("Ego", 0, -1, 200.0), ("Target", 0, -3, 200.0)]
-    path = on_split_road(tmp_path, rows, [("Target", event)], 12.0, "exit")
+    path = _routed(tmp_path, "exit", rows, (250.0, -1, 0), (100.0, -1, 2), stop=12.0)
     with warnings.catch_warnings():
         warnings.simplefilter("error", ScenarioWarning)
         assert _target_road_after(path, 0) == "2"
