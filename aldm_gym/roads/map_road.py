@@ -421,16 +421,10 @@ class OpenDriveRoad(PolylineRoad):
         """A driving lane that ``lane`` continues, or ``None``: the way back for an
         entity driving against its lane (one whose :meth:`successor` ``lane`` is where
         there is one; else, on a branch that splits off, the lane it splits from)."""
-        pred = getattr(self, "_pred", None)
-        if pred is None:
-            pred = {}
-            for before, after in self._succ.items():
-                pred.setdefault(after, before)
-            for before, afters in self._every_succ.items():
-                for after in afters:
-                    pred.setdefault(after, before)
-            self._pred = pred
-        return pred.get(lane)
+        if lane not in self._key_index:
+            return None
+        before = self.predecessors(lane)
+        return next((p for p in before if self._succ[p] == lane), before[0] if before else None)
 
     def predecessors(self, lane: LaneKey) -> list[LaneKey]:
         """Every driving lane that ``lane`` continues (more than one where lanes merge in

@@ -1711,9 +1711,7 @@ class AssignRoute(Instance):
         road = runner.world.road
         roads, here = [], [entity.lane]
         for pos in self.waypoints:
-            w = pos.resolve(runner.world)
-            lane = w.lane if w.lane is not None else road.lane_position(w.point).lane
-            road_id = road.lane_record(lane).road_id
+            road_id = road.lane_record(runner.world.lane_of(pos.resolve(runner.world))).road_id
             ahead = reachable_lanes(road, here)
             on_road = [k for k in ahead if road.lane_record(k).road_id == road_id]
             if on_road:

@@ -441,13 +441,6 @@ class TrajectoryPos(Position):
         return Where(point=point, heading=heading)
 
 
-def _road_of(world: World, where: Where) -> str:
-    """The road id of the lane at ``where``."""
-    road = world.road
-    lane = where.lane if where.lane is not None else road.lane_position(where.point).lane
-    return str(road.lane_record(lane).road_id)
-
-
 @dataclass(frozen=True)
 class RoutePos(Position):
     """``RoutePosition``: on a route (the lanes from its first waypoint on, taking
@@ -483,7 +476,12 @@ class RoutePos(Position):
                 key, u = pos.lane, pos.s - road.chain_start(pos.lane)
             # pathS counts the roads' s (their reference lines, as esmini does), lane
             # after lane along the route
-            plan = RoutePlan([_road_of(world, w.resolve(world)) for w in self.waypoints[1:]])
+            plan = RoutePlan(
+                [
+                    road.lane_record(world.lane_of(w.resolve(world))).road_id
+                    for w in self.waypoints[1:]
+                ]
+            )
             left = self.path_s
             s = road.reference_s(key, u)
             while True:

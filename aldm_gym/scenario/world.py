@@ -369,6 +369,15 @@ class World:
         ``heading_at(u)``, ``length``, ``speed_limit``)."""
         return self._lane(key)
 
+    def lane_of(self, where: Any) -> LaneKey:
+        """The driving lane of a resolved position (its own, else the one holding its
+        point).
+
+        :raises OffRoadError: the point is on no driving lane."""
+        if where.lane is not None:
+            return where.lane
+        return self.road.lane_position(where.point).lane
+
     def point_of(self, where: Any) -> np.ndarray:
         """The world point [m] (highway-env's frame) of a resolved position."""
         if where.lane is not None:
