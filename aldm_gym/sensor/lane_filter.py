@@ -100,6 +100,7 @@ from aldm_gym.sensor.aldm_kernels.model import (
     N_NODES,
     NODE_STEP,
     SCALE,
+    TABLE_STEP,
     associate_update,
     curve_table,
     draw_on,
@@ -202,24 +203,38 @@ MIN_EXTENT = 10.0
 """A line shorter than this in x [m] is not drawn."""
 
 
-def _steep_row(tab: FloatArray, max_slope: float) -> tuple[int, float] | None:
-    """Where the reference curve tabulated in ``tab`` first gets steeper than
-    ``max_slope`` in the sensor frame: the first row ``k`` beyond the limit and the
-    fraction ``t`` of the step from row ``k - 1`` at which the slope reaches it (the
-    same for every line: parallel curves share their tangent); ``None``: nowhere in
-    the table. A line is a function y(x): beyond that, a small error along the
-    normal is a large one in y, and the single-frame ALDM stops its traces there
-    (its ``max_slope``)."""
+def _steep_row(
+    tab: FloatArray, max_slope: float, s_max: float = math.inf
+) -> tuple[int, float] | None:
+    """Where a line of the reference curve tabulated in ``tab`` ends: the first row
+    ``k`` beyond the end and the fraction ``t`` of the step from row ``k - 1`` at which
+    it is reached (the same for every line: parallel curves share their tangent and
+    their foot points); ``None``: nowhere in the table. The end is the nearer of two
+    places:
+
+    * where the curve first gets steeper than ``max_slope`` in the sensor frame. A
+      line is a function y(x): beyond that, a small error along the normal is a large
+      one in y, and the single-frame ALDM stops its traces there (its ``max_slope``);
+    * ``s_max`` [m] of arc from the sensor: the model's range along the road (its
+      ``model_range``). Points beyond it are not its measurements (see
+      :func:`~aldm_gym.sensor.aldm_kernels.model.associate_update`), so a line drawn
+      there would be the last node's curvature carried on, not the road."""
     c, sn = tab[:, _C], tab[:, _S]
     steep = np.flatnonzero((c <= 0.0) | (np.abs(sn) > max_slope * c))
-    if len(steep) == 0:
+    # both ends as a position in rows: row k - 1 plus the fraction t of the next step
+    ends = [s_max / TABLE_STEP] if s_max / TABLE_STEP < len(tab) - 1 else []
+    if len(steep):
+        k = int(steep[0])
+        if k == 0:
+            return 0, 0.0
+        slope = np.abs(sn[k - 1 : k + 1]) / np.maximum(c[k - 1 : k + 1], 1e-9)
+        t = (max_slope - slope[0]) / max(slope[1] - slope[0], 1e-12)
+        ends.append(k - 1 + min(max(float(t), 0.0), 1.0))
+    if not ends:
         return None
-    k = int(steep[0])
-    if k == 0:
-        return 0, 0.0
-    slope = np.abs(sn[k - 1 : k + 1]) / np.maximum(c[k - 1 : k + 1], 1e-9)
-    t = (max_slope - slope[0]) / max(slope[1] - slope[0], 1e-12)
-    return k, min(max(float(t), 0.0), 1.0)
+    end = max(min(ends), 0.0)
+    k = min(math.floor(end) + 1, len(tab) - 1)
+    return k, end - (k - 1)
 
 
 def _steep_x(tab: FloatArray, row: tuple[int, float] | None, offset: float) -> float:
@@ -795,6 +810,7 @@ class LaneModelFilter:
             fp.association_max,
             fp.tukey,
             3,
+            fp.model_range,
         )
 
     def _predict(self, dx: float, dy: float, dpsi: float, travel: float) -> None:
@@ -1168,7 +1184,7 @@ class LaneModelFilter:
             tab = curve_table(self._x, fp.model_range)
         n_points = self.params.n_points if self.params.n_points >= 2 else 13
         roles = self._roles()
-        steep = _steep_row(tab, self.params.max_slope)
+        steep = _steep_row(tab, self.params.max_slope, fp.model_range)
         shared = self._reach()
         # where any confirmed line was last seen, carried by the odometry
         carried = self._far[self._confirmed]

@@ -31,6 +31,8 @@ from aldm_gym.sensor.lane_filter import (
     FilterParams,
     LaneModelFilter,
     ModelLaneDetection,
+    _steep_row,
+    _steep_x,
     shape_covariance,
     split_filter_params,
 )
@@ -720,6 +722,28 @@ def test_reference_curve_geometry(radius: float) -> None:
     assert drawn[0, 0] == 5.0 and drawn[-1, 0] == 80.0
 
 
+@pytest.mark.parametrize("radius", [150.0, -100.0])
+def test_lines_end_at_45_degrees_or_at_the_model_range_along_the_road(radius: float) -> None:
+    """On a circle of the lines' shape, a line ends where the first of two places
+    comes: where it gets steeper than 45 degrees, or ``model_range`` along the road
+    (the foot point's arc length, the same for every line)."""
+    state = np.zeros(M.N_GEOMETRY)
+    state[1:] = M.SCALE**2 / radius
+    tab = M.curve_table(state, 90.0)
+    r = abs(radius)
+    for offset in (-1.8, 1.8):
+        # the parallel line's radius: the curve's less its offset towards the centre
+        line_r = r - math.copysign(1.0, radius) * offset
+        at_45 = _steep_x(tab, _steep_row(tab, 1.0), offset)
+        assert at_45 == pytest.approx(line_r * math.sqrt(0.5), abs=0.05)
+        for s_max in (50.0, 70.0, 200.0):
+            end = _steep_x(tab, _steep_row(tab, 1.0, s_max), offset)
+            # the foot point at s_max: the line's point on the same radius
+            along = line_r * math.sin(s_max / r) if s_max / r < math.pi / 4 else math.inf
+            assert end == pytest.approx(min(at_45, along), abs=0.05), (offset, s_max)
+    assert _steep_row(M.curve_table(np.zeros(M.N_GEOMETRY), 90.0), 1.0) is None
+
+
 def test_reference_curve_through_a_transition() -> None:
     """Curvature ramping from 0 to 1/100 m (each node's curvature that of a ramp over
     60 m, held beyond: the spline reaches 1/100 m at the first node past 60 m): the
@@ -800,7 +824,7 @@ def test_kernels_match_plain_python() -> None:
     x, y = pts[:, 0].copy(), pts[:, 1].copy()
     y[::10] += 0.8  # clutter: a point in ten 0.8 m off its line, inside the gate
     gate = (fp.point_std, fp.point_std_slope, fp.association_sigmas)
-    args = (x, y, state, cov, *gate, fp.association_min, fp.association_max, fp.tukey, 3)
+    args = (x, y, state, cov, *gate, fp.association_min, fp.association_max, fp.tukey, 3, 80.0)
     got, want = M.associate_update(*args), M.associate_update_py(*args)
     assert got[5] and want[5]
     for a, b in zip(got[:5], want[:5], strict=True):
@@ -815,8 +839,12 @@ def test_kernels_match_plain_python() -> None:
     missed = np.full(len(far), -np.inf)
     assert not M.receded(far + 25.0, missed, confirmed, 20.0)
     assert not M.receded(far + 25.0, far, ~confirmed, 20.0)
-    # the clutter is free (outside every gate, or given no weight); the rest is used
-    assert np.all(line[::10] == -1) and np.mean(line[1::10] >= 0) > 0.9
+    # the clutter is free (outside every gate, or given no weight), and so are the
+    # points beyond 80 m along the curve (s_max); the rest is used
+    s_foot = M.project(state, x, y)[0]
+    beyond = s_foot > 80.0
+    assert np.count_nonzero(beyond) >= 5 and np.all(line[beyond] == -1)
+    assert np.all(line[::10] == -1) and np.mean(line[1::10][~beyond[1::10]] >= 0) > 0.9
     assert np.all(support[np.unique(line[line >= 0])] > 0.0)
     for j in range(len(far)):
         assert far[j] == x[line == j].max()

@@ -505,7 +505,18 @@ _inverse = numba.njit(cache=True)(_inverse_py)
 
 
 def associate_update_py(
-    x, y, state, cov, point_std, point_std_slope, sigmas, gate_min, gate_max, tukey, iterations
+    x,
+    y,
+    state,
+    cov,
+    point_std,
+    point_std_slope,
+    sigmas,
+    gate_min,
+    gate_max,
+    tukey,
+    iterations,
+    s_max,
 ):
     """One frame's association and robust update of the lane model.
 
@@ -515,7 +526,11 @@ def associate_update_py(
     clipped to ``[gate_min, gate_max]``); the associated points update the model in
     information form, first weighted by Tukey's biweight of their innovation, then
     re-weighted by it (:func:`robust_update`). Points the update gives no weight are
-    free again.
+    free again, and so are points whose foot point lies more than ``s_max`` [m] along
+    the curve (the model's range along the road). In a bend, x up to the range
+    reaches farther along the road than the curvature nodes, beyond which the model
+    only holds the last node's curvature: such points would bend that node to
+    whatever the road does next (a straight after an arc pulled it past zero).
 
     :param x: ``(N,)`` the points' x [m] (finite, ahead of the sensor).
     :param y: ``(N,)`` their y [m].
@@ -536,11 +551,13 @@ def associate_update_py(
     line = np.full(n_pts, -1, dtype=np.int64)
     support = np.zeros(n_lines)
     far = np.full(n_lines, -np.inf)
-    _s, lat, g_all = project(state, x, y)
+    s_foot, lat, g_all = project(state, x, y)
     r0 = np.zeros(n_pts)
     var0 = np.zeros(n_pts)
     n_take = 0
     for p in range(n_pts):
+        if s_foot[p] > s_max:
+            continue
         gpg = 0.0
         for a in range(N_GEOMETRY):
             acc = 0.0
