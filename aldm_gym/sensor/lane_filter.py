@@ -35,7 +35,8 @@ Each frame:
    meeting an arc with no transition curve, as OpenDRIVE allows), is updated beside
    it from the same prediction with the shape's covariance grown by a random walk of
    ``jump_curvature`` per node step; it replaces the nominal update when it explains
-   more of the frame's points on at least two lines (:data:`JUMP_MARGIN`,
+   more of the frame's points on at least two lines, or on the one line seen as far
+   as the bend when vehicles hide the others (:data:`JUMP_MARGIN`,
    :data:`JUMP_LINE_GAIN`): a multiple-model filter with a hard decision.
 4. **Existence.** A line whose points' robust weights sum to at least
    :data:`MIN_SUPPORT` in the frame is *hit*: its confidence ``p`` rises,
@@ -856,7 +857,8 @@ class LaneModelFilter:
         (-inf: none). The curvature-jump hypothesis (the prediction's shape covariance
         grown by ``jump_curvature``) is updated too and wins when its support is more
         than :data:`JUMP_MARGIN` higher, gained on at least :data:`JUMP_LINES` lines
-        by :data:`JUMP_LINE_GAIN` each."""
+        (fewer when fewer are seen as far out: :meth:`_jump_lines`) by
+        :data:`JUMP_LINE_GAIN` each."""
         state, cov, line, support, far, _ok = self._associate_update(x, y, self._x, self._p)
         if self._q_jump is not None and np.count_nonzero(line < 0) >= JUMP_LINES * JUMP_LINE_GAIN:
             # the nominal update left points unexplained (outside every gate, or given
@@ -865,15 +867,27 @@ class LaneModelFilter:
             jump[:N_GEOMETRY, :N_GEOMETRY] += self._q_jump
             alt = self._associate_update(x, y, self._x, jump)
             gain = alt[3] - support
-            if (
-                float(gain.sum()) > JUMP_MARGIN
-                and np.count_nonzero(gain >= JUMP_LINE_GAIN) >= JUMP_LINES
-            ):
+            if float(gain.sum()) > JUMP_MARGIN and np.count_nonzero(
+                gain >= JUMP_LINE_GAIN
+            ) >= self._jump_lines(x, line, alt[2]):
                 state, cov, line, support, far, _ok = alt
                 self.n_jumps += 1
         self._x, self._p = state, cov
         self.n_used = int(np.count_nonzero(line >= 0))
         return line, support, far
+
+    def _jump_lines(self, x: FloatArray, line: np.ndarray, alt: np.ndarray) -> int:
+        """How many lines must gain for the jump to win: :data:`JUMP_LINES`, or as many
+        lines as have points (taken by either update) from the nearest x at which the
+        jump takes a point the nominal update left free, if fewer. A line that is not
+        seen that far (a vehicle hides it, or it is worn there) cannot confirm a bend
+        there, nor contradict it."""
+        gained = (alt >= 0) & (line < 0)
+        if not gained.any():
+            return JUMP_LINES
+        far = x >= float(np.min(x[gained]))
+        seen = np.union1d(line[far & (line >= 0)], alt[far & (alt >= 0)])
+        return max(1, min(JUMP_LINES, len(seen)))
 
     def _fit(
         self, x: FloatArray, y: FloatArray, line: np.ndarray, x0: FloatArray, p0: FloatArray

@@ -149,6 +149,20 @@ def test_the_filter_keeps_the_lines_where_an_arc_ends_in_a_straight() -> None:
     assert scores["filter"].share == 1.0
 
 
+def test_a_bend_seen_on_one_line_past_the_cars_bends_the_model() -> None:
+    """Towards the curvature-step map's first arc with vehicles: the car ahead and
+    the cars beside hide every line beyond 20-60 m but the road's outer edge line,
+    the only line that shows the arc coming. The jump hypothesis needs as many lines
+    to gain as are seen that far (one here), not two; with two the model kept the
+    straight and the lines were wrong for over 3 s."""
+    road = OpenDriveRoad.from_file(CURVATURE_STEP, marking_model="per_dash")
+    start = drive_starts(road)[0]
+    score = drive(road, start, CONDITIONS["vehicles"], max_frames=170, detectors=("filter",))
+    assert score["filter"].frames == 170
+    assert score["filter"].share >= 0.9
+    assert score["filter"].longest_wrong <= 10  # 1 s
+
+
 def test_drive_score_counts_runs_and_misses() -> None:
     sc = DriveScore()
     for ok in (True, False, False, True, False):

@@ -27,6 +27,7 @@ from aldm_gym.sensor.ground_truth import score_detection
 from aldm_gym.sensor.lane_detection import LINE_NAMES
 from aldm_gym.sensor.lane_filter import (
     FILTER_KEYS,
+    JUMP_LINES,
     RESTART_MARGIN,
     FilterParams,
     LaneModelFilter,
@@ -742,6 +743,21 @@ def test_lines_end_at_45_degrees_or_at_the_model_range_along_the_road(radius: fl
             along = line_r * math.sin(s_max / r) if s_max / r < math.pi / 4 else math.inf
             assert end == pytest.approx(min(at_45, along), abs=0.05), (offset, s_max)
     assert _steep_row(M.curve_table(np.zeros(M.N_GEOMETRY), 90.0), 1.0) is None
+
+
+def test_a_jump_needs_as_many_lines_to_gain_as_are_seen_where_it_gains() -> None:
+    """The lines that must gain for the curvature jump to win: two (``JUMP_LINES``)
+    when two lines have points from where the jump takes its first point the nominal
+    update left free; one when only one line is seen that far."""
+    filt = LaneModelFilter()
+    x = np.array([10.0, 20.0, 30.0, 70.0, 80.0, 90.0, 10.0, 20.0, 75.0, 85.0])
+    nominal = np.array([0, 0, 0, -1, -1, -1, 1, 1, 1, 1])
+    jump = np.array([0, 0, 0, 0, 0, 0, 1, 1, 1, 1])
+    assert filt._jump_lines(x, nominal, jump) == JUMP_LINES == 2
+    # line 1 seen only up to 20 m (a car hides it beyond): line 0 alone shows the bend
+    assert filt._jump_lines(x[:8], nominal[:8], jump[:8]) == 1
+    # the jump takes nothing the nominal update left free: the full count
+    assert filt._jump_lines(x, nominal, nominal) == JUMP_LINES
 
 
 def test_reference_curve_through_a_transition() -> None:
