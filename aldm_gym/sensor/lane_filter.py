@@ -732,6 +732,7 @@ class LaneModelFilter:
             if incumbent and scores[k] <= scores[-1] * (1.0 + RESTART_MARGIN):
                 return False
             best = candidates[k]
+        old = self._inherited(best[0]) if incumbent else None
         self._x, self._p = best
         self._ids = np.arange(self._next_id, self._next_id + n, dtype=np.int64)
         self._next_id += n
@@ -740,8 +741,53 @@ class LaneModelFilter:
         self._far = np.array([float(v[-1, 0]) for v in kept])
         self._confirmed = np.ones(n, dtype=bool)
         self._span = np.full((n, 2), np.nan)
+        if old is not None:
+            self._inherit(old)
         self.n_starts += 1
         return True
+
+    def _inherited(self, state: FloatArray) -> dict[str, np.ndarray] | None:
+        """The current model's confirmed lines that a new start ``state`` lacks: at
+        least ``min_spacing`` [m] from each of its lines at the sensor (where the two
+        reference curves meet, so offsets compare), with their offsets, offset
+        variances and bookkeeping (:meth:`_inherit`); None: none."""
+        new = state[N_GEOMETRY:]
+        off = self._x[N_GEOMETRY:]
+        if len(off) == 0:
+            return None
+        gap = np.abs(off[:, None] - new[None, :]).min(axis=1) if len(new) else np.inf
+        j = np.flatnonzero(self._confirmed & (gap >= self.filter.min_spacing))
+        if len(j) == 0:
+            return None
+        return {
+            "offsets": off[j].copy(),
+            "var": np.diag(self._p)[N_GEOMETRY + j].copy(),
+            "ids": self._ids[j].copy(),
+            "conf": self._conf[j].copy(),
+            "miss": self._miss[j].copy(),
+            "far": self._far[j].copy(),
+            "span": self._span[j].copy(),
+        }
+
+    def _inherit(self, old: dict[str, np.ndarray]) -> None:
+        """Carry lines of the replaced model (:meth:`_inherited`) into the new one: a
+        restart replaces a shape that left the road far out, while the lines' offsets
+        at the sensor were measured near the car. A line the single-frame ALDM did not
+        report (hidden, worn, sparsely sampled) would otherwise be lost until a birth
+        finds it again. Each keeps its id, confidence and history; its offset is
+        uncorrelated with the new shape, with the variance it had."""
+        n, m = len(self._x), len(old["offsets"])
+        p = np.zeros((n + m, n + m))
+        p[:n, :n] = self._p
+        p[n:, n:] = np.diag(old["var"])
+        self._x = np.concatenate((self._x, old["offsets"]))
+        self._p = p
+        self._ids = np.concatenate((self._ids, old["ids"]))
+        self._conf = np.concatenate((self._conf, old["conf"]))
+        self._miss = np.concatenate((self._miss, old["miss"]))
+        self._far = np.concatenate((self._far, old["far"]))
+        self._confirmed = np.concatenate((self._confirmed, np.ones(m, dtype=bool)))
+        self._span = np.vstack((self._span, old["span"]))
 
     def _receded(self, far: FloatArray) -> bool:
         """Whether a confirmed line hit in this frame has its farthest point (``far``

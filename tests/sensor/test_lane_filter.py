@@ -520,6 +520,37 @@ def test_a_restart_needs_a_start_that_scores_more_than_the_margin_above_the_mode
         monkeypatch.undo()
 
 
+def test_a_restart_keeps_the_lines_the_fresh_start_lacks(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A restart replaces the model's shape with a fresh start's; a confirmed line the
+    single-frame ALDM did not report (here the right adjacent line, none of whose
+    points are in the frame) stays, with its id, offset and confidence, while the
+    lines the start has are new. A line within ``min_spacing`` of one of the start's
+    is not carried over."""
+    pts = S.sample(S.highway(lanes=4, ego_lane=1), noise=0.02, seed=0)[0]
+    monkeypatch.setattr(LaneModelFilter, "_parallel_supports", lambda *_: [100, 0, 0, 0])
+    for hide in (True, False):
+        filt = LaneModelFilter()
+        filt.update(pts, None)
+        ids, offsets, conf = filt.line_ids, filt.offsets, filt.confidences
+        # the right adjacent line: the second confirmed line right of the car
+        right = int(np.flatnonzero(filt._confirmed & (offsets < 0.0))[1])
+        assert offsets[right] == pytest.approx(-5.6, abs=0.2)
+        seen = pts[np.abs(pts[:, 1] - offsets[right]) > 1.0] if hide else pts
+        x, y = M.measurements(seen, 90.0, 0.5)
+        assert filt._start(seen, x, y, incumbent=True)
+        kept = [i for i in filt.line_ids if i in ids]
+        if not hide:
+            assert kept == []
+            continue
+        assert kept == [ids[right]]
+        k = filt.line_ids.index(ids[right])
+        assert filt.offsets[k] == offsets[right]
+        assert filt.confidences[k] == conf[right]
+        # the others are at least min_spacing from it: the start had no line there
+        others = np.delete(filt.offsets, k)
+        assert np.min(np.abs(others - offsets[right])) >= filt.filter.min_spacing
+
+
 def test_bad_input() -> None:
     """NaN/inf rows are dropped as detect_lanes drops them (the same output as without
     them); an empty frame misses every line and draws the carried model; a bad shape
