@@ -304,6 +304,13 @@ class FilterParams:
         more variance for the ``d`` metres it moved, so that a clothoid coming into
         view bends it at once rather than a node step late. Only while points reach
         the last node step (else nothing would measure it). 0: none.
+    :ivar far_curvature_trend: how much of the last node step's curvature change the
+        last node carries on as it moves onto new road (0: the curvature held, 1: the
+        clothoid continued), while points reach the last node step (else the
+        curvature is held: an unmeasured trend would bend on without bound). On a
+        spiral whose curvature changes across the whole view, a held last node lags
+        the road by a node step; 0.5 (the drive benchmark, "The far end's lag" in
+        docs/aldm.md) follows it and does not overshoot where a clothoid ends.
 
     Existence:
 
@@ -351,6 +358,7 @@ class FilterParams:
     q_curvature: float = setting(2.0e-5, lo=0.0, hi=1.0)
     q_curvature_rate: float = setting(2.0e-6, lo=0.0, hi=1.0)
     q_far_curvature_rate: float = setting(0.0, lo=0.0, hi=1.0)
+    far_curvature_trend: float = setting(0.5, lo=0.0, hi=1.0)
     hit_gain: float = setting(0.3, lo=0.0, lo_open=True, hi=1.0)
     miss_loss: float = setting(0.1, lo=0.0, hi=1.0)
     min_confidence: float = setting(0.5, lo=0.0, hi=1.0)
@@ -868,9 +876,9 @@ class LaneModelFilter:
         # new road enters the view at the far end: its curvature is unknown only where
         # points reach the last node step (else nothing measures it, and the hidden
         # lines carried on would only lose their certainty)
-        q_far = fp.q_far_curvature_rate
-        if q_far > 0.0 and self._reach() < (N_NODES - 2) * NODE_STEP:
-            q_far = 0.0
+        q_far, trend = fp.q_far_curvature_rate, fp.far_curvature_trend
+        if (q_far > 0.0 or trend > 0.0) and self._reach() < (N_NODES - 2) * NODE_STEP:
+            q_far = trend = 0.0
         self._x, self._p = predict(
             self._x,
             self._p,
@@ -882,6 +890,7 @@ class LaneModelFilter:
             fp.q_offset,
             fp.q_width,
             q_far,
+            trend,
         )
         self._far = self._far - dx
 

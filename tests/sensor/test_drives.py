@@ -163,6 +163,29 @@ def test_a_bend_seen_on_one_line_past_the_cars_bends_the_model() -> None:
     assert score["filter"].longest_wrong <= 10  # 1 s
 
 
+def test_the_far_end_follows_a_spiral_across_the_view() -> None:
+    """The shipped ``features`` map, lane -1, ideal sensor, through its reverse spiral
+    (the curvature changes across the whole view): with the last node step's trend
+    carried on (``far_curvature_trend`` 0.5, the default) the far end follows the
+    road; with the last node's curvature held it lags by a node step and the lines
+    are off for up to 1.7 s."""
+    road = OpenDriveRoad.from_file(shipped_map("features"), marking_model="per_dash")
+    start = drive_starts(road)[0]
+
+    def run(trend: float) -> DriveScore:
+        params = {"filter": {"filt": FilterParams(far_curvature_trend=trend)}}
+        scores = drive(
+            road, start, CONDITIONS["ideal"], detectors=("filter",), detector_params=params
+        )  # fmt: skip
+        return scores["filter"]
+
+    trend, held = run(FilterParams().far_curvature_trend), run(0.0)
+    assert FilterParams().far_curvature_trend == 0.5
+    assert trend.frames == held.frames > 150
+    assert trend.share >= 0.97 and trend.longest_wrong <= 2
+    assert held.share < 0.9 and held.longest_wrong > 10
+
+
 def test_drive_score_counts_runs_and_misses() -> None:
     sc = DriveScore()
     for ok in (True, False, False, True, False):

@@ -791,6 +791,35 @@ def test_a_jump_needs_as_many_lines_to_gain_as_are_seen_where_it_gains() -> None
     assert filt._jump_lines(x, nominal, nominal) == JUMP_LINES
 
 
+def test_the_last_node_carries_on_its_step_s_trend() -> None:
+    """Moving 10 m along a nearly straight curve whose curvature ramps up by 1e-4
+    1/m per node step, the new last node lies 10 m beyond the old one: held
+    (``far_trend`` 0) it keeps the old last node's curvature, with ``far_trend``
+    it adds that share of the last step's change over 10 m (the parallel-curve
+    factor is 1 to within 1e-6 here); the nodes before are the old ones
+    interpolated, whatever the trend."""
+    state = np.zeros(M.N_GEOMETRY + 1)
+    kappa = 1e-4 * np.arange(M.N_NODES)
+    state[1 : M.N_GEOMETRY] = kappa * M.SCALE**2
+    cov = np.eye(len(state)) * 1e-4
+    q = np.zeros((M.N_GEOMETRY, M.N_GEOMETRY))
+    out = {
+        t: M.predict(state, cov, 10.0, 0.0, 0.0, 10.0, q, 0.0, 0.0, 0.0, t)[0]
+        for t in (0.0, 0.5, 1.0)
+    }
+    step = kappa[-1] - kappa[-2]
+    for t, got in out.items():
+        nodes = got[1 : M.N_GEOMETRY] / M.SCALE**2
+        np.testing.assert_allclose(nodes[:-1], kappa[:-1] + step * 10.0 / M.NODE_STEP, rtol=1e-5)
+        assert nodes[-1] == pytest.approx(kappa[-1] + t * step * 10.0 / M.NODE_STEP, rel=1e-5)
+    for a, b in zip(
+        M.predict(state, cov, 10.0, 0.0, 0.0, 10.0, q, 0.0, 0.0, 0.0, 0.5),
+        M.predict_py(state, cov, 10.0, 0.0, 0.0, 10.0, q, 0.0, 0.0, 0.0, 0.5),
+        strict=True,
+    ):
+        np.testing.assert_array_equal(a, b)
+
+
 def test_reference_curve_through_a_transition() -> None:
     """Curvature ramping from 0 to 1/100 m (each node's curvature that of a ramp over
     60 m, held beyond: the spline reaches 1/100 m at the first node past 60 m): the
@@ -863,7 +892,7 @@ def test_kernels_match_plain_python() -> None:
     fp = filt.filter
     dx, dy, dpsi = EgoMotion(SPEED, -SPEED / 500.0, DT).displacement()
     q = shape_covariance(fp.q_heading, fp.q_curvature, fp.q_curvature_rate)
-    args = (filt._x, filt._p, dx, dy, dpsi, SPEED * DT, q, fp.q_offset, fp.q_width, 1e-4)
+    args = (filt._x, filt._p, dx, dy, dpsi, SPEED * DT, q, fp.q_offset, fp.q_width, 1e-4, 0.5)
     state, cov = M.predict(*args)
     for a, b in zip((state, cov), M.predict_py(*args), strict=True):
         np.testing.assert_array_equal(a, b)

@@ -390,15 +390,16 @@ def project_py(state, x, y):
 project = numba.njit(cache=True)(project_py)
 
 
-def predict_py(state, cov, dx, dy, dpsi, travel, q_shape, q_offset, q_width, q_far):
+def predict_py(state, cov, dx, dy, dpsi, travel, q_shape, q_offset, q_width, q_far, far_trend):
     """The filter's predict step: the model moved into the new sensor frame.
 
     The origin advances ``dx`` along the old x and ``dy`` along the old y [m], the
     axes turn by ``dpsi`` [rad]. The new origin's foot point on the old reference
     curve (arc length ``s_e``, distance ``l_e`` to its left) becomes the new
     reference curve's start: the heading there less ``dpsi``; the node curvatures
-    those of the old curve ``s_e`` farther on (linear between the old nodes, the
-    last one held beyond), as the parallel curve through the origin has them
+    those of the old curve ``s_e`` farther on (linear between the old nodes; beyond
+    the last one, its curvature and ``far_trend`` times the last node step's trend),
+    as the parallel curve through the origin has them
     (``kappa / (1 - l_e kappa)``); the offsets less ``l_e``. The covariance moves
     with the Jacobian of that map (the offsets' rows are the measurement rows at
     ``s_e``; the foot point held, and the parallel-curve factor applied as to the
@@ -414,6 +415,8 @@ def predict_py(state, cov, dx, dy, dpsi, travel, q_shape, q_offset, q_width, q_f
     :param q_far: the road's curvature rate where the curve is extrapolated [1/m^2]:
         a node moved a distance ``d`` beyond the old last node (new road entering the
         view) gets the variance ``(q_far d)^2`` on top of its held curvature.
+    :param far_trend: how much of the last node step's curvature change goes on
+        beyond the last node (0: its curvature held; 1: the clothoid continued).
     :return: ``(state, cov)`` predicted (new arrays; ``cov`` symmetric).
     """
     n = state.shape[0]
@@ -437,7 +440,11 @@ def predict_py(state, cov, dx, dy, dpsi, travel, q_shape, q_offset, q_width, q_f
         if at <= 0.0:
             f[row_k, 1] = 1.0
         elif j >= N_NODES - 1:
-            f[row_k, N_NODES] = 1.0  # beyond the last node: its curvature held
+            # beyond the last node: its curvature, plus far_trend times the last node
+            # step's change carried on (0: held)
+            u = far_trend * (at - (N_NODES - 1) * NODE_STEP) / NODE_STEP
+            f[row_k, N_NODES] = 1.0 + u
+            f[row_k, N_NODES - 1] = -u
         else:
             t = (at - j * NODE_STEP) / NODE_STEP
             f[row_k, 1 + j] = 1.0 - t
