@@ -83,6 +83,7 @@ The decisions are listed in
 from __future__ import annotations
 
 import copy
+import dataclasses
 import itertools
 import math
 from dataclasses import dataclass, field
@@ -542,7 +543,8 @@ class LaneModelFilter:
 
     def __setstate__(self, state: dict[str, Any]) -> None:
         """Restore a pickled filter; one pickled with another shape layout (an older
-        aldm-gym, another number of curvature nodes) cannot be carried on.
+        aldm-gym, another number of curvature nodes) cannot be carried on. Settings
+        added to :class:`FilterParams` since the pickle was made take their defaults.
 
         :raises InputError: the pickle's layout is not :data:`STATE_LAYOUT`.
         """
@@ -554,6 +556,11 @@ class LaneModelFilter:
                 f"this one: {STATE_LAYOUT}, (curvature nodes, node step [m])): its model "
                 "cannot be carried on; start the filter (or the episode) anew"
             )
+        fp = state.get("filter")
+        if isinstance(fp, FilterParams):
+            for f in dataclasses.fields(FilterParams):
+                if f.name not in fp.__dict__:
+                    object.__setattr__(fp, f.name, getattr(FilterParams(), f.name))
         self.__dict__.update(state)
 
     def reset(self) -> None:

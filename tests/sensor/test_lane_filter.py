@@ -642,6 +642,13 @@ def test_deterministic_reset_and_pickle() -> None:
         old = LaneModelFilter.__new__(LaneModelFilter)
         with pytest.raises(InputError, match="another state layout"):
             old.__setstate__({**state, "_layout": layout} if layout else dict(filt.__dict__))
+    # one pickled before a setting existed takes its default
+    older = copy.deepcopy(filt).__getstate__()
+    del older["filter"].__dict__["far_curvature_trend"]
+    revived = LaneModelFilter.__new__(LaneModelFilter)
+    revived.__setstate__(older)
+    assert revived.filter.far_curvature_trend == FilterParams().far_curvature_trend
+    np.testing.assert_array_equal(revived.update(pts, motion).ego_left, want.ego_left)
     fresh = LaneModelFilter().update(pts, None)
     filt.reset()
     again = filt.update(pts, None)
