@@ -205,7 +205,7 @@ MIN_EXTENT = 10.0
 """A line shorter than this in x [m] is not drawn."""
 
 
-def _steep_row(
+def _end_row(
     tab: FloatArray, max_slope: float, s_max: float = math.inf
 ) -> tuple[int, float] | None:
     """Where a line of the reference curve tabulated in ``tab`` ends: the first row
@@ -239,9 +239,9 @@ def _steep_row(
     return k, end - (k - 1)
 
 
-def _steep_x(tab: FloatArray, row: tuple[int, float] | None, offset: float) -> float:
+def _end_x(tab: FloatArray, row: tuple[int, float] | None, offset: float) -> float:
     """The x [m] where the line at ``offset`` [m] from the reference curve tabulated
-    in ``tab`` gets too steep (:func:`_steep_row`'s ``row``; inf: nowhere)."""
+    in ``tab`` ends (:func:`_end_row`'s ``row``; inf: nowhere)."""
     if row is None:
         return math.inf
     k, t = row
@@ -558,9 +558,10 @@ class LaneModelFilter:
             )
         fp = state.get("filter")
         if isinstance(fp, FilterParams):
+            defaults = FilterParams()
             for f in dataclasses.fields(FilterParams):
                 if f.name not in fp.__dict__:
-                    object.__setattr__(fp, f.name, getattr(FilterParams(), f.name))
+                    object.__setattr__(fp, f.name, getattr(defaults, f.name))
         self.__dict__.update(state)
 
     def reset(self) -> None:
@@ -791,18 +792,36 @@ class LaneModelFilter:
         report (hidden, worn, sparsely sampled) would otherwise be lost until a birth
         finds it again. Each keeps its id, confidence and history; its offset is
         uncorrelated with the new shape, with the variance it had."""
-        n, m = len(self._x), len(old["offsets"])
+        self._append_lines(
+            old["offsets"], old["var"], old["ids"], old["conf"], old["miss"], old["far"],
+            np.ones(len(old["offsets"]), dtype=bool), old["span"],
+        )  # fmt: skip
+
+    def _append_lines(
+        self,
+        offsets: FloatArray,
+        var: FloatArray,
+        ids: np.ndarray,
+        conf: FloatArray,
+        miss: FloatArray,
+        far: FloatArray,
+        confirmed: np.ndarray,
+        span: FloatArray,
+    ) -> None:
+        """Lines at ``offsets`` [m] added to the state, each uncorrelated with the
+        shape and the other lines, of variance ``var`` [m^2], with their bookkeeping."""
+        n, m = len(self._x), len(offsets)
         p = np.zeros((n + m, n + m))
         p[:n, :n] = self._p
-        p[n:, n:] = np.diag(old["var"])
-        self._x = np.concatenate((self._x, old["offsets"]))
+        p[n:, n:] = np.diag(var)
+        self._x = np.concatenate((self._x, offsets))
         self._p = p
-        self._ids = np.concatenate((self._ids, old["ids"]))
-        self._conf = np.concatenate((self._conf, old["conf"]))
-        self._miss = np.concatenate((self._miss, old["miss"]))
-        self._far = np.concatenate((self._far, old["far"]))
-        self._confirmed = np.concatenate((self._confirmed, np.ones(m, dtype=bool)))
-        self._span = np.vstack((self._span, old["span"]))
+        self._ids = np.concatenate((self._ids, ids))
+        self._conf = np.concatenate((self._conf, conf))
+        self._miss = np.concatenate((self._miss, miss))
+        self._far = np.concatenate((self._far, far))
+        self._confirmed = np.concatenate((self._confirmed, confirmed))
+        self._span = np.vstack((self._span, span))
 
     def _receded(self, far: FloatArray) -> bool:
         """Whether a confirmed line hit in this frame has its farthest point (``far``
@@ -1202,18 +1221,13 @@ class LaneModelFilter:
 
     def _add_line(self, offset: float, far: float) -> None:
         """A new line at ``offset`` [m]: uncorrelated with the shape, 0.3 m uncertain."""
-        n = len(self._x)
-        p = np.zeros((n + 1, n + 1))
-        p[:n, :n] = self._p
-        p[n, n] = 0.3**2
-        self._x, self._p = np.append(self._x, offset), p
-        self._ids = np.append(self._ids, self._next_id)
+        self._append_lines(
+            np.array([offset]), np.array([0.3**2]),
+            np.array([self._next_id], dtype=np.int64),
+            np.array([self.filter.birth_confidence]), np.zeros(1), np.array([far]),
+            np.zeros(1, dtype=bool), np.full((1, 2), np.nan),
+        )  # fmt: skip
         self._next_id += 1
-        self._conf = np.append(self._conf, self.filter.birth_confidence)
-        self._miss = np.append(self._miss, 0.0)
-        self._far = np.append(self._far, far)
-        self._confirmed = np.append(self._confirmed, False)
-        self._span = np.vstack((self._span, np.full((1, 2), np.nan)))
         self.n_born += 1
 
     # -- output ------------------------------------------------------------------------
@@ -1260,7 +1274,7 @@ class LaneModelFilter:
             tab = curve_table(self._x, fp.model_range)
         n_points = self.params.n_points if self.params.n_points >= 2 else 13
         roles = self._roles()
-        steep = _steep_row(tab, self.params.max_slope, fp.model_range)
+        end = _end_row(tab, self.params.max_slope, fp.model_range)
         shared = self._reach()
         # where any confirmed line was last seen, carried by the odometry
         carried = self._far[self._confirmed]
@@ -1284,7 +1298,7 @@ class LaneModelFilter:
                 carried_from[i] = max(own, shared, last_seen)
             else:
                 far = min(fp.model_range, max(own, min(shared, own + fp.extend_length)))
-            far = min(far, _steep_x(tab, steep, float(self._x[N_GEOMETRY + i])))
+            far = min(far, _end_x(tab, end, float(self._x[N_GEOMETRY + i])))
             if far - near >= MIN_EXTENT:
                 drawn.append((r, i, far))
         if drawn:

@@ -32,8 +32,8 @@ from aldm_gym.sensor.lane_filter import (
     FilterParams,
     LaneModelFilter,
     ModelLaneDetection,
-    _steep_row,
-    _steep_x,
+    _end_row,
+    _end_x,
     shape_covariance,
     split_filter_params,
 )
@@ -773,14 +773,14 @@ def test_lines_end_at_45_degrees_or_at_the_model_range_along_the_road(radius: fl
     for offset in (-1.8, 1.8):
         # the parallel line's radius: the curve's less its offset towards the centre
         line_r = r - math.copysign(1.0, radius) * offset
-        at_45 = _steep_x(tab, _steep_row(tab, 1.0), offset)
+        at_45 = _end_x(tab, _end_row(tab, 1.0), offset)
         assert at_45 == pytest.approx(line_r * math.sqrt(0.5), abs=0.05)
         for s_max in (50.0, 70.0, 200.0):
-            end = _steep_x(tab, _steep_row(tab, 1.0, s_max), offset)
+            end = _end_x(tab, _end_row(tab, 1.0, s_max), offset)
             # the foot point at s_max: the line's point on the same radius
             along = line_r * math.sin(s_max / r) if s_max / r < math.pi / 4 else math.inf
             assert end == pytest.approx(min(at_45, along), abs=0.05), (offset, s_max)
-    assert _steep_row(M.curve_table(np.zeros(M.N_GEOMETRY), 90.0), 1.0) is None
+    assert _end_row(M.curve_table(np.zeros(M.N_GEOMETRY), 90.0), 1.0) is None
 
 
 def test_a_jump_needs_as_many_lines_to_gain_as_are_seen_where_it_gains() -> None:
