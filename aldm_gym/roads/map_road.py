@@ -34,6 +34,7 @@ import numpy as np
 
 from aldm_gym.errors import InputError, MapError, NotDrivenError, OffRoadError
 from aldm_gym.roads.cache import LRUCache
+from aldm_gym.roads.markings import MarkingChain
 from aldm_gym.roads.opendrive import OpenDriveMap
 from aldm_gym.roads.opendrive.map import LaneKey, LaneRecord
 from aldm_gym.roads.opendrive.parse import not_found
@@ -505,16 +506,18 @@ class OpenDriveRoad(PolylineRoad):
 
     def boundary_markings(
         self, lane: LaneKey, position: FloatArray | None = None
-    ) -> dict[str, int | tuple[int, ...] | None]:
+    ) -> dict[str, int | MarkingChain | None]:
         """The true lines around ``lane`` ahead of ``position`` (``None``: no such line).
 
         ``ego_left``/``ego_right`` bound the lane on the driver's left/right;
         ``left_adjacent``/``right_adjacent`` are the outer lines of the driving lanes
         beside it at ``position``. Each is a marking index, or the chain of marking
         indices that bound the lane one after another over the next
-        :data:`BOUNDARY_REACH` metres along the lane and its successors (a border
-        changes marking where, e.g., a broken line becomes solid at an exit), or
-        ``None`` where the lane does not exist or the border is not painted.
+        :data:`BOUNDARY_REACH` metres along the lane and its successors, with where
+        each takes over (:class:`~aldm_gym.roads.markings.MarkingChain`: a border
+        changes marking where, e.g., a broken line becomes solid at an exit or a lane
+        opens beside it), or ``None`` where the lane does not exist or the border is
+        not painted.
         """
         if lane not in self._key_index:
             raise InputError(f"unknown driving lane {lane!r}")
@@ -548,31 +551,40 @@ class OpenDriveRoad(PolylineRoad):
 
     def _border(
         self, lane: LaneKey, side: str, position: FloatArray | None
-    ) -> int | tuple[int, ...] | None:
+    ) -> int | MarkingChain | None:
         """The markings along one border of ``lane`` from ``position`` on (see above)."""
         row = self._key_index[lane]
         seg = 0 if position is None else max(self._nearest_lane(position, only=row)[1], 0)
         chain: list[int] = []
+        starts: list[FloatArray] = []
         covered = 0.0
         key: LaneKey | None = lane
         seen: set[LaneKey] = set()
+        xy = self._centres.xy
         while key is not None and key not in seen and covered < BOUNDARY_REACH:
             seen.add(key)
             row = self._key_index[key]
+            a, b = self._centres.start[row], self._centres.start[row + 1]
             marks = self._border_marks(row, side)[seg:]
-            marks = marks[marks >= 0]
-            if len(marks):
-                # consecutive repeats collapse: the markings in the order they follow
-                firsts = marks[np.concatenate(([True], marks[1:] != marks[:-1]))]
-                for k in firsts.tolist():
+            at = np.flatnonzero(marks >= 0)
+            if len(at):
+                # consecutive repeats collapse: the markings in the order they follow,
+                # each from the centre vertex where it starts to bound the lane
+                marks = marks[at]
+                first = np.concatenate(([True], marks[1:] != marks[:-1]))
+                for k, v in zip(marks[first].tolist(), at[first].tolist(), strict=True):
                     if not chain or chain[-1] != k:
                         chain.append(k)
-            a, b = self._centres.start[row], self._centres.start[row + 1]
+                        starts.append(xy[min(a + seg + v, b - 1)])
             covered += float(self._centres.u[b - 1] - self._centres.u[a + min(seg, b - a - 1)])
             key, seg = self._succ.get(key), 0
         if not chain:
             return None
-        return chain[0] if len(chain) == 1 else tuple(chain)
+        if len(chain) == 1:
+            return chain[0]
+        if position is not None:
+            starts[0] = position
+        return MarkingChain(chain, np.array(starts))
 
     def lane_pose(self, road_id: str, lane_id: int, s: float) -> tuple[float, float, float]:
         """World pose (highway-env's frame) on the centre of a lane at reference ``s``.

@@ -6,6 +6,7 @@ Marking types follow CarMaker's line sensor codes (paper §"Line Sensor Model"):
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from enum import IntEnum
 
@@ -86,3 +87,41 @@ class Marking:
         if not self.broken:
             return np.ones(u.shape, dtype=bool)
         return np.mod(u - self.phase, self.period) < self.dash_length
+
+
+class MarkingChain(tuple[int, ...]):
+    """The markings that bound one border of a lane one after another ahead of a
+    position (a map's border changes marking, e.g. where a broken line becomes solid, or
+    where a lane opens beside it), and where each takes over.
+
+    A tuple of marking indices in the order the lane meets them, so it compares, hashes
+    and iterates as one. ``starts`` is ``(len, 2)``: the world point [m] (highway-env's
+    frame) where each marking starts to bound the lane; row 0 is the position the chain
+    was asked from. A marking index may be there before its start, bounding another lane
+    (the centre line of a 2+1 road runs on beside the lane that opens between it and
+    the lane it bounded): which marking a line is at a given distance ahead follows
+    from the starts, not from which markings are there
+    (:func:`aldm_gym.sensor.ground_truth.boundary_y`).
+    """
+
+    starts: FloatArray
+
+    def __new__(cls, marks: tuple[int, ...] | list[int], starts: FloatArray) -> MarkingChain:
+        """:param marks: marking indices in travel order (at least two).
+        :param starts: ``(len(marks), 2)`` world points [m] where each takes over."""
+        chain = super().__new__(cls, (int(m) for m in marks))
+        pts = np.asarray(starts, dtype=np.float64).reshape(-1, 2)
+        if len(pts) != len(chain):
+            raise ValueError(f"{len(chain)} markings but {len(pts)} start points")
+        chain.starts = pts
+        return chain
+
+    def __reduce__(self) -> tuple[type, tuple[tuple[int, ...], FloatArray]]:
+        """Pickles with its starts."""
+        return (MarkingChain, (tuple(self), self.starts))
+
+    def switch_x(self, origin: FloatArray, yaw: float) -> FloatArray:
+        """Sensor x [m] (ISO 8855, from ``origin`` [m] facing ``yaw`` [rad], highway-env's
+        world frame) of the start of every marking after the first: ``(len - 1,)``."""
+        d = self.starts[1:] - np.asarray(origin, dtype=np.float64)[:2]
+        return d[:, 0] * math.cos(yaw) + d[:, 1] * math.sin(yaw)

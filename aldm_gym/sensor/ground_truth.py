@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from aldm_gym.roads.markings import MarkingChain
 from aldm_gym.roads.protocol import Road
 from aldm_gym.sensor.frame import SensorFrame
 from aldm_gym.sensor.lane_detection import LINE_NAMES, LaneDetection, line_preview
@@ -35,7 +36,9 @@ the next border is a lane width away)."""
 
 Boundary = int | tuple[int, ...]
 """A true line: one marking index, or the chain of markings that bound a lane one after
-another along its course (on maps a border changes marking, e.g. broken to solid)."""
+another along its course (on maps a border changes marking, e.g. broken to solid, or
+where a lane opens beside it; a road's chains are
+:class:`~aldm_gym.roads.markings.MarkingChain`, which say where each takes over)."""
 
 
 def line_markings(
@@ -51,16 +54,30 @@ def line_markings(
     return road.boundary_markings(lane_id, position)
 
 
-def boundary_y(y: FloatArray, line: Boundary) -> FloatArray:
+def boundary_y(
+    y: FloatArray, line: Boundary, xs: FloatArray | None = None, frame: SensorFrame | None = None
+) -> FloatArray:
     """The rows of ``y`` (``(n_markings, K)``, as from ``road.sample_markings``) of a line.
 
-    A chain takes, at each x, the first of its markings that is there (NaN if none).
+    A chain takes, at each x, the marking that bounds the lane there: with the x
+    positions ``xs`` (``(K,)`` [m]) of ``y``'s columns and the ``frame`` they were
+    sampled in, a :class:`~aldm_gym.roads.markings.MarkingChain`'s last marking whose
+    start lies at or before x (a marking there before its start bounds another lane:
+    the centre line beside a lane that opens). Where that marking is not there, and
+    for a plain tuple or without ``xs``: the first of the chain's markings that is
+    there (NaN if none).
     """
     if isinstance(line, int | np.integer):
         return y[int(line)]
     out = np.full(y.shape[1], np.nan)
     for j in line:
         out = np.where(np.isnan(out), y[j], out)
+    if isinstance(line, MarkingChain) and xs is not None and frame is not None:
+        switch = line.switch_x(frame.origin, frame.yaw)
+        active = np.searchsorted(switch, np.asarray(xs, dtype=np.float64), side="right")
+        rows = np.asarray(line)[active]
+        on = y[rows, np.arange(y.shape[1])]
+        out = np.where(np.isnan(on), out, on)
     return out
 
 
@@ -93,7 +110,7 @@ def true_line(road: Road, frame: SensorFrame, marking: Boundary, xs: FloatArray)
     """
     if len(xs) == 0:
         return np.zeros(0)
-    return boundary_y(true_markings(road, frame, xs), marking)
+    return boundary_y(true_markings(road, frame, xs), marking, xs, frame)
 
 
 def ground_truth_detect(
@@ -118,7 +135,7 @@ def ground_truth_detect(
         if j is None:
             lines[name] = np.zeros((0, 2))
             continue
-        yj = boundary_y(y, j)
+        yj = boundary_y(y, j, xs, frame)
         ok = ~np.isnan(yj)
         lines[name] = np.column_stack([xs[ok], yj[ok]])
     return LaneDetection.from_lines(
@@ -167,7 +184,7 @@ def score_line(
     if len(line) < 2 or marking is None:
         return LineScore(len(line) >= 2, False, float("nan"), float("nan"), 0.0)
     rows = true_markings(road, frame, line[:, 0]) if markings_y is None else markings_y
-    truth = boundary_y(rows, marking)
+    truth = boundary_y(rows, marking, line[:, 0], frame)
     err = np.abs(line[:, 1] - truth)  # NaN where the marking does not reach: counts as wrong
     err = np.where(np.isnan(err), np.inf, err)
     # or the distance to a marking beside the true line all along the detected one

@@ -236,7 +236,7 @@ def frame_metrics(
     for name, marking in marks.items():
         if marking is None:
             continue
-        yg = boundary_y(on_grid, marking)
+        yg = boundary_y(on_grid, marking, grid, frame)
         if np.count_nonzero(np.isfinite(yg)) >= 2:
             truth_grid[name] = yg
             truths[name] = _kind(road, marking, name, on_grid, yg)
@@ -246,7 +246,7 @@ def frame_metrics(
     for name, line in lines.items():
         rows = y_all[:, start : start + len(line)]
         start += len(line)
-        det_truth[name] = {t: boundary_y(rows, marks[t]) for t in truths}
+        det_truth[name] = {t: boundary_y(rows, marks[t], line[:, 0], frame) for t in truths}
         det_grid[name] = (_cover(line[:, 0], grid), np.interp(grid, line[:, 0], line[:, 1]))
     detected = tuple(lines)
     truth_names = tuple(truths)

@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import math
+import pickle
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from aldm_gym.roads import OpenDriveRoad
+from aldm_gym.roads.markings import MarkingChain
 from aldm_gym.sensor import LineSensor, detect_lanes, naive_detect, score_detection
 from aldm_gym.sensor.ground_truth import ground_truth_detect, true_line
 
@@ -127,6 +129,19 @@ def test_boundary_markings(curved_map: Path) -> None:
     assert len({marks["ego_left"], marks["ego_right"], marks["right_adjacent"]}) == 3
     with pytest.raises(ValueError, match="unknown driving lane"):
         road.boundary_markings(("9", 0, -1))
+
+
+def test_a_marking_chain_knows_where_each_marking_takes_over() -> None:
+    """Its starts project onto the sensor's x axis; it survives pickling and compares
+    as the tuple of its markings."""
+    chain = MarkingChain((4, 7, 2), np.array([[0.0, 0.0], [30.0, 40.0], [-10.0, 80.0]]))
+    assert chain == (4, 7, 2) and isinstance(chain, tuple)
+    # from (10, 0) facing along +y (90 degrees): 40 m and 80 m ahead
+    assert chain.switch_x(np.array([10.0, 0.0]), math.pi / 2) == pytest.approx([40.0, 80.0])
+    back = pickle.loads(pickle.dumps(chain))
+    assert back == chain and np.array_equal(back.starts, chain.starts)
+    with pytest.raises(ValueError, match="3 markings but 2 start points"):
+        MarkingChain((4, 7, 2), np.zeros((2, 2)))
 
 
 def test_missing_file_is_named(tmp_path: Path) -> None:

@@ -6,8 +6,15 @@ import numpy as np
 import pytest
 
 from aldm_gym.roads import OpenDriveRoad, shipped_map
+from aldm_gym.roads.markings import MarkingChain
 from aldm_gym.sensor import LineSensor
-from aldm_gym.sensor.ground_truth import PAIR_GAP, line_markings, score_line, true_markings
+from aldm_gym.sensor.ground_truth import (
+    PAIR_GAP,
+    ground_truth_detect,
+    line_markings,
+    score_line,
+    true_markings,
+)
 
 
 @pytest.fixture(scope="module")
@@ -90,3 +97,42 @@ def test_a_chain_of_markings_scores_each_part_where_it_is_the_true_line() -> Non
     line = np.column_stack([x, np.full_like(x, 1.65)])
     score = score_line(line, None, None, (0, 1), markings_y=rows)  # type: ignore[arg-type]
     assert score.correct and score.max_abs_error == pytest.approx(0.05)
+
+
+@pytest.mark.parametrize(
+    ("lane_id", "s"),
+    [
+        (-1, 1310.0),  # the passing lane opens on the left 40 m ahead
+        (-1, 1340.0),  # ... 10 m ahead
+        (-2, 560.0),  # the passing lane on the left closes, 40 m ahead (in R 600 m)
+        (-2, 700.0),  # ... while it closes
+    ],
+)
+def test_a_border_follows_the_marking_that_bounds_the_lane_where_a_lane_opens(
+    lane_id: int, s: float
+) -> None:
+    """On the 2+1 road the centre line is one marking all along. Where the passing lane
+    opens between it and the ego's lane, the centre line leaves the ego's lane to the
+    left and the new lane's line, painted from where the lane opens, bounds it: the ego
+    lane keeps its 3.5 m to 90 m ahead, at an opening and at a closing."""
+    road = OpenDriveRoad.from_file(shipped_map("two_plus_one"), marking_model="per_dash")
+    frame = LineSensor().measure(road, road.lane_pose("1", lane_id, s))
+    lane = road.lane_position(frame.origin).lane
+    chain = line_markings(road, lane, frame.origin)["ego_left"]
+    assert isinstance(chain, MarkingChain) and len(chain) == 2
+    truth = ground_truth_detect(road, frame, lane)
+    left, right = truth.ego_left, truth.ego_right
+    assert np.array_equal(left[:, 0], right[:, 0])
+    left, right = left[left[:, 0] <= 90.0], right[right[:, 0] <= 90.0]
+    assert left[-1, 0] > 85.0
+    # within a few cm (in a bend, y across lines at one x is a little more than the width)
+    assert left[:, 1] - right[:, 1] == pytest.approx(np.full(len(left), 3.5), abs=0.05)
+    # a detection on the marking that leaves the lane is wrong, one on the lane's border right
+    xs = left[:, 0]
+    rows = true_markings(road, frame, xs)
+    off = np.nanmax(np.abs(rows[list(chain)] - left[:, 1]), axis=1)
+    assert off.max() > PAIR_GAP + 0.3
+    leaving = np.column_stack([xs, rows[list(chain)[int(np.argmax(off))]]])
+    leaving = leaving[np.isfinite(leaving[:, 1])]
+    assert not score_line(leaving, road, frame, chain).correct
+    assert score_line(left, road, frame, chain).correct
