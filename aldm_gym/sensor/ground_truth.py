@@ -73,7 +73,9 @@ def boundary_y(
     for j in line:
         out = np.where(np.isnan(out), y[j], out)
     if isinstance(line, MarkingChain) and xs is not None and frame is not None:
-        switch = line.switch_x(frame.origin, frame.yaw)
+        # a marking takes over no nearer than the one before it (a lane that turns back
+        # within the chain's reach would otherwise order the starts wrongly in x)
+        switch = np.maximum.accumulate(line.switch_x(frame.origin, frame.yaw))
         active = np.searchsorted(switch, np.asarray(xs, dtype=np.float64), side="right")
         rows = np.asarray(line)[active]
         on = y[rows, np.arange(y.shape[1])]

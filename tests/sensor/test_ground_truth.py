@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
@@ -10,6 +12,7 @@ from aldm_gym.roads.markings import MarkingChain
 from aldm_gym.sensor import LineSensor
 from aldm_gym.sensor.ground_truth import (
     PAIR_GAP,
+    boundary_y,
     ground_truth_detect,
     line_markings,
     score_line,
@@ -136,3 +139,25 @@ def test_a_border_follows_the_marking_that_bounds_the_lane_where_a_lane_opens(
     leaving = leaving[np.isfinite(leaving[:, 1])]
     assert not score_line(leaving, road, frame, chain).correct
     assert score_line(left, road, frame, chain).correct
+
+
+def test_a_chain_takes_the_marking_that_has_taken_over_at_each_x() -> None:
+    """Markings 0, 1 and 2 are everywhere (1, 2 and 3 m); the chain takes over from 0
+    to 1 at 30 m and to 2 at 50 m ahead of a sensor at (10, 0) facing +y. A start
+    projected nearer than the one before it counts from the one before; where the
+    active marking is not there, the first of the chain that is."""
+    xs = np.array([5.0, 29.0, 31.0, 45.0, 49.0, 51.0, 70.0])
+    y = np.array([np.full(7, 1.0), np.full(7, 2.0), np.full(7, 3.0)])
+    frame = SimpleNamespace(origin=np.array([10.0, 0.0]), yaw=np.pi / 2)
+    chain = MarkingChain((0, 1, 2), np.array([[10.0, 0.0], [10.0, 30.0], [10.0, 50.0]]))
+    got = boundary_y(y, chain, xs, frame)  # type: ignore[arg-type]
+    assert got.tolist() == [1.0, 1.0, 2.0, 2.0, 2.0, 3.0, 3.0]
+    # without the frame, or as a plain tuple: the first marking there
+    assert boundary_y(y, chain).tolist() == [1.0] * 7
+    assert boundary_y(y, (0, 1, 2), xs, frame).tolist() == [1.0] * 7  # type: ignore[arg-type]
+    # marking 2 starting at 20 m, before marking 1's 30 m: from 30 m on
+    back = MarkingChain((0, 1, 2), np.array([[10.0, 0.0], [10.0, 30.0], [10.0, 20.0]]))
+    assert boundary_y(y, back, xs, frame).tolist() == [1.0, 1.0, 3.0, 3.0, 3.0, 3.0, 3.0]  # type: ignore[arg-type]
+    # marking 1 not painted at 45 m: the first of the chain that is
+    y[1, 3] = np.nan
+    assert boundary_y(y, chain, xs, frame)[3] == 1.0  # type: ignore[arg-type]
