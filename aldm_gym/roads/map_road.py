@@ -575,7 +575,7 @@ class OpenDriveRoad(PolylineRoad):
                 for k, v in zip(marks[first].tolist(), at[first].tolist(), strict=True):
                     if not chain or chain[-1] != k:
                         chain.append(k)
-                        starts.append(xy[min(a + seg + v, b - 1)])
+                        starts.append(xy[a + seg + v])
             covered += float(self._centres.u[b - 1] - self._centres.u[a + min(seg, b - a - 1)])
             key, seg = self._succ.get(key), 0
         if not chain:
