@@ -26,7 +26,9 @@ Each frame:
 2. **Associate** every raw sensor point up to ``model_range`` with the nearest
    predicted line (by ``l``) whose gate it falls in: ``association_sigmas`` times the
    predicted standard deviation of the line there (the state's covariance and the
-   point's noise), clipped to ``[association_min, association_max]``.
+   point's noise), clipped to ``[association_min, association_max]``. Each line
+   keeps one stripe of a double line, the one it lies on near the sensor
+   (:meth:`LaneModelFilter._one_stripe`): the other stripe's points are not used.
 3. **Update** with all associated points at once (information form), robustly:
    iteratively re-weighted least squares with Tukey's biweight (``tukey`` standard
    deviations: a redescending M-estimator, so points beyond it, a tar seam beside a
@@ -42,7 +44,9 @@ Each frame:
    :data:`MIN_SUPPORT` in the frame is *hit*: its confidence ``p`` rises,
    ``p += hit_gain (1 - p)``; otherwise it falls, ``p -= miss_loss p``. A line
    without a hit for ``drop_length`` metres of travel is dropped; of two lines
-   closer than ``min_spacing`` the less confident one is dropped. A line a vehicle
+   closer than ``min_spacing`` the less confident one is dropped, and of two closer
+   than ``lane_spacing`` (a narrow strip: a shoulder's edge line beside the lane
+   line) once it is confirmed and has faded below ``min_confidence``. A line a vehicle
    hides (the frame's ``occluders``, through the line sensor's own sight model:
    :data:`HIDDEN_LENGTH`) is not missed: its confidence and miss length hold, and it
    is drawn through the shadow as far as the model is sure of it
@@ -50,8 +54,10 @@ Each frame:
 5. **Birth.** Points no line took (outside every gate, or given no weight), up to
    ``birth_range``, are put in the reference curve's frame (their ``l``); a cluster
    of at least ``birth_points`` of them within ``birth_width`` laterally, spanning
-   ``birth_span`` in x and at least ``min_spacing`` from every line, is a new line
-   (a lane opening, the lane a lane change brings into view). Where the lines'
+   ``birth_span`` in x and at least ``lane_spacing`` from every line, is a new line
+   (a lane opening, the lane a lane change brings into view); closer, but at least
+   ``min_spacing`` from every line, where it makes the lane widths more regular or
+   lies outside the outermost line of its side (a narrow strip). Where the lines'
    spacing puts a line the model lacks, one dash is enough
    (:data:`SHORT_BIRTH_POINTS`, :data:`SHORT_BIRTH_SPAN`). A cluster closer to a
    line that has had no hit for ``reseat_length`` of travel *re-seats* that line
@@ -61,9 +67,10 @@ Each frame:
 6. **Roles.** Confirmed lines (whose confidence has reached ``min_confidence``
    once; a confirmed line stays until it is dropped, so a hidden ego line keeps its
    role and is drawn from the model) get the roles by the sign of their offset at
-   the sensor: the nearest on the left is the ego-left line, the next the left
-   adjacent; the same on the right. When the nearest lines on the two sides are
-   more than the ALDM's ``max_lane_width`` apart, an ego line is missing: the one
+   the sensor: the nearest on the left is the ego-left line, the next at least the
+   ALDM's ``min_lane_width`` beyond it the left adjacent; the same on the right.
+   When the nearest lines on the two sides are more than the ALDM's
+   ``max_lane_width`` apart, an ego line is missing: the one
    farther from the sensor is the adjacent line of its side. A lane change moves
    the offsets through 0 and so re-labels the lines; the ids stay.
 
@@ -110,6 +117,7 @@ from aldm_gym.sensor.aldm_kernels.model import (
     fit,
     lateral_std,
     measurements,
+    one_stripe,
     predict,
     project_on,
     receded,
@@ -203,6 +211,20 @@ sampling)."""
 
 MIN_EXTENT = 10.0
 """A line shorter than this in x [m] is not drawn."""
+
+STRIPE_GAP = 0.45
+"""Two points of a frame at one station less than this apart laterally [m] are the two
+stripes of a double line (a stripe, a gap and a stripe: 0.24-0.3 m), not two borders
+(a lane width, or a narrow strip's 0.75 m)."""
+
+STRIPE_STATION = 1.0
+"""Points within this arc length of each other [m] are at one station: half the line
+sensor's 2 m sampling step."""
+
+STRIPE_NEAR = 40.0
+"""A line's stripe is decided by the double line's pairs within this arc length of
+the sensor [m], where the shape is sure to a few centimetres (the stripes are 0.24 m
+apart) and the line has followed its stripe from frame to frame."""
 
 
 def _end_row(
@@ -322,7 +344,13 @@ class FilterParams:
     :ivar birth_confidence: confidence of a line born from points.
     :ivar drop_length: a line without a hit for this much travel is dropped.
     :ivar min_spacing: after a frame's update no two lines are closer than this at
-        the sensor (of two, the less confident is dropped).
+        the sensor (of two, the less confident is dropped): the stripes of a double
+        line, at most 0.45 m apart, are one line.
+    :ivar lane_spacing: two lines closer than this (and at least ``min_spacing``: a
+        narrow strip, a shoulder's edge line 0.75 m outside a lane line) both stay
+        only while the less confident is unconfirmed or at least ``min_confidence``;
+        a line is born this close to another only where it makes the lane widths more
+        regular (lane openings, clutter and seams are not).
     :ivar extend_length: a line is drawn beyond its own farthest point at most this far,
         up to where the other lines are seen (the car ahead hides the ego lane's lines,
         not the lane beside).
@@ -337,7 +365,7 @@ class FilterParams:
     :ivar max_offset: lines farther than this laterally are dropped, and none is
         born there.
     :ivar reseat_length: a line without a hit for this much travel is re-seated
-        onto a cluster of free points within ``min_spacing`` of it (0: never).
+        onto a cluster of free points within ``lane_spacing`` of it (0: never).
     :ivar recede_length: when a confirmed line hit in a frame has its farthest point
         this much short of that of its last hit (carried by the odometry), the model
         competes with a fresh start on the frame (0: never).
@@ -365,7 +393,8 @@ class FilterParams:
     min_confidence: float = setting(0.5, lo=0.0, hi=1.0)
     birth_confidence: float = setting(0.4, lo=0.0, hi=1.0)
     drop_length: float = setting(60.0, lo=0.0, hi=1.0e4)
-    min_spacing: float = setting(2.5, lo=0.0, lo_open=True, hi=10.0)
+    min_spacing: float = setting(0.6, lo=0.0, lo_open=True, hi=10.0)
+    lane_spacing: float = setting(2.5, lo="min_spacing", hi=10.0)
     extend_length: float = setting(60.0, lo=0.0, hi=1000.0)
     birth_range: float = setting(60.0, lo=10.0, hi=1000.0)
     birth_points: int = setting(6, lo=3, hi=1000, integer=True)
@@ -764,7 +793,7 @@ class LaneModelFilter:
 
     def _inherited(self, state: FloatArray) -> dict[str, np.ndarray] | None:
         """The current model's confirmed lines that a new start ``state`` lacks: at
-        least ``min_spacing`` [m] from each of its lines at the sensor (where the two
+        least ``lane_spacing`` [m] from each of its lines at the sensor (where the two
         reference curves meet, so offsets compare), with their offsets, offset
         variances and bookkeeping (:meth:`_inherit`); None: none."""
         new = state[N_GEOMETRY:]
@@ -772,7 +801,7 @@ class LaneModelFilter:
         if len(off) == 0:
             return None
         gap = np.abs(off[:, None] - new[None, :]).min(axis=1) if len(new) else np.inf
-        j = np.flatnonzero(self._confirmed & (gap >= self.filter.min_spacing))
+        j = np.flatnonzero(self._confirmed & (gap >= self.filter.lane_spacing))
         if len(j) == 0:
             return None
         return {
@@ -940,6 +969,12 @@ class LaneModelFilter:
         than :data:`JUMP_MARGIN` higher, gained on at least :data:`JUMP_LINES` lines
         (fewer when fewer are seen as far out: :meth:`_jump_lines`) by
         :data:`JUMP_LINE_GAIN` each."""
+        keep = self._one_stripe(x, y)
+        if not keep.all():
+            kept, support, far = self._correct(x[keep], y[keep])
+            line = np.full(len(x), -1, dtype=kept.dtype)
+            line[keep] = kept
+            return line, support, far
         state, cov, line, support, far, _ok = self._associate_update(x, y, self._x, self._p)
         if self._q_jump is not None and np.count_nonzero(line < 0) >= JUMP_LINES * JUMP_LINE_GAIN:
             # the nominal update left points unexplained (outside every gate, or given
@@ -956,6 +991,26 @@ class LaneModelFilter:
         self._x, self._p = state, cov
         self.n_used = int(np.count_nonzero(line >= 0))
         return line, support, far
+
+    def _one_stripe(self, x: FloatArray, y: FloatArray) -> np.ndarray:
+        """Which of the points ``(x, y)`` [m] the update may use: each line keeps the
+        stripe of a double line it lies on near the sensor
+        (:func:`~aldm_gym.sensor.aldm_kernels.model.one_stripe`, pairs within the
+        gate's ``association_max`` of a line, :data:`STRIPE_GAP` apart at one
+        station, decided within :data:`STRIPE_NEAR`)."""
+        n = len(self._ids)
+        if n == 0 or len(x) < 2:
+            return np.ones(len(x), dtype=bool)
+        s, off, _g = project_on(curve_table(self._x, self.filter.model_range), x, y)
+        return one_stripe(
+            s,
+            off,
+            self._x[N_GEOMETRY:],
+            self.filter.association_max,
+            STRIPE_GAP,
+            STRIPE_STATION,
+            STRIPE_NEAR,
+        )
 
     def _jump_lines(self, x: FloatArray, line: np.ndarray, alt: np.ndarray) -> int:
         """How many lines must gain for the jump to win: :data:`JUMP_LINES`, or as many
@@ -1071,6 +1126,7 @@ class LaneModelFilter:
             fp.drop_length,
             fp.max_offset,
             fp.min_spacing,
+            fp.lane_spacing,
             MIN_SUPPORT,
         )
         if not keep.all():
@@ -1125,16 +1181,22 @@ class LaneModelFilter:
             extent = (float(np.min(fx[members])), float(np.max(fx[members])))
             if abs(centre) > fp.max_offset:
                 continue
-            # the nearest line, and whether the cluster is closer to it than min_spacing
+            # the nearest line, and whether the cluster is closer to it than lane_spacing
             j = int(np.argmin(np.abs(lines - centre))) if len(lines) else -1
-            crowded = j >= 0 and abs(lines[j] - centre) < fp.min_spacing
+            gap = abs(lines[j] - centre) if j >= 0 else math.inf
+            crowded = gap < fp.lane_spacing
             if full and span >= fp.birth_span:
                 if crowded:
-                    if 0.0 < fp.reseat_length <= self._miss[j] and self._regular(j, centre):
+                    regular = self._regular(j, centre)
+                    if regular and 0.0 < fp.reseat_length <= self._miss[j]:
                         self._reseat(j, centre, extent[1])
                         self._span[j] = extent
                         return
-                    continue
+                    # a narrow strip: a lane line inside the one the model holds there
+                    # (its widths more regular), or the road's edge line outside it
+                    edge = not np.any(lines * np.sign(centre) > abs(centre))
+                    if gap < fp.min_spacing or not (regular or edge):
+                        continue
             else:
                 # short evidence where the lines' spacing puts a line the model lacks
                 if count[i] < SHORT_BIRTH_POINTS or span < SHORT_BIRTH_SPAN or crowded:
@@ -1169,7 +1231,7 @@ class LaneModelFilter:
         """Offsets [m] where the confirmed lines' spacing puts a line the model lacks:
         one median spacing (:data:`~aldm_gym.sensor.trajectory.DEFAULT_LANE_WIDTH`
         with fewer than two lines) beside each confirmed line, at least
-        ``min_spacing`` from every line and within ``max_offset``."""
+        ``lane_spacing`` from every line and within ``max_offset``."""
         fp = self.filter
         lines = self._x[N_GEOMETRY:]
         shown = np.sort(lines[self._confirmed])
@@ -1179,7 +1241,7 @@ class LaneModelFilter:
         gaps = gaps[gaps < 1.5 * self.params.max_lane_width]
         ref = float(np.median(gaps)) if len(gaps) else DEFAULT_LANE_WIDTH
         cand = np.concatenate((shown - ref, shown + ref))
-        far_from_all = np.min(np.abs(cand[:, None] - lines[None, :]), axis=1) >= fp.min_spacing
+        far_from_all = np.min(np.abs(cand[:, None] - lines[None, :]), axis=1) >= fp.lane_spacing
         return cand[far_from_all & (np.abs(cand) <= fp.max_offset)]
 
     def _regular(self, j: int, offset: float) -> bool:
@@ -1250,13 +1312,25 @@ class LaneModelFilter:
         pick = [-1, -1, -1, -1]
         if left:
             pick[1] = left[0]
-        if len(left) > 1:
-            pick[0] = left[1]
+            pick[0] = self._adjacent(left, offsets)
         if right:
             pick[2] = right[0]
-        if len(right) > 1:
-            pick[3] = right[1]
+            pick[3] = self._adjacent(right, offsets)
         return pick
+
+    def _adjacent(self, side: list[int], offsets: list[float]) -> int:
+        """The adjacent line of one side, whose lines ``side`` run outwards from the
+        ego line (-1: an ego line missing): the first at least the ALDM's
+        ``min_lane_width`` beyond it. A narrower strip (a shoulder's edge line beside
+        the lane line) is no lane (-1: none)."""
+        if len(side) < 2:
+            return -1
+        if side[0] < 0:
+            return side[1]
+        for i in side[1:]:
+            if abs(offsets[i] - offsets[side[0]]) >= self.params.min_lane_width:
+                return i
+        return -1
 
     def _detection(
         self, near: float, shadow: FloatArray | None = None, tab: FloatArray | None = None

@@ -25,7 +25,7 @@ from aldm_gym.sensor.drives import (
     path_poses,
     traffic,
 )
-from aldm_gym.sensor.lane_filter import FilterParams
+from aldm_gym.sensor.lane_filter import FilterParams, LaneModelFilter
 
 CURVATURE_STEP = Path(__file__).resolve().parents[2] / "benchmarks" / "data" / "curvature_step.xodr"
 
@@ -164,13 +164,16 @@ def test_a_bend_seen_on_one_line_past_the_cars_bends_the_model() -> None:
 
 
 def test_the_far_end_follows_a_spiral_across_the_view() -> None:
-    """The shipped ``features`` map, lane -1, ideal sensor, through its reverse spiral
-    (the curvature changes across the whole view): with the last node step's trend
-    carried on (``far_curvature_trend`` 0.5, the default) the far end follows the
-    road; with the last node's curvature held it lags by a node step and the lines
-    are off for up to 1.7 s."""
+    """The shipped ``features`` map, lane 1 (against the reference line), ideal
+    sensor, through its reverse spiral (the curvature changes across the whole view):
+    with the last node step's trend carried on (``far_curvature_trend`` 0.5, the
+    default) the far end follows the road; with the last node's curvature held it
+    lags by a node step and the lines are off for 1.1 s. (Lane -1, which lagged 1.7 s
+    when its far end took the other stripe of the double centre line, now follows the
+    spiral either way.)"""
     road = OpenDriveRoad.from_file(shipped_map("features"), marking_model="per_dash")
-    start = drive_starts(road)[0]
+    start = drive_starts(road)[1]
+    assert start[2] == 1
 
     def run(trend: float) -> DriveScore:
         params = {"filter": {"filt": FilterParams(far_curvature_trend=trend)}}
@@ -182,8 +185,48 @@ def test_the_far_end_follows_a_spiral_across_the_view() -> None:
     trend, held = run(FilterParams().far_curvature_trend), run(0.0)
     assert FilterParams().far_curvature_trend == 0.5
     assert trend.frames == held.frames > 150
-    assert trend.share >= 0.97 and trend.longest_wrong <= 2
-    assert held.share < 0.9 and held.longest_wrong > 10
+    assert trend.share == 1.0
+    assert held.share < 0.95 and held.longest_wrong > 8
+
+
+def _features_worn(start: int, **params: float) -> DriveScore:
+    """The filter along the ``features`` map's drive ``start`` with 30 % worn dashes."""
+    road = OpenDriveRoad.from_file(shipped_map("features"), marking_model="per_dash")
+    scores = drive(
+        road,
+        drive_starts(road)[start],
+        CONDITIONS["worn"],
+        detectors=("filter",),
+        detector_params={"filter": {"filt": FilterParams(**params)}},
+    )
+    return scores["filter"]
+
+
+def test_a_shoulder_edge_line_is_held_beside_the_lane_line() -> None:
+    """``features``, lane -1 with 30 % worn dashes: 0.75 m outside the ego lane's
+    broken right line runs the shoulder's solid edge line. The filter holds both (a
+    narrow strip: farther apart than ``min_spacing``, within ``lane_spacing``), so each
+    takes its own points. With ``min_spacing`` 2.5 m the model could hold only one,
+    and the ego-right line sat on the edge line for most of the drive."""
+    strip = _features_worn(0)
+    assert strip.frames > 150
+    assert strip.share >= 0.98 and strip.longest_wrong <= 3
+    one = _features_worn(0, min_spacing=2.5)
+    assert one.share < 0.7 and one.longest_wrong > 30
+
+
+def test_a_line_keeps_one_stripe_of_a_double_line(monkeypatch: pytest.MonkeyPatch) -> None:
+    """``features``, lane 1 (the other way) with 30 % worn dashes: the ego-left line
+    is the double centre line (solid and broken stripes 0.24 m apart). The line keeps
+    the stripe it lies on near the sensor at every distance; taking whichever stripe
+    the gate finds nearest, the far end took the other one where the shape lagged a
+    bend, and the step bent the shape further off (0.9 s wrong)."""
+    kept = _features_worn(1)
+    assert kept.frames > 150
+    assert kept.share >= 0.99 and kept.longest_wrong <= 1
+    monkeypatch.setattr(LaneModelFilter, "_one_stripe", lambda _self, x, _y: np.ones(len(x), bool))
+    both = _features_worn(1)
+    assert both.share < 0.97 and both.longest_wrong >= 5
 
 
 def test_drive_score_counts_runs_and_misses() -> None:

@@ -261,10 +261,12 @@ def test_clutter_is_rejected() -> None:
     inside the ego-left line, from 120 m ahead of the first frame on (they come into
     the model's 90 m range at frame 12 and reach the car), and 40 random specks per
     frame. The single-frame ALDM that starts the model bends its right lines onto
-    specks; the filter re-seats the ego-right and right adjacent lines onto their
-    markings within 15 m of travel. From frame 6 on the ego lines stay within 5 cm
-    and keep their ids, and no line is born, re-seated or started on the clutter;
-    single-frame ALDM with its lane-width check off takes the inner seam."""
+    specks; within 10 m of travel the filter has lines born on the ego-right and
+    right adjacent markings beside them (closer than ``lane_spacing``, where they
+    make the lane widths regular), and the misplaced lines fade and go. From frame 6
+    on the ego lines stay within 5 cm and keep their ids, every line is on a marking,
+    and no line is born, re-seated or started on the clutter; single-frame ALDM with
+    its lane-width check off takes the inner seam."""
     rng = np.random.default_rng(0)
     filt = LaneModelFilter()
     motion = EgoMotion(SPEED, 0.0, DT)
@@ -297,9 +299,11 @@ def test_clutter_is_rejected() -> None:
         wrong_unchecked += _err(road, 1, detect_lanes(pts, min_lane_width=1.0).ego_left) > 0.3
     assert wrong_unchecked >= 10
     # nothing was born, re-seated or started after frame 6; before, the two right
-    # lines were re-seated (ids kept) and the fifth marking born
-    assert (filt.n_reseated, filt.n_born, filt.n_starts) == early == (2, 1, 1)
-    assert filt.n_restarts == 0 and filt.line_ids == (0, 1, 2, 3, 4)
+    # lines were born beside the misplaced ones, and the fifth marking born
+    assert (filt.n_reseated, filt.n_born, filt.n_starts) == early == (0, 3, 1)
+    assert filt.n_restarts == 0 and len(filt.line_ids) == 5
+    marks = np.array([m.offset for m in road.markings])
+    assert np.all(np.min(np.abs(filt.offsets[:, None] - marks[None, :]), axis=1) < 0.1)
 
 
 def test_a_hidden_line_is_not_reseated_onto_a_seam_inside_its_lane() -> None:
@@ -328,21 +332,30 @@ def test_a_hidden_line_is_not_reseated_onto_a_seam_inside_its_lane() -> None:
     assert np.all(np.min(np.abs(filt.offsets[:, None] - marks[None, :]), axis=1) < 0.1)
 
 
-def test_no_two_lines_stay_closer_than_min_spacing() -> None:
-    """Three lines 1.2 m apart, the middle one the least confident: dropping it leaves
-    the outer two 2.4 m apart, under min_spacing (2.5 m), so one of them goes too."""
-    filt = LaneModelFilter()
+@pytest.mark.parametrize(
+    ("spacing", "kept"), [({"min_spacing": 2.5}, [7]), ({}, [7, 9]), ({"min_spacing": 1.3}, [7])]
+)
+def test_no_two_lines_stay_closer_than_min_spacing(spacing: dict, kept: list[int]) -> None:
+    """Three lines 1.2 m apart, the middle one confirmed but the least confident and
+    below ``min_confidence`` after the frame's hit. With ``min_spacing`` 2.5 m (no
+    narrow strips) dropping it leaves the outer two 2.4 m apart, so one of them goes
+    too. By default (0.6 m) the two outer lines are a narrow strip within
+    ``lane_spacing`` (2.5 m): both confident, both stay, while the faded middle one
+    goes. With 1.3 m the middle one is too close to either and goes; the outer two
+    are a strip, but the less confident of them too has faded below
+    ``min_confidence``."""
+    filt = LaneModelFilter(filt=FilterParams(**spacing))
     filt.update(S.sample(S.highway(lanes=1, ego_lane=0), noise=0.0, seed=0)[0], None)
     filt._x = np.concatenate([filt._x[: M.N_GEOMETRY], [0.0, 1.2, 2.4]])
     filt._p = np.eye(M.N_GEOMETRY + 3)
     filt._ids = np.array([7, 8, 9])
-    filt._conf = np.array([0.9, 0.2, 0.8])
+    filt._conf = np.array([0.9, 0.1, 0.8 if len(kept) == 2 else 0.2])
     filt._miss = np.zeros(3)
     filt._far = np.full(3, 50.0)
     filt._confirmed = np.ones(3, dtype=bool)
     filt._span = np.full((3, 2), np.nan)
     filt._existence(np.full(3, 5.0), np.full(3, 50.0), 0.0, np.zeros(3, dtype=bool))
-    assert list(filt._ids) == [7]
+    assert list(filt._ids) == kept
     assert np.all(np.diff(np.sort(filt.offsets)) >= filt.filter.min_spacing)
 
 
@@ -984,6 +997,7 @@ def test_kernels_match_plain_python() -> None:
         12.0,
         2.5,
         2.5,
+        2.5,
     )
     copies = [tuple(a.copy() if isinstance(a, np.ndarray) else a for a in args) for _ in range(2)]
     keep, keep_py = M.existence(*copies[0]), M.existence_py(*copies[1])
@@ -1005,6 +1019,19 @@ def test_kernels_match_plain_python() -> None:
         kernel(*call)
         np.testing.assert_allclose(call[2], [0.45, 0.9, 0.72, 0.6])
         np.testing.assert_array_equal(call[3], [2.5, 58.0, 2.5, 0.0])
+    # a narrow strip (min_spacing 0.6 m): lines 2 and 3, 1.1 m apart, both stay while
+    # the weaker is confident enough or not yet confirmed, and it goes once confirmed
+    # and faded below min_confidence
+    for conf3, confirmed3, stays in ((0.6, True, True), (0.2, False, True), (0.2, True, False)):
+        strip = list(args)
+        strip[2] = np.array([0.5, 0.9, 0.8, conf3])
+        strip[3] = np.array([0.0, 58.0, 0.0, 30.0])
+        strip[0] = np.array([5.0, 0.0, 4.0, 0.0])  # line 3 missed
+        strip[5] = np.array([False, False, False, confirmed3])
+        strip[15] = 0.6
+        for kernel in (M.existence, M.existence_py):
+            call = [a.copy() if isinstance(a, np.ndarray) else a for a in strip]
+            assert kernel(*call).tolist() == [True, False, True, stays], (conf3, confirmed3)
     # measurements: finite rows ahead within range and the road band, in order
     pts = np.array(
         [
@@ -1026,6 +1053,59 @@ def test_kernels_match_plain_python() -> None:
     assert not M._inverse(-np.eye(3))[1]
     _low, ok = M._cholesky_py(-np.eye(3))
     assert not ok and not M._cholesky(-np.eye(3))[1]
+
+
+def test_one_stripe_keeps_the_stripe_a_line_lies_on_near_the_sensor() -> None:
+    """A double line (a solid stripe on the line's offset, 1.8 m, and a broken stripe
+    0.24 m inside it) whose far part (beyond 50 m) the shape lags by 0.2 m, so that
+    there the broken stripe is the nearer to the line: every broken-stripe point of a
+    pair goes, near and far. The right line's double stripes start beyond
+    ``STRIPE_NEAR`` (no pair near the sensor): all its points stay; so do a pair
+    beyond the gate of every line and lone points. Kernel and plain Python agree."""
+    s = np.arange(6.0, 90.0, 2.0)
+    lag = np.where(s > 50.0, 0.2, 0.0)
+    dash = (s % 18.0) < 6.0
+    solid = np.column_stack([s, 1.8 + lag])
+    broken = np.column_stack([s[dash], 1.56 + lag[dash]])
+    right = np.column_stack([s, np.full(len(s), -1.8)])
+    right_far = np.column_stack([s[s > 60.0], np.full(int(np.sum(s > 60.0)), -2.05)])
+    stray = np.array([[30.0, 4.2], [30.2, 4.4], [40.0, 0.5]])
+    pts = np.concatenate([solid, broken, right, right_far, stray])
+    args = (pts[:, 0], pts[:, 1], np.array([1.8, -1.8]), 1.2, 0.45, 1.0, 40.0)
+    keep = M.one_stripe(*args)
+    np.testing.assert_array_equal(keep, M.one_stripe_py(*args))
+    n_solid, n_broken = len(solid), len(broken)
+    assert keep[:n_solid].all()
+    assert not keep[n_solid : n_solid + n_broken].any()
+    assert keep[n_solid + n_broken :].all()
+    # the far broken points are nearer the line than the solid ones there
+    far = broken[:, 0] > 50.0
+    assert far.any() and np.abs(broken[far, 1] - 1.8).max() < np.abs(solid[s > 50.0, 1] - 1.8).min()
+    # a line on the broken stripe near the sensor keeps that one instead
+    inner = M.one_stripe(pts[:, 0], pts[:, 1], np.array([1.56, -1.8]), 1.2, 0.45, 1.0, 40.0)
+    paired_solid = np.isin(solid[:, 0], broken[:, 0])
+    assert not inner[:n_solid][paired_solid].any() and inner[:n_solid][~paired_solid].all()
+    assert inner[n_solid : n_solid + n_broken].all()
+    # no line, or a single point: everything stays
+    assert M.one_stripe(pts[:, 0], pts[:, 1], np.zeros(0), 1.2, 0.45, 1.0, 40.0).all()
+    assert M.one_stripe(pts[:1, 0], pts[:1, 1], np.array([1.8]), 1.2, 0.45, 1.0, 40.0).all()
+
+
+def test_a_narrow_strip_is_no_adjacent_lane() -> None:
+    """The adjacent line of a side is the first line at least the ALDM's
+    ``min_lane_width`` beyond the ego line: a shoulder's edge line 0.75 m outside the
+    ego-right line is no lane, the line beyond it is the right adjacent one."""
+    filt = LaneModelFilter()
+    filt.update(S.sample(S.highway(lanes=1, ego_lane=0), noise=0.0, seed=0)[0], None)
+    for offsets, want in (
+        ([1.8, -1.75, -2.5, -5.3], [-1, 0, 1, 3]),
+        ([1.8, -1.75, -2.5], [-1, 0, 1, -1]),
+        ([5.5, 1.8, 2.4, -1.75], [0, 1, 3, -1]),
+    ):
+        n = len(offsets)
+        filt._x = np.concatenate([filt._x[: M.N_GEOMETRY], offsets])
+        filt._confirmed = np.ones(n, dtype=bool)
+        assert filt._roles() == want, offsets
 
 
 def test_parallel_support_counts_the_points_a_shape_lays_on_parallel_lines() -> None:

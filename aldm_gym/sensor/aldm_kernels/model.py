@@ -8,7 +8,8 @@ point, and the measurement update with the associated points, in information for
 re-weighted by Tukey's biweight (:func:`robust_update`); :func:`existence` keeps the
 lines' hits and misses; :func:`draw_on` draws lines of the model as points and
 :func:`lateral_std` gives each drawn point's standard deviation; :func:`spans` is
-where each line was measured; :func:`measurements` picks a frame's valid rows;
+where each line was measured; :func:`one_stripe` keeps one stripe of a double line per
+line; :func:`measurements` picks a frame's valid rows;
 :func:`receded` checks the far ends; :func:`fit` is the start's Gauss-Newton update.
 A frame of the filter is a handful of kernel calls and a little bookkeeping.
 
@@ -757,6 +758,81 @@ def spans_py(x, line, support, n_lines, min_support):
 spans = numba.njit(cache=True)(spans_py)
 
 
+def one_stripe_py(s, lat, offsets, reach, gap, station, near):
+    """Which points to keep so that each line takes one stripe of a double line.
+
+    Two points at one station (arc lengths ``s`` within ``station`` [m]) whose
+    distances ``lat`` to the left of the reference curve differ by less than ``gap``
+    [m], both nearest to the same line and within ``reach`` [m] of its offset, are the
+    two stripes of one border (a ``solid broken`` centre line: 0.24 m apart). A line
+    follows the stripe it lies on near the sensor, where the shape is sure: among the
+    line's pairs closer than ``near`` [m] of arc, the stripe nearer its offset more
+    often (the one to the right on a tie). Its other stripe's points are not kept at any
+    distance: left to the nearest-neighbour gate, a shape that lags a bend far out
+    takes the other stripe there, and the 0.24 m step bends the shape the wrong way.
+    A line without such a pair near the sensor keeps every point.
+
+    :param s: ``(N,)`` the points' arc lengths along the reference curve [m].
+    :param lat: ``(N,)`` their signed distances to the left of it [m].
+    :param offsets: ``(n_lines,)`` the lines' offsets [m].
+    :return: ``(N,)`` bool, the points kept.
+    """
+    n = s.shape[0]
+    n_lines = offsets.shape[0]
+    keep = np.ones(n, dtype=np.bool_)
+    if n < 2 or n_lines == 0:
+        return keep
+    line = np.full(n, -1, dtype=np.int64)
+    for p in range(n):
+        best = reach
+        for i in range(n_lines):
+            d = abs(lat[p] - offsets[i])
+            if d <= best:
+                best = d
+                line[p] = i
+    order = np.argsort(s, kind="mergesort")
+    lo = np.empty(n, dtype=np.int64)
+    hi = np.empty(n, dtype=np.int64)
+    paired = np.zeros(n, dtype=np.bool_)
+    n_pairs = 0
+    for a in range(n):
+        p = order[a]
+        if line[p] < 0 or paired[p]:
+            continue
+        for b in range(a + 1, n):
+            q = order[b]
+            if s[q] - s[p] >= station:
+                break
+            if line[q] != line[p] or paired[q] or abs(lat[q] - lat[p]) >= gap:
+                continue
+            paired[p] = True
+            paired[q] = True
+            lo[n_pairs] = p if lat[p] <= lat[q] else q
+            hi[n_pairs] = q if lat[p] <= lat[q] else p
+            n_pairs += 1
+            break
+    votes = np.zeros(n_lines, dtype=np.int64)  # > 0: the line is on its lower stripe
+    seen = np.zeros(n_lines, dtype=np.bool_)
+    for k in range(n_pairs):
+        i = line[lo[k]]
+        if s[lo[k]] < near or s[hi[k]] < near:
+            seen[i] = True
+            d_lo = abs(lat[lo[k]] - offsets[i])
+            d_hi = abs(lat[hi[k]] - offsets[i])
+            if d_lo < d_hi:
+                votes[i] += 1
+            elif d_hi < d_lo:
+                votes[i] -= 1
+    for k in range(n_pairs):
+        i = line[lo[k]]
+        if seen[i]:
+            keep[hi[k] if votes[i] >= 0 else lo[k]] = False
+    return keep
+
+
+one_stripe = numba.njit(cache=True)(one_stripe_py)
+
+
 def draw_py(state, lines, near, far, n_points):
     """:func:`draw_on` the reference curve of ``state``."""
     return draw_on(curve_table(state, _max(far)), state, lines, near, far, n_points)
@@ -782,6 +858,7 @@ def existence_py(
     drop_length,
     max_offset,
     min_spacing,
+    lane_spacing,
     min_support,
 ):
     """The lines' hits and misses in a frame, and which lines are kept.
@@ -794,7 +871,11 @@ def existence_py(
     ``min_confidence``. Kept: lines missed for at most ``drop_length`` [m] and within
     ``max_offset`` [m] of the sensor; of two kept lines closer than ``min_spacing``
     [m], the less confident goes (on a tie the younger, the larger id), each compared
-    with the nearest kept one to its right, so no two kept lines end closer.
+    with the nearest kept one to its right, so no two kept lines end closer. Two lines
+    at least ``min_spacing`` but less than ``lane_spacing`` [m] apart (a narrow strip:
+    a shoulder's edge line beside a lane line) both stay while the less confident one
+    is unconfirmed (it has no role yet) or at least ``min_confidence``; once it is
+    confirmed and has fallen below that, it goes.
 
     ``conf``, ``miss``, ``far_old`` and ``confirmed`` are updated in place.
     :return: ``(n_lines,)`` bool, the lines kept.
@@ -818,12 +899,16 @@ def existence_py(
     for b in order:
         if not keep[b]:
             continue
-        if prev >= 0 and offsets[b] - offsets[prev] < min_spacing:
+        if prev >= 0 and offsets[b] - offsets[prev] < lane_spacing:
             a = prev
             if conf[a] < conf[b] or (conf[a] == conf[b] and ids[a] > ids[b]):
                 weaker = a
             else:
                 weaker = b
+            strip = offsets[b] - offsets[prev] >= min_spacing
+            if strip and (not confirmed[weaker] or conf[weaker] >= min_confidence):
+                prev = b
+                continue
             keep[weaker] = False
             if weaker == a:
                 prev = b
