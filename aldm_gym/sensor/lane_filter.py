@@ -1249,8 +1249,15 @@ class LaneModelFilter:
         where it is: the squared differences of its spacings to its neighbours from
         the median spacing of the other neighbouring lines (the default lane width
         without such) fall. A hidden line carried at the right width is not moved
-        onto a seam or an old marking inside the lane; a line born on clutter is."""
+        onto a seam or an old marking inside the lane; a line born on clutter is.
+        Lines closer than ``lane_spacing`` to line ``j`` (a narrow strip's other
+        line, a seam held beside it) are no lane's border here."""
         lines = self._x[N_GEOMETRY:]
+        strip = np.abs(lines - lines[j]) < self.filter.lane_spacing
+        strip[j] = False
+        if strip.any():
+            lines = lines[~strip]
+            j -= int(np.count_nonzero(strip[:j]))
         order = np.argsort(lines, kind="stable")
         gaps = [
             float(lines[b] - lines[a]) for a, b in itertools.pairwise(order) if a != j and b != j

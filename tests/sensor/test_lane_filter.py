@@ -1108,6 +1108,21 @@ def test_a_narrow_strip_is_no_adjacent_lane() -> None:
         assert filt._roles() == want, offsets
 
 
+def test_the_lane_width_test_ignores_a_line_held_beside_the_one_it_replaces() -> None:
+    """The regularity test of a birth or re-seat beside line ``j`` ignores the lines
+    closer than ``lane_spacing`` to ``j`` (a seam 0.6 m outside the ego-right line,
+    held as a narrow strip's edge line): with it, a second seam 0.75 m inside the lane
+    would look like a better ego-right line than the lane line. A lane line inside a
+    shoulder's edge line the model holds as the ego-right line is more regular."""
+    filt = LaneModelFilter()
+    filt.update(S.sample(S.highway(lanes=1, ego_lane=0), noise=0.0, seed=0)[0], None)
+    for offsets in ([5.25, 1.75, -1.75], [5.25, 1.75, -1.75, -2.35]):
+        filt._x = np.concatenate([filt._x[: M.N_GEOMETRY], offsets])
+        assert not filt._regular(2, -1.0), offsets
+    filt._x = np.concatenate([filt._x[: M.N_GEOMETRY], [5.25, 1.75, -2.5]])
+    assert filt._regular(2, -1.75)
+
+
 def test_parallel_support_counts_the_points_a_shape_lays_on_parallel_lines() -> None:
     """The start's score: on a straight road every line's points lie on lines parallel
     to a straight shape, and a bent shape (R 200 m) spreads them; in an R 200 m bend
