@@ -110,6 +110,7 @@ from aldm_gym.sensor.aldm_kernels.model import (
     NODE_STEP,
     SCALE,
     TABLE_STEP,
+    any_closer,
     associate_update,
     curve_table,
     draw_on,
@@ -999,7 +1000,7 @@ class LaneModelFilter:
         gate's ``association_max`` of a line, :data:`STRIPE_GAP` apart at one
         station, decided within :data:`STRIPE_NEAR`)."""
         n = len(self._ids)
-        if n == 0 or len(x) < 2:
+        if n == 0 or len(x) < 2 or not any_closer(x, y, math.hypot(STRIPE_GAP, STRIPE_STATION)):
             return np.ones(len(x), dtype=bool)
         s, off, _g = project_on(curve_table(self._x, self.filter.model_range), x, y)
         return one_stripe(

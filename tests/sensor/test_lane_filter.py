@@ -1086,6 +1086,14 @@ def test_one_stripe_keeps_the_stripe_a_line_lies_on_near_the_sensor() -> None:
     paired_solid = np.isin(solid[:, 0], broken[:, 0])
     assert not inner[:n_solid][paired_solid].any() and inner[:n_solid][~paired_solid].all()
     assert inner[n_solid : n_solid + n_broken].all()
+    # the cheap test before it: two stripes at one station are closer than 1.1 m;
+    # single lines sampled every 2 m, 3.5 m apart, are not
+    reach = math.hypot(0.45, 1.0)
+    for fn in (M.any_closer, M.any_closer_py):
+        assert fn(pts[:, 0], pts[:, 1], reach)
+        single = np.concatenate([solid, right])
+        assert not fn(single[:, 0], single[:, 1], reach)
+        assert not fn(single[:1, 0], single[:1, 1], reach)
     # no line, or a single point: everything stays
     assert M.one_stripe(pts[:, 0], pts[:, 1], np.zeros(0), 1.2, 0.45, 1.0, 40.0).all()
     assert M.one_stripe(pts[:1, 0], pts[:1, 1], np.array([1.8]), 1.2, 0.45, 1.0, 40.0).all()

@@ -9,9 +9,10 @@ re-weighted by Tukey's biweight (:func:`robust_update`); :func:`existence` keeps
 lines' hits and misses; :func:`draw_on` draws lines of the model as points and
 :func:`lateral_std` gives each drawn point's standard deviation; :func:`spans` is
 where each line was measured; :func:`one_stripe` keeps one stripe of a double line per
-line; :func:`measurements` picks a frame's valid rows;
-:func:`receded` checks the far ends; :func:`fit` is the start's Gauss-Newton update.
-A frame of the filter is a handful of kernel calls and a little bookkeeping.
+line (:func:`any_closer` first tells whether a frame can hold one);
+:func:`measurements` picks a frame's valid rows; :func:`receded` checks the far ends;
+:func:`fit` is the start's Gauss-Newton update. A frame of the filter is a handful of
+kernel calls and a little bookkeeping.
 
 The state is the shared shape (:data:`N_GEOMETRY` entries) followed by one offset per
 line; a point on line ``j`` has the measurement row ``(g_0 .. g_N, e_j)`` (``N =
@@ -756,6 +757,30 @@ def spans_py(x, line, support, n_lines, min_support):
 
 
 spans = numba.njit(cache=True)(spans_py)
+
+
+def any_closer_py(x, y, radius):
+    """Whether any two of the points ``(x, y)`` [m] lie closer than ``radius`` [m] to
+    each other: a cheap test before :func:`one_stripe` (two stripes of a double line at
+    one station are closer than their gap and the station's length together; the line
+    sensor samples one line every 2 m)."""
+    n = x.shape[0]
+    order = np.argsort(x, kind="mergesort")
+    r2 = radius * radius
+    for a in range(n):
+        p = order[a]
+        for b in range(a + 1, n):
+            q = order[b]
+            dx = x[q] - x[p]
+            if dx >= radius:
+                break
+            dy = y[q] - y[p]
+            if dx * dx + dy * dy < r2:
+                return True
+    return False
+
+
+any_closer = numba.njit(cache=True)(any_closer_py)
 
 
 def one_stripe_py(s, lat, offsets, reach, gap, station, near):
