@@ -971,11 +971,17 @@ class LaneModelFilter:
         (fewer when fewer are seen as far out: :meth:`_jump_lines`) by
         :data:`JUMP_LINE_GAIN` each."""
         keep = self._one_stripe(x, y)
-        if not keep.all():
-            kept, support, far = self._correct(x[keep], y[keep])
-            line = np.full(len(x), -1, dtype=kept.dtype)
-            line[keep] = kept
-            return line, support, far
+        if keep.all():
+            return self._correct_points(x, y)
+        kept, support, far = self._correct_points(x[keep], y[keep])
+        line = np.full(len(x), -1, dtype=kept.dtype)
+        line[keep] = kept
+        return line, support, far
+
+    def _correct_points(
+        self, x: FloatArray, y: FloatArray
+    ) -> tuple[np.ndarray, FloatArray, FloatArray]:
+        """:meth:`_correct` with the points ``(x, y)`` [m] the stripe check kept."""
         state, cov, line, support, far, _ok = self._associate_update(x, y, self._x, self._p)
         if self._q_jump is not None and np.count_nonzero(line < 0) >= JUMP_LINES * JUMP_LINE_GAIN:
             # the nominal update left points unexplained (outside every gate, or given
@@ -1195,7 +1201,8 @@ class LaneModelFilter:
                         return
                     # a narrow strip: a lane line inside the one the model holds there
                     # (its widths more regular), or the road's edge line outside it
-                    edge = not np.any(lines * np.sign(centre) > abs(centre))
+                    side = 1.0 if centre >= 0.0 else -1.0
+                    edge = not np.any(side * lines > abs(centre))
                     if gap < fp.min_spacing or not (regular or edge):
                         continue
             else:
