@@ -28,7 +28,9 @@ from aldm_gym.sensor.lane_detection import LINE_NAMES
 from aldm_gym.sensor.lane_filter import (
     FILTER_KEYS,
     JUMP_LINES,
+    RECEDE_SHADOW,
     RESTART_MARGIN,
+    SIGHT_MARGIN,
     FilterParams,
     LaneModelFilter,
     ModelLaneDetection,
@@ -457,7 +459,14 @@ def test_start_keeps_the_start_the_points_support(monkeypatch: pytest.MonkeyPatc
 
 @pytest.mark.slow
 @pytest.mark.parametrize(
-    ("name", "seed"), [("two_plus_one", 12), ("two_plus_one", 9), ("motorway", 4), ("motorway", 9)]
+    ("name", "seed"),
+    [
+        ("two_plus_one", 12),
+        ("two_plus_one", 9),
+        ("motorway", 4),
+        ("motorway", 9),
+        ("motorway", 19),
+    ],
 )
 def test_on_the_maps_under_the_camera_preset_the_car_keeps_its_lane(name: str, seed: int) -> None:
     """Episodes of the shipped maps under the camera preset in which the filter once
@@ -474,7 +483,11 @@ def test_on_the_maps_under_the_camera_preset_the_car_keeps_its_lane(name: str, s
     ``motorway`` seed 4 again with five curvature nodes: a restart (one line seen only
     at 6 m) replaced the right model by a start turned 0.055 rad out that scored one
     point more of 65 (2 departures), until a start had to score more than
-    ``RESTART_MARGIN`` above the model."""
+    ``RESTART_MARGIN`` above the model. ``motorway`` seed 19: the far ends of three
+    lines came nearer with the car's travel for a second while the fourth was seen to
+    90 m; no frame dropped by ``recede_length``, and a drop of a line a car hid was
+    the only restart (4 departures once such drops no longer counted), until a line
+    short of its sight restarted the model."""
     config = {
         "marking_model": "per_dash",
         "detector_params": {"tracking": "model"},
@@ -518,19 +531,81 @@ def test_a_restart_needs_a_start_that_scores_more_than_the_margin_above_the_mode
 ) -> None:
     """A receded model competes with the fresh starts on the frame; one point more of
     65 (motorway, camera preset, seed 4) is within ``RESTART_MARGIN`` and keeps the
-    model, two points more replace it."""
+    model, two points more replace it. A line short of its sight asks for
+    ``SIGHT_MARGIN``: 78 keeps the model, 79 replaces it."""
     assert 66 <= 65 * (1.0 + RESTART_MARGIN) < 67
+    assert 78 <= 65 * (1.0 + SIGHT_MARGIN) < 79
     pts = S.sample(S.highway(lanes=4, ego_lane=1), noise=0.02, seed=0)[0]
     x, y = M.measurements(pts, 90.0, 0.5)
-    for best, restarted in ((66, False), (67, True)):
+    cases = [(RESTART_MARGIN, 66, False), (RESTART_MARGIN, 67, True)]
+    cases += [(SIGHT_MARGIN, 78, False), (SIGHT_MARGIN, 79, True)]
+    for margin, best, restarted in cases:
         filt = LaneModelFilter()
         filt.update(pts, None)
         before = filt.line_ids
         scores = [0, best, 0, 65]  # the three starts' and the model's
         monkeypatch.setattr(LaneModelFilter, "_parallel_supports", lambda *_, s=scores: s)
-        assert filt._start(pts, x, y, incumbent=True) is restarted
+        assert filt._start(pts, x, y, incumbent=True, margin=margin) is restarted
         assert (filt.line_ids == before) is not restarted
         monkeypatch.undo()
+
+
+def test_a_drop_where_a_vehicle_starts_to_hide_the_line_is_no_evidence(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """A line seen 48 m less far than its last hit is a drop, unless a vehicle hides it
+    from within ``RECEDE_SHADOW`` beyond where it is seen now; a vehicle farther out
+    hides what may not be there. A line without a hit is no drop."""
+    pts = S.sample(S.highway(lanes=4, ego_lane=1), noise=0.02, seed=0)[0]
+    filt = LaneModelFilter()
+    filt.update(pts, None)
+    n = len(filt.line_ids)
+    filt._far[:] = 88.0
+    far = np.full(n, 88.0)
+    far[1] = 40.0
+    for first, drop in ((40.0 + RECEDE_SHADOW, False), (40.0 + RECEDE_SHADOW + 2.0, True)):
+        shadow = np.full(n, math.inf)
+        shadow[1] = first
+        monkeypatch.setattr(
+            LaneModelFilter, "_occlusion", lambda *_a, s=shadow, **_k: (np.zeros(n, bool), s)
+        )
+        assert filt._receded(pts, far) is drop
+    far[1] = -math.inf
+    assert not filt._receded(pts, far)
+
+
+def test_a_line_seen_short_of_its_sight_is_examined_once() -> None:
+    """Where the model puts every line in view to 89.5 m and three are seen that far,
+    the fourth seen only to 50 m asks for a restart, once while it stays short and
+    again once it was seen far in between. A line seen short where a truck hides it,
+    a line without a hit, and bare points (no field of view) ask for none."""
+    road = OpenDriveRoad.from_file(shipped_map("motorway"), marking_model="per_dash")
+    xy = lane_path(road, drive_starts(road)[1])
+    pose = tuple(float(v) for v in path_poses(xy, np.array([100.0]))[0])
+    sensor = LineSensor({"occlusion": True}, seed=0)
+    frame = sensor.measure(road, pose)
+    filt = LaneModelFilter()
+    filt.update(frame, None)
+    n = len(filt.line_ids)
+    np.testing.assert_allclose(filt._sight(frame), 89.52, atol=0.01)
+    far = np.full(n, 88.0)
+    ego = int(np.argmin(np.where(filt.offsets > 0.0, filt.offsets, np.inf)))  # ego-left
+    far[ego] = 50.0
+    assert filt._short_of_sight(frame, far)
+    assert not filt._short_of_sight(frame, far)
+    assert not filt._short_of_sight(frame, np.full(n, 88.0))
+    assert filt._short_of_sight(frame, far)
+    filt._examined.clear()
+    assert not filt._short_of_sight(frame.points(), far)
+    unseen = far.copy()
+    unseen[ego] = -math.inf
+    assert not filt._short_of_sight(frame, unseen)
+    # a truck 25 m ahead in the ego's lane hides the ego lines beyond it
+    ahead = (pose[0] + 25.0 * math.cos(pose[2]), pose[1] + 25.0 * math.sin(pose[2]))
+    truck = np.array([[*ahead, pose[2], 12.0, 2.5, 3.5]])
+    hidden = sensor.measure(road, pose, occluders=truck)
+    assert filt._sight(hidden)[ego] < 30.0
+    assert not filt._short_of_sight(hidden, far)
 
 
 def test_a_restart_keeps_the_lines_the_fresh_start_lacks(monkeypatch: pytest.MonkeyPatch) -> None:
