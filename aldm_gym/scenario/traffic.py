@@ -41,6 +41,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections import deque
 from dataclasses import dataclass
 from typing import Any
 
@@ -493,10 +494,10 @@ def _road_path(road: Any, start: str, goal: str) -> list[tuple[str, bool]] | Non
     for ahead in (True, False):
         lanes = [k for k in road.lanes if k[0] == start]
         parent: dict[Any, Any] = {k: None for k in lanes}
-        todo = list(lanes)
+        todo = deque(lanes)
         found = None
         while todo and found is None:
-            key = todo.pop(0)
+            key = todo.popleft()
             steps = road.successors(key) if ahead else road.predecessors(key)
             for nxt in steps:
                 if nxt not in parent:
