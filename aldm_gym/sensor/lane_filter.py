@@ -389,8 +389,9 @@ class FilterParams:
     :ivar reseat_length: a line without a hit for this much travel is re-seated
         onto a cluster of free points within ``lane_spacing`` of it (0: never).
     :ivar recede_length: when a confirmed line hit in a frame has its farthest point
-        this much short of that of its last hit (carried by the odometry), the model
-        competes with a fresh start on the frame (0: never).
+        this much short of that of its last hit (carried by the odometry), or of
+        where the model puts it in view and another line is seen (once while it
+        stays short), the model competes with a fresh start on the frame (0: never).
     :ivar jump_curvature: the curvature-jump hypothesis: the standard deviation of
         the change of curvature per node step [1/m] added to the prediction's shape
         covariance (0: no such hypothesis; 0.005 follows a step to R 100 m).
