@@ -79,7 +79,9 @@ model starts from the single-frame ALDM (:func:`~aldm_gym.sensor.aldm.detect_lan
 on the frame: its lines fitted whole, or only up to :data:`START_RANGE`, or a straight
 road at their offsets, whichever lays most of the frame's raw points on lines
 parallel to its shape (a trace that wandered far out under noise, or jumped onto the
-next line, does not bend the model). When a confirmed line hit in a frame has its
+next line, does not bend the model). Lines of the frame the start lacks (a shoulder's
+edge line beside a lane line) are born on its shape before the frame's points update
+it. When a confirmed line hit in a frame has its
 farthest point ``recede_length`` short of that of its last hit (a shape bent off the
 road far out, whose gates miss the points that would bend it back; not where a vehicle
 hides the line from there on), or short of where the model puts it in view while
@@ -714,6 +716,7 @@ class LaneModelFilter:
         started = motion is None or len(self._ids) == 0
         if started:
             self._start(pts, x, y)
+            self._start_births(x, y)
             travel = 0.0
         else:
             travel = motion.travel
@@ -822,6 +825,27 @@ class LaneModelFilter:
             self._inherit(old)
         self.n_starts += 1
         return True
+
+    def _start_births(self, x: FloatArray, y: FloatArray) -> None:
+        """Lines of the frame's points ``(x, y)`` [m] that a start lacks (the
+        single-frame ALDM reports four at most, and none inside a lane's width: a
+        shoulder's edge line 0.75 m outside the lane line), born on the start's shape
+        (:meth:`_birth`, every point free) before the frame's points update it: else
+        the nearest line's gate, as wide as a fresh start's uncertainty, takes their
+        points, and the shared shape bends to lay that line on them (on ``features``,
+        with wear, noise and cars, the ego's right line onto the shoulder's line beyond
+        45 m, where the lane line was worn: the shape zigzagged for 1.4 s). A restart
+        needs none: it keeps the lines of the model it replaces that it lacks
+        (:meth:`_inherited`)."""
+        if not len(self._ids) or not len(x):
+            return
+        tab = curve_table(self._x, self.filter.model_range)
+        free = np.full(len(x), -1, dtype=np.int64)
+        for _ in range(len(LINE_NAMES)):
+            born = self.n_born + self.n_reborn
+            self._birth(x, y, free, tab)
+            if self.n_born + self.n_reborn == born:
+                break
 
     def _inherited(self, state: FloatArray) -> dict[str, np.ndarray] | None:
         """The current model's confirmed lines that a new start ``state`` lacks: at
@@ -1341,17 +1365,27 @@ class LaneModelFilter:
 
     def _expected_lines(self) -> FloatArray:
         """Offsets [m] where the confirmed lines' spacing puts a line the model lacks:
-        one median spacing (:data:`~aldm_gym.sensor.trajectory.DEFAULT_LANE_WIDTH`
-        with fewer than two lines) beside each confirmed line, at least
-        ``lane_spacing`` from every line and within ``max_offset``."""
+        one spacing beside each confirmed line, at least ``lane_spacing`` from every
+        line and within ``max_offset``. The spacing is the median of the gaps between
+        neighbouring confirmed lines that are no narrow strip (at least
+        ``lane_spacing``), each divided by the number of the narrowest such gap it
+        spans (a gap of two lanes, a line missing between them, is two spacings);
+        without such a gap :data:`~aldm_gym.sensor.trajectory.DEFAULT_LANE_WIDTH`."""
         fp = self.filter
         lines = self._x[N_GEOMETRY:]
         shown = np.sort(lines[self._confirmed])
         if len(shown) == 0:
             return np.zeros(0)
+        # the spacing: each gap between neighbouring confirmed lines that is no narrow
+        # strip, over the whole number of the narrowest such gap it spans (a missing
+        # line between two lanes of 3.75 m: 7.5 m, two spacings)
         gaps = np.diff(shown)
-        gaps = gaps[gaps < 1.5 * self.params.max_lane_width]
-        ref = float(np.median(gaps)) if len(gaps) else DEFAULT_LANE_WIDTH
+        gaps = gaps[gaps >= fp.lane_spacing]
+        if len(gaps):
+            lanes = np.maximum(np.round(gaps / gaps.min()), 1.0)
+            ref = float(np.median(gaps / lanes))
+        else:
+            ref = DEFAULT_LANE_WIDTH
         cand = np.concatenate((shown - ref, shown + ref))
         far_from_all = np.min(np.abs(cand[:, None] - lines[None, :]), axis=1) >= fp.lane_spacing
         return cand[far_from_all & (np.abs(cand) <= fp.max_offset)]
