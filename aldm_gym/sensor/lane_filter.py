@@ -86,7 +86,8 @@ farthest point ``recede_length`` short of that of its last hit (a shape bent off
 road far out, whose gates miss the points that would bend it back; not where a vehicle
 hides the line from there on), or short of where the model puts it in view while
 another line is seen that far (the same, over several frames), the model competes with
-such a start on the frame and is replaced if the start scores higher.
+such a start on the frame and is replaced if the start scores higher (a line of the
+start that the model has keeps its id).
 The decisions are listed in
 ``docs/aldm.md``, section "Lane-model filter".
 """
@@ -766,6 +767,9 @@ class LaneModelFilter:
             this frame, scored on the same points); it is kept, and nothing changes,
             unless a new start scores more than ``margin`` (a share) higher.
         :param margin: see ``incumbent`` (:data:`RESTART_MARGIN`, :data:`SIGHT_MARGIN`).
+            A new start replacing the model keeps the ids (and confidences, where higher)
+            of the lines it shares with it (:meth:`_same_lines`) and the lines it lacks
+            (:meth:`_inherited`).
         :return: whether the model was started anew.
         """
         fp = self.filter
@@ -813,10 +817,19 @@ class LaneModelFilter:
                 return False
             best = candidates[k]
         old = self._inherited(best[0]) if incumbent else None
+        same = self._same_lines(best[0]) if incumbent else np.full(n, -1)
+        conf = np.full(n, 0.5 + 0.5 * fp.min_confidence)
+        ids = np.empty(n, dtype=np.int64)
+        for i, j in enumerate(same.tolist()):
+            if j >= 0:
+                ids[i] = self._ids[j]
+                conf[i] = max(conf[i], float(self._conf[j]))
+            else:
+                ids[i] = self._next_id
+                self._next_id += 1
         self._x, self._p = best
-        self._ids = np.arange(self._next_id, self._next_id + n, dtype=np.int64)
-        self._next_id += n
-        self._conf = np.full(n, 0.5 + 0.5 * fp.min_confidence)
+        self._ids = ids
+        self._conf = conf
         self._miss = np.zeros(n)
         self._far = np.array([float(v[-1, 0]) for v in kept])
         self._confirmed = np.ones(n, dtype=bool)
@@ -846,6 +859,27 @@ class LaneModelFilter:
             self._birth(x, y, free, tab)
             if self.n_born + self.n_reborn == born:
                 break
+
+    def _same_lines(self, state: FloatArray) -> np.ndarray:
+        """For each line of a new start ``state``, the current model's confirmed line
+        within ``min_spacing`` [m] of it at the sensor (the same marking: the nearest,
+        each taken once), -1: none. A restart replaces the shape; such a line keeps its
+        id and, if higher than a start's, its confidence (a lane line seen for a while
+        with its worn dashes is not a fresh line beside a narrow strip's other one)."""
+        new = state[N_GEOMETRY:]
+        off = self._x[N_GEOMETRY:]
+        out = np.full(len(new), -1, dtype=np.int64)
+        if len(new) == 0 or len(off) == 0:
+            return out
+        gap = np.abs(new[:, None] - off[None, :])
+        gap[:, ~self._confirmed] = np.inf
+        for flat in np.argsort(gap, axis=None, kind="stable"):
+            i, j = divmod(int(flat), len(off))
+            if gap[i, j] >= self.filter.min_spacing:
+                break
+            if out[i] < 0 and j not in out:
+                out[i] = j
+        return out
 
     def _inherited(self, state: FloatArray) -> dict[str, np.ndarray] | None:
         """The current model's confirmed lines that a new start ``state`` lacks: at
