@@ -617,7 +617,8 @@ def test_a_restart_keeps_the_lines_the_fresh_start_lacks(monkeypatch: pytest.Mon
     as the right adjacent one when the line between is missing) stays, with its id,
     offset and confidence. A line of the start within ``min_spacing`` of a confirmed
     line of the model is the same marking: it keeps that line's id, and its
-    confidence if higher than a start's. No line of the model is lost."""
+    confidence if higher than a start's. Here (no narrow strip) no line of the model
+    is lost."""
     pts = S.sample(S.highway(lanes=4, ego_lane=1), noise=0.02, seed=0)[0]
     monkeypatch.setattr(LaneModelFilter, "_parallel_supports", lambda *_: [100, 0, 0, 0])
     for hide in (True, False):
@@ -1253,14 +1254,20 @@ def test_the_expected_lines_count_a_gap_of_two_lanes_as_two_spacings() -> None:
     """Where the lines' spacing puts a line the model lacks: a gap between confirmed
     lines that spans two lanes (the ego-right line missing between the ego-left and
     the right adjacent line) counts as two spacings, whatever its exact width (a
-    cut-off at 1.5 times ``max_lane_width`` sat at 7.5 m, two lanes of 3.75 m)."""
+    cut-off at 1.5 times ``max_lane_width`` sat at 7.5 m, two lanes of 3.75 m), and a
+    hard shoulder of 2.55 m beyond the right adjacent line is no lane unit."""
     filt = LaneModelFilter()
     filt.update(S.sample(S.highway(lanes=1, ego_lane=0), noise=0.0, seed=0)[0], None)
-    for right in (-5.64, -5.66, -6.2):
-        filt._x = np.concatenate([filt._x[: M.N_GEOMETRY], [5.6, 1.85, right]])
-        filt._confirmed = np.ones(3, dtype=bool)
+    for lines in (
+        [5.6, 1.85, -5.64],
+        [5.6, 1.85, -5.66],
+        [5.6, 1.85, -6.2],
+        [5.6, 1.85, -5.65, -8.2],
+    ):
+        filt._x = np.concatenate([filt._x[: M.N_GEOMETRY], lines])
+        filt._confirmed = np.ones(len(lines), dtype=bool)
         expected = filt._expected_lines()
-        assert np.min(np.abs(expected - (1.85 - 3.75))) < 0.3, (right, expected)
+        assert np.min(np.abs(expected - (1.85 - 3.75))) < 0.3, (lines, expected)
     # a narrow strip (0.75 m) is no lane: the spacing stays the lane's
     filt._x = np.concatenate([filt._x[: M.N_GEOMETRY], [5.6, 1.85, -1.9, -2.65]])
     filt._confirmed = np.ones(4, dtype=bool)
