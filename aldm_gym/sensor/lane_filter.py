@@ -1420,7 +1420,8 @@ class LaneModelFilter:
         # the spacing: each gap between neighbouring confirmed lines that is no narrow
         # strip, over the number of lanes it spans (a missing line between two lanes of
         # 3.75 m: 7.5 m, two spacings), counted in the median of the gaps one lane can
-        # be (up to max_lane_width; a hard shoulder of 2.5 m among them is no unit)
+        # be (up to max_lane_width: a hard shoulder's 2.5 m beside 3.75 m lanes moves
+        # that median, but does not set it alone, as the narrowest gap would)
         gaps = np.diff(shown)
         gaps = gaps[gaps >= fp.lane_spacing]
         single = gaps[gaps <= self.params.max_lane_width]
