@@ -858,9 +858,9 @@ class LaneModelFilter:
         tab = curve_table(self._x, self.filter.model_range)
         free = np.full(len(x), -1, dtype=np.int64)
         for _ in range(len(LINE_NAMES)):
-            born = self.n_born + self.n_reborn
+            n = len(self._ids)
             self._birth(x, y, free, tab)
-            if self.n_born + self.n_reborn == born:
+            if len(self._ids) == n:
                 break
 
     def _same_lines(self, state: FloatArray) -> np.ndarray:
