@@ -37,6 +37,7 @@ from aldm_gym.errors import ConfigError
 from aldm_gym.roads.cache import cached_road
 from aldm_gym.roads.highway import HighwayRoad
 from aldm_gym.roads.map_road import OpenDriveRoad
+from aldm_gym.roads.opendrive.map import LaneKey
 from aldm_gym.roads.protocol import Road
 
 __all__ = [
@@ -172,7 +173,9 @@ class MapScene(Scene):
         ahead (the longest available, with a warning, on a short map). Traffic is placed
         ahead of it along its lane chain, highway-env's way (gaps shrinking with the
         lane count and ``vehicles_density``), each vehicle on a random lane of the
-        ego's direction there, never on a lane that ends within ``MAP_TRAFFIC_ROOM``.
+        ego's direction there, never on a lane that ends within ``MAP_TRAFFIC_ROOM``,
+        and on a ring (a chain that comes back to the ego's lane) no farther round
+        than one spacing short of the ego.
 
         :raises ConfigError: ``initial_lane_id`` names no driving lane of the map.
         """
@@ -219,14 +222,19 @@ class MapScene(Scene):
         other_type = self.traffic_class()
         spacing = 1.0 / float(s.vehicles_density)
         spawner = Spawner(s.traffic, rng)
-        cur, cur_u = key, u
+        lap = _lap(road, key)
+        cur, cur_u, ahead = key, u, 0.0
         for _ in range(int(s.vehicles_count)):
             siblings = road.siblings(cur)
             v_speed = float(rng.uniform(0.7 * lane.speed_limit, 0.8 * lane.speed_limit))
             offset = spacing * (12.0 + v_speed) * math.exp(-5.0 / 40.0 * len(siblings))
-            cur_u += offset * float(rng.uniform(0.9, 1.1))
+            step = offset * float(rng.uniform(0.9, 1.1))
             truck = spawner.draw()
-            cur_u += spawner.extra_shift(truck)
+            step += spawner.extra_shift(truck)
+            cur_u += step
+            ahead += step
+            if ahead > lap - offset:
+                break  # a ring: the next vehicle would come up behind the ego
             while cur is not None and cur_u > road.lane_length(cur):
                 cur_u -= road.lane_length(cur)
                 cur = road.successor(cur)
@@ -248,6 +256,18 @@ class MapScene(Scene):
                 make_truck(v, truck, spawner.config)
             traffic.vehicles.append(v)
         return ego
+
+
+def _lap(road: OpenDriveRoad, key: LaneKey) -> float:
+    """The length [m] of the ring of lanes that ``key``'s chain of successors comes
+    back to ``key`` through (a circular road), ``inf`` when it ends or joins another
+    ring instead."""
+    total, cur, seen = 0.0, key, set()
+    while cur is not None and cur not in seen:
+        seen.add(cur)
+        total += road.lane_length(cur)
+        cur = road.successor(cur)
+    return total if cur == key else math.inf
 
 
 class ScenarioScene(MapScene):

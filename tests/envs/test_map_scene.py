@@ -74,6 +74,32 @@ def lane_end(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return _write(odr, tmp_path_factory.mktemp("maps") / "lane_end.xodr")
 
 
+@pytest.fixture(scope="module")
+def ring(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A 300 m circle of two one-way lanes whose road is its own predecessor and
+    successor (a test track, as esmini's ``circle_300m.xodr``)."""
+    lane = (
+        '<lane id="{}" type="driving" level="false"><link><predecessor id="{}"/>'
+        '<successor id="{}"/></link><width sOffset="0" a="3.5" b="0" c="0" d="0"/>'
+        '<roadMark sOffset="0" type="{}" color="standard" width="0.15"/></lane>'
+    )
+    right = lane.format(-1, -1, -1, "broken") + lane.format(-2, -2, -2, "solid")
+    text = (
+        '<?xml version="1.0"?>\n<OpenDRIVE><header revMajor="1" revMinor="6" name="ring"/>'
+        '<road id="1" length="300" junction="-1"><link>'
+        '<predecessor elementType="road" elementId="1" contactPoint="end"/>'
+        '<successor elementType="road" elementId="1" contactPoint="start"/></link>'
+        '<planView><geometry s="0" x="0" y="0" hdg="0" length="300">'
+        f'<arc curvature="{2.0 * math.pi / 300.0!r}"/></geometry></planView>'
+        '<lanes><laneSection s="0"><center><lane id="0" type="none" level="false">'
+        '<roadMark sOffset="0" type="solid" color="standard" width="0.15"/></lane></center>'
+        f"<right>{right}</right></laneSection></lanes></road></OpenDRIVE>\n"
+    )
+    path = tmp_path_factory.mktemp("maps") / "ring.xodr"
+    path.write_text(text)
+    return path
+
+
 def _make(path: Path, **config: object) -> gym.Env:
     cfg = {"road": {"xodr": str(path)}, "vehicles_count": 0, "duration": 30.0}
     cfg.update(config)
@@ -173,6 +199,30 @@ def test_short_map_warns_and_truncates_at_the_end(lane_end: Path) -> None:
     assert truncated and not terminated
     road = env.unwrapped.highway
     assert road.road_left(env.unwrapped.lane_position) < 250.0
+
+
+def test_traffic_on_a_ring_stops_short_of_the_ego(ring: Path) -> None:
+    """Traffic is placed ahead of the ego along its chain of lanes; on a ring that chain
+    comes back round to the ego, and no vehicle is placed on top of it from behind."""
+    # the ring's lane chain is one lap (300 m), shorter than the episode's way
+    with pytest.warns(UserWarning, match="no driving lane has"):
+        env = _make(ring, vehicles_count=20, vehicles_density=1.0)
+    for seed in range(5):
+        with pytest.warns(UserWarning, match="no driving lane has"):
+            env.reset(seed=seed)
+        ego = env.unwrapped.vehicle
+        others = env.unwrapped.road.vehicles[1:]
+        assert 1 <= len(others) < 20  # the ring has room for some, not all twenty
+        # each car's way ahead of the ego along the ego's (circular) lane
+        length = ego.lane.length
+        here = ego.lane.local_coordinates(ego.position)[0]
+        gaps = [(ego.lane.local_coordinates(v.position)[0] - here) % length for v in others]
+        # every car more than a car's length ahead, and as far from the ego's tail
+        # counted round the ring
+        assert min(gaps) > 10.0 and max(gaps) < length - 10.0, (seed, sorted(gaps))
+        _, _, terminated, _, info = env.step(1)
+        assert not info["crashed"] and not terminated
+        assert np.all(np.isfinite(ego.position))
 
 
 def test_the_ending_lane_shows_in_info(lane_end: Path) -> None:

@@ -184,6 +184,20 @@ def test_levels_drive_the_larger_network() -> None:
     assert set(bridges) == {"a"} and hidden == frozenset()
 
 
+def test_levels_take_a_road_linked_to_itself() -> None:
+    """A ring (a road that is its own predecessor and successor, as esmini's
+    ``circle_300m.xodr``) is one network with the roads linked to it."""
+    lengths = {"ring": 300.0, "spur": 100.0, "far": 1000.0}
+    linked = {frozenset(("ring",)), frozenset(("ring", "spur"))}
+    over = Crossing("far", 10.0, 7.0, "spur", 20.0, 0.0)
+    bridges, hidden = levels(lengths, linked, [over])
+    assert bridges == {} and hidden == frozenset({"spur"})
+    over = Crossing("spur", 20.0, 7.0, "far", 10.0, 0.0)
+    bridges, hidden = levels({"ring": 900.0, "spur": 200.0, "far": 1000.0}, linked, [over])
+    # ring + spur (1100 m) outrank far: the spur over it is driven, far hidden
+    assert bridges == {} and hidden == frozenset({"far"})
+
+
 def test_levels_within_one_network_drive_the_larger_road() -> None:
     """An interchange: ramps join the motorway (m1, m2, up on its bridge) and the small
     road (s) under it, so all are one network; the motorway's lane-metres win."""

@@ -222,6 +222,8 @@ def levels(
         return r
 
     for pair in sorted(linked, key=sorted):
+        if len(pair) < 2:
+            continue  # a road linked to itself (a ring): nothing to join
         a, b = sorted(pair)
         if a in parent and b in parent:
             parent[root(a)] = root(b)
