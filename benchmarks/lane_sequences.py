@@ -12,7 +12,9 @@ condition, per detector, the share of frames with both ego lines correct, the lo
 run of wrong frames [s] and the share of ego lines missing.
 
 Run: ``.venv/bin/python -m benchmarks.lane_sequences [--jobs 2] [--max-frames 600]
-[--maps NAME,...] [--conditions NAME,...]`` (about a minute on 2 cores).
+[--maps NAME,...] [--conditions NAME,...]`` (about a minute on 2 cores). A ``--maps``
+entry may also be the path of any OpenDRIVE file (``.xodr``): the benchmark then drives
+your own map, named in the table by its file name.
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
+from aldm_gym.errors import AldmGymError
 from aldm_gym.roads import SHIPPED_MAPS, OpenDriveRoad, shipped_map
 from aldm_gym.sensor.drives import CONDITIONS, DETECTORS, DriveScore, drive, drive_starts
 
@@ -36,20 +39,47 @@ MAPS: dict[str, Path] = {
 """The maps the benchmark drives on."""
 
 
+def map_path(name: str) -> Path:
+    """The file of a map of :data:`MAPS`, or ``name`` itself as the path of an
+    OpenDRIVE file.
+
+    :raises ValueError: ``name`` is neither.
+    """
+    if name in MAPS:
+        return MAPS[name]
+    path = Path(name)
+    if path.suffix.lower() == ".xodr" and path.is_file():
+        return path
+    raise ValueError(
+        f"{name!r} is no map of the benchmark ({', '.join(MAPS)}) and no OpenDRIVE "
+        "file (a path ending in .xodr)"
+    )
+
+
+def _label(name: str) -> str:
+    return name if name in MAPS else Path(name).name
+
+
 def _run(task: tuple[str, str, tuple[str, int, int], int]) -> tuple[str, str, dict]:
     name, condition, start, max_frames = task
-    road = OpenDriveRoad.from_file(MAPS[name], marking_model="per_dash")
+    road = OpenDriveRoad.from_file(map_path(name), marking_model="per_dash")
     return name, condition, drive(road, start, CONDITIONS[condition], max_frames=max_frames)
 
 
 def table(
     maps: list[str], conditions: list[str], max_frames: int, jobs: int
 ) -> dict[tuple[str, str], dict[str, DriveScore]]:
-    """Every drive, merged per map and condition."""
+    """Every drive, merged per map (a name of :data:`MAPS` or an OpenDRIVE file's
+    path, :func:`map_path`) and condition."""
     tasks = []
     for name in maps:
-        road = OpenDriveRoad.from_file(MAPS[name], marking_model="per_dash")
-        for start in drive_starts(road):
+        road = OpenDriveRoad.from_file(map_path(name), marking_model="per_dash")
+        starts = drive_starts(road)
+        if not starts:
+            raise ValueError(
+                f"{_label(name)}: no lane chain of the map is the 400 m long a drive needs"
+            )
+        for start in starts:
             tasks += [(name, c, start, max_frames) for c in conditions]
     totals = {(m, c): {d: DriveScore() for d in DETECTORS} for m in maps for c in conditions}
     with ProcessPoolExecutor(jobs) as pool:
@@ -66,15 +96,27 @@ def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--jobs", type=int, default=2)
     parser.add_argument("--max-frames", type=int, default=600, help="per drive (60 s)")
-    parser.add_argument("--maps", default=",".join(MAPS))
+    parser.add_argument(
+        "--maps",
+        default=",".join(MAPS),
+        help="names of the benchmark's maps or paths of OpenDRIVE files (.xodr), comma-separated",
+    )
     parser.add_argument("--conditions", default=",".join(CONDITIONS))
     args = parser.parse_args(argv)
     maps = [m for m in args.maps.split(",") if m]
     conditions = [c for c in args.conditions.split(",") if c]
-    bad = [m for m in maps if m not in MAPS] + [c for c in conditions if c not in CONDITIONS]
+    bad = [c for c in conditions if c not in CONDITIONS]
     if bad:
-        parser.error(f"unknown {bad}; maps: {list(MAPS)}, conditions: {list(CONDITIONS)}")
-    totals = table(maps, conditions, args.max_frames, args.jobs)
+        parser.error(f"unknown conditions {bad}; conditions: {list(CONDITIONS)}")
+    for m in maps:
+        try:
+            map_path(m)
+        except ValueError as e:
+            parser.error(str(e))
+    try:
+        totals = table(maps, conditions, args.max_frames, args.jobs)
+    except (AldmGymError, ValueError) as e:
+        parser.error(str(e))
     head = " | ".join(f"{d} both / longest wrong / missed" for d in DETECTORS)
     print(f"\n| map | condition | frames | {head} |")
     print("|---|---|---:|" + "---:|" * len(DETECTORS))
@@ -83,7 +125,7 @@ def main(argv: list[str] | None = None) -> None:
             f"{sc.share:.3f} / {sc.longest_wrong_s:.1f} s / {sc.missed_share:.3f}"
             for sc in scores.values()
         )
-        print(f"| {name} | {condition} | {scores[DETECTORS[0]].frames} | {cells} |")
+        print(f"| {_label(name)} | {condition} | {scores[DETECTORS[0]].frames} | {cells} |")
 
 
 if __name__ == "__main__":

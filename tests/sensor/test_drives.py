@@ -265,3 +265,33 @@ def test_frames_on_a_lane_narrower_than_a_lane_are_not_scored() -> None:
     assert 10 < narrow < frames  # the taper, then the lane
     scored = drive(road, start, CONDITIONS["ideal"], max_frames=frames, detectors=("filter",))
     assert 0 < scored["filter"].frames <= frames - narrow
+
+
+def test_the_drive_benchmark_drives_a_map_file(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``benchmarks.lane_sequences --maps`` takes the path of any OpenDRIVE file; a path
+    that is no map, or a map with no lane long enough for a drive, is a usage error."""
+    lane_sequences = pytest.importorskip("benchmarks.lane_sequences")
+    data = Path(__file__).resolve().parents[1] / "roads" / "opendrive" / "data"
+    road = OpenDriveRoad.from_file(data / "straight_500m.xodr", marking_model="per_dash")
+    n_drives = len(drive_starts(road))
+    assert n_drives >= 1
+    argv = ["--conditions", "ideal", "--max-frames", "4", "--jobs", "1"]
+    lane_sequences.main(["--maps", str(data / "straight_500m.xodr"), *argv])
+    rows = [r for r in capsys.readouterr().out.splitlines() if r.startswith("| straight_500m")]
+    assert len(rows) == 1
+    cells = [c.strip() for c in rows[0].strip("|").split("|")]
+    assert cells[:3] == ["straight_500m.xodr", "ideal", str(4 * n_drives)]
+    assert cells[4].startswith("1.000 / 0.0 s")  # the filter on a straight road
+
+    short = tmp_path / "short.xodr"
+    short.write_text((data / "straight_500m.xodr").read_text().replace('length="5', 'length="1'))
+    for maps, message in (
+        ("nowhere.xodr", "no map of the benchmark"),
+        (str(short), "no lane chain of the map is the 400 m long a drive needs"),
+    ):
+        with pytest.raises(SystemExit) as exc:
+            lane_sequences.main(["--maps", maps, *argv])
+        assert exc.value.code == 2
+        assert message in capsys.readouterr().err
