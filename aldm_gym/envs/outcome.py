@@ -99,7 +99,9 @@ def reward_terms(
         "departure_reward": float(departed),
         "high_speed_reward": float(np.clip(utils.lmap(forward_speed, [lo, hi], [0, 1]), 0, 1)),
         "progress_reward": float(np.clip((pos.s - s_before) / (hi * step_time), 0.0, 1.0)),
-        "lane_keeping_reward": float(max(0.0, 1.0 - abs(pos.offset) / (0.5 * pos.width))),
+        "lane_keeping_reward": (
+            float(max(0.0, 1.0 - abs(pos.offset) / (0.5 * pos.width))) if pos.width > 0.0 else 0.0
+        ),
         "right_lane_reward": pos.index / max(pos.lanes - 1, 1),
         "lane_change_reward": float(lane_change),
         "overtaking_reward": float(np.clip(overtakes, -1, 1)),

@@ -39,6 +39,7 @@ from aldm_gym.roads.highway import HighwayRoad
 from aldm_gym.roads.map_road import OpenDriveRoad
 from aldm_gym.roads.opendrive.map import LaneKey
 from aldm_gym.roads.protocol import Road
+from aldm_gym.types import FloatArray
 
 __all__ = [
     "MAP_MIN_AHEAD",
@@ -60,6 +61,10 @@ lane chain ahead, plus :data:`ROAD_END_MARGIN` [m]."""
 
 MAP_TRAFFIC_ROOM = 200.0
 """Traffic is not placed on a lane whose chain ends within this distance [m]."""
+
+MAP_START_WIDTH = 2.5
+"""On a map the ego starts where its lane is at least this wide [m] (the ALDM's
+default ``min_lane_width``): not on the tip of a lane that opens from nothing."""
 
 MakeEgo = Callable[[FastRoad, Any, float, float], SensorVehicle]
 """``make_ego(traffic_road, position [m], heading [rad], speed [m/s])``: the ego."""
@@ -170,7 +175,8 @@ class MapScene(Scene):
         The ego starts on a driving lane (of index ``initial_lane_id`` from the left, if
         set) at a position drawn uniformly among those with at least
         ``max(MAP_MIN_AHEAD, initial_speed · duration) + ROAD_END_MARGIN`` of lane chain
-        ahead (the longest available, with a warning, on a short map). Traffic is placed
+        ahead, where the lane is at least :data:`MAP_START_WIDTH` wide (on a short map,
+        with a warning, the longest chain from where it is first that wide). Traffic is placed
         ahead of it along its lane chain, highway-env's way (gaps shrinking with the
         lane count and ``vehicles_density``), each vehicle on a random lane of the
         ego's direction there, never on a lane that ends within ``MAP_TRAFFIC_ROOM``,
@@ -192,24 +198,28 @@ class MapScene(Scene):
                     f"config.initial_lane_id {s.initial_lane_id} : the map "
                     f"{road.map.path!r} has no driving lane with that index from the left"
                 )
-        # Start u along lane k such that chain_end - (chain_start + u) >= need.
-        room = np.array(
-            [
-                min(road.lane_length(k), road.chain_end(k) - road.chain_start(k) - need)
-                for k in lanes
-            ]
-        )
-        weights = np.maximum(room, 0.0)
+        # Start u along lane k such that chain_end - (chain_start + u) >= need, where
+        # the lane is at least MAP_START_WIDTH wide.
+        room = [
+            min(road.lane_length(k), road.chain_end(k) - road.chain_start(k) - need) for k in lanes
+        ]
+        spans = [_wide_spans(road, k, MAP_START_WIDTH, r) for k, r in zip(lanes, room, strict=True)]
+        weights = np.array([float(np.sum(sp[:, 1] - sp[:, 0])) for sp in spans])
         if weights.sum() > 0.0:
             cum = np.cumsum(weights)
             i = min(
                 int(np.searchsorted(cum, rng.uniform(0.0, cum[-1]), side="right")), len(lanes) - 1
             )
-            u = float(rng.uniform(0.0, weights[i]))
+            # uniform over the lane's wide spans
+            sp = spans[i]
+            v = float(rng.uniform(0.0, weights[i]))
+            ends = np.cumsum(sp[:, 1] - sp[:, 0])
+            j = min(int(np.searchsorted(ends, v, side="right")), len(sp) - 1)
+            u = float(min(sp[j, 0] + v - (ends[j] - (sp[j, 1] - sp[j, 0])), sp[j, 1]))
         else:
             ahead = [road.chain_end(k) - road.chain_start(k) for k in lanes]
             i = int(np.argmax(ahead))
-            u = 0.0
+            u = _first_wide(road, lanes[i], MAP_START_WIDTH)
             warnings.warn(
                 f"{road.map.path}: no driving lane has {need:.0f} m ahead; the ego starts "
                 f"with the longest ({ahead[i]:.0f} m) and the episode may end early",
@@ -256,6 +266,34 @@ class MapScene(Scene):
                 make_truck(v, truck, spawner.config)
             traffic.vehicles.append(v)
         return ego
+
+
+def _lane_u(road: OpenDriveRoad, key: LaneKey) -> tuple[FloatArray, FloatArray]:
+    """Arc length [m] along the centre line of lane ``key`` at each of its vertices,
+    and the lane's width [m] there."""
+    return road.lane_arc_lengths(key), road.lane_widths(key)
+
+
+def _wide_spans(road: OpenDriveRoad, key: LaneKey, width: float, room: float) -> FloatArray:
+    """``(n, 2)`` the stretches ``[u0, u1]`` [m] of lane ``key`` within ``[0, room]``
+    where it is at least ``width`` [m] wide (between vertices that both are)."""
+    if room <= 0.0:
+        return np.zeros((0, 2))
+    u, w = _lane_u(road, key)
+    wide = (w >= width).astype(np.int8)
+    # runs of vertices that are all wide enough: one span each, cut at room
+    edges = np.diff(np.concatenate(([0], wide, [0])))
+    first, last = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1) - 1
+    spans = np.stack((u[first], np.minimum(u[last], room)), axis=1)
+    return spans[spans[:, 1] > spans[:, 0]]
+
+
+def _first_wide(road: OpenDriveRoad, key: LaneKey, width: float) -> float:
+    """The middle [m] of the first stretch between two vertices of lane ``key`` that
+    are both at least ``width`` [m] wide, else the lane's widest vertex."""
+    u, w = _lane_u(road, key)
+    wide = np.flatnonzero((w[:-1] >= width) & (w[1:] >= width))
+    return float(0.5 * (u[wide[0]] + u[wide[0] + 1]) if len(wide) else u[int(np.argmax(w))])
 
 
 def _lap(road: OpenDriveRoad, key: LaneKey) -> float:

@@ -260,6 +260,13 @@ class OpenDriveRoad(PolylineRoad):
         c = self._centres
         return c.xy[c.start[row] : c.start[row + 1]].copy()
 
+    def lane_arc_lengths(self, lane: LaneKey) -> FloatArray:
+        """``(N,)`` arc length [m] along a driving lane's centre line at the vertices of
+        :meth:`lane_centre` (0 at its start, :meth:`lane_length` at its end)."""
+        row = self._key_index[lane]
+        c = self._centres
+        return c.u[c.start[row] : c.start[row + 1]].copy()
+
     def lane_widths(self, lane: LaneKey) -> FloatArray:
         """``(N,)`` width of a driving lane [m] at the vertices of :meth:`lane_centre`."""
         rec = self.map.lanes[lane]

@@ -100,6 +100,21 @@ def ring(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return path
 
 
+@pytest.fixture(scope="module")
+def opening(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A 1.5 km one-way road whose third lane opens from nothing over its first 150 m."""
+    road = xodr.create_road(
+        [xodr.Line(1500)],
+        id=0,
+        left_lanes=0,
+        right_lanes=[xodr.LaneDef(0, 150, 2, 3, -3)],
+        lane_width=3.5,
+    )
+    odr = xodr.OpenDrive("opening")
+    odr.add_road(road)
+    return _write(odr, tmp_path_factory.mktemp("maps") / "opening.xodr")
+
+
 def _make(path: Path, **config: object) -> gym.Env:
     cfg = {"road": {"xodr": str(path)}, "vehicles_count": 0, "duration": 30.0}
     cfg.update(config)
@@ -223,6 +238,38 @@ def test_traffic_on_a_ring_stops_short_of_the_ego(ring: Path) -> None:
         _, _, terminated, _, info = env.step(1)
         assert not info["crashed"] and not terminated
         assert np.all(np.isfinite(ego.position))
+
+
+def test_the_ego_starts_where_its_lane_is_wide_enough(opening: Path, tmp_path: Path) -> None:
+    """Not on the tip of a lane that opens from nothing (a zero lane width divided the
+    lane-keeping reward), also on a map too short for the episode."""
+    env = _make(opening, initial_lane_id=2, duration=10.0)
+    road = env.unwrapped.highway
+    for seed in range(8):
+        env.reset(seed=seed)
+        pos = env.unwrapped.lane_position
+        assert road.siblings(pos.lane).index(pos.lane) == 2
+        assert pos.width >= 2.5 - 1e-9
+    # a 10 m lane that widens from 0 to 10 m: the start falls back to the first place
+    # at least 2.5 m wide, and the episode steps (rewards finite)
+    tiny = tmp_path / "tiny.xodr"
+    tiny.write_text(
+        '<?xml version="1.0"?><OpenDRIVE><header revMajor="1" revMinor="6" name="t"/>'
+        '<road id="4" length="10" junction="-1"><link/><planView>'
+        '<geometry s="0" x="10" y="-10" hdg="1" length="10"><line/></geometry></planView>'
+        '<lanes><laneSection s="0"><center><lane id="0" type="driving" level="false">'
+        '<roadMark sOffset="0" type="solid" width="0.12"/></lane></center><right>'
+        '<lane id="-1" type="driving" level="false"><width sOffset="0" a="0" b="1" c="0" d="0"/>'
+        '<roadMark sOffset="0" type="solid" width="0.12"/></lane></right></laneSection>'
+        "</lanes></road></OpenDRIVE>"
+    )
+    with pytest.warns(UserWarning, match="no driving lane has"):
+        env = _make(tiny)
+        env.reset(seed=0)
+    pos = env.unwrapped.lane_position
+    assert pos.width >= 2.5 - 1e-9
+    _, reward, _, _, info = env.step(1)
+    assert math.isfinite(reward) and all(math.isfinite(v) for v in info["rewards"].values())
 
 
 def test_the_ending_lane_shows_in_info(lane_end: Path) -> None:
