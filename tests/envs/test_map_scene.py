@@ -38,6 +38,17 @@ def _write(odr: object, path: Path) -> Path:
     return path
 
 
+def _one_way(
+    factory: pytest.TempPathFactory, name: str, geometry: list, lanes: object, width: float
+) -> Path:
+    """A one-way road of ``geometry`` whose right lanes change as ``lanes`` (a
+    ``LaneDef``) says, written to a temporary ``name.xodr``."""
+    road = xodr.create_road(geometry, id=0, left_lanes=0, right_lanes=[lanes], lane_width=width)
+    odr = xodr.OpenDrive(name)
+    odr.add_road(road)
+    return _write(odr, factory.mktemp("maps") / f"{name}.xodr")
+
+
 @pytest.fixture(scope="module")
 def curved(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A 2.4 km one-way 3-lane road: straight, clothoid, R = 600 m arc, clothoid, straight."""
@@ -62,16 +73,9 @@ def curved(tmp_path_factory: pytest.TempPathFactory) -> Path:
 @pytest.fixture(scope="module")
 def lane_end(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A 1.6 km one-way road whose rightmost of 3 lanes tapers out between 600 and 700 m."""
-    road = xodr.create_road(
-        [xodr.Line(300), xodr.Arc(1 / 800, 400), xodr.Line(900)],
-        id=0,
-        left_lanes=0,
-        right_lanes=[xodr.LaneDef(600, 700, 3, 2, -3)],
-        lane_width=3.75,
-    )
-    odr = xodr.OpenDrive("lane_end")
-    odr.add_road(road)
-    return _write(odr, tmp_path_factory.mktemp("maps") / "lane_end.xodr")
+    geometry = [xodr.Line(300), xodr.Arc(1 / 800, 400), xodr.Line(900)]
+    lanes = xodr.LaneDef(600, 700, 3, 2, -3)
+    return _one_way(tmp_path_factory, "lane_end", geometry, lanes, 3.75)
 
 
 @pytest.fixture(scope="module")
@@ -103,16 +107,8 @@ def ring(tmp_path_factory: pytest.TempPathFactory) -> Path:
 @pytest.fixture(scope="module")
 def opening(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A 1.5 km one-way road whose third lane opens from nothing over its first 150 m."""
-    road = xodr.create_road(
-        [xodr.Line(1500)],
-        id=0,
-        left_lanes=0,
-        right_lanes=[xodr.LaneDef(0, 150, 2, 3, -3)],
-        lane_width=3.5,
-    )
-    odr = xodr.OpenDrive("opening")
-    odr.add_road(road)
-    return _write(odr, tmp_path_factory.mktemp("maps") / "opening.xodr")
+    lanes = xodr.LaneDef(0, 150, 2, 3, -3)
+    return _one_way(tmp_path_factory, "opening", [xodr.Line(1500)], lanes, 3.5)
 
 
 def _make(path: Path, **config: object) -> gym.Env:
