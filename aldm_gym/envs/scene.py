@@ -289,11 +289,16 @@ def _wide_spans(road: OpenDriveRoad, key: LaneKey, width: float, room: float) ->
 
 
 def _first_wide(road: OpenDriveRoad, key: LaneKey, width: float) -> float:
-    """The middle [m] of the first stretch between two vertices of lane ``key`` that
-    are both at least ``width`` [m] wide, else the lane's widest vertex."""
+    """Where lane ``key`` is first at least ``width`` [m] wide [m]: its start if it
+    starts so wide, else the middle of the first stretch between two vertices that
+    both are (at a vertex the narrower stretch before it may count), else the lane's
+    widest vertex."""
     u, w = _lane_u(road, key)
     wide = np.flatnonzero((w[:-1] >= width) & (w[1:] >= width))
-    return float(0.5 * (u[wide[0]] + u[wide[0] + 1]) if len(wide) else u[int(np.argmax(w))])
+    if not len(wide):
+        return float(u[int(np.argmax(w))])
+    i = int(wide[0])
+    return 0.0 if i == 0 else float(0.5 * (u[i] + u[i + 1]))
 
 
 def _lap(road: OpenDriveRoad, key: LaneKey) -> float:
