@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -106,6 +106,40 @@ def _linked_roads(roads: dict[str, Road], junctions: dict[str, Junction]) -> set
         for c in junction.connections:
             pairs.add(frozenset((c.incoming_road, c.connecting_road)))
     return pairs
+
+
+def _resolved(path: str, junction: Junction, roads: dict[str, Road]) -> Junction:
+    """``junction`` with every connection's roads checked and its ``contactPoint``
+    taken, where the file leaves it out (OpenDRIVE 1.8), from the connecting road's
+    link to the incoming road.
+
+    :raises MapError: a connection names an unknown road, or gives no contact point
+        and its connecting road links to the incoming road at neither end.
+    """
+    out = []
+    for c in junction.connections:
+        where = f"{path}, junction {junction.id!r}, connection {c.id!r}"
+        for name in (c.incoming_road, c.connecting_road):
+            if name not in roads:
+                raise MapError(f"{where}: unknown road {name!r}")
+        if c.contact_point is None:
+            road = roads[c.connecting_road]
+            ends = [
+                end
+                for end, link in (("start", road.predecessor), ("end", road.successor))
+                if link is not None
+                and link.element_type == "road"
+                and link.element_id == c.incoming_road
+            ]
+            if len(ends) != 1:
+                raise MapError(
+                    f"{where}: no contactPoint, and connecting road {c.connecting_road!r} "
+                    f"links to incoming road {c.incoming_road!r} at "
+                    + ("both ends" if ends else "neither end")
+                )
+            c = replace(c, contact_point=ends[0])
+        out.append(c)
+    return replace(junction, connections=tuple(out))
 
 
 class OpenDriveMap:
@@ -222,6 +256,7 @@ class OpenDriveMap:
                         f"{parsed.path}, road {road.id!r}: link to unknown {link.element_type} "
                         f"{link.element_id!r}"
                     )
+        junctions = {jid: _resolved(parsed.path, j, roads) for jid, j in junctions.items()}
         return cls(parsed.path, parsed.header, roads, junctions, pattern, float(sample_step))
 
     def _lane_records(

@@ -376,14 +376,16 @@ class Connection:
     :ivar incoming_road: road that enters the junction.
     :ivar connecting_road: road that continues it (``connectingRoad``, or ``linkedRoad``
         in a direct junction).
-    :ivar contact_point: ``"start"`` or ``"end"`` of the connecting road.
+    :ivar contact_point: ``"start"`` or ``"end"`` of the connecting road (None: not
+        given, which OpenDRIVE 1.8 allows; :class:`~aldm_gym.roads.opendrive.OpenDriveMap`
+        takes it from the connecting road's link to the incoming road).
     :ivar lane_links: lane correspondences.
     """
 
     id: str
     incoming_road: str
     connecting_road: str
-    contact_point: str
+    contact_point: str | None
     lane_links: tuple[LaneLinkPair, ...]
 
 
@@ -643,7 +645,9 @@ def _lane(r: _Reader, el: etree._Element) -> Lane:
     level = r.text(el, "level", "false").lower() in ("true", "1")
     return Lane(
         id=lane_id,
-        type=r.text(el, "type"),
+        # the centre lane has no width and carries no traffic: OpenDRIVE 1.8 files
+        # (ASAM's qc-opendrive examples among them) leave its type out
+        type=r.text(el, "type", "none") if lane_id == 0 else r.text(el, "type"),
         level=level,
         direction=r.opt_text(el, "direction"),
         predecessors=pred,
@@ -756,8 +760,10 @@ def _junction(r: _Reader, el: etree._Element) -> Junction:
             LaneLinkPair(r.integer(ll, "from"), r.integer(ll, "to"))
             for ll in r.children(c, "connection")
         )
-        contact = r.text(c, "contactPoint")
-        if contact not in ("start", "end"):
+        # optional since OpenDRIVE 1.8: the connecting road's own link then says it
+        # (resolved by the map, which knows the roads)
+        contact = r.opt_text(c, "contactPoint")
+        if contact not in ("start", "end", None):
             raise r.error(c, f"contactPoint={contact!r} is not 'start' or 'end'")
         # A direct junction (OpenDRIVE 1.7) names the continuing road linkedRoad.
         name = "connectingRoad" if c.get("connectingRoad") is not None else "linkedRoad"

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 import aldm_gym
+from aldm_gym.errors import MapError
 from aldm_gym.roads.markings import MarkingType
 from aldm_gym.roads.opendrive import MarkingLine, OpenDriveMap
 from aldm_gym.roads.opendrive.parse import (
@@ -130,6 +131,45 @@ def test_successors_through_a_junction(tmp_path: Path) -> None:
     assert odr.successors("1", -2, 0) == [("6", 0, -1)]
     with pytest.raises(ValueError, match="no lane 1 in section 0 of road '1'"):
         odr.successors("1", 1, 0)
+
+
+def test_opendrive_1_8_leaves_out_the_centre_lane_type_and_the_contact_point(
+    tmp_path: Path,
+) -> None:
+    """OpenDRIVE 1.8 files (ASAM's qc-opendrive examples) give the centre lane no type
+    and a junction connection no ``contactPoint``: the connecting road's own link to
+    the incoming road says which end joins. A connection that names an unknown road,
+    or whose road links to the incoming road at neither end, is refused by name."""
+    centre = '<lane id="0"><roadMark sOffset="0" type="solid" width="0.15"/></lane>'
+
+    sec = f'<laneSection s="0"><center>{centre}</center><right>{lane_xml(-1)}</right></laneSection>'
+
+    def road(rid: str, x: float, link: str, junction: str = "-1") -> str:
+        return road_xml(rid, geometry_xml("<line/>", 50.0, x=x), 50.0, sec, link, junction=junction)
+
+    def write(connecting: str, connection: str) -> Path:
+        incoming = road("1", 0.0, '<successor elementType="junction" elementId="9"/>')
+        junction = (
+            f'<junction id="9"><connection id="0" incomingRoad="1" {connection}>'
+            '<laneLink from="-1" to="-1"/></connection></junction>'
+        )
+        return write_xodr(tmp_path / "j.xodr", incoming, connecting, junctions=junction)
+
+    at_start = road("5", 50.0, _link("predecessor", "1", "end"), junction="9")
+    odr = OpenDriveMap.from_file(write(at_start, 'connectingRoad="5"'))
+    assert odr.roads["1"].sections[0].lane(0).type == "none"
+    assert odr.junctions["9"].connections[0].contact_point == "start"
+    assert odr.successors("1", -1, 0) == [("5", 0, -1)]
+
+    at_end = road("5", 50.0, _link("successor", "1", "end"), junction="9")
+    odr = OpenDriveMap.from_file(write(at_end, 'connectingRoad="5"'))
+    assert odr.junctions["9"].connections[0].contact_point == "end"
+
+    unlinked = road("5", 50.0, "", junction="9")
+    with pytest.raises(MapError, match="links to incoming road '1' at neither end"):
+        OpenDriveMap.from_file(write(unlinked, 'connectingRoad="5"'))
+    with pytest.raises(MapError, match="junction '9', connection '0': unknown road '7'"):
+        OpenDriveMap.from_file(write(at_start, 'connectingRoad="7" contactPoint="start"'))
 
 
 def test_lane_pose_straight_arc_and_left_hand_traffic(tmp_path: Path) -> None:
