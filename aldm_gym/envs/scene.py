@@ -289,10 +289,10 @@ def _wide_spans(road: OpenDriveRoad, key: LaneKey, width: float, room: float) ->
 
 
 def _first_wide(road: OpenDriveRoad, key: LaneKey, width: float) -> float:
-    """Where lane ``key`` is first at least ``width`` [m] wide [m]: its start if it
-    starts so wide, else the middle of the first stretch between two vertices that
-    both are (at a vertex the narrower stretch before it may count), else the lane's
-    widest vertex."""
+    """The arc length [m] along lane ``key`` where it is first at least ``width`` [m]
+    wide: 0 if it starts so wide, else the middle of the first stretch between two
+    vertices that both are (at a vertex, the narrower stretch before it may count),
+    else the lane's widest vertex."""
     u, w = _lane_u(road, key)
     wide = np.flatnonzero((w[:-1] >= width) & (w[1:] >= width))
     if not len(wide):
