@@ -47,6 +47,7 @@ from aldm_gym.envs.perception import Perception
 from aldm_gym.envs.referee import Referee
 from aldm_gym.envs.scene import (
     MAP_MIN_AHEAD,
+    MAP_START_WIDTH,
     MAP_TRAFFIC_ROOM,
     ROAD_END_MARGIN,
     GeneratedScene,
@@ -64,7 +65,13 @@ from aldm_gym.sensor.frame import SensorFrame
 from aldm_gym.sensor.lane_detection import LaneDetection
 from aldm_gym.sensor.line_sensor import LineSensor
 
-__all__ = ["MAP_MIN_AHEAD", "MAP_TRAFFIC_ROOM", "ROAD_END_MARGIN", "ALDMHighwayEnv"]
+__all__ = [
+    "MAP_MIN_AHEAD",
+    "MAP_START_WIDTH",
+    "MAP_TRAFFIC_ROOM",
+    "ROAD_END_MARGIN",
+    "ALDMHighwayEnv",
+]
 
 SCENARIO_END_MARGIN = 5.0
 """A scenario run is truncated when the ego is this close to the end of its lanes [m]."""

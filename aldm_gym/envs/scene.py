@@ -43,6 +43,7 @@ from aldm_gym.types import FloatArray
 
 __all__ = [
     "MAP_MIN_AHEAD",
+    "MAP_START_WIDTH",
     "MAP_TRAFFIC_ROOM",
     "ROAD_END_MARGIN",
     "GeneratedScene",
@@ -198,33 +199,7 @@ class MapScene(Scene):
                     f"config.initial_lane_id {s.initial_lane_id} : the map "
                     f"{road.map.path!r} has no driving lane with that index from the left"
                 )
-        # Start u along lane k such that chain_end - (chain_start + u) >= need, where
-        # the lane is at least MAP_START_WIDTH wide.
-        room = [
-            min(road.lane_length(k), road.chain_end(k) - road.chain_start(k) - need) for k in lanes
-        ]
-        spans = [_wide_spans(road, k, MAP_START_WIDTH, r) for k, r in zip(lanes, room, strict=True)]
-        weights = np.array([float(np.sum(sp[:, 1] - sp[:, 0])) for sp in spans])
-        if weights.sum() > 0.0:
-            cum = np.cumsum(weights)
-            i = min(
-                int(np.searchsorted(cum, rng.uniform(0.0, cum[-1]), side="right")), len(lanes) - 1
-            )
-            # uniform over the lane's wide spans
-            sp = spans[i]
-            v = float(rng.uniform(0.0, weights[i]))
-            ends = np.cumsum(sp[:, 1] - sp[:, 0])
-            j = min(int(np.searchsorted(ends, v, side="right")), len(sp) - 1)
-            u = float(min(sp[j, 0] + v - (ends[j] - (sp[j, 1] - sp[j, 0])), sp[j, 1]))
-        else:
-            ahead = [road.chain_end(k) - road.chain_start(k) for k in lanes]
-            i = int(np.argmax(ahead))
-            u = _first_wide(road, lanes[i], MAP_START_WIDTH)
-            warnings.warn(
-                f"{road.map.path}: no driving lane has {need:.0f} m ahead; the ego starts "
-                f"with the longest ({ahead[i]:.0f} m) and the episode may end early",
-                stacklevel=2,
-            )
+        i, u = _draw_start(road, lanes, need, rng)
         key = lanes[i]
         lane = net.get_lane(net.index_of[key])
         ego = make_ego(traffic, lane.position(u, 0.0), lane.heading_at(u), speed)
@@ -232,7 +207,7 @@ class MapScene(Scene):
         other_type = self.traffic_class()
         spacing = 1.0 / float(s.vehicles_density)
         spawner = Spawner(s.traffic, rng)
-        lap = _lap(road, key)
+        ring = _ring(road, key)
         cur, cur_u, ahead = key, u, 0.0
         for _ in range(int(s.vehicles_count)):
             siblings = road.siblings(cur)
@@ -243,8 +218,10 @@ class MapScene(Scene):
             step += spawner.extra_shift(truck)
             cur_u += step
             ahead += step
-            if ahead > lap - offset:
-                break  # a ring: the next vehicle would come up behind the ego
+            if ring is not None and u + ahead > max(u, ring[0]) + ring[1] - offset:
+                # round a ring once: the next vehicle would come up behind the ego or
+                # behind the first vehicle placed on the ring
+                break
             while cur is not None and cur_u > road.lane_length(cur):
                 cur_u -= road.lane_length(cur)
                 cur = road.successor(cur)
@@ -266,6 +243,56 @@ class MapScene(Scene):
                 make_truck(v, truck, spawner.config)
             traffic.vehicles.append(v)
         return ego
+
+
+def _draw_start(
+    road: OpenDriveRoad, lanes: list[LaneKey], need: float, rng: np.random.Generator
+) -> tuple[int, float]:
+    """The ego's start: the index in ``lanes`` and the arc length [m] along that lane,
+    drawn uniformly among the positions with ``need`` [m] of lane chain ahead where
+    the lane is at least :data:`MAP_START_WIDTH` wide. Where no lane is that wide with
+    that much ahead, uniformly among the positions with ``need`` ahead (with a
+    warning); on a map too short for ``need``, where the lane with the longest chain
+    ahead is first that wide (with a warning)."""
+    path = road.map.path
+    room = [min(road.lane_length(k), road.chain_end(k) - road.chain_start(k) - need) for k in lanes]
+    spans = [_wide_spans(road, k, MAP_START_WIDTH, r) for k, r in zip(lanes, room, strict=True)]
+    weights = np.array([float(np.sum(sp[:, 1] - sp[:, 0])) for sp in spans])
+    if weights.sum() > 0.0:
+        i = _draw_index(weights, rng)
+        # uniform over the lane's wide spans
+        sp = spans[i]
+        v = float(rng.uniform(0.0, weights[i]))
+        ends = np.cumsum(sp[:, 1] - sp[:, 0])
+        j = min(int(np.searchsorted(ends, v, side="right")), len(sp) - 1)
+        return i, float(min(sp[j, 0] + v - (ends[j] - (sp[j, 1] - sp[j, 0])), sp[j, 1]))
+    if max(room) > 0.0:
+        warnings.warn(
+            f"{path}: no driving lane is {MAP_START_WIDTH} m wide where it has {need:.0f} m "
+            "ahead; the ego starts on a narrower one",
+            stacklevel=3,
+        )
+        weights = np.maximum(np.array(room), 0.0)
+        i = _draw_index(weights, rng)
+        return i, float(rng.uniform(0.0, weights[i]))
+    first = [_first_wide(road, k, MAP_START_WIDTH) for k in lanes]
+    ahead = np.array(
+        [road.chain_end(k) - road.chain_start(k) - f for k, f in zip(lanes, first, strict=True)]
+    )
+    wide = np.array([bool((road.lane_widths(k) >= MAP_START_WIDTH).any()) for k in lanes])
+    i = int(np.argmax(np.where(wide, ahead, -np.inf) if wide.any() else ahead))
+    warnings.warn(
+        f"{path}: no driving lane has {need:.0f} m ahead; the ego starts with the longest "
+        f"({ahead[i]:.0f} m) and the episode may end early",
+        stacklevel=3,
+    )
+    return i, first[i]
+
+
+def _draw_index(weights: FloatArray, rng: np.random.Generator) -> int:
+    """An index drawn with probability proportional to ``weights``."""
+    cum = np.cumsum(weights)
+    return min(int(np.searchsorted(cum, rng.uniform(0.0, cum[-1]), side="right")), len(cum) - 1)
 
 
 def _lane_u(road: OpenDriveRoad, key: LaneKey) -> tuple[FloatArray, FloatArray]:
@@ -291,8 +318,8 @@ def _wide_spans(road: OpenDriveRoad, key: LaneKey, width: float, room: float) ->
 def _first_wide(road: OpenDriveRoad, key: LaneKey, width: float) -> float:
     """The arc length [m] along lane ``key`` where it is first at least ``width`` [m]
     wide: 0 if it starts so wide, else the middle of the first stretch between two
-    vertices that both are (at a vertex, the narrower stretch before it may count),
-    else the lane's widest vertex."""
+    vertices that both are (not its first vertex: a position exactly on a vertex may
+    take the width of the narrower stretch before it), else the lane's widest vertex."""
     u, w = _lane_u(road, key)
     wide = np.flatnonzero((w[:-1] >= width) & (w[1:] >= width))
     if not len(wide):
@@ -301,16 +328,20 @@ def _first_wide(road: OpenDriveRoad, key: LaneKey, width: float) -> float:
     return 0.0 if i == 0 else float(0.5 * (u[i] + u[i + 1]))
 
 
-def _lap(road: OpenDriveRoad, key: LaneKey) -> float:
-    """The length [m] of the ring of lanes that ``key``'s chain of successors comes
-    back to ``key`` through (a circular road), ``inf`` when it ends or joins another
-    ring instead."""
-    total, cur, seen = 0.0, key, set()
-    while cur is not None and cur not in seen:
-        seen.add(cur)
+def _ring(road: OpenDriveRoad, key: LaneKey) -> tuple[float, float] | None:
+    """Where the chain of successors of lane ``key`` runs into a ring of lanes (a
+    road that is its own successor, a test track): ``(entry, lap)``, the arc length
+    [m] along the chain from the start of ``key`` to the ring's first lane (0 when
+    ``key`` is on it) and the ring's length [m]; None when the chain ends."""
+    total, cur = 0.0, key
+    at: dict[LaneKey, float] = {}
+    while cur is not None and cur not in at:
+        at[cur] = total
         total += road.lane_length(cur)
         cur = road.successor(cur)
-    return total if cur == key else math.inf
+    if cur is None:
+        return None
+    return at[cur], total - at[cur]
 
 
 class ScenarioScene(MapScene):

@@ -13,6 +13,7 @@ from gymnasium.utils.env_checker import check_env
 from highway_env.road.road import Road
 
 import aldm_gym  # also registers the env
+from aldm_gym.envs.scene import MAP_START_WIDTH
 from aldm_gym.envs.traffic.vehicles import STEPS_ENDING_WITH_UPDATE
 from aldm_gym.envs.vehicle import MapIDMVehicle
 from aldm_gym.roads import OpenDriveRoad
@@ -28,6 +29,7 @@ from aldm_gym.roads.map_network import (
     _neighbour_table_py,
 )
 from aldm_gym.roads.reference_line import ReferenceLine, project_point_near, project_point_near_py
+from aldm_gym.sensor.aldm import ALDMParams
 
 xodr = pytest.importorskip("scenariogeneration.xodr")
 
@@ -78,29 +80,62 @@ def lane_end(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return _one_way(tmp_path_factory, "lane_end", geometry, lanes, 3.75)
 
 
-@pytest.fixture(scope="module")
-def ring(tmp_path_factory: pytest.TempPathFactory) -> Path:
+def _ring_xodr(lead_in: float = 0.0) -> str:
     """A 300 m circle of two one-way lanes whose road is its own predecessor and
-    successor (a test track, as esmini's ``circle_300m.xodr``)."""
+    successor (a test track, as esmini's ``circle_300m.xodr``), and a straight road of
+    ``lead_in`` [m] that runs into it (none for 0)."""
     lane = (
-        '<lane id="{}" type="driving" level="false"><link><predecessor id="{}"/>'
-        '<successor id="{}"/></link><width sOffset="0" a="3.5" b="0" c="0" d="0"/>'
+        '<lane id="{}" type="driving" level="false"><link>{}</link>'
+        '<width sOffset="0" a="3.5" b="0" c="0" d="0"/>'
         '<roadMark sOffset="0" type="{}" color="standard" width="0.15"/></lane>'
     )
-    right = lane.format(-1, -1, -1, "broken") + lane.format(-2, -2, -2, "solid")
-    text = (
-        '<?xml version="1.0"?>\n<OpenDRIVE><header revMajor="1" revMinor="6" name="ring"/>'
-        '<road id="1" length="300" junction="-1"><link>'
-        '<predecessor elementType="road" elementId="1" contactPoint="end"/>'
-        '<successor elementType="road" elementId="1" contactPoint="start"/></link>'
-        '<planView><geometry s="0" x="0" y="0" hdg="0" length="300">'
-        f'<arc curvature="{2.0 * math.pi / 300.0!r}"/></geometry></planView>'
-        '<lanes><laneSection s="0"><center><lane id="0" type="none" level="false">'
+    both = '<predecessor id="{0}"/><successor id="{0}"/>'
+    centre = (
+        '<center><lane id="0" type="none" level="false">'
         '<roadMark sOffset="0" type="solid" color="standard" width="0.15"/></lane></center>'
-        f"<right>{right}</right></laneSection></lanes></road></OpenDRIVE>\n"
     )
+
+    def road(rid: str, length: float, link: str, geometry: str, lanes: str) -> str:
+        return (
+            f'<road id="{rid}" length="{length}" junction="-1"><link>{link}</link>'
+            f'<planView>{geometry}</planView><lanes><laneSection s="0">{centre}'
+            f"<right>{lanes}</right></laneSection></lanes></road>"
+        )
+
+    ring = road(
+        "1",
+        300.0,
+        '<predecessor elementType="road" elementId="1" contactPoint="end"/>'
+        '<successor elementType="road" elementId="1" contactPoint="start"/>',
+        '<geometry s="0" x="0" y="0" hdg="0" length="300">'
+        f'<arc curvature="{2.0 * math.pi / 300.0!r}"/></geometry>',
+        lane.format(-1, both.format(-1), "broken") + lane.format(-2, both.format(-2), "solid"),
+    )
+    roads = [ring]
+    if lead_in > 0.0:
+        roads.append(
+            road(
+                "2",
+                lead_in,
+                '<successor elementType="road" elementId="1" contactPoint="start"/>',
+                f'<geometry s="0" x="{-lead_in}" y="0" hdg="0" length="{lead_in}">'
+                "<line/></geometry>",
+                lane.format(-1, '<successor id="-1"/>', "broken")
+                + lane.format(-2, '<successor id="-2"/>', "solid"),
+            )
+        )
+    return (
+        '<?xml version="1.0"?>\n<OpenDRIVE><header revMajor="1" revMinor="6" name="ring"/>'
+        + "".join(roads)
+        + "</OpenDRIVE>\n"
+    )
+
+
+@pytest.fixture(scope="module")
+def ring(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """:func:`_ring_xodr` without a lead-in."""
     path = tmp_path_factory.mktemp("maps") / "ring.xodr"
-    path.write_text(text)
+    path.write_text(_ring_xodr())
     return path
 
 
@@ -236,9 +271,30 @@ def test_traffic_on_a_ring_stops_short_of_the_ego(ring: Path) -> None:
         assert np.all(np.isfinite(ego.position))
 
 
+def test_traffic_round_a_ring_behind_a_lead_in_keeps_its_gaps(tmp_path: Path) -> None:
+    """The ego on a road that runs into a ring: the traffic goes round the ring at most
+    once, so no two vehicles are placed on top of each other."""
+    path = tmp_path / "lead_in.xodr"
+    path.write_text(_ring_xodr(lead_in=500.0))
+    with pytest.warns(UserWarning, match="no driving lane has"):
+        env = _make(path, vehicles_count=40, vehicles_density=1.0)
+    for seed in range(3):
+        with pytest.warns(UserWarning, match="no driving lane has"):
+            env.reset(seed=seed)
+        xy = np.array([v.position for v in env.unwrapped.road.vehicles])
+        assert 2 <= len(xy) < 41
+        gaps = np.hypot(*(xy[:, None, :] - xy[None, :, :]).transpose(2, 0, 1))
+        np.fill_diagonal(gaps, np.inf)
+        assert gaps.min() > 5.0, (seed, float(gaps.min()))
+        env.step(1)
+        assert not any(v.crashed for v in env.unwrapped.road.vehicles), seed
+
+
 def test_the_ego_starts_where_its_lane_is_wide_enough(opening: Path, tmp_path: Path) -> None:
     """Not on the tip of a lane that opens from nothing (a zero lane width divided the
     lane-keeping reward), also on a map too short for the episode."""
+    # the width the ALDM calls a lane
+    assert MAP_START_WIDTH == ALDMParams().min_lane_width
     env = _make(opening, initial_lane_id=2, duration=10.0)
     road = env.unwrapped.highway
     for seed in range(8):
@@ -266,6 +322,25 @@ def test_the_ego_starts_where_its_lane_is_wide_enough(opening: Path, tmp_path: P
     assert pos.width >= 2.5 - 1e-9
     _, reward, _, _, info = env.step(1)
     assert math.isfinite(reward) and all(math.isfinite(v) for v in info["rewards"].values())
+
+
+def test_a_long_map_with_no_lane_wide_enough_still_draws_the_start(tmp_path: Path) -> None:
+    """Lanes of 2.25 m everywhere: the start is drawn as on any long map, with a
+    warning that says why (not that the map is short)."""
+    road = xodr.create_road([xodr.Line(2000)], id=0, left_lanes=0, right_lanes=2, lane_width=2.25)
+    odr = xodr.OpenDrive("narrow")
+    odr.add_road(road)
+    path = _write(odr, tmp_path / "narrow.xodr")
+    with pytest.warns(UserWarning, match="no driving lane is 2.5 m wide where it has"):
+        env = _make(path)
+    starts = set()
+    for seed in range(4):
+        with pytest.warns(UserWarning, match="no driving lane is 2.5 m wide"):
+            env.reset(seed=seed)
+        pos = env.unwrapped.lane_position
+        assert pos.end - pos.s >= 500.0 + 250.0 - 1.0
+        starts.add(round(pos.s, 6))
+    assert len(starts) == 4
 
 
 def test_the_ending_lane_shows_in_info(lane_end: Path) -> None:

@@ -92,3 +92,30 @@ def test_overtaking_term_in_episodes() -> None:
     env.close()
     assert set(seen) <= {-1.0, 0.0, 1.0} and 1.0 in seen
     assert 0.0 <= min(rewards) and max(rewards) <= 1.0
+
+
+def test_lane_keeping_term_on_a_lane_of_no_width() -> None:
+    """Half the lane width divides the offset: a lane of no width (the tip of a lane
+    that opens) gives the term 0, not a ZeroDivisionError; a lane 3.5 m wide the
+    usual share."""
+    from types import SimpleNamespace
+
+    from aldm_gym.roads.position import LanePosition
+
+    ego = SimpleNamespace(speed=25.0, heading=0.0, crashed=False)
+    terms = {}
+    for width in (0.0, 3.5):
+        pos = LanePosition(
+            s=10.0,
+            offset=0.35,
+            lane=("1", 0, -1),
+            index=0,
+            lanes=1,
+            width=width,
+            heading=0.0,
+            end=100.0,
+        )
+        terms[width] = outcome.reward_terms(EnvConfig(), ego, pos, 9.0, False, False)
+    assert terms[0.0]["lane_keeping_reward"] == 0.0
+    assert terms[3.5]["lane_keeping_reward"] == pytest.approx(1.0 - 0.35 / 1.75)
+    assert all(math.isfinite(v) for v in terms[0.0].values())
