@@ -110,11 +110,12 @@ def _linked_roads(roads: dict[str, Road], junctions: dict[str, Junction]) -> set
 
 def _resolved(path: str, junction: Junction, roads: dict[str, Road]) -> Junction:
     """``junction`` with every connection's roads checked and its ``contactPoint``
-    taken, where the file leaves it out (OpenDRIVE 1.8), from the connecting road's
-    link to the incoming road.
+    taken, where the file leaves it out (OpenDRIVE 1.8), from the end of the
+    connecting road that links to the incoming road (in a direct junction, the end of
+    the linked road that links to the junction).
 
     :raises MapError: a connection names an unknown road, or gives no contact point
-        and its connecting road links to the incoming road at neither end.
+        and its connecting road has no such end, or two.
     """
     out = []
     for c in junction.connections:
@@ -124,18 +125,17 @@ def _resolved(path: str, junction: Junction, roads: dict[str, Road]) -> Junction
                 raise MapError(f"{where}: unknown road {name!r}")
         if c.contact_point is None:
             road = roads[c.connecting_road]
+            joins = {("road", c.incoming_road), ("junction", junction.id)}
             ends = [
                 end
                 for end, link in (("start", road.predecessor), ("end", road.successor))
-                if link is not None
-                and link.element_type == "road"
-                and link.element_id == c.incoming_road
+                if link is not None and (link.element_type, link.element_id) in joins
             ]
             if len(ends) != 1:
                 raise MapError(
-                    f"{where}: no contactPoint, and connecting road {c.connecting_road!r} "
-                    f"links to incoming road {c.incoming_road!r} at "
-                    + ("both ends" if ends else "neither end")
+                    f"{where}: no contactPoint, and road {c.connecting_road!r} links to "
+                    f"road {c.incoming_road!r} or junction {junction.id!r} at "
+                    + ("both ends: say which" if ends else "neither end")
                 )
             c = replace(c, contact_point=ends[0])
         out.append(c)

@@ -166,10 +166,25 @@ def test_opendrive_1_8_leaves_out_the_centre_lane_type_and_the_contact_point(
     assert odr.junctions["9"].connections[0].contact_point == "end"
 
     unlinked = road("5", 50.0, "", junction="9")
-    with pytest.raises(MapError, match="links to incoming road '1' at neither end"):
+    with pytest.raises(MapError, match="links to road '1' or junction '9' at neither end"):
         OpenDriveMap.from_file(write(unlinked, 'connectingRoad="5"'))
     with pytest.raises(MapError, match="junction '9', connection '0': unknown road '7'"):
         OpenDriveMap.from_file(write(at_start, 'connectingRoad="7" contactPoint="start"'))
+
+    # a direct junction: the linked road links to the junction, not to the road
+    shipped = aldm_gym.roads.shipped_map("motorway")
+    lines = shipped.read_text().splitlines(keepends=True)
+    bare = "".join(
+        ln.replace(' contactPoint="start"', "") if "<connection" in ln else ln for ln in lines
+    )
+    connections = [ln for ln in bare.splitlines() if "<connection" in ln]
+    assert connections and not any("contactPoint" in ln for ln in connections)
+    (tmp_path / "direct.xodr").write_text(bare)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        want = OpenDriveMap.from_file(shipped).junctions
+        got = OpenDriveMap.from_file(tmp_path / "direct.xodr").junctions
+    assert got == want
 
 
 def test_lane_pose_straight_arc_and_left_hand_traffic(tmp_path: Path) -> None:
