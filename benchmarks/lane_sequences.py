@@ -48,12 +48,20 @@ def map_path(name: str) -> Path:
     if name in MAPS:
         return MAPS[name]
     path = Path(name)
-    if path.suffix.lower() == ".xodr" and path.is_file():
-        return path
-    raise ValueError(
-        f"{name!r} is no map of the benchmark ({', '.join(MAPS)}) and no OpenDRIVE "
-        "file (a path ending in .xodr)"
-    )
+    if path.suffix.lower() != ".xodr":
+        raise ValueError(
+            f"{name!r} is no map of the benchmark ({', '.join(MAPS)}) and no OpenDRIVE "
+            "file (a path ending in .xodr)"
+        )
+    if not path.is_file():
+        raise ValueError(f"{name}: no such file")
+    return path
+
+
+NO_DRIVE = (
+    "no driving lane starts a lane chain of at least 400 m (the lanes of a ring have no start)"
+)
+"""Why a map has no drive (:func:`~aldm_gym.sensor.drives.drive_starts`)."""
 
 
 def _label(name: str) -> str:
@@ -76,9 +84,7 @@ def table(
         road = OpenDriveRoad.from_file(map_path(name), marking_model="per_dash")
         starts = drive_starts(road)
         if not starts:
-            raise ValueError(
-                f"{_label(name)}: no lane chain of the map is the 400 m long a drive needs"
-            )
+            raise ValueError(f"{_label(name)}: {NO_DRIVE}")
         for start in starts:
             tasks += [(name, c, start, max_frames) for c in conditions]
     totals = {(m, c): {d: DriveScore() for d in DETECTORS} for m in maps for c in conditions}
@@ -110,13 +116,12 @@ def main(argv: list[str] | None = None) -> None:
         parser.error(f"unknown conditions {bad}; conditions: {list(CONDITIONS)}")
     for m in maps:
         try:
-            map_path(m)
-        except ValueError as e:
+            road = OpenDriveRoad.from_file(map_path(m), marking_model="per_dash")
+        except (AldmGymError, ValueError) as e:
             parser.error(str(e))
-    try:
-        totals = table(maps, conditions, args.max_frames, args.jobs)
-    except (AldmGymError, ValueError) as e:
-        parser.error(str(e))
+        if not drive_starts(road):
+            parser.error(f"{_label(m)}: {NO_DRIVE}")
+    totals = table(maps, conditions, args.max_frames, args.jobs)
     head = " | ".join(f"{d} both / longest wrong / missed" for d in DETECTORS)
     print(f"\n| map | condition | frames | {head} |")
     print("|---|---|---:|" + "---:|" * len(DETECTORS))

@@ -272,7 +272,8 @@ def test_the_drive_benchmark_drives_a_map_file(
 ) -> None:
     """``benchmarks.lane_sequences --maps`` takes the path of any OpenDRIVE file; a path
     that is no map, or a map with no lane long enough for a drive, is a usage error."""
-    lane_sequences = pytest.importorskip("benchmarks.lane_sequences")
+    from benchmarks import lane_sequences
+
     data = Path(__file__).resolve().parents[1] / "roads" / "opendrive" / "data"
     road = OpenDriveRoad.from_file(data / "straight_500m.xodr", marking_model="per_dash")
     n_drives = len(drive_starts(road))
@@ -288,8 +289,9 @@ def test_the_drive_benchmark_drives_a_map_file(
     short = tmp_path / "short.xodr"
     short.write_text((data / "straight_500m.xodr").read_text().replace('length="5', 'length="1'))
     for maps, message in (
-        ("nowhere.xodr", "no map of the benchmark"),
-        (str(short), "no lane chain of the map is the 400 m long a drive needs"),
+        ("nowhere", "no map of the benchmark"),
+        (str(tmp_path / "gone.xodr"), "gone.xodr: no such file"),
+        (str(short), "no driving lane starts a lane chain of at least 400 m"),
     ):
         with pytest.raises(SystemExit) as exc:
             lane_sequences.main(["--maps", maps, *argv])
