@@ -324,6 +324,19 @@ def test_the_ego_starts_where_its_lane_is_wide_enough(opening: Path, tmp_path: P
     assert math.isfinite(reward) and all(math.isfinite(v) for v in info["rewards"].values())
 
 
+def test_esmini_lane_that_widens_from_nothing_resets_and_steps() -> None:
+    """esmini's ``lane_width_and_offset.xodr`` (a unit-test map: one 10 m lane widening
+    from 0 under a ``laneOffset``): the env starts where the lane is 2.5 m wide and
+    steps with finite rewards (a zero width divided the lane-keeping term at reset)."""
+    path = Path(__file__).resolve().parents[1] / "roads/opendrive/data/lane_width_and_offset.xodr"
+    with pytest.warns(UserWarning, match="no driving lane has"):
+        env = _make(path)
+        env.reset(seed=0)
+    assert env.unwrapped.lane_position.width >= MAP_START_WIDTH - 1e-9
+    _, reward, _, _, info = env.step(1)
+    assert math.isfinite(reward) and all(math.isfinite(v) for v in info["rewards"].values())
+
+
 def test_a_long_map_with_no_lane_wide_enough_still_draws_the_start(tmp_path: Path) -> None:
     """Lanes of 2.25 m everywhere: the start is drawn as on any long map, with a
     warning that says why (not that the map is short)."""
