@@ -68,18 +68,24 @@ def _label(name: str) -> str:
     return name if name in MAPS else Path(name).name
 
 
-def _run(task: tuple[str, str, tuple[str, int, int], int]) -> tuple[str, str, dict]:
+Task = tuple[str, str, tuple[str, int, int], int]
+"""``(map, condition, drive start, max_frames)``: one drive."""
+
+
+def _run(task: Task) -> tuple[str, str, dict]:
     name, condition, start, max_frames = task
     road = OpenDriveRoad.from_file(map_path(name), marking_model="per_dash")
     return name, condition, drive(road, start, CONDITIONS[condition], max_frames=max_frames)
 
 
-def table(
-    maps: list[str], conditions: list[str], max_frames: int, jobs: int
-) -> dict[tuple[str, str], dict[str, DriveScore]]:
-    """Every drive, merged per map (a name of :data:`MAPS` or an OpenDRIVE file's
-    path, :func:`map_path`) and condition."""
-    tasks = []
+def drive_tasks(maps: list[str], conditions: list[str], max_frames: int) -> list[Task]:
+    """Every drive of ``maps`` (names of :data:`MAPS` or OpenDRIVE files' paths,
+    :func:`map_path`) under ``conditions``.
+
+    :raises ValueError: a map that is no map, cannot be read (a ``MapError``) or has
+        no drive (:data:`NO_DRIVE`).
+    """
+    tasks: list[Task] = []
     for name in maps:
         road = OpenDriveRoad.from_file(map_path(name), marking_model="per_dash")
         starts = drive_starts(road)
@@ -87,6 +93,12 @@ def table(
             raise ValueError(f"{_label(name)}: {NO_DRIVE}")
         for start in starts:
             tasks += [(name, c, start, max_frames) for c in conditions]
+    return tasks
+
+
+def _merged(
+    tasks: list[Task], maps: list[str], conditions: list[str], jobs: int
+) -> dict[tuple[str, str], dict[str, DriveScore]]:
     totals = {(m, c): {d: DriveScore() for d in DETECTORS} for m in maps for c in conditions}
     with ProcessPoolExecutor(jobs) as pool:
         for name, condition, scores in tqdm(
@@ -95,6 +107,13 @@ def table(
             for d, sc in scores.items():
                 totals[name, condition][d].merge(sc)
     return totals
+
+
+def table(
+    maps: list[str], conditions: list[str], max_frames: int, jobs: int
+) -> dict[tuple[str, str], dict[str, DriveScore]]:
+    """Every drive (:func:`drive_tasks`), merged per map and condition."""
+    return _merged(drive_tasks(maps, conditions, max_frames), maps, conditions, jobs)
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -114,14 +133,11 @@ def main(argv: list[str] | None = None) -> None:
     bad = [c for c in conditions if c not in CONDITIONS]
     if bad:
         parser.error(f"unknown conditions {bad}; conditions: {list(CONDITIONS)}")
-    for m in maps:
-        try:
-            road = OpenDriveRoad.from_file(map_path(m), marking_model="per_dash")
-        except (AldmGymError, ValueError) as e:
-            parser.error(str(e))
-        if not drive_starts(road):
-            parser.error(f"{_label(m)}: {NO_DRIVE}")
-    totals = table(maps, conditions, args.max_frames, args.jobs)
+    try:
+        tasks = drive_tasks(maps, conditions, args.max_frames)
+    except (AldmGymError, ValueError) as e:
+        parser.error(str(e))
+    totals = _merged(tasks, maps, conditions, args.jobs)
     head = " | ".join(f"{d} both / longest wrong / missed" for d in DETECTORS)
     print(f"\n| map | condition | frames | {head} |")
     print("|---|---|---:|" + "---:|" * len(DETECTORS))

@@ -276,17 +276,16 @@ def _draw_start(
         i = _draw_index(weights, rng)
         return i, float(rng.uniform(0.0, weights[i]))
     first = [_first_wide(road, k, MAP_START_WIDTH) for k in lanes]
-    ahead = np.array(
-        [road.chain_end(k) - road.chain_start(k) - f for k, f in zip(lanes, first, strict=True)]
-    )
-    wide = np.array([bool((road.lane_widths(k) >= MAP_START_WIDTH).any()) for k in lanes])
+    chains = [road.chain_end(k) - road.chain_start(k) for k in lanes]
+    ahead = np.array([c - u for c, (u, _) in zip(chains, first, strict=True)])
+    wide = np.array([found for _, found in first])
     i = int(np.argmax(np.where(wide, ahead, -np.inf) if wide.any() else ahead))
     warnings.warn(
         f"{path}: no driving lane has {need:.0f} m ahead; the ego starts with the longest "
         f"({ahead[i]:.0f} m) and the episode may end early",
         stacklevel=3,
     )
-    return i, first[i]
+    return i, first[i][0]
 
 
 def _draw_index(weights: FloatArray, rng: np.random.Generator) -> int:
@@ -295,18 +294,12 @@ def _draw_index(weights: FloatArray, rng: np.random.Generator) -> int:
     return min(int(np.searchsorted(cum, rng.uniform(0.0, cum[-1]), side="right")), len(cum) - 1)
 
 
-def _lane_u(road: OpenDriveRoad, key: LaneKey) -> tuple[FloatArray, FloatArray]:
-    """Arc length [m] along the centre line of lane ``key`` at each of its vertices,
-    and the lane's width [m] there."""
-    return road.lane_arc_lengths(key), road.lane_widths(key)
-
-
 def _wide_spans(road: OpenDriveRoad, key: LaneKey, width: float, room: float) -> FloatArray:
     """``(n, 2)`` the stretches ``[u0, u1]`` [m] of lane ``key`` within ``[0, room]``
     where it is at least ``width`` [m] wide (between vertices that both are)."""
     if room <= 0.0:
         return np.zeros((0, 2))
-    u, w = _lane_u(road, key)
+    u, w = road.lane_arc_lengths(key), road.lane_widths(key)
     wide = (w >= width).astype(np.int8)
     # runs of vertices that are all wide enough: one span each, cut at room
     edges = np.diff(np.concatenate(([0], wide, [0])))
@@ -315,17 +308,18 @@ def _wide_spans(road: OpenDriveRoad, key: LaneKey, width: float, room: float) ->
     return spans[spans[:, 1] > spans[:, 0]]
 
 
-def _first_wide(road: OpenDriveRoad, key: LaneKey, width: float) -> float:
+def _first_wide(road: OpenDriveRoad, key: LaneKey, width: float) -> tuple[float, bool]:
     """The arc length [m] along lane ``key`` where it is first at least ``width`` [m]
-    wide: 0 if it starts so wide, else the middle of the first stretch between two
-    vertices that both are (not its first vertex: a position exactly on a vertex may
-    take the width of the narrower stretch before it), else the lane's widest vertex."""
-    u, w = _lane_u(road, key)
+    wide, and whether it ever is: 0 if it starts so wide, else the middle of the first
+    stretch between two vertices that both are (not its first vertex: a position
+    exactly on a vertex may take the width of the narrower stretch before it); its
+    widest vertex, and False, when no such stretch exists."""
+    u, w = road.lane_arc_lengths(key), road.lane_widths(key)
     wide = np.flatnonzero((w[:-1] >= width) & (w[1:] >= width))
     if not len(wide):
-        return float(u[int(np.argmax(w))])
+        return float(u[int(np.argmax(w))]), False
     i = int(wide[0])
-    return 0.0 if i == 0 else float(0.5 * (u[i] + u[i + 1]))
+    return (0.0 if i == 0 else float(0.5 * (u[i] + u[i + 1]))), True
 
 
 def _ring(road: OpenDriveRoad, key: LaneKey) -> tuple[float, float] | None:
