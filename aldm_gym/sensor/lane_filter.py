@@ -68,7 +68,9 @@ Each frame:
    once; a confirmed line stays until it is dropped, so a hidden ego line keeps its
    role and is drawn from the model) get the roles by the sign of their offset at
    the sensor: the nearest on the left is the ego-left line, the next at least the
-   ALDM's ``min_lane_width`` beyond it the left adjacent; the same on the right.
+   ALDM's ``min_lane_width`` beyond it the left adjacent, if it is at most
+   ``max_lane_width`` beyond it (a median between two edge lines is no lane); the
+   same on the right.
    When the nearest lines on the two sides are more than the ALDM's
    ``max_lane_width`` apart, an ego line is missing: the one
    farther from the sensor is the adjacent line of its side. A lane change moves
@@ -1519,15 +1521,18 @@ class LaneModelFilter:
     def _adjacent(self, side: list[int], offsets: list[float]) -> int:
         """The adjacent line of one side, whose lines ``side`` run outwards from the
         ego line (-1: an ego line missing): the first at least the ALDM's
-        ``min_lane_width`` beyond it. A narrower strip (a shoulder's edge line beside
-        the lane line) is no lane (-1: none)."""
+        ``min_lane_width`` beyond it, if it is at most ``max_lane_width`` beyond it (the
+        single frame's rule). A narrower strip (a shoulder's edge line beside the lane
+        line) is no lane, nor is a wider one (a median between two edge lines; -1:
+        none)."""
         if len(side) < 2:
             return -1
         if side[0] < 0:
             return side[1]
         for i in side[1:]:
-            if abs(offsets[i] - offsets[side[0]]) >= self.params.min_lane_width:
-                return i
+            gap = abs(offsets[i] - offsets[side[0]])
+            if gap >= self.params.min_lane_width:
+                return i if gap <= self.params.max_lane_width else -1
         return -1
 
     def _detection(

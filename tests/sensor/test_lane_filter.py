@@ -1197,13 +1197,20 @@ def test_one_stripe_keeps_the_stripe_a_line_lies_on_near_the_sensor() -> None:
 def test_a_narrow_strip_is_no_adjacent_lane() -> None:
     """The adjacent line of a side is the first line at least the ALDM's
     ``min_lane_width`` beyond the ego line: a shoulder's edge line 0.75 m outside the
-    ego-right line is no lane, the line beyond it is the right adjacent one."""
+    ego-right line is no lane, the line beyond it is the right adjacent one. A line
+    more than ``max_lane_width`` (5 m) beyond it is no adjacent line either: the far
+    edge line of a 5.2 m median (esmini's ``e6mini-lht.xodr``), where the lane-change
+    policy otherwise changed into the median."""
     filt = LaneModelFilter()
     filt.update(S.sample(S.highway(lanes=1, ego_lane=0), noise=0.0, seed=0)[0], None)
     for offsets, want in (
         ([1.8, -1.75, -2.5, -5.3], [-1, 0, 1, 3]),
         ([1.8, -1.75, -2.5], [-1, 0, 1, -1]),
         ([5.5, 1.8, 2.4, -1.75], [0, 1, 3, -1]),
+        ([1.8, -1.75, -6.95], [-1, 0, 1, -1]),
+        ([1.8, -1.75, -6.7], [-1, 0, 1, 2]),
+        ([7.0, 1.8, -1.75], [-1, 1, 2, -1]),
+        ([7.0, 3.0, 1.8, -1.75], [-1, 2, 3, -1]),
     ):
         n = len(offsets)
         filt._x = np.concatenate([filt._x[: M.N_GEOMETRY], offsets])
