@@ -111,15 +111,17 @@ class Referee:
         self.acc_step = {"aeb": False, "phantom_braking": False}
 
     def locate(self, ego: Any) -> LanePosition:
-        """The ego's true lane position (:attr:`lane_position`). Off a map's lanes the
-        last lane is kept with an infinite offset (a departure) and :attr:`off_map` set.
+        """The ego's true lane position (:attr:`lane_position`), on the lanes that run
+        the ego's way (in a two-way road's oncoming lane it is off its own lane: a
+        departure). Off a map's lanes the last lane is kept with an infinite offset (a
+        departure) and :attr:`off_map` set.
         Adds the way from the last call to :attr:`distance`."""
         xy = (float(ego.position[0]), float(ego.position[1]))
         if self._last_xy is not None:
             self.distance += math.hypot(xy[0] - self._last_xy[0], xy[1] - self._last_xy[1])
         self._last_xy = xy
         try:
-            self.lane_position = self.road.lane_position(ego.position)
+            self.lane_position = self.road.lane_position(ego.position, float(ego.heading))
         except OffRoadError:
             self.off_map = True
             last = self.lane_position

@@ -341,11 +341,14 @@ class HighwayRoad:
         s, d = self.reference.project(position)
         return s, d, self.lane_of_offset(d)
 
-    def lane_position(self, position: FloatArray) -> LanePosition:
+    def lane_position(self, position: FloatArray, heading: float | None = None) -> LanePosition:
         """Ground truth of a world position as a :class:`~aldm_gym.roads.position.LanePosition`.
 
         The lane is the one whose centre is nearest (clipped to the road's lanes), the
         offset is from its centre, the direction of travel is the reference line's.
+        ``heading`` [rad] changes nothing: every lane runs the reference line's way
+        (see :meth:`OpenDriveRoad.lane_position
+        <aldm_gym.roads.OpenDriveRoad.lane_position>`).
 
         :raises ValueError: naming ``position`` unless it is 2 finite numbers [m].
         """

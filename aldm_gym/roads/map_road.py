@@ -448,10 +448,14 @@ class OpenDriveRoad(PolylineRoad):
             self._every_pred = every
         return list(every.get(lane, ()))
 
-    def _nearest_lane(self, position: FloatArray, only: int = -1) -> tuple[int, int, float, float]:
+    def _nearest_lane(
+        self, position: FloatArray, only: int = -1, heading: float | None = None
+    ) -> tuple[int, int, float, float]:
         """Nearest driving-lane centre: ``(lane row, segment, offset [m] > 0 left, u [m])``.
 
-        ``segment`` counts from the lane's first vertex (-1 when nothing is near).
+        ``segment`` counts from the lane's first vertex (-1 when nothing is near). With
+        ``heading`` [rad] (highway-env's world frame), the nearest of the lanes whose
+        direction of travel there is within 90° of it, if one is near; else the nearest.
         """
         c = self._centres
         rows, lo, hi = c.near(position, LOCATE_REACH)
@@ -464,24 +468,46 @@ class OpenDriveRoad(PolylineRoad):
                 hi = c.start[only + 1 : only + 2].copy()
         if len(rows) == 0:
             return -1, -1, math.nan, math.nan
-        row, i, offset, u = _nearest_centre(
-            c.xy, c.u, rows, lo, hi, float(position[0]), float(position[1])
-        )
+        px, py = float(position[0]), float(position[1])
+        row, i, offset, u = _nearest_centre(c.xy, c.u, rows, lo, hi, px, py)
+        if heading is not None:
+            hx, hy = math.cos(heading), math.sin(heading)
+            found = (row, i, offset, u)
+            while row >= 0:
+                dx, dy = c.xy[i + 1] - c.xy[i]
+                if dx * hx + dy * hy >= 0.0:
+                    break
+                # a lane of the other direction (the ego overtaking on a two-way road):
+                # the nearest of the rest, without the stretch that was found
+                keep = ~((rows == row) & (lo <= i) & (i < hi))
+                rows, lo, hi = rows[keep], lo[keep], hi[keep]
+                row, i, offset, u = (
+                    _nearest_centre(c.xy, c.u, rows, lo, hi, px, py) if len(rows) else (-1,) * 4
+                )
+            if row < 0:
+                row, i, offset, u = found
         return row, i - int(c.start[row]), offset, u
 
-    def lane_position(self, position: FloatArray) -> LanePosition:
+    def lane_position(self, position: FloatArray, heading: float | None = None) -> LanePosition:
         """Ground truth of a world position on the map (see :class:`LanePosition`).
 
         The lane is the driving lane whose centre line is nearest (the one containing the
         position wherever lanes do not overlap); ``s`` runs along the chain of lanes
         that continue each other (lane links across sections, roads and junctions).
+        With ``heading`` [rad] (a vehicle's, highway-env's world frame) only lanes whose
+        direction of travel is within 90° of it count, while one is within
+        :data:`LOCATE_REACH`: a car overtaking in the oncoming lane of a two-way road
+        is on its own lane's side with an offset of about a lane width (a departure),
+        not on the oncoming lane, whose road ahead is the way the car came.
 
         :raises InputError: naming ``position`` unless it is 2 finite numbers;
             :class:`~aldm_gym.errors.OffRoadError` when no
             driving lane passes within :data:`LOCATE_REACH` of it.
         """
         p = world_point("position", position)
-        row, seg, offset, u = self._nearest_lane(p)
+        if heading is not None and not math.isfinite(heading):
+            raise InputError(f"heading must be a finite number [rad], got {heading!r}")
+        row, seg, offset, u = self._nearest_lane(p, heading=heading)
         if row < 0:
             raise OffRoadError(
                 f"position ({p[0]:.1f}, {p[1]:.1f}) is more than {LOCATE_REACH} m from any "

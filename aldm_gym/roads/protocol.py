@@ -90,8 +90,9 @@ class Road(MarkedRoad, Protocol):
         """A typical lane width [m] (a generated road's; a map's median)."""
         ...
 
-    def lane_position(self, position: FloatArray) -> LanePosition:
-        """Ground truth of a world position ``(2,)`` [m].
+    def lane_position(self, position: FloatArray, heading: float | None = None) -> LanePosition:
+        """Ground truth of a world position ``(2,)`` [m]; with a vehicle's ``heading``
+        [rad], on the lanes that run its way (a map's oncoming lanes do not count).
 
         :raises InputError: the position is not 2 finite numbers.
         :raises OffRoadError: it lies on no lane (off a map's lanes).

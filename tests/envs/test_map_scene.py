@@ -356,6 +356,32 @@ def test_a_long_map_with_no_lane_wide_enough_still_draws_the_start(tmp_path: Pat
     assert len(starts) == 4
 
 
+def test_a_lane_change_into_the_oncoming_lane_is_a_departure(tmp_path: Path) -> None:
+    """On a two-way road the lane left of the ego's is the oncoming one: the lane
+    change into it (the detection cannot tell a lane's direction) takes the ego out
+    of its lane, a departure at every step it stays there, with the road ahead still
+    the way it drives (it was located on the oncoming lane, not departed, and the road
+    ahead its lane's way back)."""
+    road = xodr.create_road([xodr.Line(2000)], id=0, left_lanes=1, right_lanes=1, lane_width=3.5)
+    odr = xodr.OpenDrive("two_way")
+    odr.add_road(road)
+    env = _make(_write(odr, tmp_path / "two_way.xodr"), duration=20.0)
+    env.reset(seed=0)
+    u = env.unwrapped
+    lane, s0 = u.lane_position.lane, u.lane_position.s
+    info = env.step(0)[4]  # LANE_LEFT
+    assert info["lane_change"] == 1
+    for _ in range(5):
+        _, _, term, trunc, info = env.step(1)
+        assert not (term or trunc)
+    assert info["lane_changes_completed"] == 1
+    assert u.lane_position.lane == lane
+    assert info["lateral_offset"] == pytest.approx(3.5, abs=0.2)
+    assert info["lane_departure"] and info["departures"] >= 4
+    assert u.lane_position.s > s0 + 100.0
+    env.close()
+
+
 def test_the_ending_lane_shows_in_info(lane_end: Path) -> None:
     road = OpenDriveRoad.from_file(lane_end)
     net = road.network

@@ -17,28 +17,31 @@ from aldm_gym.sensor.ground_truth import ground_truth_detect, true_line
 xodr = pytest.importorskip("scenariogeneration.xodr")
 
 
+def _road_file(
+    factory: pytest.TempPathFactory, name: str, geometry: list, left: int, right: int, width: float
+) -> Path:
+    """One road of ``geometry`` with ``left`` and ``right`` lanes ``width`` wide, written
+    to a temporary ``name.xodr``."""
+    road = xodr.create_road(geometry, id=0, left_lanes=left, right_lanes=right, lane_width=width)
+    odr = xodr.OpenDrive(name)
+    odr.add_road(road)
+    odr.adjust_roads_and_lanes()
+    path = factory.mktemp("maps") / f"{name}.xodr"
+    odr.write_xml(str(path))
+    return path
+
+
 @pytest.fixture(scope="module")
 def curved_map(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A 3-lane one-way road: straight, clothoid, R = 500 m arc, clothoid, straight."""
-    road = xodr.create_road(
-        [
-            xodr.Line(300),
-            xodr.Spiral(0.0, -0.002, 100),
-            xodr.Arc(-0.002, 400),
-            xodr.Spiral(-0.002, 0.0, 100),
-            xodr.Line(300),
-        ],
-        id=0,
-        left_lanes=0,
-        right_lanes=3,
-        lane_width=3.75,
-    )
-    odr = xodr.OpenDrive("curved")
-    odr.add_road(road)
-    odr.adjust_roads_and_lanes()
-    path = tmp_path_factory.mktemp("maps") / "curved.xodr"
-    odr.write_xml(str(path))
-    return path
+    geometry = [
+        xodr.Line(300),
+        xodr.Spiral(0.0, -0.002, 100),
+        xodr.Arc(-0.002, 400),
+        xodr.Spiral(-0.002, 0.0, 100),
+        xodr.Line(300),
+    ]
+    return _road_file(tmp_path_factory, "curved", geometry, 0, 3, 3.75)
 
 
 def _shifted(pose: tuple[float, float, float], left: float) -> tuple[float, float, float]:
@@ -74,6 +77,45 @@ def test_lane_position_is_the_ground_truth(curved_map: Path) -> None:
         road.lane_position((5000.0, 5000.0))
     with pytest.raises(ValueError, match="position"):
         road.lane_position((np.nan, 0.0))
+
+
+@pytest.fixture(scope="module")
+def two_way_map(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A 1 km straight two-way road: one 3.5 m lane each way, with an R 500 m arc."""
+    geometry = [xodr.Line(400), xodr.Arc(0.002, 200), xodr.Line(400)]
+    return _road_file(tmp_path_factory, "two_way", geometry, 1, 1, 3.5)
+
+
+def test_with_a_heading_the_oncoming_lane_is_not_the_cars_lane(two_way_map: Path) -> None:
+    """A car overtaking in the oncoming lane is on its own lane's side, a lane width
+    to the left, with the road ahead the way it drives: without the heading it is on
+    the oncoming lane, whose road ahead is the way the car came."""
+    road = OpenDriveRoad.from_file(two_way_map)
+    for s in (100.0, 500.0, 900.0):
+        x, y, h = road.lane_pose("0", -1, s)
+        # in the middle of the oncoming lane, heading the ego lane's way
+        xy = _shifted((x, y, h), 3.5)[:2]
+        theirs = road.lane_position(xy)
+        assert theirs.lane == ("0", 0, 1) and abs(theirs.offset) < 1e-3
+        ours = road.lane_position(xy, heading=h)
+        assert ours.lane == ("0", 0, -1)
+        assert ours.offset == pytest.approx(3.5, abs=1e-3)
+        # the road ahead: the rest of the road on its own lane, what it has driven on
+        # the oncoming one
+        assert road.road_left(ours) == pytest.approx(1000.0 - s, abs=2.0)
+        assert road.road_left(theirs) == pytest.approx(s, abs=2.0)
+        # heading the other way: the oncoming lane is the car's
+        assert road.lane_position(xy, heading=h + math.pi).lane == ("0", 0, 1)
+    with pytest.raises(ValueError, match="heading"):
+        road.lane_position(xy, heading=float("nan"))
+
+
+def test_with_no_lane_running_its_way_near_the_nearest_lane_counts(curved_map: Path) -> None:
+    """On a one-way road, a car heading against the lanes is on the nearest lane."""
+    road = OpenDriveRoad.from_file(curved_map)
+    for s in (50.0, 650.0):
+        x, y, h = _shifted(road.lane_pose("0", -2, s), 0.4)
+        assert road.lane_position((x, y), heading=h + math.pi) == road.lane_position((x, y))
 
 
 @pytest.mark.parametrize(("model", "naive_ok"), [("per_dash", 0.0), ("editor", 1.0)])
