@@ -75,12 +75,16 @@ class ActionConfig:
     :ivar target_speeds: the speeds FASTER/SLOWER step through [m/s], increasing.
     :ivar lane_change_timeout: a lane change not completed after this is aborted [s].
     :ivar max_acceleration: acceleration saturation, both signs [m/s²].
+    :ivar cross_solid_lines: a lane change may cross an ego line the sensor reports as
+        continuous (False: it is refused, as traffic rules forbid; a double line only
+        from its broken stripe's side: :func:`~aldm_gym.sensor.lane_detection.paint_types`).
     """
 
     type: str = setting("DiscreteMetaAction", choices=ACTION_TYPES)
     target_speeds: list[float] = setting([20.0, 25.0, 30.0], lo=0.0, hi=40.0, increasing=True)
     lane_change_timeout: float = setting(8.0, lo=0.5, hi=60.0)
     max_acceleration: float = setting(5.0, lo=0.0, lo_open=True, hi=20.0)
+    cross_solid_lines: bool = setting(False)
 
     def __post_init__(self) -> None:
         validate(self, "action")
@@ -163,7 +167,8 @@ class ALDMAction:
         FASTER and SLOWER always; LANE_LEFT / LANE_RIGHT where a lane change would
         start (:meth:`SensorVehicle.lane_change_available
         <aldm_gym.envs.vehicle.SensorVehicle.lane_change_available>`: the detected
-        adjacent lane exists and no change is under way).
+        adjacent lane exists, the ego line on that side is not continuous, and no
+        change is under way).
 
         :raises InputError: with ``ContinuousAction`` (masks are for meta actions).
         """

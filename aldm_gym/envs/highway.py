@@ -399,6 +399,7 @@ class ALDMHighwayEnv(AbstractEnv):
             target_speeds=tuple(act.target_speeds),
             continuous=act.type == "ContinuousAction",
             lane_change_timeout=float(act.lane_change_timeout),
+            cross_solid_lines=bool(act.cross_solid_lines),
             max_acceleration=float(act.max_acceleration),
             lane_width=self.highway.lane_width,
             path_range=self.path_range,

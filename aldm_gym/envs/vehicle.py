@@ -25,6 +25,7 @@ from aldm_gym.envs.lane_end import opening_path
 from aldm_gym.envs.observation import sensor_to_world, to_sensor_frame
 from aldm_gym.envs.traffic import BatchedLaneUpdate, FastBicycleStep, FastIDMVehicle, clip_scalar
 from aldm_gym.roads.highway import RoadConfig
+from aldm_gym.roads.markings import MarkingType
 from aldm_gym.sensor.lane_detection import LaneDetection, driving_trajectory
 from aldm_gym.types import FloatArray
 
@@ -75,6 +76,7 @@ class SensorVehicle(FastBicycleStep, BatchedLaneUpdate, Vehicle):
         target_speeds: tuple[float, ...] = tuple(_ACTION.target_speeds),
         continuous: bool = False,
         lane_change_timeout: float = _ACTION.lane_change_timeout,
+        cross_solid_lines: bool = _ACTION.cross_solid_lines,
         max_acceleration: float = _ACTION.max_acceleration,
         lane_width: float = RoadConfig.lane_width,
         path_range: float | None = LKAConfig.path_range,
@@ -86,6 +88,10 @@ class SensorVehicle(FastBicycleStep, BatchedLaneUpdate, Vehicle):
         self.target_speed = float(self.target_speeds[self.speed_index])
         self.continuous = continuous
         self.lane_change_timeout = lane_change_timeout
+        self.cross_solid_lines = cross_solid_lines
+        self.paint: dict[str, int] = {}
+        """The paint type under each detected ego line (set by the env with the
+        detection: :func:`~aldm_gym.sensor.lane_detection.paint_types`)."""
         self.max_acceleration = max_acceleration
         self.lane_width = lane_width
         self.detection: LaneDetection | None = None
@@ -139,10 +145,13 @@ class SensorVehicle(FastBicycleStep, BatchedLaneUpdate, Vehicle):
 
     def start_lane_change(self, direction: int) -> bool:
         """Start a lane change to the left (+1) or right (-1) if the adjacent lane on that
-        side is detected (:meth:`lane_change_available`'s rule); whether it started.
-        The meta actions' and the chauffeur's own (a lane that ends) way in."""
+        side is detected and its ego line may be crossed (:meth:`lane_change_available`'s
+        rule); whether it started. The meta actions' and the chauffeur's own (a lane
+        that ends) way in."""
+        if self.lane_change != 0 or not self._may_cross(direction):
+            return False
         path = self._adjacent_path(direction)
-        if self.lane_change != 0 or len(path) < MIN_TARGET_PATH:
+        if len(path) < MIN_TARGET_PATH:
             return False
         self.lane_change = direction
         self.lane_change_side = direction
@@ -152,9 +161,21 @@ class SensorVehicle(FastBicycleStep, BatchedLaneUpdate, Vehicle):
 
     def lane_change_available(self, direction: int) -> bool:
         """Whether a lane change to the left (+1) or right (-1) would start now: none is
-        under way (the action is ignored then) and the adjacent lane on that side is
-        detected (else it is refused): the rule :meth:`set_meta_action` applies."""
-        return self.lane_change == 0 and len(self._adjacent_path(direction)) >= MIN_TARGET_PATH
+        under way (the action is ignored then), the adjacent lane on that side is
+        detected and the ego line on that side may be crossed (else it is refused: see
+        :meth:`_may_cross`): the rule :meth:`set_meta_action` applies."""
+        return (
+            self.lane_change == 0
+            and self._may_cross(direction)
+            and len(self._adjacent_path(direction)) >= MIN_TARGET_PATH
+        )
+
+    def _may_cross(self, direction: int) -> bool:
+        """Whether the ego line on that side may be crossed: the sensor does not report
+        it continuous (:attr:`paint`; a double line's continuous stripe only on the
+        far side), or ``cross_solid_lines``."""
+        name = "ego_left" if direction > 0 else "ego_right"
+        return self.cross_solid_lines or self.paint.get(name, 0) != MarkingType.CONTINUOUS
 
     def _adjacent_path(self, direction: int) -> FloatArray:
         """Centre path of the detected adjacent lane (+1 left, -1 right), or empty."""

@@ -5,6 +5,7 @@ All coordinates are in the ISO 8855 sensor frame: x forward [m], y left [m].
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -235,3 +236,75 @@ __all__ = [
     "line_preview",
     "resample_line",
 ]
+
+
+CROSS_REACH = 50.0
+"""How far ahead [m] :func:`paint_types` reads the paint under a line: about where a
+lane change started now crosses it (2 s at 25 m/s)."""
+
+ON_LINE_BAND = 0.35
+"""A line object lies on a detected line where its points are within this lateral
+distance [m] of it: both stripes of a double line (gaps of 0.10–0.18 m between lines
+0.10–0.15 m wide, Vienna Convention on Road Signs and Signals, Annex 2: up to 0.33 m
+centre to centre) when the line lies on one of them; a tar seam beside a marking only
+within 0.35 m (the sensor's seams lie 0.3–1.0 m off)."""
+
+STRIPE_GAP = 0.08
+"""A continuous stripe at least this much [m] farther from the car than a broken one
+on the same line is the double line's far stripe, which the driver on the broken
+stripe's side may cross."""
+
+
+def paint_types(
+    frame: Any,
+    detection: LaneDetection,
+    names: tuple[str, ...] = ("ego_left", "ego_right"),
+    reach: float = CROSS_REACH,
+) -> dict[str, int]:
+    """The type of paint (the line sensor's: 1 continuous, 2 dashed, 3 dotted; 0: none
+    seen) each detected line ``names`` lies on from the sensor to ``reach`` [m], as a
+    lane-change function reads it from the sensor's line objects.
+
+    An object lies on the line when at least two of its points there, and half of them,
+    are within :data:`ON_LINE_BAND` of it (a speck or a seam beside it does not). The
+    line is continuous where a continuous object lies on it and is not the far stripe
+    of a double line (:data:`STRIPE_GAP` outside a broken stripe): a continuous line
+    may not be crossed (Vienna Convention on Road Signs and Signals, Art. 26), a
+    double line only from its broken stripe's side. Otherwise it is the type of the
+    broken object nearest the car, 0 when no object lies on it (the line is carried
+    by the detector, hidden, or worn).
+
+    :param frame: the :class:`~aldm_gym.sensor.frame.SensorFrame` the detection is of.
+    """
+    pts = frame.all_points
+    n_obj = len(frame.line_type)
+    owner = np.repeat(np.arange(n_obj), np.diff(frame.line_start))
+    types = np.asarray(frame.line_type, dtype=np.int64)
+    out: dict[str, int] = {}
+    for name in names:
+        line = detection.line(name)
+        out[name] = 0
+        if len(line) < 2 or len(pts) == 0:
+            continue
+        x, y = pts[:, 0], pts[:, 1]
+        inside = (x >= line[0, 0]) & (x <= min(float(line[-1, 0]), reach))
+        if not inside.any():
+            continue
+        # > 0 away from the car: the side of the line the car is not on
+        outward = 1.0 if "left" in name else -1.0
+        d = outward * (y - np.interp(x, line[:, 0], line[:, 1]))
+        on = inside & (np.abs(d) <= ON_LINE_BAND)
+        seen = np.bincount(owner[inside], minlength=n_obj)
+        hits = np.bincount(owner[on], minlength=n_obj)
+        mean_d = np.bincount(owner[on], weights=d[on], minlength=n_obj) / np.maximum(hits, 1)
+        lying = (hits >= 2) & (2 * hits >= seen)
+        if not lying.any():
+            continue
+        solid = lying & (types == 1)
+        broken = lying & (types != 1)
+        inner = float(mean_d[broken].min()) if broken.any() else math.inf
+        if np.any(mean_d[solid] < inner + STRIPE_GAP):
+            out[name] = 1
+        else:
+            out[name] = int(types[broken][np.argmin(mean_d[broken])])
+    return out

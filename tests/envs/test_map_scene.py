@@ -358,11 +358,18 @@ def test_a_long_map_with_no_lane_wide_enough_still_draws_the_start(tmp_path: Pat
 
 def test_a_lane_change_into_the_oncoming_lane_is_a_departure(tmp_path: Path) -> None:
     """On a two-way road the lane left of the ego's is the oncoming one: the lane
-    change into it (the detection cannot tell a lane's direction) takes the ego out
-    of its lane, a departure at every step it stays there, with the road ahead still
-    the way it drives (it was located on the oncoming lane, not departed, and the road
-    ahead its lane's way back)."""
-    road = xodr.create_road([xodr.Line(2000)], id=0, left_lanes=1, right_lanes=1, lane_width=3.5)
+    change into it (overtaking across a broken centre line; the detection cannot tell
+    a lane's direction) takes the ego out of its lane, a departure at every step it
+    stays there, with the road ahead still the way it drives (it was located on the
+    oncoming lane, not departed, and the road ahead its lane's way back)."""
+    road = xodr.create_road(
+        [xodr.Line(2000)],
+        id=0,
+        left_lanes=1,
+        right_lanes=1,
+        lane_width=3.5,
+        center_road_mark=xodr.std_roadmark_broken(),
+    )
     odr = xodr.OpenDrive("two_way")
     odr.add_road(road)
     env = _make(_write(odr, tmp_path / "two_way.xodr"), duration=20.0)
@@ -379,6 +386,28 @@ def test_a_lane_change_into_the_oncoming_lane_is_a_departure(tmp_path: Path) -> 
     assert info["lateral_offset"] == pytest.approx(3.5, abs=0.2)
     assert info["lane_departure"] and info["departures"] >= 4
     assert u.lane_position.s > s0 + 100.0
+    env.close()
+
+
+@pytest.mark.parametrize("cross", [False, True])
+def test_a_lane_change_across_a_solid_line_is_refused(tmp_path: Path, cross: bool) -> None:
+    """The lane left of the ego's lies beyond a solid centre line: LANE_LEFT is masked
+    and refused (no lane change starts), unless ``action.cross_solid_lines``."""
+    road = xodr.create_road([xodr.Line(2000)], id=0, left_lanes=1, right_lanes=1, lane_width=3.5)
+    odr = xodr.OpenDrive("solid_centre")
+    odr.add_road(road)
+    env = _make(
+        _write(odr, tmp_path / "solid_centre.xodr"),
+        duration=20.0,
+        action={"cross_solid_lines": cross},
+    )
+    env.reset(seed=0)
+    u = env.unwrapped
+    assert u.vehicle.paint["ego_left"] == 1
+    assert bool(u.action_masks()[0]) is cross
+    info = env.step(0)[4]  # LANE_LEFT
+    assert info["lane_change_refused"] is not cross
+    assert info["lane_change"] == int(cross)
     env.close()
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -10,7 +11,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from aldm_gym.sensor import LaneDetection, driving_trajectory
+from aldm_gym.roads import OpenDriveRoad
+from aldm_gym.sensor import LaneDetection, LineSensor, detect_lanes, driving_trajectory
+from aldm_gym.sensor.lane_detection import LINE_NAMES, paint_types
 
 
 def _line(y0: float, curv: float = 0.0, x0: float = 5.52, x1: float = 120.0) -> np.ndarray:
@@ -307,3 +310,43 @@ def test_detector_path_range_80_is_the_env_near_path_bit_for_bit(name: str) -> N
         assert det.trajectory.tobytes() == want.tobytes()
         compared += 1
     assert compared >= 40
+
+
+@pytest.mark.parametrize(
+    ("centre", "left"),
+    [
+        ("solid", 1),
+        ("broken", 2),
+        ("solid_broken", 2),  # broken on the right lane's side: it may be crossed from there
+        ("broken_solid", 1),
+        ("solid_solid", 1),
+    ],
+)
+def test_paint_types_read_the_line_objects_under_the_ego_lines(
+    tmp_path: Path, centre: str, left: int
+) -> None:
+    """On a two-way road of two lanes each way, the right lanes' lines as the sensor's
+    line objects give them: the centre line as written (a double line by the stripe on
+    the car's side), the lane line dashed (per dash and as one object), the edge line
+    continuous; a line with no object under it, or none, is 0."""
+    xodr = pytest.importorskip("scenariogeneration.xodr")
+    mark = getattr(xodr, f"std_roadmark_{centre}")()
+    road = xodr.create_road(
+        [xodr.Line(1000)], id=0, left_lanes=2, right_lanes=2, lane_width=3.5, center_road_mark=mark
+    )
+    odr = xodr.OpenDrive(centre)
+    odr.add_road(road)
+    odr.adjust_roads_and_lanes()
+    odr.write_xml(str(tmp_path / "road.xodr"))
+    for model in ("per_dash", "editor"):
+        r = OpenDriveRoad.from_file(tmp_path / "road.xodr", marking_model=model)
+        sensor = LineSensor()
+        inner = sensor.measure(r, r.lane_pose("0", -1, 400.0))
+        got = paint_types(inner, detect_lanes(inner), names=LINE_NAMES)
+        assert (got["ego_left"], got["ego_right"]) == (left, 2), model
+        outer = sensor.measure(r, r.lane_pose("0", -2, 400.0))
+        det = detect_lanes(outer)
+        assert paint_types(outer, det) == {"ego_left": 2, "ego_right": 1}, model
+        # a line 1.5 m off the paint, or none: no paint under it
+        moved = LaneDetection(ego_left=det.ego_left + np.array([0.0, 1.5]))
+        assert paint_types(outer, moved) == {"ego_left": 0, "ego_right": 0}
