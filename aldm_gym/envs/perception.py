@@ -21,7 +21,7 @@ from aldm_gym.envs.traffic.vehicles import velocity
 from aldm_gym.roads.protocol import Road
 from aldm_gym.sensor.detectors import Detector, make_detector
 from aldm_gym.sensor.frame import SensorFrame
-from aldm_gym.sensor.lane_detection import LaneDetection, paint_types
+from aldm_gym.sensor.lane_detection import LaneDetection
 from aldm_gym.sensor.line_sensor import LineSensor
 from aldm_gym.sensor.tracking import EgoMotion, odometry
 
@@ -94,7 +94,7 @@ class Perception:
         motion = self.ego_motion(ego) if getattr(detector, "uses_motion", True) else None
         self.detection = det = detector(self.frame, road, lane, motion=motion)
         ego.detection = det
-        ego.paint = paint_types(self.frame, det)  # what a lane change may cross
+        ego.frame = self.frame  # what a lane change may cross: the paint under the lines
         ego.trajectory = det.trajectory  # fitted up to lka.path_range by the detector
         ego.sensor_pose = (self.frame.origin, self.frame.yaw)  # the frame of both
         return det

@@ -26,7 +26,7 @@ from aldm_gym.envs.observation import sensor_to_world, to_sensor_frame
 from aldm_gym.envs.traffic import BatchedLaneUpdate, FastBicycleStep, FastIDMVehicle, clip_scalar
 from aldm_gym.roads.highway import RoadConfig
 from aldm_gym.roads.markings import MarkingType
-from aldm_gym.sensor.lane_detection import LaneDetection, driving_trajectory
+from aldm_gym.sensor.lane_detection import LaneDetection, driving_trajectory, paint_types
 from aldm_gym.types import FloatArray
 
 _ACTION = ActionConfig()
@@ -89,9 +89,9 @@ class SensorVehicle(FastBicycleStep, BatchedLaneUpdate, Vehicle):
         self.continuous = continuous
         self.lane_change_timeout = lane_change_timeout
         self.cross_solid_lines = cross_solid_lines
-        self.paint: dict[str, int] = {}
-        """The paint type under each detected ego line (set by the env with the
-        detection: :func:`~aldm_gym.sensor.lane_detection.paint_types`)."""
+        self.frame: Any = None
+        """The sensor frame of :attr:`detection` (set by the env with it)."""
+        self._paint: tuple[Any, dict[str, int]] | None = None
         self.max_acceleration = max_acceleration
         self.lane_width = lane_width
         self.detection: LaneDetection | None = None
@@ -169,6 +169,18 @@ class SensorVehicle(FastBicycleStep, BatchedLaneUpdate, Vehicle):
             and self._may_cross(direction)
             and len(self._adjacent_path(direction)) >= MIN_TARGET_PATH
         )
+
+    @property
+    def paint(self) -> dict[str, int]:
+        """The type of paint under each detected ego line
+        (:func:`~aldm_gym.sensor.lane_detection.paint_types` of :attr:`frame`; read
+        when a lane change asks, once per detection)."""
+        det = self.detection
+        if det is None or self.frame is None:
+            return {}
+        if self._paint is None or self._paint[0] is not det:
+            self._paint = (det, paint_types(self.frame, det))
+        return self._paint[1]
 
     def _may_cross(self, direction: int) -> bool:
         """Whether the ego line on that side may be crossed: the sensor does not report
