@@ -29,12 +29,20 @@ from aldm_gym.roads.markings import MarkingType
 from aldm_gym.sensor.lane_detection import LaneDetection, driving_trajectory, paint_types
 from aldm_gym.types import FloatArray
 
+BROKEN = (int(MarkingType.DASHED), int(MarkingType.DOTTED))
+"""The line types a lane change may cross."""
+
 _ACTION = ActionConfig()
 
 
 MIN_TARGET_PATH = 2
 """A lane change needs a target path of at least this many points (the detected
 adjacent lane's centre)."""
+
+MIN_TARGET_WIDTH = 2.5
+"""... and a target lane at least this wide [m] (the ALDM's ``min_lane_width``)
+wherever both its lines are detected within the path range: not a lane that ends
+ahead (a taper), where the car would arrive as it closes."""
 
 MRM_DECELERATION = 3.0
 """Deceleration [m/s²] of the minimal-risk manoeuvre of the built-in lane keeping: once
@@ -92,6 +100,10 @@ class SensorVehicle(FastBicycleStep, BatchedLaneUpdate, Vehicle):
         self.frame: Any = None
         """The sensor frame of :attr:`detection` (set by the env with it)."""
         self._paint: tuple[Any, dict[str, int]] | None = None
+        self._far_paint: tuple[Any, dict[str, int]] | None = None
+        self.last_change = 0
+        """The direction of the last completed lane change (+1 left, -1 right, 0 none):
+        a change back may cross a double line it crossed from its broken side."""
         self.max_acceleration = max_acceleration
         self.lane_width = lane_width
         self.detection: LaneDetection | None = None
@@ -151,7 +163,7 @@ class SensorVehicle(FastBicycleStep, BatchedLaneUpdate, Vehicle):
         if self.lane_change != 0 or not self._may_cross(direction):
             return False
         path = self._adjacent_path(direction)
-        if len(path) < MIN_TARGET_PATH:
+        if len(path) < MIN_TARGET_PATH or not self._target_wide(direction):
             return False
         self.lane_change = direction
         self.lane_change_side = direction
@@ -168,7 +180,30 @@ class SensorVehicle(FastBicycleStep, BatchedLaneUpdate, Vehicle):
             self.lane_change == 0
             and self._may_cross(direction)
             and len(self._adjacent_path(direction)) >= MIN_TARGET_PATH
+            and self._target_wide(direction)
         )
+
+    def _target_wide(self, direction: int) -> bool:
+        """Whether the detected adjacent lane on that side is at least
+        :data:`MIN_TARGET_WIDTH` wide wherever both its lines are detected, up to the
+        path range (its lines' y apart at equal x [m])."""
+        det = self.detection
+        if det is None:
+            return False
+        if direction > 0:
+            outer, inner = det.left_adjacent, det.ego_left
+        else:
+            outer, inner = det.right_adjacent, det.ego_right
+        if len(outer) < 2 or len(inner) < 2:
+            return False
+        lo = max(float(outer[0, 0]), float(inner[0, 0]))
+        reach = math.inf if self.path_range is None else float(self.path_range)
+        hi = min(float(outer[-1, 0]), float(inner[-1, 0]), reach)
+        xs = np.linspace(lo, max(lo, hi), 17)
+        width = np.abs(
+            np.interp(xs, outer[:, 0], outer[:, 1]) - np.interp(xs, inner[:, 0], inner[:, 1])
+        )
+        return bool(width.min() >= MIN_TARGET_WIDTH)
 
     @property
     def paint(self) -> dict[str, int]:
@@ -182,12 +217,29 @@ class SensorVehicle(FastBicycleStep, BatchedLaneUpdate, Vehicle):
             self._paint = (det, paint_types(self.frame, det))
         return self._paint[1]
 
+    @property
+    def far_paint(self) -> dict[str, int]:
+        """:attr:`paint` as read from the far side of each ego line (the stripe of a
+        double line on the lane beside)."""
+        det = self.detection
+        if det is None or self.frame is None:
+            return {}
+        if self._far_paint is None or self._far_paint[0] is not det:
+            self._far_paint = (det, paint_types(self.frame, det, far_side=True))
+        return self._far_paint[1]
+
     def _may_cross(self, direction: int) -> bool:
-        """Whether the ego line on that side may be crossed: the sensor does not report
-        it continuous (:attr:`paint`; a double line's continuous stripe only on the
-        far side), or ``cross_solid_lines``."""
+        """Whether the ego line on that side may be crossed: the sensor reports it
+        broken (:attr:`paint`: dashed or dotted; a double line by its stripe on the
+        car's side), not continuous nor unseen (a line the detector only carries
+        gives no leave to cross it); or the car changes back after a change the other
+        way and the line is broken on its far side (a driver who overtook across a
+        double line from its broken side resumes their lane); or
+        ``cross_solid_lines``."""
         name = "ego_left" if direction > 0 else "ego_right"
-        return self.cross_solid_lines or self.paint.get(name, 0) != MarkingType.CONTINUOUS
+        if self.cross_solid_lines or self.paint.get(name, 0) in BROKEN:
+            return True
+        return direction == -self.last_change and self.far_paint.get(name, 0) in BROKEN
 
     def _adjacent_path(self, direction: int) -> FloatArray:
         """Centre path of the detected adjacent lane (+1 left, -1 right), or empty."""
@@ -236,6 +288,7 @@ class SensorVehicle(FastBicycleStep, BatchedLaneUpdate, Vehicle):
         self.lane_change_target_y = float(path[0, 1])
         self.lane_change_side = k
         if k == 0 and abs(self.lane_change_target_y) < self.LC_DONE_OFFSET:
+            self.last_change = self.lane_change
             self.lane_change = 0
             self.lane_changes_completed += 1
         return path

@@ -260,13 +260,16 @@ def paint_types(
     detection: LaneDetection,
     names: tuple[str, ...] = ("ego_left", "ego_right"),
     reach: float = CROSS_REACH,
+    far_side: bool = False,
 ) -> dict[str, int]:
     """The type of paint (the line sensor's: 1 continuous, 2 dashed, 3 dotted; 0: none
     seen) each detected line ``names`` lies on from the sensor to ``reach`` [m], as a
-    lane-change function reads it from the sensor's line objects.
+    lane-change function reads it from the sensor's line objects; with ``far_side``,
+    as a car on the line's other side reads it (a double line's other stripe).
 
-    An object lies on the line when at least two of its points there, and half of them,
-    are within :data:`ON_LINE_BAND` of it (a speck or a seam beside it does not). The
+    An object lies on the line when at least half of its points there are within
+    :data:`ON_LINE_BAND` of it (a seam beside it does not), and, if continuous, at
+    least two (a speck does not; a short dash may give one point). The
     line is continuous where a continuous object lies on it and is not the far stripe
     of a double line (:data:`STRIPE_GAP` outside a broken stripe): a continuous line
     may not be crossed (Vienna Convention on Road Signs and Signals, Art. 26), a
@@ -290,18 +293,21 @@ def paint_types(
         inside = (x >= line[0, 0]) & (x <= min(float(line[-1, 0]), reach))
         if not inside.any():
             continue
-        # > 0 away from the car: the side of the line the car is not on
-        outward = 1.0 if "left" in name else -1.0
+        # > 0 away from the car: the side of the line the car is not on (or, for the
+        # far side, is on)
+        outward = (1.0 if "left" in name else -1.0) * (-1.0 if far_side else 1.0)
         d = outward * (y - np.interp(x, line[:, 0], line[:, 1]))
         on = inside & (np.abs(d) <= ON_LINE_BAND)
         seen = np.bincount(owner[inside], minlength=n_obj)
         hits = np.bincount(owner[on], minlength=n_obj)
         mean_d = np.bincount(owner[on], weights=d[on], minlength=n_obj) / np.maximum(hits, 1)
-        lying = (hits >= 2) & (2 * hits >= seen)
-        if not lying.any():
-            continue
-        solid = lying & (types == 1)
+        lying = (hits >= 1) & (2 * hits >= seen)
+        # a continuous line in view gives more than one point (one is a speck); a
+        # short dash may give only one
+        solid = lying & (types == 1) & (hits >= 2)
         broken = lying & (types != 1)
+        if not (solid.any() or broken.any()):
+            continue
         inner = float(mean_d[broken].min()) if broken.any() else math.inf
         if np.any(mean_d[solid] < inner + STRIPE_GAP):
             out[name] = 1

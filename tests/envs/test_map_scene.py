@@ -411,6 +411,29 @@ def test_a_lane_change_across_a_solid_line_is_refused(tmp_path: Path, cross: boo
     env.close()
 
 
+def test_a_car_that_overtook_across_a_double_line_may_change_back() -> None:
+    """``features``' centre line is broken on the car's side, solid on the oncoming
+    lane's: the change into the oncoming lane is allowed, and so is the change back
+    across the solid stripe, only as the return of that change."""
+    from aldm_gym.roads import shipped_map
+
+    env = _make(shipped_map("features"), duration=20.0)
+    env.reset(seed=0)
+    ego = env.unwrapped.vehicle
+    assert ego.paint["ego_left"] == 2 and env.unwrapped.action_masks()[0]
+    env.step(0)  # LANE_LEFT
+    for _ in range(6):
+        if ego.lane_changes_completed:
+            break
+        env.step(1)
+    assert ego.lane_changes_completed == 1 and ego.last_change == 1
+    assert ego.paint["ego_right"] == 1 and ego.far_paint["ego_right"] == 2
+    assert env.unwrapped.action_masks()[2]  # LANE_RIGHT: back
+    ego.last_change = 0
+    assert not env.unwrapped.action_masks()[2]
+    env.close()
+
+
 def test_the_ending_lane_shows_in_info(lane_end: Path) -> None:
     road = OpenDriveRoad.from_file(lane_end)
     net = road.network

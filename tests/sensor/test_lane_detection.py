@@ -350,3 +350,16 @@ def test_paint_types_read_the_line_objects_under_the_ego_lines(
         # a line 1.5 m off the paint, or none: no paint under it
         moved = LaneDetection(ego_left=det.ego_left + np.array([0.0, 1.5]))
         assert paint_types(outer, moved) == {"ego_left": 0, "ego_right": 0}
+
+
+def test_paint_types_of_a_double_line_from_either_side() -> None:
+    """The shipped ``features`` map's yellow centre line is solid beside a broken stripe
+    0.24 m nearer the car's lane: broken from the car's side, continuous from the
+    oncoming lane's (``far_side``)."""
+    from aldm_gym.roads import shipped_map
+
+    road = OpenDriveRoad.from_file(shipped_map("features"), marking_model="per_dash")
+    frame = LineSensor().measure(road, road.lane_pose("1", -1, 100.0))
+    det = detect_lanes(frame)
+    assert paint_types(frame, det)["ego_left"] == 2
+    assert paint_types(frame, det, far_side=True)["ego_left"] == 1
