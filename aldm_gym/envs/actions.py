@@ -167,8 +167,8 @@ class ALDMAction:
         FASTER and SLOWER always; LANE_LEFT / LANE_RIGHT where a lane change would
         start (:meth:`SensorVehicle.lane_change_available
         <aldm_gym.envs.vehicle.SensorVehicle.lane_change_available>`: the detected
-        adjacent lane exists, the ego line on that side is not continuous, and no
-        change is under way).
+        adjacent lane exists and does not close ahead, the ego line on that side is
+        seen on broken paint, and no change is under way).
 
         :raises InputError: with ``ContinuousAction`` (masks are for meta actions).
         """

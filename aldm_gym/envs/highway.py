@@ -465,7 +465,7 @@ class ALDMHighwayEnv(AbstractEnv):
             return False  # the storyboard drives the ego
         if ahead.side == 0 or ahead.distance > self.lane_end.zone(float(ego.speed)):
             return False
-        return bool(ego.lane_change_available(ahead.side))
+        return bool(ego.lane_change_available(ahead.side, forced=True))
 
     def _leave_ending_lane(self, ahead: LaneEnd, objects: Objects) -> None:
         """Start the lane change :meth:`_may_leave` allows if the target lane has a free
@@ -482,7 +482,7 @@ class ALDMHighwayEnv(AbstractEnv):
             curvature=ego.path_curvature,
         ):
             return
-        if ego.start_lane_change(ahead.side):
+        if ego.start_lane_change(ahead.side, forced=True):
             self.lane_end_changes += 1
 
     def _longitudinal_step(self, objects: Objects | None = None) -> None:

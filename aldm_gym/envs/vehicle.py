@@ -39,10 +39,6 @@ MIN_TARGET_PATH = 2
 """A lane change needs a target path of at least this many points (the detected
 adjacent lane's centre)."""
 
-MIN_TARGET_WIDTH = 2.5
-"""... and a target lane at least this wide [m] (the ALDM's ``min_lane_width``)
-wherever both its lines are detected within the path range: not a lane that ends
-ahead (a taper), where the car would arrive as it closes."""
 
 MRM_DECELERATION = 3.0
 """Deceleration [m/s²] of the minimal-risk manoeuvre of the built-in lane keeping: once
@@ -66,7 +62,9 @@ class SensorVehicle(FastBicycleStep, BatchedLaneUpdate, Vehicle):
     Meta actions: IDLE follows the detected trajectory; LANE_LEFT/RIGHT steer onto
     the centre of the detected adjacent lane (midway between the ego line and the
     adjacent line, cubic fits as for the trajectory) and are refused when that
-    adjacent line is not detected; FASTER/SLOWER step through ``target_speeds``.
+    adjacent line is not detected, the lane closes ahead, or the ego line is not seen
+    on broken paint (:meth:`lane_change_available`); FASTER/SLOWER step through
+    ``target_speeds``.
     The change is under way until the detection shows the ego centred in the new
     lane (|y(0)| < ``LC_DONE_OFFSET``) or ``lane_change_timeout`` elapses.
     """
@@ -99,11 +97,12 @@ class SensorVehicle(FastBicycleStep, BatchedLaneUpdate, Vehicle):
         self.cross_solid_lines = cross_solid_lines
         self.frame: Any = None
         """The sensor frame of :attr:`detection` (set by the env with it)."""
-        self._paint: tuple[Any, dict[str, int]] | None = None
-        self._far_paint: tuple[Any, dict[str, int]] | None = None
-        self.last_change = 0
-        """The direction of the last completed lane change (+1 left, -1 right, 0 none):
-        a change back may cross a double line it crossed from its broken side."""
+        self._paint: tuple[Any, Any, dict[str, int]] | None = None
+        self._far_paint: tuple[Any, Any, dict[str, int]] | None = None
+        self.return_permit = 0
+        """The direction (+1 left, -1 right, 0 none) of a change back across the double
+        line the last lane change crossed from its broken side; set when a change
+        starts."""
         self.max_acceleration = max_acceleration
         self.lane_width = lane_width
         self.detection: LaneDetection | None = None
@@ -155,38 +154,46 @@ class SensorVehicle(FastBicycleStep, BatchedLaneUpdate, Vehicle):
             self.lane_change_refused = not self.start_lane_change(direction)
         self.target_speed = float(self.target_speeds[self.speed_index])
 
-    def start_lane_change(self, direction: int) -> bool:
+    def start_lane_change(self, direction: int, forced: bool = False) -> bool:
         """Start a lane change to the left (+1) or right (-1) if the adjacent lane on that
         side is detected and its ego line may be crossed (:meth:`lane_change_available`'s
-        rule); whether it started. The meta actions' and the chauffeur's own (a lane
-        that ends) way in."""
-        if self.lane_change != 0 or not self._may_cross(direction):
+        rule, ``forced`` as there); whether it started. The meta actions' and the
+        chauffeur's own (a lane that ends, ``forced``) way in."""
+        if not self.lane_change_available(direction, forced):
             return False
         path = self._adjacent_path(direction)
-        if len(path) < MIN_TARGET_PATH or not self._target_wide(direction):
-            return False
+        name = "ego_left" if direction > 0 else "ego_right"
+        # crossing a double line from its broken side: the way back is open (until the
+        # next change starts)
+        double = self.paint.get(name, 0) in BROKEN and (
+            self.far_paint.get(name, 0) == MarkingType.CONTINUOUS
+        )
+        self.return_permit = -direction if double else 0
         self.lane_change = direction
         self.lane_change_side = direction
         self.lane_change_elapsed = 0.0
         self.lane_change_target_y = float(path[0, 1])
         return True
 
-    def lane_change_available(self, direction: int) -> bool:
+    def lane_change_available(self, direction: int, forced: bool = False) -> bool:
         """Whether a lane change to the left (+1) or right (-1) would start now: none is
         under way (the action is ignored then), the adjacent lane on that side is
-        detected and the ego line on that side may be crossed (else it is refused: see
-        :meth:`_may_cross`): the rule :meth:`set_meta_action` applies."""
+        detected and no narrower than the car (:meth:`_target_wide`), and the ego line on
+        that side may be crossed (:meth:`_may_cross`; ``forced``: the chauffeur leaving a
+        lane that ends, refused only by paint seen continuous): else it is refused, the
+        rule :meth:`set_meta_action` applies."""
         return (
             self.lane_change == 0
-            and self._may_cross(direction)
+            and self._may_cross(direction, forced)
             and len(self._adjacent_path(direction)) >= MIN_TARGET_PATH
             and self._target_wide(direction)
         )
 
     def _target_wide(self, direction: int) -> bool:
-        """Whether the detected adjacent lane on that side is at least
-        :data:`MIN_TARGET_WIDTH` wide wherever both its lines are detected, up to the
-        path range (its lines' y apart at equal x [m])."""
+        """Whether the detected adjacent lane on that side is at least as wide as the car
+        (``WIDTH`` [m]) wherever both its lines are detected, up to the path range (its
+        lines' y apart at equal x): not a lane that closes ahead (a taper), where the car
+        would arrive as it ends."""
         det = self.detection
         if det is None:
             return False
@@ -196,50 +203,59 @@ class SensorVehicle(FastBicycleStep, BatchedLaneUpdate, Vehicle):
             outer, inner = det.right_adjacent, det.ego_right
         if len(outer) < 2 or len(inner) < 2:
             return False
-        lo = max(float(outer[0, 0]), float(inner[0, 0]))
         reach = math.inf if self.path_range is None else float(self.path_range)
+        lo = max(float(outer[0, 0]), float(inner[0, 0]))
         hi = min(float(outer[-1, 0]), float(inner[-1, 0]), reach)
-        xs = np.linspace(lo, max(lo, hi), 17)
+        if hi < lo:
+            return True  # no x where both are seen within reach: nothing says it closes
+        xs = np.linspace(lo, hi, 17)
         width = np.abs(
             np.interp(xs, outer[:, 0], outer[:, 1]) - np.interp(xs, inner[:, 0], inner[:, 1])
         )
-        return bool(width.min() >= MIN_TARGET_WIDTH)
+        return bool(width.min() >= self.WIDTH)
+
+    def _paint_of(self, far_side: bool) -> dict[str, int]:
+        """:func:`~aldm_gym.sensor.lane_detection.paint_types` of :attr:`frame` for the
+        ego lines, once per detection and frame."""
+        det, frame = self.detection, self.frame
+        if det is None or frame is None:
+            return {}
+        cached = self._far_paint if far_side else self._paint
+        if cached is None or cached[0] is not det or cached[1] is not frame:
+            cached = (det, frame, paint_types(frame, det, far_side=far_side))
+            if far_side:
+                self._far_paint = cached
+            else:
+                self._paint = cached
+        return cached[2]
 
     @property
     def paint(self) -> dict[str, int]:
         """The type of paint under each detected ego line
         (:func:`~aldm_gym.sensor.lane_detection.paint_types` of :attr:`frame`; read
-        when a lane change asks, once per detection)."""
-        det = self.detection
-        if det is None or self.frame is None:
-            return {}
-        if self._paint is None or self._paint[0] is not det:
-            self._paint = (det, paint_types(self.frame, det))
-        return self._paint[1]
+        when a lane change asks). Without a frame (a detection set by hand) it is empty,
+        and every lane change but a forced one is refused."""
+        return self._paint_of(False)
 
     @property
     def far_paint(self) -> dict[str, int]:
         """:attr:`paint` as read from the far side of each ego line (the stripe of a
         double line on the lane beside)."""
-        det = self.detection
-        if det is None or self.frame is None:
-            return {}
-        if self._far_paint is None or self._far_paint[0] is not det:
-            self._far_paint = (det, paint_types(self.frame, det, far_side=True))
-        return self._far_paint[1]
+        return self._paint_of(True)
 
-    def _may_cross(self, direction: int) -> bool:
+    def _may_cross(self, direction: int, forced: bool = False) -> bool:
         """Whether the ego line on that side may be crossed: the sensor reports it
         broken (:attr:`paint`: dashed or dotted; a double line by its stripe on the
         car's side), not continuous nor unseen (a line the detector only carries
-        gives no leave to cross it); or the car changes back after a change the other
-        way and the line is broken on its far side (a driver who overtook across a
-        double line from its broken side resumes their lane); or
-        ``cross_solid_lines``."""
+        gives no leave to cross it); or the car changes back across a double line it
+        crossed from its broken side (:attr:`return_permit`: a driver who overtook
+        resumes their lane); or, ``forced`` (leaving a lane that ends), it is not
+        seen continuous; or ``cross_solid_lines``."""
         name = "ego_left" if direction > 0 else "ego_right"
-        if self.cross_solid_lines or self.paint.get(name, 0) in BROKEN:
+        paint = self.paint.get(name, 0)
+        if self.cross_solid_lines or paint in BROKEN or (forced and paint == 0):
             return True
-        return direction == -self.last_change and self.far_paint.get(name, 0) in BROKEN
+        return direction == self.return_permit and self.far_paint.get(name, 0) in BROKEN
 
     def _adjacent_path(self, direction: int) -> FloatArray:
         """Centre path of the detected adjacent lane (+1 left, -1 right), or empty."""
@@ -288,7 +304,6 @@ class SensorVehicle(FastBicycleStep, BatchedLaneUpdate, Vehicle):
         self.lane_change_target_y = float(path[0, 1])
         self.lane_change_side = k
         if k == 0 and abs(self.lane_change_target_y) < self.LC_DONE_OFFSET:
-            self.last_change = self.lane_change
             self.lane_change = 0
             self.lane_changes_completed += 1
         return path

@@ -352,6 +352,8 @@ class HighwayRoad:
 
         :raises ValueError: naming ``position`` unless it is 2 finite numbers [m].
         """
+        if heading is not None and not math.isfinite(heading):
+            raise InputError(f"heading must be a finite number [rad], got {heading!r}")
         s, d, lane_id = self.locate(position)
         s = float(s)
         return LanePosition(

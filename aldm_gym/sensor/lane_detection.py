@@ -234,6 +234,7 @@ __all__ = [
     "driving_trajectory",
     "fit_cubic",
     "line_preview",
+    "paint_types",
     "resample_line",
 ]
 

@@ -68,15 +68,12 @@ def test_continuous_actions_have_no_mask() -> None:
 
 
 def test_no_lane_change_into_a_lane_that_closes_ahead_or_across_unseen_paint() -> None:
-    """The detected lane beside must be at least 2.5 m wide (the ALDM's
-    ``min_lane_width``) wherever both its lines are seen up to the path range: not a
-    lane whose outer line closes in ahead (a taper), where the car would arrive as
-    it ends. And the ego line must lie on broken paint: not on none."""
-    from aldm_gym.envs.vehicle import MIN_TARGET_WIDTH
-    from aldm_gym.sensor.aldm import ALDMParams
+    """The detected lane beside must be at least as wide as the car wherever both its
+    lines are seen up to the path range: not a lane whose outer line closes in ahead
+    (a taper), where the car would arrive as it ends. And the ego line must lie on
+    broken paint: not on none, unless the chauffeur leaves a lane that ends."""
     from aldm_gym.sensor.lane_detection import LaneDetection
 
-    assert ALDMParams().min_lane_width == MIN_TARGET_WIDTH
     env = gym.make("ALDMHighway-v0", config={"vehicles_count": 0, "initial_lane_id": 0})
     env.reset(seed=0)
     ego = env.unwrapped.vehicle
@@ -88,8 +85,13 @@ def test_no_lane_change_into_a_lane_that_closes_ahead_or_across_unseen_paint() -
         outer = right + np.column_stack([np.zeros(len(right)), -3.5 + closing * right[:, 0]])
         ego.detection = LaneDetection(ego_left=det.ego_left, ego_right=right, right_adjacent=outer)
         assert ego.lane_change_available(-1) is available, closing
+    # lines seen at no common x within the path range: nothing says the lane closes
+    beyond = right + np.array([200.0, -3.5])
+    ego.detection = LaneDetection(ego_left=det.ego_left, ego_right=right, right_adjacent=beyond)
+    assert ego._target_wide(-1)
     # both lines 1.5 m off the paint: the ego line is carried with no paint seen under
-    # it, which gives no leave to cross it
+    # it, which gives no leave to cross it, but the chauffeur leaving a lane that ends
+    # may (only paint seen continuous stops it)
     off = np.array([0.0, -1.5])
     ego.detection = LaneDetection(
         ego_left=det.ego_left,
@@ -98,4 +100,5 @@ def test_no_lane_change_into_a_lane_that_closes_ahead_or_across_unseen_paint() -
     )
     assert ego._target_wide(-1) and ego.paint["ego_right"] == 0
     assert not ego.lane_change_available(-1)
+    assert ego.lane_change_available(-1, forced=True)
     env.close()

@@ -422,14 +422,15 @@ def test_a_car_that_overtook_across_a_double_line_may_change_back() -> None:
     ego = env.unwrapped.vehicle
     assert ego.paint["ego_left"] == 2 and env.unwrapped.action_masks()[0]
     env.step(0)  # LANE_LEFT
+    assert ego.return_permit == -1
     for _ in range(6):
         if ego.lane_changes_completed:
             break
         env.step(1)
-    assert ego.lane_changes_completed == 1 and ego.last_change == 1
+    assert ego.lane_changes_completed == 1
     assert ego.paint["ego_right"] == 1 and ego.far_paint["ego_right"] == 2
     assert env.unwrapped.action_masks()[2]  # LANE_RIGHT: back
-    ego.last_change = 0
+    ego.return_permit = 0  # no change across the line from its broken side before
     assert not env.unwrapped.action_masks()[2]
     env.close()
 
