@@ -39,7 +39,6 @@ MIN_TARGET_PATH = 2
 """A lane change needs a target path of at least this many points (the detected
 adjacent lane's centre)."""
 
-
 MRM_DECELERATION = 3.0
 """Deceleration [m/s²] of the minimal-risk manoeuvre of the built-in lane keeping: once
 the detection has had no path for longer than the last path reached, the car holds
@@ -97,8 +96,8 @@ class SensorVehicle(FastBicycleStep, BatchedLaneUpdate, Vehicle):
         self.cross_solid_lines = cross_solid_lines
         self.frame: Any = None
         """The sensor frame of :attr:`detection` (set by the env with it)."""
-        self._paint: tuple[Any, Any, dict[str, int]] | None = None
-        self._far_paint: tuple[Any, Any, dict[str, int]] | None = None
+        # paint_types of (detection, frame), per side of the lines (far_side)
+        self._paint: dict[bool, tuple[Any, Any, dict[str, int]]] = {}
         self.return_permit = 0
         """The direction (+1 left, -1 right, 0 none) of a change back across the double
         line the last lane change crossed from its broken side; set when a change
@@ -159,9 +158,9 @@ class SensorVehicle(FastBicycleStep, BatchedLaneUpdate, Vehicle):
         side is detected and its ego line may be crossed (:meth:`lane_change_available`'s
         rule, ``forced`` as there); whether it started. The meta actions' and the
         chauffeur's own (a lane that ends, ``forced``) way in."""
-        if not self.lane_change_available(direction, forced):
+        path = self._target_path(direction, forced)
+        if path is None:
             return False
-        path = self._adjacent_path(direction)
         name = "ego_left" if direction > 0 else "ego_right"
         # crossing a double line from its broken side: the way back is open (until the
         # next change starts)
@@ -182,12 +181,17 @@ class SensorVehicle(FastBicycleStep, BatchedLaneUpdate, Vehicle):
         that side may be crossed (:meth:`_may_cross`; ``forced``: the chauffeur leaving a
         lane that ends, refused only by paint seen continuous): else it is refused, the
         rule :meth:`set_meta_action` applies."""
-        return (
-            self.lane_change == 0
-            and self._may_cross(direction, forced)
-            and len(self._adjacent_path(direction)) >= MIN_TARGET_PATH
-            and self._target_wide(direction)
-        )
+        return self._target_path(direction, forced) is not None
+
+    def _target_path(self, direction: int, forced: bool) -> FloatArray | None:
+        """The path of the lane change :meth:`lane_change_available` allows (its
+        target lane's centre), None when it is refused."""
+        if self.lane_change != 0 or not self._may_cross(direction, forced):
+            return None
+        path = self._adjacent_path(direction)
+        if len(path) < MIN_TARGET_PATH or not self._target_wide(direction):
+            return None
+        return path
 
     def _target_wide(self, direction: int) -> bool:
         """Whether the detected adjacent lane on that side is at least as wide as the car
@@ -220,13 +224,13 @@ class SensorVehicle(FastBicycleStep, BatchedLaneUpdate, Vehicle):
         det, frame = self.detection, self.frame
         if det is None or frame is None:
             return {}
-        cached = self._far_paint if far_side else self._paint
+        cached = self._paint.get(far_side)
         if cached is None or cached[0] is not det or cached[1] is not frame:
-            cached = (det, frame, paint_types(frame, det, far_side=far_side))
-            if far_side:
-                self._far_paint = cached
-            else:
-                self._paint = cached
+            cached = self._paint[far_side] = (
+                det,
+                frame,
+                paint_types(frame, det, far_side=far_side),
+            )
         return cached[2]
 
     @property

@@ -35,7 +35,7 @@ from aldm_gym.errors import ConfigError, InputError
 from aldm_gym.roads.lane import ReferenceLane
 from aldm_gym.roads.markings import MARKING_MODELS, Marking, MarkingRole, MarkingType
 from aldm_gym.roads.overpass import overpass_lines
-from aldm_gym.roads.position import LanePosition, Pose, world_point
+from aldm_gym.roads.position import LanePosition, Pose, world_heading, world_point
 from aldm_gym.roads.reference_line import ReferenceLine, Segment
 from aldm_gym.types import FloatArray
 
@@ -352,8 +352,7 @@ class HighwayRoad:
 
         :raises ValueError: naming ``position`` unless it is 2 finite numbers [m].
         """
-        if heading is not None and not math.isfinite(heading):
-            raise InputError(f"heading must be a finite number [rad], got {heading!r}")
+        world_heading("heading", heading)
         s, d, lane_id = self.locate(position)
         s = float(s)
         return LanePosition(

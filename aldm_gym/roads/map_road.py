@@ -39,7 +39,7 @@ from aldm_gym.roads.opendrive import OpenDriveMap
 from aldm_gym.roads.opendrive.map import LaneKey, LaneRecord
 from aldm_gym.roads.opendrive.parse import not_found
 from aldm_gym.roads.polyline import MarkingCurve, PolylineMarkings, PolylineRoad
-from aldm_gym.roads.position import LanePosition, Pose, world_point
+from aldm_gym.roads.position import LanePosition, Pose, world_heading, world_point
 from aldm_gym.types import FloatArray
 
 if TYPE_CHECKING:
@@ -505,9 +505,7 @@ class OpenDriveRoad(PolylineRoad):
             driving lane passes within :data:`LOCATE_REACH` of it.
         """
         p = world_point("position", position)
-        if heading is not None and not math.isfinite(heading):
-            raise InputError(f"heading must be a finite number [rad], got {heading!r}")
-        row, seg, offset, u = self._nearest_lane(p, heading=heading)
+        row, seg, offset, u = self._nearest_lane(p, heading=world_heading("heading", heading))
         if row < 0:
             raise OffRoadError(
                 f"position ({p[0]:.1f}, {p[1]:.1f}) is more than {LOCATE_REACH} m from any "

@@ -94,6 +94,22 @@ def world_point(name: str, value: Any) -> FloatArray:
     return arr[:2]
 
 
+def world_heading(name: str, value: float | None) -> float | None:
+    """``value`` as a heading [rad] (highway-env's world frame), or None for None.
+
+    :raises InputError: naming ``name`` unless ``value`` is a finite number.
+    """
+    if value is None:
+        return None
+    try:
+        heading = float(value)
+    except (TypeError, ValueError):
+        heading = math.nan
+    if not math.isfinite(heading):
+        raise InputError(f"{name} must be a finite number [rad], got {value!r}")
+    return heading
+
+
 def check_within_world(name: str, x: float, y: float, value: Any) -> None:
     """Raise unless the world point ``(x, y)`` [m] lies within :data:`MAX_COORDINATE`
     of the origin on each axis.

@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 
 from aldm_gym.errors import InputError
+from aldm_gym.roads.markings import MarkingType
 from aldm_gym.sensor.trajectory import DEFAULT_LANE_WIDTH, driving_trajectory, fit_cubic
 from aldm_gym.types import FloatArray
 
@@ -305,13 +306,13 @@ def paint_types(
         lying = (hits >= 1) & (2 * hits >= seen)
         # a continuous line in view gives more than one point (one is a speck); a
         # short dash may give only one
-        solid = lying & (types == 1) & (hits >= 2)
-        broken = lying & (types != 1)
+        solid = lying & (types == MarkingType.CONTINUOUS) & (hits >= 2)
+        broken = lying & (types != MarkingType.CONTINUOUS)
         if not (solid.any() or broken.any()):
             continue
         inner = float(mean_d[broken].min()) if broken.any() else math.inf
         if np.any(mean_d[solid] < inner + STRIPE_GAP):
-            out[name] = 1
+            out[name] = int(MarkingType.CONTINUOUS)
         else:
             out[name] = int(types[broken][np.argmin(mean_d[broken])])
     return out
