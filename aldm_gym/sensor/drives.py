@@ -24,6 +24,14 @@ taper, where no driver is in a lane yet and no detector is asked for one. Per de
 the share of frames with both ego lines correct, the longest run of consecutive
 scored frames with either wrong [s], and the share of ego lines missing.
 
+What a detector could know is measured beside it (:class:`SeenPaint`): a frame is
+*observed* when each ego line's paint has been measured, in that frame or an earlier
+one, within :data:`OBSERVED_PERIOD` of the preview. In a frame that is not, a car
+ahead has hidden the lines 40–60 m ahead since they came into view, and a detector
+that draws them there draws its road model, not a measurement. The share of observed
+frames, and each detector's longest wrong run within observed frames (an unobserved
+frame ends a run), say which wrong runs are the detector's and which the sensor's.
+
 ``benchmarks/lane_sequences.py`` runs the maps × conditions table
 (:data:`CONDITIONS`); docs/aldm.md, "Lane-model filter", reports it.
 """
@@ -39,7 +47,13 @@ import numpy as np
 from aldm_gym.errors import InputError
 from aldm_gym.roads.map_road import OpenDriveRoad
 from aldm_gym.sensor.aldm import ALDMParams, detect_lanes
-from aldm_gym.sensor.ground_truth import ground_truth_detect, score_detection
+from aldm_gym.sensor.ground_truth import (
+    boundary_y,
+    ground_truth_detect,
+    line_markings,
+    score_detection,
+    true_markings,
+)
 from aldm_gym.sensor.lane_filter import LaneModelFilter
 from aldm_gym.sensor.line_sensor import LineSensor
 from aldm_gym.sensor.tracking import LaneTracker, odometry
@@ -72,6 +86,23 @@ _SCHEDULE: tuple[tuple[float, float, float, float], ...] = (
     (-1.0, -10.0, 1.5, 0.0),
     (1.0, 120.0, -1.0, 0.0),
 )
+PREVIEW_MIN = 60.0
+"""The preview a correct line reaches [m] (the score's ``preview_min``)."""
+
+OBSERVED_PERIOD = 18.0
+"""A line is observed to the preview (60 m) when paint of it was measured at or beyond
+this much short of it [m]: one dash and its gap on a motorway (6 m + 12 m; shorter on
+other roads), so that on a dashed line no painted stretch up to the preview went
+unseen."""
+
+SEEN_CELL = 0.5
+"""The measured paint is kept road-fixed on a grid of this size [m] (world x, y): a
+drive's memory is bounded by the road ahead, not by its frames."""
+
+SEEN_TOL = 0.3
+"""A measured point is paint of a true line within this lateral distance [m] (the
+score's tolerance)."""
+
 _BREATH_PERIOD = 20.0  # [s]
 _WRAP = (-40.0, 200.0)  # a vehicle leaving this gap range comes back at the other end
 
@@ -193,6 +224,65 @@ def traffic(
     return out
 
 
+class SeenPaint:
+    """The paint a drive's sensor has measured so far, road-fixed.
+
+    Every frame's points go into world coordinates (the frame's ground-truth
+    ``origin`` and ``yaw``) on a :data:`SEEN_CELL` grid; points that fall behind
+    the sensor are forgotten. :meth:`reach` says how far ahead each ego line's paint
+    has been seen: what any detector could know of it, however long ago it looked.
+    """
+
+    def __init__(self) -> None:
+        self._cells = np.zeros((0, 2))
+
+    def add(self, frame: Any) -> None:
+        """Keep the points of a line-sensor ``frame`` (sensor frame, x forward, y left
+        [m]) and forget those more than a cell behind its sensor."""
+        pts = np.asarray(frame.points(), dtype=np.float64).reshape(-1, 3)[:, :2]
+        c, s = math.cos(frame.yaw), math.sin(frame.yaw)
+        world = frame.origin[None, :2] + pts @ np.array([[c, s], [-s, c]])
+        cells = np.vstack([self._cells, np.round(world / SEEN_CELL) * SEEN_CELL])
+        cells = cells[self._local(frame, cells)[:, 0] >= -SEEN_CELL]
+        # one point per cell: the cells as complex numbers, unique in one dimension
+        _, first = np.unique(cells[:, 0] + 1j * cells[:, 1], return_index=True)
+        self._cells = cells[first]
+
+    def __len__(self) -> int:
+        """How many cells of paint are kept."""
+        return len(self._cells)
+
+    @staticmethod
+    def _local(frame: Any, cells: FloatArray) -> FloatArray:
+        """World points ``cells`` [m] in the sensor frame of ``frame`` [m]."""
+        c, s = math.cos(frame.yaw), math.sin(frame.yaw)
+        d = cells - frame.origin[None, :2]
+        return np.column_stack([d[:, 0] * c + d[:, 1] * s, -d[:, 0] * s + d[:, 1] * c])
+
+    def reach(
+        self, road: OpenDriveRoad, frame: Any, lane: Any, names: tuple[str, ...], up_to: float
+    ) -> dict[str, float]:
+        """Per line of ``names`` (of the lane ``lane``, as
+        :func:`~aldm_gym.sensor.ground_truth.score_detection` names them), the farthest
+        x [m] in ``frame`` up to ``up_to`` at which its paint has been measured
+        (a point within :data:`SEEN_TOL` of the true line; -inf: none)."""
+        local = self._local(frame, self._cells)
+        local = local[(local[:, 0] > 0.0) & (local[:, 0] <= up_to)]
+        out = dict.fromkeys(names, -math.inf)
+        if not len(local):
+            return out
+        marks = line_markings(road, lane, frame.origin)
+        rows = true_markings(road, frame, local[:, 0])
+        for name in names:
+            if marks[name] is None:
+                continue
+            truth = boundary_y(rows, marks[name], local[:, 0], frame)
+            on = np.abs(local[:, 1] - truth) <= SEEN_TOL
+            if on.any():
+                out[name] = float(local[on, 0].max())
+        return out
+
+
 @dataclass
 class DriveScore:
     """One detector's score on one drive.
@@ -202,31 +292,51 @@ class DriveScore:
     :ivar longest_wrong: the longest run of consecutive scored frames with an ego line
         wrong (or missing).
     :ivar missed: ego lines missing (fewer than two points), over the scored frames.
+    :ivar observed: scored frames in which both ego lines were observed to the preview
+        (:class:`SeenPaint`, :data:`OBSERVED_PERIOD`).
+    :ivar longest_wrong_observed: the longest run of consecutive observed frames with
+        an ego line wrong (a frame that is not observed ends a run).
     """
 
     frames: int = 0
     correct: int = 0
     longest_wrong: int = 0
     missed: int = 0
+    observed: int = 0
+    longest_wrong_observed: int = 0
     _run: int = 0
+    _run_observed: int = 0
 
-    def add(self, left_ok: bool, right_ok: bool, left_found: bool, right_found: bool) -> None:
-        """Count one scored frame."""
+    def add(
+        self,
+        left_ok: bool,
+        right_ok: bool,
+        left_found: bool,
+        right_found: bool,
+        observed: bool = True,
+    ) -> None:
+        """Count one scored frame (``observed``: both ego lines were observed to the
+        preview)."""
         self.frames += 1
+        self.observed += observed
         self.missed += (not left_found) + (not right_found)
         if left_ok and right_ok:
             self.correct += 1
-            self._run = 0
-        else:
-            self._run += 1
-            self.longest_wrong = max(self.longest_wrong, self._run)
+            self._run = self._run_observed = 0
+            return
+        self._run += 1
+        self.longest_wrong = max(self.longest_wrong, self._run)
+        self._run_observed = self._run_observed + 1 if observed else 0
+        self.longest_wrong_observed = max(self.longest_wrong_observed, self._run_observed)
 
     def merge(self, other: DriveScore) -> None:
-        """Add another drive's counts (the longest run is the longer one)."""
+        """Add another drive's counts (the longest runs are the longer ones)."""
         self.frames += other.frames
         self.correct += other.correct
         self.missed += other.missed
+        self.observed += other.observed
         self.longest_wrong = max(self.longest_wrong, other.longest_wrong)
+        self.longest_wrong_observed = max(self.longest_wrong_observed, other.longest_wrong_observed)
 
     @property
     def share(self) -> float:
@@ -237,6 +347,17 @@ class DriveScore:
     def longest_wrong_s(self) -> float:
         """The longest wrong run [s]."""
         return self.longest_wrong * DT
+
+    @property
+    def longest_wrong_observed_s(self) -> float:
+        """The longest wrong run within observed frames [s]."""
+        return self.longest_wrong_observed * DT
+
+    @property
+    def observed_share(self) -> float:
+        """Share of scored frames in which both ego lines were observed to the preview
+        (NaN: none scored)."""
+        return self.observed / self.frames if self.frames else math.nan
 
     @property
     def missed_share(self) -> float:
@@ -290,11 +411,13 @@ def drive(
     scores = {d: DriveScore() for d in detectors}
     min_width = ALDMParams().min_lane_width
     last: tuple[float, float, float] | None = None
+    seen = SeenPaint()
     for k in range(frames):
         pose = tuple(float(v) for v in poses[k])
         motion = odometry(last, pose, DT)  # type: ignore[arg-type]
         last = pose  # type: ignore[assignment]
         frame = sensor.measure(road, pose, occluders=boxes[k] if condition.vehicles else None)
+        seen.add(frame)
         here = road.lane_position(poses[k, :2])
         lane = here.lane
         out = {}
@@ -310,10 +433,12 @@ def drive(
         truth = score_detection(ground_truth_detect(road, frame, lane), road, frame, lane, ego)
         if not (truth["ego_left"].correct and truth["ego_right"].correct):
             continue
+        reach = seen.reach(road, frame, lane, ego, PREVIEW_MIN)
+        observed = min(reach.values()) >= PREVIEW_MIN - OBSERVED_PERIOD
         for name, det in out.items():
             sc = score_detection(det, road, frame, lane, ego)
             left, right = sc["ego_left"], sc["ego_right"]
-            scores[name].add(left.correct, right.correct, left.found, right.found)
+            scores[name].add(left.correct, right.correct, left.found, right.found, observed)
     return scores
 
 

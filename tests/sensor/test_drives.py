@@ -18,6 +18,7 @@ from aldm_gym.sensor.drives import (
     TRUCK,
     Condition,
     DriveScore,
+    SeenPaint,
     drive,
     drive_starts,
     lane_path,
@@ -26,6 +27,7 @@ from aldm_gym.sensor.drives import (
     traffic,
 )
 from aldm_gym.sensor.lane_filter import FilterParams, LaneModelFilter
+from aldm_gym.sensor.line_sensor import LineSensor
 
 CURVATURE_STEP = Path(__file__).resolve().parents[2] / "benchmarks" / "data" / "curvature_step.xodr"
 
@@ -78,10 +80,45 @@ def test_a_short_drive_scores_every_detector_and_repeats_bit_for_bit() -> None:
     assert set(ideal) == set(DETECTORS)
     for name, sc in ideal.items():
         assert sc.frames == 60 and sc.share == 1.0 and sc.longest_wrong == 0, name
+        assert sc.observed == 60 and sc.longest_wrong_observed == 0, name
     runs = [drive(road, start, CONDITIONS["combined"], seed=3, max_frames=40) for _ in (0, 1)]
     assert {k: vars(v) for k, v in runs[0].items()} == {k: vars(v) for k, v in runs[1].items()}
-    # a car ahead hides the ego's lines: no detector is always right with it
+    # a car ahead hides the ego's lines: no detector is always right with it, and in
+    # some frames no detector could have measured them to the preview
     assert min(sc.share for sc in runs[0].values()) < 1.0
+    for sc in runs[0].values():
+        assert 0 < sc.observed < sc.frames
+        assert sc.longest_wrong_observed <= sc.longest_wrong
+
+
+def test_seen_paint_remembers_the_lines_a_car_hides_later() -> None:
+    """What the sensor saw of the ego's lines stays where it is on the road: a frame
+    in which a car close ahead hides the lines does not take back the reach an
+    earlier frame measured, 10 m back along the lane (here heading across the map's
+    axes: the memory is road-fixed in any direction). A drive that starts behind the
+    car has seen nothing beyond it."""
+    road = OpenDriveRoad.from_file(CURVATURE_STEP, marking_model="per_dash")
+    xy = lane_path(road, drive_starts(road)[1])
+    poses = path_poses(xy, np.array([700.0, 710.0]))
+    assert abs(poses[0, 2]) > 1.0
+    car = traffic(xy, np.array([710.0]), 3.75, 1, 1.0, seed=0)[0].copy()
+    car[0, :3] = path_poses(xy, np.array([724.0]))[0]  # a truck 14 m ahead of the sensor
+    sensor = LineSensor({"occlusion": True}, seed=0)
+    names = ("ego_left", "ego_right")
+    lane = road.lane_position(poses[1, :2]).lane
+    clear = sensor.measure(road, tuple(poses[0]))
+    hidden = sensor.measure(road, tuple(poses[1]), occluders=car)
+    fresh = SeenPaint()
+    fresh.add(hidden)
+    short = fresh.reach(road, hidden, lane, names, 60.0)
+    assert max(short.values()) < 30.0
+    seen = SeenPaint()
+    seen.add(clear)
+    seen.add(hidden)
+    far = seen.reach(road, hidden, lane, names, 60.0)
+    assert min(far.values()) >= 42.0
+    # nothing behind the sensor is kept
+    assert len(seen) < 4 * 200 / 0.5 and all(v <= 60.0 for v in far.values())
 
 
 def test_the_filter_follows_a_curvature_step() -> None:
@@ -241,6 +278,20 @@ def test_drive_score_counts_runs_and_misses() -> None:
     sc.merge(other)
     assert (sc.frames, sc.longest_wrong, sc.missed) == (6, 2, 5)
     assert math.isnan(DriveScore().share)
+
+
+def test_an_unobserved_frame_ends_a_run_within_observed_frames() -> None:
+    sc = DriveScore()
+    for observed in (True, True, False, True, True, True):
+        sc.add(False, True, True, True, observed)
+    assert (sc.longest_wrong, sc.longest_wrong_observed, sc.observed) == (6, 3, 5)
+    assert sc.observed_share == pytest.approx(5 / 6)
+    assert sc.longest_wrong_observed_s == pytest.approx(0.3)
+    other = DriveScore()
+    for _ in range(4):
+        other.add(False, False, True, True)
+    sc.merge(other)
+    assert (sc.longest_wrong, sc.longest_wrong_observed, sc.observed) == (6, 4, 9)
 
 
 def test_bad_settings_are_refused_by_name() -> None:
