@@ -5,7 +5,7 @@ road shape shared by every line and an offset per line, in the ISO 8855 sensor f
 (x forward, y left) [m]. The shape is a *reference curve* through the sensor: heading
 ``psi`` [rad] at the sensor, and a curvature [1/m] linear in arc length between
 :data:`~aldm_gym.sensor.aldm_kernels.model.N_NODES` nodes
-:data:`~aldm_gym.sensor.aldm_kernels.model.NODE_STEP` (22.5 m) apart, constant beyond
+:data:`~aldm_gym.sensor.aldm_kernels.model.NODE_STEP` (18 m) apart, constant beyond
 the last one: a clothoid spline, the road model of Dickmanns and Mysliwetz (1992) with
 its curvature rate free per node step, so that a transition into a bend that begins
 in view is followed. Every line is the parallel curve at its offset ``y0_i`` along
@@ -80,10 +80,10 @@ Without a model (the first frame, ``motion=None``, or every line dropped) the
 model starts from the single-frame ALDM (:func:`~aldm_gym.sensor.aldm.detect_lanes`)
 on the frame: its lines fitted whole, or only up to :data:`START_RANGE`, or a straight
 road at their offsets, whichever lays most of the frame's raw points on lines
-parallel to its shape (a trace that wandered far out under noise, or jumped onto the
-next line, does not bend the model). Lines of the frame the start lacks (a shoulder's
-edge line beside a lane line) are born on its shape before the frame's points update
-it. When a confirmed line hit in a frame has its
+parallel to its shape (the simplest of equal scores; a trace that wandered far out
+under noise, or jumped onto the next line, does not bend the model). Lines of the
+frame the start lacks (a shoulder's edge line beside a lane line) are born on its
+shape before the frame's points update it. When a confirmed line hit in a frame has its
 farthest point ``recede_length`` short of that of its last hit (a shape bent off the
 road far out, whose gates miss the points that would bend it back; not where a vehicle
 hides the line from there on), or short of where the model puts it in view while
@@ -353,7 +353,9 @@ class FilterParams:
         the curvature of the old last node; it gets ``(q_far_curvature_rate * d)^2``
         more variance for the ``d`` metres it moved, so that a clothoid coming into
         view bends it at once rather than a node step late. Only while points reach
-        the last node step (else nothing would measure it). 0: none.
+        the last node step (else nothing would measure it). 0: none (the default:
+        with six nodes it gains nothing on the drive benchmark's curvature-step map,
+        and it costs the camera preset; ``docs/aldm.md``).
     :ivar far_curvature_trend: how much of the last node step's curvature change the
         last node carries on as it moves onto new road (0: the curvature held, 1: the
         clothoid continued), while points reach the last node step (else the
@@ -761,9 +763,11 @@ class LaneModelFilter:
         points ``(x, y)`` [m]: a flat prior updated (robustly) with the lines' points up
         to ``model_range``, or only up to :data:`START_RANGE`, or a straight road at the
         lines' offsets, whichever lays most of the frame's points on lines parallel to
-        its shape (:meth:`_parallel_support`). A trace that wandered far out under
-        noise, or jumped onto the next line, then does not bend the model, and the
-        ALDM's lines still start it in a bend.
+        its shape (:meth:`_parallel_support`; of equal scores the simplest: straight,
+        then fitted near, then whole). A trace that wandered far out under noise, or
+        jumped onto the next line, then does not bend the model, and the ALDM's lines
+        still start it in a bend; a fit's noise where its lines end is not carried on
+        to 90 m when a straight start lays as many points on parallel lines.
 
         :param incumbent: the current model competes too (its shape, as updated with
             this frame, scored on the same points); it is kept, and nothing changes,
@@ -814,7 +818,8 @@ class LaneModelFilter:
             # nothing the right shape would not count too
             states = [st for st, _ in candidates] + ([self._x] if incumbent else [])
             scores = self._parallel_supports(states, x, y)
-            k = int(np.argmax(scores[: len(candidates)]))
+            # of equal scores the simplest shape: straight, then fitted near, then whole
+            k = len(candidates) - 1 - int(np.argmax(scores[len(candidates) - 1 :: -1]))
             if incumbent and scores[k] <= scores[-1] * (1.0 + margin):
                 return False
             best = candidates[k]

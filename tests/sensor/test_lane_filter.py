@@ -444,10 +444,12 @@ def test_start_keeps_the_start_the_points_support(monkeypatch: pytest.MonkeyPatc
     monkeypatch.setattr(LF, "detect_lanes_checked", wandering)
     filt = LaneModelFilter()
     det = filt.update(pts, None)
-    # the trace bends at 0.004 1/m; one noisy frame leaves the node at the sensor some
-    # play (traded against the heading: the lines stay within 0.1 m)
-    assert np.all(np.abs(filt.node_curvatures[1:]) < 1.5e-3)
-    assert abs(filt.node_curvatures[0]) < 2e-3
+    # the trace bends at 0.004 1/m; one noisy frame leaves the nodes some play: the one
+    # at the sensor traded against the heading over its 18 m step, the last measured
+    # over one step (2e-3 over 18 m: 0.1 m); the lines stay within 0.1 m
+    assert np.all(np.abs(filt.node_curvatures[1:-1]) < 1.5e-3)
+    assert abs(filt.node_curvatures[-1]) < 2e-3
+    assert abs(filt.node_curvatures[0]) < 3e-3
     for name in LINE_NAMES:
         assert _err(road, getattr(road, name), det.line(name)) < 0.1, name
     monkeypatch.setattr(LF, "detect_lanes_checked", real)
@@ -1240,7 +1242,10 @@ def test_a_start_takes_the_lines_the_single_frame_lacks_before_its_first_update(
     before the frame's points update it, that line takes its own points; without
     it, the ego-right line's gate (as wide as a fresh start's uncertainty) takes the
     shoulder's points beyond where the lane line is worn, and the shared shape bends
-    to lay the ego-right line on them."""
+    to lay the ego-right line on them. The start's candidates score the same here; a
+    fitted one carries the noise of the lines' last 20 m on to 90 m (0.3-0.5 m),
+    where the ego-right line's gate took the shoulder's farthest point: of equal
+    scores the straight start is taken."""
     pts = _strip_frame()
     filt = LaneModelFilter()
     if not births:
@@ -1252,7 +1257,9 @@ def test_a_start_takes_the_lines_the_single_frame_lacks_before_its_first_update(
     if births:
         assert np.min(np.abs(filt.offsets + 2.6)) < 0.1  # the shoulder's line
         assert worst < 0.1
-        assert np.all(np.abs(filt.node_curvatures) < 1e-3)
+        # the last node, measured over one 18 m step on one line, has some play
+        assert np.all(np.abs(filt.node_curvatures[:-1]) < 1e-3)
+        assert abs(filt.node_curvatures[-1]) < 2e-3
     else:
         assert worst > 0.5
 
