@@ -50,7 +50,9 @@ Each frame:
    hides (the frame's ``occluders``, through the line sensor's own sight model:
    :data:`HIDDEN_LENGTH`) is not missed: its confidence and miss length hold, and it
    is drawn through the shadow as far as the model is sure of it
-   (:data:`CARRY_STD`).
+   (:data:`CARRY_STD`). A line they partly hide is missed in proportion to the share
+   of its length in view they leave visible (the detection probability of an
+   existence filter, lowered by occlusion).
 5. **Birth.** Points no line took (outside every gate, or given no weight), up to
    ``birth_range``, are put in the reference curve's frame (their ``l``); a cluster
    of at least ``birth_points`` of them within ``birth_width`` laterally, spanning
@@ -741,8 +743,8 @@ class LaneModelFilter:
                 line, support, far = self._correct(x, y)
             # where each line was measured (NaN without MIN_SUPPORT)
             self._span = spans(x, line, support, len(self._ids), MIN_SUPPORT)
-            hidden, _ = self._occlusion(points)
-            self._existence(support, far, travel, hidden)
+            seen, _ = self._occlusion(points)
+            self._existence(support, far, travel, seen)
         # the reference curve after the update (births and drawing move no shape)
         tab = curve_table(self._x, fp.model_range)
         if line is not None and len(self._ids):
@@ -1176,32 +1178,39 @@ class LaneModelFilter:
 
     def _occlusion(
         self, points: Any, beyond: FloatArray | None = None
-    ) -> tuple[np.ndarray, FloatArray]:
-        """Which lines a vehicle hides in this frame (:data:`HIDDEN_LENGTH`), and
-        where each line's first point hidden by one lies [m] (inf: none; with
-        ``beyond``, the first at or beyond that x [m] per line), from the frame's
-        ``occluders`` and the sensor's own sight model (the line sensor's occlusion,
-        on the model's lines every :data:`OCCLUSION_STEP` within the field of view).
-        A frame given as bare points, or without occluders, hides nothing."""
+    ) -> tuple[FloatArray, FloatArray]:
+        """How much of each line the vehicles leave in view in this frame, and where
+        each line's first point hidden by one lies [m] (inf: none; with ``beyond``,
+        the first at or beyond that x [m] per line), from the frame's ``occluders``
+        and the sensor's own sight model (the line sensor's occlusion, on the model's
+        lines every :data:`OCCLUSION_STEP` within the field of view).
+
+        The first is the share of the line's length in the field of view that no
+        vehicle blocks, 0 for a *hidden* line (less than :data:`HIDDEN_LENGTH` left in
+        view) and 1 where no vehicle blocks any of it: how far a miss in this frame is
+        evidence that the line is gone (:meth:`_existence`). A frame given as bare
+        points, or without occluders, hides nothing (all 1)."""
         n = len(self._ids)
-        hidden = np.zeros(n, dtype=bool)
+        seen = np.ones(n)
         shadow = np.full(n, math.inf)
         if not isinstance(points, SensorFrame) or n == 0:
-            return hidden, shadow
+            return seen, shadow
         world = occluder_array(np.asarray(points.occluders, dtype=np.float64))
         if len(world) == 0:
-            return hidden, shadow
+            return seen, shadow
         grid = self._view(points, world)
         if grid is None:
-            return hidden, shadow
+            return seen, shadow
         xs, in_view, blocked = grid
         visible = in_view & ~blocked
-        hidden = blocked.any(axis=1) & (visible.sum(axis=1) * OCCLUSION_STEP < HIDDEN_LENGTH)
+        left = visible.sum(axis=1)
+        hidden = blocked.any(axis=1) & (left * OCCLUSION_STEP < HIDDEN_LENGTH)
+        seen = np.where(hidden, 0.0, left / np.maximum(in_view.sum(axis=1), 1))
         if beyond is not None:
             blocked &= xs[None, :] >= np.asarray(beyond)[:, None]
         first = np.where(blocked.any(axis=1), np.argmax(blocked, axis=1), -1)
         shadow = np.where(first >= 0, xs[np.maximum(first, 0)], math.inf)
-        return hidden, shadow
+        return seen, shadow
 
     def _sight(self, points: Any) -> FloatArray:
         """How far [m] each line is in view: the farthest x, every
@@ -1280,13 +1289,13 @@ class LaneModelFilter:
         return xs, in_view, in_view & np.isnan(seen)
 
     def _existence(
-        self, support: FloatArray, far: FloatArray, travel: float, hidden: np.ndarray
+        self, support: FloatArray, far: FloatArray, travel: float, seen: FloatArray
     ) -> None:
-        """Hits and misses (a missed line a vehicle hides, ``hidden``, neither loses
-        confidence nor counts travel towards ``drop_length``), the lines' far ends
-        (``far``: the farthest point of each line in the frame [m]), and the lines
-        dropped
-        (:func:`~aldm_gym.sensor.aldm_kernels.model.existence`)."""
+        """Hits and misses (a missed line loses confidence and counts travel towards
+        ``drop_length`` in proportion to ``seen``, the share of it the vehicles left in
+        view, :meth:`_occlusion`: a hidden line neither loses nor counts), the lines'
+        far ends (``far``: the farthest point of each line in the frame [m]), and the
+        lines dropped (:func:`~aldm_gym.sensor.aldm_kernels.model.existence`)."""
         fp = self.filter
         keep = existence(
             support,
@@ -1297,7 +1306,7 @@ class LaneModelFilter:
             self._confirmed,
             self._ids,
             self._x[N_GEOMETRY:],
-            hidden,
+            seen,
             travel,
             fp.hit_gain,
             fp.miss_loss,

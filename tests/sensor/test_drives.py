@@ -357,3 +357,35 @@ def test_the_drive_benchmark_drives_a_map_file(
             lane_sequences.main(["--maps", maps, *argv])
         assert exc.value.code == 2
         assert message in capsys.readouterr().err
+
+
+def test_a_line_the_cars_partly_hide_is_missed_only_where_it_was_in_view(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """``features``, lane 1, worn paint, noise and cars: for 5 s the cars leave 20-56 m
+    of the ego-right line's 86 m in view and the sensor gives 0-4 points of its paint
+    a frame, none a hit. A miss counts only for the share of the line the cars left in
+    view, so the line is carried on. Counted whole whenever more than
+    ``HIDDEN_LENGTH`` was left in view, the line was dropped after 60 m of travel and
+    the ego lane lacked its right line for 1.5 s (15 of the drive's 350 ego lines)."""
+    road = OpenDriveRoad.from_file(shipped_map("features"), marking_model="per_dash")
+    start = drive_starts(road)[1]
+    assert start[2] == 1
+
+    def run() -> DriveScore:
+        return drive(road, start, CONDITIONS["combined"], detectors=("filter",))["filter"]
+
+    graded = run()
+    original = LaneModelFilter._occlusion
+
+    def whole(self: LaneModelFilter, points: object, beyond: object = None) -> tuple:
+        seen, shadow = original(self, points, beyond)
+        return np.where(seen > 0.0, 1.0, 0.0), shadow
+
+    monkeypatch.setattr(LaneModelFilter, "_occlusion", whole)
+    binary = run()
+    assert graded.frames == binary.frames > 150
+    assert graded.missed == 0
+    assert binary.missed > 10
+    assert graded.share > binary.share
+    assert graded.longest_wrong < binary.longest_wrong

@@ -356,7 +356,7 @@ def test_no_two_lines_stay_closer_than_min_spacing(spacing: dict, kept: list[int
     filt._far = np.full(3, 50.0)
     filt._confirmed = np.ones(3, dtype=bool)
     filt._span = np.full((3, 2), np.nan)
-    filt._existence(np.full(3, 5.0), np.full(3, 50.0), 0.0, np.zeros(3, dtype=bool))
+    filt._existence(np.full(3, 5.0), np.full(3, 50.0), 0.0, np.ones(3))
     assert list(filt._ids) == kept
     assert np.all(np.diff(np.sort(filt.offsets)) >= filt.filter.min_spacing)
 
@@ -1085,7 +1085,7 @@ def test_kernels_match_plain_python() -> None:
         np.zeros(4, dtype=bool),
         np.array([0, 1, 2, 3]),
         np.array([5.6, 1.9, -1.9, -3.0]),
-        np.zeros(4, dtype=bool),
+        np.ones(4),
         2.5,
         0.3,
         0.1,
@@ -1107,15 +1107,16 @@ def test_kernels_match_plain_python() -> None:
     np.testing.assert_array_equal(miss, [0.0, 60.5, 0.0, 0.0])
     np.testing.assert_array_equal(far_old, [70.0, 30.0, 60.0, 50.0])
     assert confirmed.tolist() == [True, True, True, True]
-    # a missed line a vehicle hides keeps its confidence and its miss length
+    # a missed line a vehicle hides (seen 0) keeps its confidence and its miss length;
+    # one half hidden loses half as much and counts half the travel
     hidden = list(args)
     hidden[0] = np.zeros(4)  # every line missed
-    hidden[8] = np.array([False, True, False, True])
+    hidden[8] = np.array([1.0, 0.0, 0.5, 0.0])
     for kernel in (M.existence, M.existence_py):
         call = [a.copy() if isinstance(a, np.ndarray) else a for a in hidden]
         kernel(*call)
-        np.testing.assert_allclose(call[2], [0.45, 0.9, 0.72, 0.6])
-        np.testing.assert_array_equal(call[3], [2.5, 58.0, 2.5, 0.0])
+        np.testing.assert_allclose(call[2], [0.45, 0.9, 0.76, 0.6])
+        np.testing.assert_array_equal(call[3], [2.5, 58.0, 1.25, 0.0])
     # a narrow strip (min_spacing 0.6 m): lines 2 and 3, 1.1 m apart, both stay while
     # the weaker is confident enough or not yet confirmed, and it goes once confirmed
     # and faded below min_confidence

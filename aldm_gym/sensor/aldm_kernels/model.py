@@ -877,7 +877,7 @@ def existence_py(
     confirmed,
     ids,
     offsets,
-    hidden,
+    seen,
     travel,
     hit_gain,
     miss_loss,
@@ -892,17 +892,19 @@ def existence_py(
 
     A line whose support reaches ``min_support`` is hit: its confidence gains
     ``hit_gain`` of what it lacks to 1, its miss length is reset and its far end set to
-    ``far``; otherwise, unless ``hidden`` (a vehicle hides it: no evidence either way),
-    it loses ``miss_loss`` of its confidence and its miss length grows by ``travel``
-    [m]. A line is confirmed once its confidence reaches
-    ``min_confidence``. Kept: lines missed for at most ``drop_length`` [m] and within
-    ``max_offset`` [m] of the sensor; of two kept lines closer than ``min_spacing``
-    [m], the less confident goes (on a tie the younger, the larger id), each compared
-    with the nearest kept one to its right, so no two kept lines end closer. Two lines
-    at least ``min_spacing`` but less than ``lane_spacing`` [m] apart (a narrow strip:
-    a shoulder's edge line beside a lane line) both stay while the less confident one
-    is unconfirmed (it has no role yet) or at least ``min_confidence``; once it is
-    confirmed and has fallen below that, it goes.
+    ``far``; otherwise it loses ``seen`` times ``miss_loss`` of its confidence and its
+    miss length grows by ``seen`` times ``travel`` [m], ``seen`` being the share of the
+    line in view that no vehicle hides (0 for a hidden line: no evidence either way; a
+    miss is evidence of absence as far as the line could have been seen). A line is
+    confirmed once its confidence reaches ``min_confidence``. Kept: lines missed for at
+    most ``drop_length`` [m] and within ``max_offset`` [m] of the sensor; of two kept
+    lines closer than ``min_spacing`` [m], the less confident goes (on a tie the
+    younger, the larger id), each compared with the nearest kept one to its right, so no
+    two kept lines end closer. Two lines at least ``min_spacing`` but less than
+    ``lane_spacing`` [m] apart (a narrow strip: a shoulder's edge line beside a lane
+    line) both stay while the less confident one is unconfirmed (it has no role yet) or
+    at least ``min_confidence``; once it is confirmed and has fallen below that, it
+    goes.
 
     ``conf``, ``miss``, ``far_old`` and ``confirmed`` are updated in place.
     :return: ``(n_lines,)`` bool, the lines kept.
@@ -913,9 +915,9 @@ def existence_py(
             conf[i] += hit_gain * (1.0 - conf[i])
             miss[i] = 0.0
             far_old[i] = far[i]
-        elif not hidden[i]:
-            conf[i] *= 1.0 - miss_loss
-            miss[i] += travel
+        elif seen[i] > 0.0:
+            conf[i] *= 1.0 - miss_loss * seen[i]
+            miss[i] += travel * seen[i]
         if conf[i] >= min_confidence:
             confirmed[i] = True
     keep = np.empty(n, dtype=np.bool_)
