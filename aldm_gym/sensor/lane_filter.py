@@ -1187,9 +1187,10 @@ class LaneModelFilter:
 
         The first is the share of the line's length in the field of view that no
         vehicle blocks, 0 for a *hidden* line (less than :data:`HIDDEN_LENGTH` left in
-        view) and 1 where no vehicle blocks any of it: how far a miss in this frame is
-        evidence that the line is gone (:meth:`_existence`). A frame given as bare
-        points, or without occluders, hides nothing (all 1)."""
+        view) and 1 where no vehicle blocks any of it (or none of it is in the field
+        of view): how far a miss in this frame is evidence that the line is gone
+        (:meth:`_existence`). A frame given as bare points, or without occluders,
+        hides nothing (all 1)."""
         n = len(self._ids)
         seen = np.ones(n)
         shadow = np.full(n, math.inf)
@@ -1203,9 +1204,10 @@ class LaneModelFilter:
             return seen, shadow
         xs, in_view, blocked = grid
         visible = in_view & ~blocked
-        left = visible.sum(axis=1)
+        left, span = visible.sum(axis=1), in_view.sum(axis=1)
         hidden = blocked.any(axis=1) & (left * OCCLUSION_STEP < HIDDEN_LENGTH)
-        seen = np.where(hidden, 0.0, left / np.maximum(in_view.sum(axis=1), 1))
+        # a line with nothing in the field of view is missed whole, as without vehicles
+        seen = np.where(hidden, 0.0, np.where(span > 0, left / np.maximum(span, 1), 1.0))
         if beyond is not None:
             blocked &= xs[None, :] >= np.asarray(beyond)[:, None]
         first = np.where(blocked.any(axis=1), np.argmax(blocked, axis=1), -1)
