@@ -42,8 +42,9 @@ Each frame:
    :data:`JUMP_LINE_GAIN`): a multiple-model filter with a hard decision.
 4. **Existence.** A line whose points' robust weights sum to at least
    :data:`MIN_SUPPORT` in the frame is *hit*: its confidence ``p`` rises,
-   ``p += hit_gain (1 - p)``; otherwise it falls, ``p -= miss_loss p``. A line
-   without a hit for ``drop_length`` metres of travel is dropped; of two lines
+   ``p += hit_gain (1 - p)``; otherwise it falls, ``p -= miss_loss p`` (times the
+   share of the line the vehicles leave in view, below). A line without a hit for
+   ``drop_length`` metres of travel (counted by that share too) is dropped; of two lines
    closer than ``min_spacing`` the less confident one is dropped, and of two closer
    than ``lane_spacing`` (a narrow strip: a shoulder's edge line beside the lane
    line) once it is confirmed and has faded below ``min_confidence``. A line a vehicle
@@ -373,7 +374,8 @@ class FilterParams:
     :ivar min_confidence: a line is confirmed, and from then on reported until it
         is dropped, once its confidence reaches this.
     :ivar birth_confidence: confidence of a line born from points.
-    :ivar drop_length: a line without a hit for this much travel is dropped.
+    :ivar drop_length: a line without a hit for this much travel is dropped (a miss
+        counts the share of the line in view that no vehicle hides).
     :ivar min_spacing: after a frame's update no two lines are closer than this at
         the sensor (of two, the less confident is dropped): the stripes of a double
         line, at most 0.45 m apart, are one line.
@@ -790,7 +792,7 @@ class LaneModelFilter:
             return False
         x0 = np.concatenate((np.zeros(N_GEOMETRY), [float(v[0, 1]) for v in kept]))
         # a flat prior: headings of +-0.3, radii down to ~100 m, curvature changing by
-        # 0.005 1/m per node step (R 100 m reached over two steps, 45 m; chosen with
+        # 0.005 1/m per node step (R 100 m reached over two steps, 36 m; chosen with
         # 30 m steps), offsets +-2 m
         p0 = np.zeros((N_GEOMETRY + n, N_GEOMETRY + n))
         p0[:N_GEOMETRY, :N_GEOMETRY] = shape_covariance(0.3, 0.01, 0.005 / NODE_STEP)

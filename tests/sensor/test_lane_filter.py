@@ -571,7 +571,7 @@ def test_a_drop_where_a_vehicle_starts_to_hide_the_line_is_no_evidence(
         shadow = np.full(n, math.inf)
         shadow[1] = first
         monkeypatch.setattr(
-            LaneModelFilter, "_occlusion", lambda *_a, s=shadow, **_k: (np.zeros(n, bool), s)
+            LaneModelFilter, "_occlusion", lambda *_a, s=shadow, **_k: (np.ones(n), s)
         )
         assert filt._receded(pts, far) is drop
     far[1] = -math.inf

@@ -17,7 +17,7 @@ kernel calls and a little bookkeeping.
 The state is the shared shape (:data:`N_GEOMETRY` entries) followed by one offset per
 line; a point on line ``j`` has the measurement row ``(g_0 .. g_N, e_j)`` (``N =
 N_NODES``). The information matrix is small (:data:`N_GEOMETRY` + lines, about
-sixteen at most) and symmetric positive definite: it is solved and
+seventeen at most) and symmetric positive definite: it is solved and
 inverted by its Cholesky factor, written out rather than taken from LAPACK
 (``np.linalg.cholesky`` in numba), whose kernels pick their SIMD paths at run time:
 the kernels' sums run in the order written (numba compiles without fast-math, so no
