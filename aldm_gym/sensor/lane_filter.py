@@ -822,8 +822,9 @@ class LaneModelFilter:
             # nothing the right shape would not count too
             states = [st for st, _ in candidates] + ([self._x] if incumbent else [])
             scores = self._parallel_supports(states, x, y)
-            # of equal scores the simplest shape: straight, then fitted near, then whole
-            k = len(candidates) - 1 - int(np.argmax(scores[len(candidates) - 1 :: -1]))
+            # the best score; of equal ones the later, simpler shape (whole fit, near
+            # fit, straight)
+            k = max(range(len(candidates)), key=lambda i: (scores[i], i))
             if incumbent and scores[k] <= scores[-1] * (1.0 + margin):
                 return False
             best = candidates[k]
